@@ -1,0 +1,179 @@
+//! The codec interface: an object-safe [`AnimationCodec`] that makes streaming
+//! [`FrameEncoder`]s and [`FrameDecoder`]s.
+//!
+//! Frames reach an encoder in blocks as they arrive ([`FrameEncoder::push_frames`]); the
+//! encoder emits [`Packet`]s whenever it has enough to code, and the rest at
+//! [`FrameEncoder::finish`]. A codec that needs the whole sequence may buffer everything
+//! until `finish`, but the interface never forces it to. Decoders turn packets back into
+//! frames, one packet at a time.
+
+use std::fmt;
+
+use crate::animation::{Animation, Topology};
+use crate::container::Limits;
+use crate::error::Result;
+use crate::params::{ParamSet, ParamSpec, RateLadder};
+
+/// Four-character code identifying a codec inside a stream (never a list index).
+#[derive(Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct FourCc(pub [u8; 4]);
+
+impl FourCc {
+    /// Builds a FourCC from four ASCII bytes.
+    pub const fn new(code: &[u8; 4]) -> Self {
+        Self(*code)
+    }
+}
+
+impl fmt::Display for FourCc {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        for &b in &self.0 {
+            if b.is_ascii_graphic() || b == b' ' {
+                write!(f, "{}", b as char)?;
+            } else {
+                write!(f, "\\x{b:02x}")?;
+            }
+        }
+        Ok(())
+    }
+}
+
+impl fmt::Debug for FourCc {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "FourCc({self})")
+    }
+}
+
+/// One unit of coded data: the frames `first_frame .. first_frame + frame_count`.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Packet {
+    /// Index of the first frame this packet decodes to.
+    pub first_frame: u32,
+    /// Number of frames it decodes to (at least one).
+    pub frame_count: u32,
+    /// True when the packet decodes without any earlier packet (a random-access point).
+    pub keyframe: bool,
+    /// Codec payload.
+    pub data: Vec<u8>,
+}
+
+/// A packet plus, when asked for, the encoder's own reconstruction of its frames
+/// (`frame_count × vertices × 3`), which must equal the decoder's output bit for bit.
+#[derive(Debug, Clone, PartialEq)]
+pub struct EncodedPacket {
+    /// The packet.
+    pub packet: Packet,
+    /// The frames a decoder will produce from it, if requested in [`EncoderSetup`].
+    pub reconstruction: Option<Vec<f32>>,
+}
+
+/// What an encoder knows before the first frame arrives.
+#[derive(Debug, Clone, Copy)]
+pub struct EncoderSetup<'a> {
+    /// Connectivity shared by every frame.
+    pub topology: &'a Topology,
+    /// Total number of frames that will be pushed.
+    pub frame_count: usize,
+    /// Frames per second.
+    pub frame_rate: f32,
+    /// Whether the encoder should attach its reconstruction to every packet.
+    pub want_reconstruction: bool,
+}
+
+/// What a decoder is told about the stream, all read from the container header.
+#[derive(Debug, Clone)]
+pub struct StreamInfo {
+    /// Codec identity.
+    pub fourcc: FourCc,
+    /// Version of the codec's own bitstream.
+    pub codec_version: u16,
+    /// Connectivity (decoded from the topology section).
+    pub topology: Topology,
+    /// Number of frames in the stream.
+    pub frame_count: usize,
+    /// Frames per second.
+    pub frame_rate: f32,
+}
+
+impl StreamInfo {
+    /// Number of vertices.
+    pub fn vertex_count(&self) -> usize {
+        self.topology.vertex_count()
+    }
+}
+
+/// The error a codec promises on a given input, checked by the conformance suite.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct ErrorBound {
+    /// Every coordinate of every vertex in every frame is within this absolute distance.
+    pub max_coordinate_error: Option<f64>,
+    /// Root mean square of the per-coordinate error, relative to the bounding-box diagonal.
+    pub relative_rms_error: Option<f64>,
+}
+
+/// A streaming encoder made by [`AnimationCodec::new_encoder`].
+pub trait FrameEncoder: Send {
+    /// Stream-level configuration written once into the container header and handed to
+    /// the decoder (for example bit depths). Fixed at construction.
+    fn config(&self) -> Vec<u8>;
+
+    /// Accepts the next `frames` (a whole number of frames, frame-major `n × vertices × 3`,
+    /// already checked finite) and returns the packets it completes, in order.
+    fn push_frames(&mut self, frames: &[f32]) -> Result<Vec<EncodedPacket>>;
+
+    /// Codes whatever is buffered and returns the last packets.
+    fn finish(&mut self) -> Result<Vec<EncodedPacket>>;
+}
+
+/// A decoder made by [`AnimationCodec::new_decoder`]. Packets arrive in stream order; after a
+/// seek the caller calls [`FrameDecoder::reset`] and resumes at a keyframe packet.
+pub trait FrameDecoder: Send {
+    /// Decodes one packet to its frames (`frame_count × vertices × 3`). Every byte is
+    /// untrusted: any inconsistency is an error, never a panic.
+    fn decode_packet(&mut self, packet: &Packet) -> Result<Vec<f32>>;
+
+    /// Forgets state carried between packets (called before decoding from a keyframe after a seek).
+    fn reset(&mut self) {}
+}
+
+/// A codec: identity, parameters, rate knob, and factories for encoders and decoders.
+///
+/// Object safe, so one [`CodecRegistry`](crate::CodecRegistry) holds every codec.
+pub trait AnimationCodec: Send + Sync {
+    /// Stable name used on the command line (`quant-delta`, `pca-aoi`, …).
+    fn name(&self) -> &'static str;
+
+    /// FourCC written into the stream.
+    fn fourcc(&self) -> FourCc;
+
+    /// Version of this codec's bitstream that the encoder writes.
+    fn stream_version(&self) -> u16;
+
+    /// One-line description.
+    fn summary(&self) -> &'static str;
+
+    /// Parameters with kinds, ranges, defaults and docs.
+    fn param_specs(&self) -> Vec<ParamSpec>;
+
+    /// Parameter values, all at their defaults.
+    fn default_params(&self) -> ParamSet {
+        ParamSet::defaults(self.name(), &self.param_specs())
+    }
+
+    /// The one rate knob, from small streams to large.
+    fn rate_ladder(&self) -> RateLadder;
+
+    /// Checks a full parameter set, including constraints between parameters; errors state
+    /// the allowed range.
+    fn validate(&self, params: &ParamSet) -> Result<()>;
+
+    /// The error this codec promises for `animation` at `params`.
+    fn error_bound(&self, params: &ParamSet, animation: &Animation) -> Result<ErrorBound>;
+
+    /// A streaming encoder.
+    fn new_encoder(&self, params: &ParamSet, setup: &EncoderSetup<'_>) -> Result<Box<dyn FrameEncoder>>;
+
+    /// A decoder for a stream with this codec's FourCC. `config` is the encoder's
+    /// [`FrameEncoder::config`], read back from the header and untrusted.
+    fn new_decoder(&self, info: &StreamInfo, config: &[u8], limits: &Limits) -> Result<Box<dyn FrameDecoder>>;
+}

@@ -1,0 +1,287 @@
+//! Machine-readable codec parameters.
+//!
+//! Each codec keeps its parameters in a typed struct with `Default` and `validate()`. To sit
+//! behind the object-safe [`AnimationCodec`](crate::AnimationCodec) trait, it also describes
+//! them as a list of [`ParamSpec`]s and converts to and from a [`ParamSet`] of typed
+//! [`ParamValue`]s. Strings appear only at the CLI edge, in [`ParamSpec::parse`].
+
+use std::fmt;
+
+use crate::error::{Error, Result};
+
+/// The kind of a parameter and its allowed values.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ParamKind {
+    /// An integer in `min ..= max`.
+    Int {
+        /// Smallest allowed value.
+        min: i64,
+        /// Largest allowed value.
+        max: i64,
+    },
+    /// A real number in `min ..= max`.
+    Float {
+        /// Smallest allowed value.
+        min: f64,
+        /// Largest allowed value.
+        max: f64,
+    },
+    /// `true` or `false`.
+    Bool,
+    /// One of a fixed set of names.
+    Choice(&'static [&'static str]),
+}
+
+impl fmt::Display for ParamKind {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            ParamKind::Int { min, max } => write!(f, "integer {min}..={max}"),
+            ParamKind::Float { min, max } => write!(f, "number {min}..={max}"),
+            ParamKind::Bool => write!(f, "true|false"),
+            ParamKind::Choice(options) => write!(f, "{}", options.join("|")),
+        }
+    }
+}
+
+/// A parameter value.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ParamValue {
+    /// Integer value.
+    Int(i64),
+    /// Real value.
+    Float(f64),
+    /// Boolean value.
+    Bool(bool),
+    /// One of the names of a [`ParamKind::Choice`].
+    Choice(&'static str),
+}
+
+impl fmt::Display for ParamValue {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            ParamValue::Int(v) => write!(f, "{v}"),
+            ParamValue::Float(v) => write!(f, "{v}"),
+            ParamValue::Bool(v) => write!(f, "{v}"),
+            ParamValue::Choice(v) => write!(f, "{v}"),
+        }
+    }
+}
+
+/// Description of one codec parameter.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ParamSpec {
+    /// Name, as used in `-p name=value`.
+    pub name: &'static str,
+    /// Kind and allowed values.
+    pub kind: ParamKind,
+    /// Default value.
+    pub default: ParamValue,
+    /// One-line description.
+    pub doc: &'static str,
+}
+
+impl ParamSpec {
+    /// Checks that `value` has this parameter's kind and lies in its range.
+    pub fn check(&self, codec: &'static str, value: &ParamValue) -> Result<()> {
+        let bad = |msg: String| Err(Error::parameter(codec, self.name, msg));
+        match (&self.kind, value) {
+            (ParamKind::Int { min, max }, ParamValue::Int(v)) => {
+                if v < min || v > max {
+                    return bad(format!("{v} is outside the allowed range {min}..={max}"));
+                }
+            }
+            (ParamKind::Float { min, max }, ParamValue::Float(v)) => {
+                if !(v.is_finite() && v >= min && v <= max) {
+                    return bad(format!("{v} is outside the allowed range {min}..={max}"));
+                }
+            }
+            (ParamKind::Bool, ParamValue::Bool(_)) => {}
+            (ParamKind::Choice(options), ParamValue::Choice(v)) => {
+                if !options.contains(v) {
+                    return bad(format!("'{v}' is not one of {}", options.join(", ")));
+                }
+            }
+            (kind, v) => return bad(format!("{v} is not a {kind}")),
+        }
+        Ok(())
+    }
+
+    /// Parses a command-line string into a value of this parameter's kind, checking the range.
+    pub fn parse(&self, codec: &'static str, text: &str) -> Result<ParamValue> {
+        let bad = |what: &str| Error::parameter(codec, self.name, format!("'{text}' is not {what} (expected {})", self.kind));
+        let value = match &self.kind {
+            ParamKind::Int { .. } => ParamValue::Int(text.trim().parse().map_err(|_| bad("an integer"))?),
+            ParamKind::Float { .. } => ParamValue::Float(text.trim().parse().map_err(|_| bad("a number"))?),
+            ParamKind::Bool => ParamValue::Bool(match text.trim() {
+                "true" | "1" | "yes" | "on" => true,
+                "false" | "0" | "no" | "off" => false,
+                _ => return Err(bad("a boolean")),
+            }),
+            ParamKind::Choice(options) => {
+                ParamValue::Choice(options.iter().find(|o| **o == text.trim()).ok_or_else(|| bad("a valid choice"))?)
+            }
+        };
+        self.check(codec, &value)?;
+        Ok(value)
+    }
+}
+
+/// A full, checked assignment of values to a codec's parameters, in spec order.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ParamSet {
+    codec: &'static str,
+    values: Vec<(&'static str, ParamValue)>,
+}
+
+impl ParamSet {
+    /// Every parameter at its default.
+    pub fn defaults(codec: &'static str, specs: &[ParamSpec]) -> Self {
+        Self { codec, values: specs.iter().map(|s| (s.name, s.default.clone())).collect() }
+    }
+
+    /// The codec these values belong to.
+    pub fn codec(&self) -> &'static str {
+        self.codec
+    }
+
+    /// Sets one parameter after checking name, kind and range against `specs`.
+    /// An unknown name gives an error listing the valid ones.
+    pub fn set(&mut self, specs: &[ParamSpec], name: &str, value: ParamValue) -> Result<()> {
+        let spec = find_spec(self.codec, specs, name)?;
+        spec.check(self.codec, &value)?;
+        let slot = self.values.iter_mut().find(|(n, _)| *n == spec.name);
+        match slot {
+            Some(slot) => slot.1 = value,
+            None => self.values.push((spec.name, value)),
+        }
+        Ok(())
+    }
+
+    /// Builder form of [`ParamSet::set`].
+    pub fn with(mut self, specs: &[ParamSpec], name: &str, value: ParamValue) -> Result<Self> {
+        self.set(specs, name, value)?;
+        Ok(self)
+    }
+
+    /// The value of `name`, if set.
+    pub fn get(&self, name: &str) -> Option<&ParamValue> {
+        self.values.iter().find(|(n, _)| *n == name).map(|(_, v)| v)
+    }
+
+    /// All `(name, value)` pairs in spec order.
+    pub fn iter(&self) -> impl Iterator<Item = (&'static str, &ParamValue)> {
+        self.values.iter().map(|(n, v)| (*n, v))
+    }
+
+    fn missing(&self, name: &'static str, kind: &str) -> Error {
+        Error::parameter(self.codec, name, format!("missing or not {kind}"))
+    }
+
+    /// Integer value of `name`.
+    pub fn int(&self, name: &'static str) -> Result<i64> {
+        match self.get(name) {
+            Some(ParamValue::Int(v)) => Ok(*v),
+            _ => Err(self.missing(name, "an integer")),
+        }
+    }
+    /// Real value of `name` (integers are accepted too).
+    pub fn float(&self, name: &'static str) -> Result<f64> {
+        match self.get(name) {
+            Some(ParamValue::Float(v)) => Ok(*v),
+            Some(ParamValue::Int(v)) => Ok(*v as f64),
+            _ => Err(self.missing(name, "a number")),
+        }
+    }
+    /// Boolean value of `name`.
+    pub fn bool(&self, name: &'static str) -> Result<bool> {
+        match self.get(name) {
+            Some(ParamValue::Bool(v)) => Ok(*v),
+            _ => Err(self.missing(name, "a boolean")),
+        }
+    }
+    /// Choice value of `name`.
+    pub fn choice(&self, name: &'static str) -> Result<&'static str> {
+        match self.get(name) {
+            Some(ParamValue::Choice(v)) => Ok(v),
+            _ => Err(self.missing(name, "a choice")),
+        }
+    }
+}
+
+impl fmt::Display for ParamSet {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        for (i, (n, v)) in self.values.iter().enumerate() {
+            if i > 0 {
+                write!(f, ",")?;
+            }
+            write!(f, "{n}={v}")?;
+        }
+        Ok(())
+    }
+}
+
+/// Finds the spec called `name`; the error lists every valid name.
+pub fn find_spec<'a>(codec: &'static str, specs: &'a [ParamSpec], name: &str) -> Result<&'a ParamSpec> {
+    specs.iter().find(|s| s.name == name).ok_or_else(|| {
+        let valid: Vec<&str> = specs.iter().map(|s| s.name).collect();
+        Error::parameter(codec, name.to_string(), format!("unknown parameter; valid parameters: {}", valid.join(", ")))
+    })
+}
+
+/// A codec's single rate knob: settings of one parameter ordered from the smallest stream
+/// to the largest, so sweeps and target-error search treat every codec alike.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RateLadder {
+    /// The parameter the ladder walks.
+    pub param: &'static str,
+    /// Values, from the smallest stream (largest error) to the largest stream.
+    pub steps: Vec<ParamValue>,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn specs() -> Vec<ParamSpec> {
+        vec![
+            ParamSpec { name: "bits", kind: ParamKind::Int { min: 1, max: 24 }, default: ParamValue::Int(12), doc: "" },
+            ParamSpec { name: "mode", kind: ParamKind::Choice(&["a", "b"]), default: ParamValue::Choice("a"), doc: "" },
+            ParamSpec { name: "on", kind: ParamKind::Bool, default: ParamValue::Bool(false), doc: "" },
+            ParamSpec {
+                name: "eps",
+                kind: ParamKind::Float { min: 0.0, max: 1.0 },
+                default: ParamValue::Float(0.5),
+                doc: "",
+            },
+        ]
+    }
+
+    #[test]
+    fn set_checks_name_kind_and_range() {
+        let s = specs();
+        let mut p = ParamSet::defaults("x", &s);
+        assert_eq!(p.int("bits").unwrap(), 12);
+        p.set(&s, "bits", ParamValue::Int(8)).unwrap();
+        assert_eq!(p.int("bits").unwrap(), 8);
+        let e = p.set(&s, "bitz", ParamValue::Int(8)).unwrap_err().to_string();
+        assert!(e.contains("valid parameters: bits, mode, on, eps"), "{e}");
+        let e = p.set(&s, "bits", ParamValue::Int(25)).unwrap_err().to_string();
+        assert!(e.contains("1..=24"), "{e}");
+        assert!(p.set(&s, "bits", ParamValue::Float(3.0)).is_err());
+        assert!(p.set(&s, "mode", ParamValue::Choice("c")).is_err());
+        assert!(p.set(&s, "eps", ParamValue::Float(f64::NAN)).is_err());
+    }
+
+    #[test]
+    fn parse_from_text() {
+        let s = specs();
+        assert_eq!(s[0].parse("x", "7").unwrap(), ParamValue::Int(7));
+        assert!(s[0].parse("x", "seven").is_err());
+        assert!(s[0].parse("x", "99").is_err());
+        assert_eq!(s[1].parse("x", "b").unwrap(), ParamValue::Choice("b"));
+        assert_eq!(s[2].parse("x", "yes").unwrap(), ParamValue::Bool(true));
+        assert_eq!(s[3].parse("x", "0.25").unwrap(), ParamValue::Float(0.25));
+        let e = s[1].parse("x", "z").unwrap_err().to_string();
+        assert!(e.contains("a|b"), "{e}");
+    }
+}

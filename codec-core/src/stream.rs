@@ -1,0 +1,315 @@
+//! Driving codecs through the container: streaming encode and decode, whole-animation
+//! helpers, and random access by frame.
+
+use std::io::{Read, Seek, Write};
+
+use crate::animation::{check_finite, Animation, Topology};
+use crate::codec::{AnimationCodec, EncodedPacket, EncoderSetup, FrameDecoder, FrameEncoder, Packet};
+use crate::container::{self, ContainerReader, ContainerWriter, Header, IndexEntry, Limits, Section};
+use crate::error::{Error, Result};
+use crate::params::ParamSet;
+use crate::registry::CodecRegistry;
+
+/// Encodes frames as they arrive into a container written to `W`.
+pub struct StreamEncoder<W: Write> {
+    codec: &'static str,
+    encoder: Box<dyn FrameEncoder>,
+    writer: ContainerWriter<W>,
+    vertex_count: usize,
+    frames_pushed: usize,
+    frame_count: usize,
+}
+
+impl<W: Write> StreamEncoder<W> {
+    /// Validates `params`, makes the codec's encoder and writes the container header.
+    /// `frame_count` frames must then be pushed before [`StreamEncoder::finish`].
+    pub fn new(
+        codec: &dyn AnimationCodec,
+        params: &ParamSet,
+        topology: &Topology,
+        frame_count: usize,
+        frame_rate: f32,
+        want_reconstruction: bool,
+        sink: W,
+    ) -> Result<Self> {
+        if params.codec() != codec.name() {
+            return Err(Error::parameter(
+                codec.name(),
+                "params",
+                format!("parameters belong to codec '{}'", params.codec()),
+            ));
+        }
+        if frame_count == 0 {
+            return Err(Error::InvalidAnimation("the animation has no frames".into()));
+        }
+        if !(frame_rate.is_finite() && frame_rate > 0.0) {
+            return Err(Error::InvalidAnimation(format!("frame rate {frame_rate} is not a finite positive number")));
+        }
+        codec.validate(params)?;
+        let setup = EncoderSetup { topology, frame_count, frame_rate, want_reconstruction };
+        let encoder = codec.new_encoder(params, &setup)?;
+        let writer = ContainerWriter::new(
+            sink,
+            codec.fourcc(),
+            codec.stream_version(),
+            topology,
+            frame_count,
+            frame_rate,
+            &encoder.config(),
+        )?;
+        Ok(Self {
+            codec: codec.name(),
+            encoder,
+            writer,
+            vertex_count: topology.vertex_count(),
+            frames_pushed: 0,
+            frame_count,
+        })
+    }
+
+    /// Pushes the next frames (frame-major, a whole number of frames), writes the packets
+    /// they complete and returns them with their reconstructions if those were asked for.
+    pub fn push_frames(&mut self, frames: &[f32]) -> Result<Vec<EncodedPacket>> {
+        let per_frame = self.vertex_count * 3;
+        if frames.len() % per_frame != 0 {
+            return Err(Error::InvalidAnimation(format!(
+                "{} coordinates is not a whole number of frames of {} vertices",
+                frames.len(),
+                self.vertex_count
+            )));
+        }
+        let n = frames.len() / per_frame;
+        if self.frames_pushed + n > self.frame_count {
+            return Err(Error::InvalidAnimation(format!(
+                "{} frames pushed, but the stream was declared with {}",
+                self.frames_pushed + n,
+                self.frame_count
+            )));
+        }
+        check_finite(frames, self.vertex_count, self.frames_pushed)?;
+        self.frames_pushed += n;
+        let packets = self.encoder.push_frames(frames)?;
+        self.write(packets)
+    }
+
+    fn write(&mut self, packets: Vec<EncodedPacket>) -> Result<Vec<EncodedPacket>> {
+        for p in &packets {
+            if let Some(rec) = &p.reconstruction {
+                if rec.len() != p.packet.frame_count as usize * self.vertex_count * 3 {
+                    return Err(Error::Unsupported {
+                        context: self.codec.into(),
+                        detail: "encoder reconstruction has the wrong size".into(),
+                    });
+                }
+            }
+            self.writer.write_packet(&p.packet)?;
+        }
+        Ok(packets)
+    }
+
+    /// Flushes the encoder, writes the index and returns the last packets and the sink.
+    pub fn finish(mut self) -> Result<(Vec<EncodedPacket>, W)> {
+        if self.frames_pushed != self.frame_count {
+            return Err(Error::InvalidAnimation(format!(
+                "{} frames pushed, but the stream was declared with {}",
+                self.frames_pushed, self.frame_count
+            )));
+        }
+        let packets = self.encoder.finish()?;
+        let packets = self.write(packets)?;
+        Ok((packets, self.writer.finish()?))
+    }
+}
+
+/// Result of [`encode_animation`].
+#[derive(Debug, Clone)]
+pub struct Encoded {
+    /// The container bytes.
+    pub bytes: Vec<u8>,
+    /// The encoder's reconstruction, when requested.
+    pub reconstruction: Option<Animation>,
+}
+
+/// Encodes a whole animation, pushing it in blocks of `feed_frames` frames (the bytes do
+/// not depend on `feed_frames`; it exists so tests can prove that).
+pub fn encode_animation_fed(
+    codec: &dyn AnimationCodec,
+    params: &ParamSet,
+    animation: &Animation,
+    want_reconstruction: bool,
+    feed_frames: usize,
+) -> Result<Encoded> {
+    let mut enc = StreamEncoder::new(
+        codec,
+        params,
+        animation.topology(),
+        animation.frame_count(),
+        animation.frame_rate(),
+        want_reconstruction,
+        Vec::new(),
+    )?;
+    let per_frame = animation.vertex_count() * 3;
+    let mut rec = Vec::new();
+    let mut keep = |packets: Vec<EncodedPacket>| {
+        for p in packets {
+            if let Some(r) = p.reconstruction {
+                rec.extend_from_slice(&r);
+            }
+        }
+    };
+    for chunk in animation.positions().chunks(feed_frames.max(1) * per_frame) {
+        keep(enc.push_frames(chunk)?);
+    }
+    let (last, bytes) = enc.finish()?;
+    keep(last);
+    let reconstruction = if want_reconstruction {
+        Some(Animation::new(animation.topology().clone(), rec, animation.frame_rate())?)
+    } else {
+        None
+    };
+    Ok(Encoded { bytes, reconstruction })
+}
+
+/// Encodes a whole animation into container bytes.
+pub fn encode_animation(codec: &dyn AnimationCodec, params: &ParamSet, animation: &Animation) -> Result<Vec<u8>> {
+    Ok(encode_animation_fed(codec, params, animation, false, animation.frame_count())?.bytes)
+}
+
+/// Frames decoded from one packet.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DecodedPacket {
+    /// First frame.
+    pub first_frame: usize,
+    /// Number of frames.
+    pub frame_count: usize,
+    /// Positions, `frame_count × vertices × 3`.
+    pub positions: Vec<f32>,
+}
+
+/// Decodes a container from any `Read`, packet by packet.
+pub struct StreamDecoder<R: Read> {
+    reader: ContainerReader<R>,
+    decoder: Box<dyn FrameDecoder>,
+    codec: &'static str,
+    index: Option<Vec<IndexEntry>>,
+}
+
+fn check_decoded(codec: &'static str, header: &Header, limits: &Limits, packet: &Packet, positions: &[f32]) -> Result<()> {
+    let v = header.info.vertex_count();
+    if positions.len() != packet.frame_count as usize * v * 3 {
+        return Err(Error::malformed(
+            codec,
+            "packet",
+            format!("decoded {} coordinates for {} frames of {v} vertices", positions.len(), packet.frame_count),
+        ));
+    }
+    let _ = limits;
+    check_finite(positions, v, packet.first_frame as usize)
+        .map_err(|e| Error::malformed(codec, "packet", format!("decoded frames are not finite: {e}")))
+}
+
+fn packet_alloc(header: &Header, frames: u64) -> u64 {
+    frames * header.info.vertex_count() as u64 * 12
+}
+
+impl<R: Read> StreamDecoder<R> {
+    /// Reads the header and makes the decoder of the codec named by its FourCC.
+    pub fn new(src: R, registry: &CodecRegistry, limits: Limits) -> Result<Self> {
+        let reader = ContainerReader::new(src, limits)?;
+        let header = reader.header();
+        let codec = registry.by_fourcc(header.info.fourcc)?;
+        if header.info.codec_version > codec.stream_version() || header.info.codec_version == 0 {
+            return Err(Error::Unsupported {
+                context: codec.name().into(),
+                detail: format!(
+                    "stream version {}; this build reads 1..={}",
+                    header.info.codec_version,
+                    codec.stream_version()
+                ),
+            });
+        }
+        let decoder = codec.new_decoder(&header.info, &header.config, &limits)?;
+        Ok(Self { codec: codec.name(), reader, decoder, index: None })
+    }
+
+    /// The container header.
+    pub fn header(&self) -> &Header {
+        self.reader.header()
+    }
+
+    /// Name of the codec decoding the stream.
+    pub fn codec_name(&self) -> &'static str {
+        self.codec
+    }
+
+    /// The index, once [`StreamDecoder::next_packet`] has returned `None`.
+    pub fn index(&self) -> Option<&[IndexEntry]> {
+        self.index.as_deref()
+    }
+
+    /// Decodes the next packet; `None` after the last one (the index has then been verified).
+    pub fn next_packet(&mut self) -> Option<Result<DecodedPacket>> {
+        match self.reader.next_section()? {
+            Err(e) => Some(Err(e)),
+            Ok(Section::End(index)) => {
+                self.index = Some(index);
+                None
+            }
+            Ok(Section::Packet(packet)) => Some(self.decode(&packet)),
+        }
+    }
+
+    fn decode(&mut self, packet: &Packet) -> Result<DecodedPacket> {
+        let header = self.reader.header();
+        let limits = *self.reader.limits();
+        limits.check_alloc(self.codec, "packet_frame_count", packet_alloc(header, packet.frame_count as u64))?;
+        let positions = self.decoder.decode_packet(packet)?;
+        check_decoded(self.codec, self.reader.header(), &limits, packet, &positions)?;
+        Ok(DecodedPacket {
+            first_frame: packet.first_frame as usize,
+            frame_count: packet.frame_count as usize,
+            positions,
+        })
+    }
+
+    /// Decodes every packet into one animation.
+    pub fn decode_all(mut self) -> Result<Animation> {
+        let header = self.reader.header();
+        self.reader.limits().check_alloc(self.codec, "frame_count", packet_alloc(header, header.info.frame_count as u64))?;
+        let mut positions = Vec::new();
+        while let Some(p) = self.next_packet() {
+            positions.extend_from_slice(&p?.positions);
+        }
+        let info = &self.reader.header().info;
+        Animation::new(info.topology.clone(), positions, info.frame_rate)
+    }
+}
+
+/// Decodes container bytes into an animation.
+pub fn decode_animation(bytes: &[u8], registry: &CodecRegistry, limits: Limits) -> Result<Animation> {
+    StreamDecoder::new(bytes, registry, limits)?.decode_all()
+}
+
+/// Decodes frame `t` of a seekable stream using the index: reads only the packets from the
+/// nearest keyframe at or before the packet holding `t`.
+pub fn decode_frame<R: Read + Seek>(src: &mut R, registry: &CodecRegistry, limits: Limits, t: usize) -> Result<Vec<f32>> {
+    let (header, index) = container::read_index(src, limits)?;
+    let codec = registry.by_fourcc(header.info.fourcc)?;
+    let (start, target) = container::seek_packets(&index, t).ok_or_else(|| {
+        Error::InvalidAnimation(format!("frame {t} is past the end of the stream ({} frames)", header.info.frame_count))
+    })?;
+    let mut decoder = codec.new_decoder(&header.info, &header.config, &limits)?;
+    decoder.reset();
+    let v3 = header.info.vertex_count() * 3;
+    for entry in &index[start..=target] {
+        let packet = container::read_packet_at(src, entry, &header, limits)?;
+        limits.check_alloc(codec.name(), "packet_frame_count", packet_alloc(&header, packet.frame_count as u64))?;
+        let positions = decoder.decode_packet(&packet)?;
+        check_decoded(codec.name(), &header, &limits, &packet, &positions)?;
+        if entry.first_frame as usize + entry.frame_count as usize > t {
+            let local = t - entry.first_frame as usize;
+            return Ok(positions[local * v3..(local + 1) * v3].to_vec());
+        }
+    }
+    unreachable!("seek_packets returns a target packet that holds frame t")
+}

@@ -1,0 +1,1 @@
+//! Synthetic animations for demos and tests (filled in by the synth work item).

@@ -1,0 +1,1 @@
+//! Codec crate placeholder: filled in by its own issue; not yet registered.

@@ -1,0 +1,1 @@
+//! Error metrics for mesh animations (filled in by the metrics issue).

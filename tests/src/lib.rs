@@ -1,0 +1,1 @@
+//! Conformance suite crate: the tests live in `tests/`.
