@@ -22,9 +22,7 @@ impl Topology {
             return Err(Error::InvalidAnimation("the animation has no vertices".into()));
         }
         if vertex_count > u32::MAX as usize {
-            return Err(Error::InvalidAnimation(format!(
-                "{vertex_count} vertices do not fit in 32-bit indices"
-            )));
+            return Err(Error::InvalidAnimation(format!("{vertex_count} vertices do not fit in 32-bit indices")));
         }
         if let Some((t, tri)) =
             triangles.iter().enumerate().find(|(_, tri)| tri.iter().any(|&i| i as usize >= vertex_count))
@@ -80,9 +78,7 @@ impl Animation {
             )));
         }
         if !(frame_rate.is_finite() && frame_rate > 0.0) {
-            return Err(Error::InvalidAnimation(format!(
-                "frame rate {frame_rate} is not a finite positive number"
-            )));
+            return Err(Error::InvalidAnimation(format!("frame rate {frame_rate} is not a finite positive number")));
         }
         check_finite(&positions, topology.vertex_count, 0)?;
         let frame_count = positions.len() / floats_per_frame;

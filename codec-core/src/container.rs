@@ -149,7 +149,9 @@ pub fn decode_topology(block: &[u8], vertex_count: usize, triangle_count: usize,
         let c = a + r.varint_signed("topology")?;
         for i in [a, b, c] {
             if i < 0 || i >= vertex_count as i64 {
-                return Err(r.malformed("topology", format!("triangle {t} has index {i}, vertex count is {vertex_count}")));
+                return Err(
+                    r.malformed("topology", format!("triangle {t} has index {i}, vertex count is {vertex_count}"))
+                );
             }
         }
         triangles.push([a as u32, b as u32, c as u32]);
@@ -421,7 +423,11 @@ impl<R: Read> ContainerReader<R> {
             return self.read_index_section();
         }
         if tag != PACKET_TAG {
-            return Err(Error::malformed(CTX, "packet_tag", format!("unexpected bytes {tag:02x?} at offset {}", self.offset)));
+            return Err(Error::malformed(
+                CTX,
+                "packet_tag",
+                format!("unexpected bytes {tag:02x?} at offset {}", self.offset),
+            ));
         }
         let mut fields = [0u8; 13];
         read_exact_or_truncated(&mut self.src, &mut fields, "packet_header")?;
@@ -436,7 +442,10 @@ impl<R: Read> ContainerReader<R> {
         if frame_count == 0 || self.next_frame + frame_count as u64 > self.header.info.frame_count as u64 {
             return Err(r.malformed(
                 "packet_frame_count",
-                format!("{frame_count} frames from {first_frame} overruns the {} declared", self.header.info.frame_count),
+                format!(
+                    "{frame_count} frames from {first_frame} overruns the {} declared",
+                    self.header.info.frame_count
+                ),
             ));
         }
         if flags > 1 {
@@ -458,7 +467,13 @@ impl<R: Read> ContainerReader<R> {
                 computed,
             });
         }
-        let entry = IndexEntry { offset: self.offset, first_frame, frame_count, keyframe: flags & 1 == 1, payload_bytes: payload_len };
+        let entry = IndexEntry {
+            offset: self.offset,
+            first_frame,
+            frame_count,
+            keyframe: flags & 1 == 1,
+            payload_bytes: payload_len,
+        };
         self.offset += entry.stored_bytes();
         self.next_frame += frame_count as u64;
         self.seen.push(entry);
@@ -477,7 +492,11 @@ impl<R: Read> ContainerReader<R> {
         read_exact_or_truncated(&mut self.src, &mut count, "index_count")?;
         let n = u32::from_le_bytes(count) as usize;
         if n != self.seen.len() {
-            return Err(Error::malformed(CTX, "index_count", format!("{n}, but the stream holds {} packets", self.seen.len())));
+            return Err(Error::malformed(
+                CTX,
+                "index_count",
+                format!("{n}, but the stream holds {} packets", self.seen.len()),
+            ));
         }
         let body = read_vec(&mut self.src, (n * INDEX_ENTRY_BYTES) as u64, u64::MAX, "index")?;
         let mut tail = [0u8; 4 + TRAILER_BYTES];
@@ -565,7 +584,11 @@ pub fn read_index<R: Read + Seek>(src: &mut R, limits: Limits) -> Result<(Header
     }
     let index_offset = u64::from_le_bytes(trailer[..8].try_into().expect("8 bytes"));
     if index_offset < header.header_bytes as u64 || index_offset > total - min_len + header.header_bytes as u64 {
-        return Err(Error::malformed(CTX, "index_offset", format!("{index_offset} outside the stream of {total} bytes")));
+        return Err(Error::malformed(
+            CTX,
+            "index_offset",
+            format!("{index_offset} outside the stream of {total} bytes"),
+        ));
     }
     src.seek(SeekFrom::Start(index_offset)).map_err(|e| Error::io("seeking", e))?;
     let mut head = [0u8; 8];
@@ -596,7 +619,12 @@ pub fn read_index<R: Read + Seek>(src: &mut R, limits: Limits) -> Result<(Header
 }
 
 /// Reads the packet an index entry points to (checksum and frame range checked).
-pub fn read_packet_at<R: Read + Seek>(src: &mut R, entry: &IndexEntry, header: &Header, limits: Limits) -> Result<Packet> {
+pub fn read_packet_at<R: Read + Seek>(
+    src: &mut R,
+    entry: &IndexEntry,
+    header: &Header,
+    limits: Limits,
+) -> Result<Packet> {
     src.seek(SeekFrom::Start(entry.offset)).map_err(|e| Error::io("seeking", e))?;
     let mut reader = ContainerReader {
         src: &mut *src,
@@ -616,7 +644,9 @@ pub fn read_packet_at<R: Read + Seek>(src: &mut R, entry: &IndexEntry, header: &
 /// The packet holding frame `t`, and the keyframe packet decoding must start from.
 /// Returns `(start, target)` positions in `index`.
 pub fn seek_packets(index: &[IndexEntry], t: usize) -> Option<(usize, usize)> {
-    let target = index.iter().position(|e| (e.first_frame as usize..e.first_frame as usize + e.frame_count as usize).contains(&t))?;
+    let target = index
+        .iter()
+        .position(|e| (e.first_frame as usize..e.first_frame as usize + e.frame_count as usize).contains(&t))?;
     let start = (0..=target).rev().find(|&i| index[i].keyframe).unwrap_or(0);
     Some((start, target))
 }

@@ -40,12 +40,16 @@ pub fn decompress(
     // a frame cannot expand more than 32768-fold: a tiny frame claiming a huge size is
     // malformed, and rejecting it here avoids a large useless allocation.
     if raw_len > (frame.len() as u64 + 1) * 32768 {
-        return Err(Error::malformed(context, field, format!("{} compressed bytes cannot hold {raw_len} bytes", frame.len())));
+        return Err(Error::malformed(
+            context,
+            field,
+            format!("{} compressed bytes cannot hold {raw_len} bytes", frame.len()),
+        ));
     }
     // zstd writes into the vector's spare capacity and sets its length to what it produced.
     let mut out = Vec::with_capacity(raw_len as usize);
-    let mut decoder = zstd::bulk::Decompressor::new()
-        .map_err(|e| Error::malformed(context.clone(), field, format!("zstd: {e}")))?;
+    let mut decoder =
+        zstd::bulk::Decompressor::new().map_err(|e| Error::malformed(context.clone(), field, format!("zstd: {e}")))?;
     let n = decoder
         .decompress_to_buffer(frame, &mut out)
         .map_err(|e| Error::malformed(context.clone(), field, format!("zstd: {e}")))?;

@@ -108,7 +108,8 @@ impl ParamSpec {
 
     /// Parses a command-line string into a value of this parameter's kind, checking the range.
     pub fn parse(&self, codec: &'static str, text: &str) -> Result<ParamValue> {
-        let bad = |what: &str| Error::parameter(codec, self.name, format!("'{text}' is not {what} (expected {})", self.kind));
+        let bad =
+            |what: &str| Error::parameter(codec, self.name, format!("'{text}' is not {what} (expected {})", self.kind));
         let value = match &self.kind {
             ParamKind::Int { .. } => ParamValue::Int(text.trim().parse().map_err(|_| bad("an integer"))?),
             ParamKind::Float { .. } => ParamValue::Float(text.trim().parse().map_err(|_| bad("a number"))?),

@@ -23,11 +23,7 @@ impl Quantizer {
     /// A quantizer for `[min, max]` at `bits` bits (1..=32).
     pub fn new(min: f32, max: f32, bits: u8) -> Result<Self> {
         if !BITS_RANGE.contains(&bits) {
-            return Err(Error::parameter(
-                "quantizer",
-                "bits",
-                format!("{bits} is outside the allowed range 1..=32"),
-            ));
+            return Err(Error::parameter("quantizer", "bits", format!("{bits} is outside the allowed range 1..=32")));
         }
         if !(min.is_finite() && max.is_finite() && min <= max) {
             return Err(Error::parameter(

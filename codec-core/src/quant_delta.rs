@@ -194,7 +194,8 @@ impl QuantDeltaEncoder {
         }
         let planes = to_byte_planes(&residuals, plane_count(self.params.bits));
         w.bytes(&entropy::compress(&planes, self.params.level));
-        let packet = Packet { first_frame: self.next_frame, frame_count: frames as u32, keyframe: true, data: w.into_vec() };
+        let packet =
+            Packet { first_frame: self.next_frame, frame_count: frames as u32, keyframe: true, data: w.into_vec() };
         self.next_frame += frames as u32;
         Ok(EncodedPacket { packet, reconstruction })
     }
@@ -331,7 +332,8 @@ mod tests {
             let dec = decode_animation(&enc.bytes, &registry, Limits::default()).unwrap();
             assert_eq!(Some(&dec), enc.reconstruction.as_ref(), "bits {bits}");
             let bound = QuantDelta.error_bound(&params, &anim).unwrap().max_coordinate_error.unwrap();
-            let err = anim.positions().iter().zip(dec.positions()).map(|(a, b)| (a - b).abs() as f64).fold(0.0, f64::max);
+            let err =
+                anim.positions().iter().zip(dec.positions()).map(|(a, b)| (a - b).abs() as f64).fold(0.0, f64::max);
             assert!(err <= bound, "bits {bits}: error {err} > bound {bound}");
             let all_at_once = encode_animation_fed(&QuantDelta, &params, &anim, false, 1000).unwrap();
             assert_eq!(all_at_once.bytes, enc.bytes, "bytes depend on how frames are fed");

@@ -26,7 +26,13 @@ impl CodecRegistry {
                 if a.name() == b.name() || a.fourcc() == b.fourcc() {
                     return Err(Error::Unsupported {
                         context: "registry".into(),
-                        detail: format!("codecs '{}' ({}) and '{}' ({}) clash", a.name(), a.fourcc(), b.name(), b.fourcc()),
+                        detail: format!(
+                            "codecs '{}' ({}) and '{}' ({}) clash",
+                            a.name(),
+                            a.fourcc(),
+                            b.name(),
+                            b.fourcc()
+                        ),
                     });
                 }
             }

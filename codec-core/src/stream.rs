@@ -194,7 +194,7 @@ pub struct StreamDecoder<R: Read> {
     index: Option<Vec<IndexEntry>>,
 }
 
-fn check_decoded(codec: &'static str, header: &Header, limits: &Limits, packet: &Packet, positions: &[f32]) -> Result<()> {
+fn check_decoded(codec: &'static str, header: &Header, packet: &Packet, positions: &[f32]) -> Result<()> {
     let v = header.info.vertex_count();
     if positions.len() != packet.frame_count as usize * v * 3 {
         return Err(Error::malformed(
@@ -203,7 +203,6 @@ fn check_decoded(codec: &'static str, header: &Header, limits: &Limits, packet: 
             format!("decoded {} coordinates for {} frames of {v} vertices", positions.len(), packet.frame_count),
         ));
     }
-    let _ = limits;
     check_finite(positions, v, packet.first_frame as usize)
         .map_err(|e| Error::malformed(codec, "packet", format!("decoded frames are not finite: {e}")))
 }
@@ -264,7 +263,7 @@ impl<R: Read> StreamDecoder<R> {
         let limits = *self.reader.limits();
         limits.check_alloc(self.codec, "packet_frame_count", packet_alloc(header, packet.frame_count as u64))?;
         let positions = self.decoder.decode_packet(packet)?;
-        check_decoded(self.codec, self.reader.header(), &limits, packet, &positions)?;
+        check_decoded(self.codec, self.reader.header(), packet, &positions)?;
         Ok(DecodedPacket {
             first_frame: packet.first_frame as usize,
             frame_count: packet.frame_count as usize,
@@ -275,7 +274,11 @@ impl<R: Read> StreamDecoder<R> {
     /// Decodes every packet into one animation.
     pub fn decode_all(mut self) -> Result<Animation> {
         let header = self.reader.header();
-        self.reader.limits().check_alloc(self.codec, "frame_count", packet_alloc(header, header.info.frame_count as u64))?;
+        self.reader.limits().check_alloc(
+            self.codec,
+            "frame_count",
+            packet_alloc(header, header.info.frame_count as u64),
+        )?;
         let mut positions = Vec::new();
         while let Some(p) = self.next_packet() {
             positions.extend_from_slice(&p?.positions);
@@ -292,7 +295,12 @@ pub fn decode_animation(bytes: &[u8], registry: &CodecRegistry, limits: Limits) 
 
 /// Decodes frame `t` of a seekable stream using the index: reads only the packets from the
 /// nearest keyframe at or before the packet holding `t`.
-pub fn decode_frame<R: Read + Seek>(src: &mut R, registry: &CodecRegistry, limits: Limits, t: usize) -> Result<Vec<f32>> {
+pub fn decode_frame<R: Read + Seek>(
+    src: &mut R,
+    registry: &CodecRegistry,
+    limits: Limits,
+    t: usize,
+) -> Result<Vec<f32>> {
     let (header, index) = container::read_index(src, limits)?;
     let codec = registry.by_fourcc(header.info.fourcc)?;
     let (start, target) = container::seek_packets(&index, t).ok_or_else(|| {
@@ -305,11 +313,11 @@ pub fn decode_frame<R: Read + Seek>(src: &mut R, registry: &CodecRegistry, limit
         let packet = container::read_packet_at(src, entry, &header, limits)?;
         limits.check_alloc(codec.name(), "packet_frame_count", packet_alloc(&header, packet.frame_count as u64))?;
         let positions = decoder.decode_packet(&packet)?;
-        check_decoded(codec.name(), &header, &limits, &packet, &positions)?;
+        check_decoded(codec.name(), &header, &packet, &positions)?;
         if entry.first_frame as usize + entry.frame_count as usize > t {
             let local = t - entry.first_frame as usize;
             return Ok(positions[local * v3..(local + 1) * v3].to_vec());
         }
     }
-    unreachable!("seek_packets returns a target packet that holds frame t")
+    Err(Error::malformed(codec.name(), "index", format!("no packet holds frame {t}")))
 }
