@@ -1,28 +1,513 @@
-//! Reading and writing animation files (placeholder signatures; filled in by the formats work item).
+//! Reading and writing animation files.
+//!
+//! | input | how it is recognised | triangles from | frame rate |
+//! |---|---|---|---|
+//! | OBJ sequence | a directory (every `*.obj` inside) or a file-name pattern with `*` / `?` such as `frames/walk_*.obj`, in natural order (`f2` before `f10`) | the files (all frames must agree) | [`ReadOptions::frame_rate`], else 30 |
+//! | single OBJ | `*.obj` | the file | one frame |
+//! | PC2 | `*.pc2` | [`ReadOptions::topology`], else `STEM.obj` beside the cache | [`ReadOptions::frame_rate`], else 30 (PC2 stores none) |
+//! | MDD | `*.mdd` | as for PC2 | [`ReadOptions::frame_rate`], else derived from the stored times when sane, else 30 |
+//! | glTF / GLB | `*.gltf`, `*.glb` | the mesh's indices | sampling rate: [`ReadOptions::frame_rate`], else 30 |
+//!
+//! Outputs: `.pc2`, `.mdd` (each with `STEM.obj` holding frame 0 and the faces written beside
+//! it, so the cache can be read back on its own) and OBJ sequences (see [`obj::write_obj_sequence`]).
+//! All readers keep the file's own vertex order, check every size against the file length before
+//! allocating, and name the file (and frame / vertex / line) in every error.
 
+pub mod gltf;
+pub mod mdd;
+pub mod obj;
+pub mod pc2;
+
+use std::cmp::Ordering;
 use std::path::{Path, PathBuf};
 
-use codec_core::{Animation, Error, Result};
+use codec_core::{Animation, Error, Limits, Result, Topology};
+
+/// Frame rate used when neither the file nor [`ReadOptions::frame_rate`] gives one.
+pub const DEFAULT_FRAME_RATE: f32 = 30.0;
+
+/// Input formats, for messages: what [`read_animation`] accepts.
+pub const SUPPORTED_INPUTS: &str =
+    "a directory of .obj files, an .obj file-name pattern with * or ?, .obj, .pc2, .mdd, .gltf, .glb";
+
+/// Output formats, for messages: what [`write_animation`] accepts.
+pub const SUPPORTED_OUTPUTS: &str =
+    ".pc2, .mdd, .obj (an OBJ sequence stem_0000.obj, …) or a directory (frame_0000.obj, …)";
 
 /// Options for [`read_animation`].
 #[derive(Debug, Clone, Default)]
 pub struct ReadOptions {
     /// OBJ file giving the triangles of a PC2/MDD cache. Default: the OBJ with the same stem beside the cache.
+    /// Its vertex count must equal the cache's; only its faces are used. Ignored for OBJ and glTF inputs.
     pub topology: Option<PathBuf>,
-    /// Frame rate to use when the file stores none (PC2 sample rate and MDD times are used when sane). Default 30.
+    /// Frame rate. When given it overrides whatever the file says; otherwise MDD times are used
+    /// when they are strictly increasing and give a sane rate, and everything else gets 30 fps.
+    /// A PC2 "sample rate" is the step between samples in frames (usually 1.0), not a frame
+    /// rate, so PC2 is always 30 fps unless this is set. For glTF this is the rate at which the
+    /// weights animation is sampled.
     pub frame_rate: Option<f32>,
 }
 
-/// Reads an animation, choosing the format from the path: a directory or glob of OBJ files,
-/// `.pc2`, `.mdd`, `.gltf` / `.glb`.
-pub fn read_animation(path: &Path, options: &ReadOptions) -> Result<Animation> {
-    let _ = options;
-    Err(Error::Unsupported { context: "formats".into(), detail: format!("reading {} is not implemented yet", path.display()) })
+impl ReadOptions {
+    /// The frame rate override, checked: `None` when unset, an error when not finite and positive.
+    fn checked_frame_rate(&self) -> Result<Option<f32>> {
+        match self.frame_rate {
+            Some(fps) if !(fps.is_finite() && fps > 0.0) => {
+                Err(Error::InvalidAnimation(format!("frame rate {fps} is not a finite positive number")))
+            }
+            other => Ok(other),
+        }
+    }
 }
 
-/// Writes an animation, choosing the format from the output path: `.pc2`, `.mdd`, or an OBJ
-/// sequence (a path ending in `.obj` containing `{}` or `#` for the frame number, or a directory).
+/// Reads an animation, choosing the format from the path: a directory or glob of OBJ files,
+/// `.obj`, `.pc2`, `.mdd`, `.gltf` / `.glb` (extensions are case-insensitive).
+pub fn read_animation(path: &Path, options: &ReadOptions) -> Result<Animation> {
+    let frame_rate = options.checked_frame_rate()?;
+    let fps = frame_rate.unwrap_or(DEFAULT_FRAME_RATE);
+    if is_pattern(path) {
+        return obj::read_obj_sequence(&expand_pattern(path)?, fps);
+    }
+    let meta = std::fs::metadata(path).map_err(|e| Error::io(path.display().to_string(), e))?;
+    if meta.is_dir() {
+        return obj::read_obj_sequence(&list_obj_files(path)?, fps);
+    }
+    match extension(path).as_deref() {
+        Some("obj") => obj::read_obj_sequence(&[path.to_path_buf()], fps),
+        Some("pc2") => pc2::read_pc2(path, options.topology.as_deref(), frame_rate),
+        Some("mdd") => mdd::read_mdd(path, options.topology.as_deref(), frame_rate),
+        Some("gltf") | Some("glb") => gltf::read_gltf(path, fps),
+        _ => Err(Error::Unsupported {
+            context: "formats".into(),
+            detail: format!("cannot read {}: unknown format; supported inputs: {SUPPORTED_INPUTS}", path.display()),
+        }),
+    }
+}
+
+/// Writes an animation, choosing the format from the output path: `.pc2`, `.mdd` (each also
+/// writes `STEM.obj` with frame 0 and the faces beside it), or an OBJ sequence: a directory
+/// (existing, or a path ending in `/`) receives `frame_0000.obj`, …; a path ending in `.obj`
+/// receives `stem_0000.obj`, … beside it, or exactly that file for a one-frame animation.
 pub fn write_animation(path: &Path, animation: &Animation) -> Result<()> {
-    let _ = animation;
-    Err(Error::Unsupported { context: "formats".into(), detail: format!("writing {} is not implemented yet", path.display()) })
+    if obj::is_directory_target(path) {
+        return obj::write_obj_sequence(path, animation).map(|_| ());
+    }
+    match extension(path).as_deref() {
+        Some("pc2") => pc2::write_pc2(path, animation),
+        Some("mdd") => mdd::write_mdd(path, animation),
+        Some("obj") => obj::write_obj_sequence(path, animation).map(|_| ()),
+        _ => Err(Error::Unsupported {
+            context: "formats".into(),
+            detail: format!("cannot write {}: unknown format; supported outputs: {SUPPORTED_OUTPUTS}", path.display()),
+        }),
+    }
+}
+
+/// Lower-case extension of a path, if any.
+fn extension(path: &Path) -> Option<String> {
+    path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase())
+}
+
+/// Display form of a path for error contexts.
+fn name(path: &Path) -> String {
+    path.display().to_string()
+}
+
+/// Reads a whole file; the error names the path.
+fn read_file(path: &Path) -> Result<Vec<u8>> {
+    std::fs::read(path).map_err(|e| Error::io(name(path), e))
+}
+
+/// Writes a whole file; the error names the path.
+fn write_file(path: &Path, bytes: &[u8]) -> Result<()> {
+    std::fs::write(path, bytes).map_err(|e| Error::io(name(path), e))
+}
+
+/// Prefixes the file name to an [`Error::InvalidAnimation`] message (which already names frame,
+/// vertex and axis); other errors already carry their context.
+fn in_file(file: &str, error: Error) -> Error {
+    match error {
+        Error::InvalidAnimation(msg) => Error::InvalidAnimation(format!("{file}: {msg}")),
+        other => other,
+    }
+}
+
+/// Checks that every coordinate is finite; the error (from
+/// [`check_finite`](codec_core::animation::check_finite)) names the file, frame, vertex and axis.
+/// The scan tests exponent bits in branch-free blocks, which vectorizes (several times faster than
+/// a short-circuiting `is_finite` search on multi-megabyte caches); the slow path only runs to
+/// build the message.
+fn check_finite_in(file: &str, positions: &[f32], vertex_count: usize) -> Result<()> {
+    const EXPONENT: u32 = 0x7f80_0000;
+    let any_bad = positions
+        .chunks(4096)
+        .any(|block| block.iter().map(|x| ((x.to_bits() & EXPONENT) == EXPONENT) as u32).sum::<u32>() != 0);
+    if any_bad {
+        codec_core::animation::check_finite(positions, vertex_count, 0).map_err(|e| in_file(file, e))?;
+    }
+    Ok(())
+}
+
+/// Checks a frame count and vertex count read from a file header against the default [`Limits`]
+/// and against the number of position bytes the file can hold, before anything is allocated.
+/// Returns the number of position floats.
+fn check_cache_sizes(file: &str, frames: u64, vertices: u64, position_bytes_available: u64) -> Result<usize> {
+    let limits = Limits::default();
+    if vertices == 0 {
+        return Err(Error::malformed(file.to_owned(), "vertex_count", "is 0: the cache has no vertices"));
+    }
+    if frames == 0 {
+        return Err(Error::malformed(file.to_owned(), "frame_count", "is 0: the cache has no frames"));
+    }
+    if vertices > limits.max_vertices as u64 {
+        return Err(Error::LimitExceeded {
+            context: file.to_owned().into(),
+            field: "vertex_count".into(),
+            value: vertices,
+            limit: limits.max_vertices as u64,
+        });
+    }
+    if frames > limits.max_frames as u64 {
+        return Err(Error::LimitExceeded {
+            context: file.to_owned().into(),
+            field: "frame_count".into(),
+            value: frames,
+            limit: limits.max_frames as u64,
+        });
+    }
+    // Both factors are below 2^24, so the product fits easily in u64.
+    let needed = frames * vertices * 12;
+    if needed > position_bytes_available {
+        return Err(Error::malformed(
+            file.to_owned(),
+            "positions",
+            format!(
+                "file is truncated: {frames} frames × {vertices} vertices need {needed} bytes of positions, \
+                 only {position_bytes_available} present"
+            ),
+        ));
+    }
+    if needed < position_bytes_available {
+        return Err(Error::malformed(
+            file.to_owned(),
+            "positions",
+            format!(
+                "{frames} frames × {vertices} vertices need {needed} bytes of positions but the file holds \
+                 {position_bytes_available}: the header does not match the file"
+            ),
+        ));
+    }
+    limits.check_alloc("formats", "positions", needed)?;
+    Ok((frames * vertices * 3) as usize)
+}
+
+/// Loads the triangles of a PC2/MDD cache: from `topology` when given, else from the OBJ with the
+/// cache's stem beside it. The OBJ must have `vertex_count` vertices.
+fn cache_topology(cache: &Path, topology: Option<&Path>, vertex_count: usize) -> Result<Topology> {
+    let obj_path = match topology {
+        Some(p) => p.to_path_buf(),
+        None => {
+            let beside = cache.with_extension("obj");
+            if !beside.is_file() {
+                return Err(Error::io(
+                    format!(
+                        "{}: no triangles for this cache: {} does not exist; give the topology OBJ with \
+                         --topology FILE.obj (ReadOptions::topology)",
+                        name(cache),
+                        name(&beside)
+                    ),
+                    std::io::Error::new(std::io::ErrorKind::NotFound, "topology OBJ not found"),
+                ));
+            }
+            beside
+        }
+    };
+    let mesh = obj::read_obj(&obj_path)?;
+    if mesh.vertex_count() != vertex_count {
+        return Err(Error::malformed(
+            name(&obj_path),
+            "vertex_count",
+            format!(
+                "the topology OBJ has {} vertices but the cache {} has {vertex_count}",
+                mesh.vertex_count(),
+                name(cache)
+            ),
+        ));
+    }
+    Topology::new(vertex_count, mesh.triangles).map_err(|e| in_file(&name(&obj_path), e))
+}
+
+/// True when the last path component contains a wildcard (`*` or `?`).
+fn is_pattern(path: &Path) -> bool {
+    path.file_name().map(|f| f.to_string_lossy().contains(['*', '?'])).unwrap_or(false)
+}
+
+/// Expands a file-name pattern (wildcards only in the last component: `*` any run, `?` one
+/// character), in natural order. No match is an error naming the pattern.
+fn expand_pattern(pattern: &Path) -> Result<Vec<PathBuf>> {
+    let file_pattern = pattern.file_name().map(|f| f.to_string_lossy().into_owned()).unwrap_or_default();
+    let dir = match pattern.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    if dir.to_string_lossy().contains(['*', '?']) {
+        return Err(Error::Unsupported {
+            context: "formats".into(),
+            detail: format!("{}: wildcards are only supported in the file name", pattern.display()),
+        });
+    }
+    let mut files = Vec::new();
+    for entry in std::fs::read_dir(&dir).map_err(|e| Error::io(name(&dir), e))? {
+        let entry = entry.map_err(|e| Error::io(name(&dir), e))?;
+        let file_name = entry.file_name().to_string_lossy().into_owned();
+        if wildcard_match(&file_pattern, &file_name) && entry.path().is_file() {
+            files.push(entry.path());
+        }
+    }
+    if files.is_empty() {
+        return Err(Error::io(
+            format!("{}: no file matches this pattern", pattern.display()),
+            std::io::Error::new(std::io::ErrorKind::NotFound, "no match"),
+        ));
+    }
+    sort_natural(&mut files);
+    Ok(files)
+}
+
+/// Every `*.obj` file (extension case-insensitive, not recursive) in a directory, in natural order.
+fn list_obj_files(dir: &Path) -> Result<Vec<PathBuf>> {
+    let mut files = Vec::new();
+    for entry in std::fs::read_dir(dir).map_err(|e| Error::io(name(dir), e))? {
+        let path = entry.map_err(|e| Error::io(name(dir), e))?.path();
+        if extension(&path).as_deref() == Some("obj") && path.is_file() {
+            files.push(path);
+        }
+    }
+    if files.is_empty() {
+        return Err(Error::io(
+            format!("{}: the directory contains no .obj file", name(dir)),
+            std::io::Error::new(std::io::ErrorKind::NotFound, "no .obj file"),
+        ));
+    }
+    sort_natural(&mut files);
+    Ok(files)
+}
+
+/// Sorts paths by file name in natural order.
+fn sort_natural(paths: &mut [PathBuf]) {
+    paths.sort_by(|a, b| {
+        let fa = a.file_name().map(|f| f.to_string_lossy().into_owned()).unwrap_or_default();
+        let fb = b.file_name().map(|f| f.to_string_lossy().into_owned()).unwrap_or_default();
+        natural_cmp(&fa, &fb).then_with(|| a.cmp(b))
+    });
+}
+
+/// Natural string order: runs of ASCII digits compare by numeric value (`frame2` < `frame10`),
+/// everything else character by character. Equal values with different zero padding order the
+/// shorter run first, and the plain string order breaks any remaining tie, so the order is total.
+pub fn natural_cmp(a: &str, b: &str) -> Ordering {
+    let (ab, bb) = (a.as_bytes(), b.as_bytes());
+    let (mut i, mut j) = (0, 0);
+    while i < ab.len() && j < bb.len() {
+        if ab[i].is_ascii_digit() && bb[j].is_ascii_digit() {
+            let si = i;
+            while i < ab.len() && ab[i].is_ascii_digit() {
+                i += 1;
+            }
+            let sj = j;
+            while j < bb.len() && bb[j].is_ascii_digit() {
+                j += 1;
+            }
+            let (ra, rb) = (&a[si..i], &b[sj..j]);
+            let (ta, tb) = (ra.trim_start_matches('0'), rb.trim_start_matches('0'));
+            // Without leading zeros, a longer digit run is a larger number; equal lengths compare
+            // digit by digit. This never overflows, whatever the run length.
+            let ord = ta.len().cmp(&tb.len()).then_with(|| ta.cmp(tb)).then_with(|| ra.len().cmp(&rb.len()));
+            if ord != Ordering::Equal {
+                return ord;
+            }
+        } else {
+            // Compare one (possibly multi-byte) character.
+            let ca = a[i..].chars().next().unwrap_or_default();
+            let cb = b[j..].chars().next().unwrap_or_default();
+            if ca != cb {
+                return ca.cmp(&cb);
+            }
+            i += ca.len_utf8();
+            j += cb.len_utf8();
+        }
+    }
+    (ab.len() - i).cmp(&(bb.len() - j)).then_with(|| a.cmp(b))
+}
+
+/// Matches a file name against a pattern with `*` (any run, possibly empty) and `?` (one character).
+fn wildcard_match(pattern: &str, text: &str) -> bool {
+    let p: Vec<char> = pattern.chars().collect();
+    let t: Vec<char> = text.chars().collect();
+    let (mut pi, mut ti) = (0, 0);
+    // Classic greedy matcher with one backtrack point: linear in practice, never exponential.
+    let mut star: Option<(usize, usize)> = None;
+    while ti < t.len() {
+        if pi < p.len() && (p[pi] == '?' || p[pi] == t[ti]) {
+            pi += 1;
+            ti += 1;
+        } else if pi < p.len() && p[pi] == '*' {
+            star = Some((pi, ti));
+            pi += 1;
+        } else if let Some((sp, st)) = star {
+            pi = sp + 1;
+            ti = st + 1;
+            star = Some((sp, st + 1));
+        } else {
+            return false;
+        }
+    }
+    p[pi..].iter().all(|&c| c == '*')
+}
+
+/// A unique scratch directory under the system temp dir for tests; removed on drop.
+#[cfg(test)]
+pub(crate) struct TempDir(pub PathBuf);
+
+#[cfg(test)]
+impl TempDir {
+    pub(crate) fn new(tag: &str) -> Self {
+        use std::sync::atomic::{AtomicUsize, Ordering};
+        static COUNTER: AtomicUsize = AtomicUsize::new(0);
+        let n = COUNTER.fetch_add(1, Ordering::Relaxed);
+        let dir = std::env::temp_dir().join(format!("animcodec-formats-{tag}-{}-{n}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        Self(dir)
+    }
+
+    pub(crate) fn path(&self, file: &str) -> PathBuf {
+        self.0.join(file)
+    }
+}
+
+#[cfg(test)]
+impl Drop for TempDir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+/// Small animations for the format tests.
+#[cfg(test)]
+pub(crate) fn test_animation(vertices: usize, frames: usize, fps: f32) -> Animation {
+    // A strip of triangles (v, v+1, v+2) and positions with awkward binary expansions, negative
+    // values and negative zero, so round trips are tested on more than round numbers.
+    let triangles: Vec<[u32; 3]> = (0..vertices.saturating_sub(2) as u32).map(|v| [v, v + 1, v + 2]).collect();
+    let positions: Vec<f32> = (0..vertices * frames * 3)
+        .map(|i| match i % 7 {
+            0 => -0.0,
+            1 => (i as f32 * 0.1).sin() * 1e-3,
+            2 => 1.0 / 3.0 + i as f32,
+            3 => -(i as f32).sqrt() * 12345.678,
+            4 => f32::MIN_POSITIVE * i as f32,
+            5 => 1e30 / (i as f32 + 1.0),
+            _ => i as f32 * 0.7,
+        })
+        .collect();
+    Animation::from_parts(vertices, triangles, positions, fps).unwrap()
+}
+
+/// Bit-exact comparison of positions (so -0.0 ≠ 0.0) and equality of the triangles.
+#[cfg(test)]
+pub(crate) fn assert_same_geometry(a: &Animation, b: &Animation) {
+    assert_eq!(a.vertex_count(), b.vertex_count());
+    assert_eq!(a.frame_count(), b.frame_count());
+    assert_eq!(a.triangles(), b.triangles());
+    for (i, (x, y)) in a.positions().iter().zip(b.positions()).enumerate() {
+        assert_eq!(x.to_bits(), y.to_bits(), "coordinate {i}: {x} vs {y}");
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn natural_order_puts_frame2_before_frame10() {
+        let mut names = vec!["f10.obj", "f2.obj", "f1.obj", "f02.obj", "g.obj", "f.obj", "F3.obj", "f100.obj"];
+        names.sort_by(|a, b| natural_cmp(a, b));
+        assert_eq!(names, vec!["F3.obj", "f.obj", "f1.obj", "f2.obj", "f02.obj", "f10.obj", "f100.obj", "g.obj"]);
+        // Long digit runs compare without overflow.
+        assert_eq!(natural_cmp("a99999999999999999999999", "a100000000000000000000000"), Ordering::Less);
+        assert_eq!(natural_cmp("a1b2", "a1b10"), Ordering::Less);
+        assert_eq!(natural_cmp("x", "x"), Ordering::Equal);
+    }
+
+    #[test]
+    fn wildcards_match_file_names() {
+        assert!(wildcard_match("walk_*.obj", "walk_0001.obj"));
+        assert!(wildcard_match("walk_*.obj", "walk_.obj"));
+        assert!(!wildcard_match("walk_*.obj", "run_0001.obj"));
+        assert!(!wildcard_match("walk_*.obj", "walk_0001.obj.bak"));
+        assert!(wildcard_match("f?.obj", "f1.obj"));
+        assert!(!wildcard_match("f?.obj", "f10.obj"));
+        assert!(wildcard_match("*a*b*", "xxaxxbxx"));
+        assert!(!wildcard_match("*a*b", "xxaxxbxx"));
+    }
+
+    #[test]
+    fn directory_and_pattern_inputs_read_in_natural_order() {
+        let dir = TempDir::new("natural");
+        let anim = test_animation(4, 12, 30.0);
+        // Frame t goes to f{t}.obj: lexical order would put f10, f11 before f2.
+        for t in 0..anim.frame_count() {
+            obj::write_obj(&dir.path(&format!("f{t}.obj")), anim.frame(t), anim.triangles(), "test").unwrap();
+        }
+        std::fs::write(dir.path("notes.txt"), "not an obj").unwrap();
+        let from_dir = read_animation(&dir.0, &ReadOptions::default()).unwrap();
+        assert_same_geometry(&anim, &from_dir);
+        assert_eq!(from_dir.frame_rate(), DEFAULT_FRAME_RATE);
+        let opts = ReadOptions { frame_rate: Some(24.0), ..Default::default() };
+        let from_glob = read_animation(&dir.path("f*.obj"), &opts).unwrap();
+        assert_same_geometry(&anim, &from_glob);
+        assert_eq!(from_glob.frame_rate(), 24.0);
+        let e = read_animation(&dir.path("nothing_*.obj"), &opts).unwrap_err().to_string();
+        assert!(e.contains("nothing_*.obj") && e.contains("no file matches"), "{e}");
+    }
+
+    #[test]
+    fn unknown_formats_and_missing_files_are_named() {
+        let dir = TempDir::new("unknown");
+        let p = dir.path("anim.xyz");
+        std::fs::write(&p, "x").unwrap();
+        let e = read_animation(&p, &ReadOptions::default()).unwrap_err().to_string();
+        assert!(e.contains("anim.xyz") && e.contains(".pc2") && e.contains(".glb"), "{e}");
+        let e = write_animation(&dir.path("out.xyz"), &test_animation(3, 1, 30.0)).unwrap_err().to_string();
+        assert!(e.contains("out.xyz") && e.contains(".mdd"), "{e}");
+        let missing = dir.path("missing.pc2");
+        let e = read_animation(&missing, &ReadOptions::default()).unwrap_err();
+        assert!(matches!(e, Error::Io { .. }) && e.to_string().contains("missing.pc2"), "{e}");
+        let empty = TempDir::new("empty");
+        let e = read_animation(&empty.0, &ReadOptions::default()).unwrap_err().to_string();
+        assert!(e.contains("no .obj file"), "{e}");
+        let bad = ReadOptions { frame_rate: Some(f32::NAN), ..Default::default() };
+        assert!(read_animation(&p, &bad).is_err());
+    }
+
+    #[test]
+    fn every_writer_reads_back_bit_exact() {
+        let dir = TempDir::new("roundtrip");
+        let anim = test_animation(7, 5, 25.0);
+        let opts = ReadOptions { frame_rate: Some(25.0), ..Default::default() };
+        for out in ["a.pc2", "b.MDD", "seq.obj", "dir/"] {
+            let path = dir.path(out);
+            write_animation(&path, &anim).unwrap();
+            let back = match out {
+                "seq.obj" => read_animation(&dir.path("seq_*.obj"), &opts),
+                _ => read_animation(&path, &opts),
+            }
+            .unwrap_or_else(|e| panic!("{out}: {e}"));
+            assert_same_geometry(&anim, &back);
+            assert_eq!(back.frame_rate(), 25.0, "{out}");
+        }
+        // MDD stores times: read back without an override, the rate comes from them.
+        let back = read_animation(&dir.path("b.MDD"), &ReadOptions::default()).unwrap();
+        assert_eq!(back.frame_rate(), 25.0);
+    }
 }

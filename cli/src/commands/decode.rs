@@ -1,0 +1,59 @@
+//! `animcodec decode`: `.anim` container → animation file.
+
+use std::fs::File;
+use std::io::BufReader;
+use std::path::Path;
+use std::time::Instant;
+
+use animcodec::formats;
+use codec_core::{Limits, StreamDecoder};
+use serde_json::json;
+
+use super::{emit, emit_json, CmdResult, WithContext};
+use crate::DecodeArgs;
+
+/// Opens `path` for reading, naming it in the error.
+pub fn open(path: &Path) -> CmdResult<BufReader<File>> {
+    let file = File::open(path).map_err(|e| codec_core::Error::io(format!("cannot open {}", path.display()), e))?;
+    if file.metadata().is_ok_and(|m| m.is_dir()) {
+        return Err(format!("cannot read {}: it is a directory", path.display()).into());
+    }
+    Ok(BufReader::new(file))
+}
+
+/// Runs `decode`.
+pub fn run(args: &DecodeArgs, limits: Limits) -> CmdResult {
+    let registry = animcodec::registry();
+    let start = Instant::now();
+    let name = || args.input.display().to_string();
+    let decoder = StreamDecoder::new(open(&args.input)?, &registry, limits).context(name)?;
+    let codec = decoder.codec_name();
+    let animation = decoder.decode_all().context(name)?;
+    let decode_seconds = start.elapsed().as_secs_f64();
+
+    let write_start = Instant::now();
+    formats::write_animation(&args.output, &animation)?;
+    let write_seconds = write_start.elapsed().as_secs_f64();
+
+    let (v, f, t) = (animation.vertex_count(), animation.frame_count(), animation.triangles().len());
+    if args.json {
+        return emit_json(&json!({
+            "codec": codec,
+            "input": args.input.display().to_string(),
+            "output": args.output.display().to_string(),
+            "frames": f,
+            "vertices": v,
+            "triangles": t,
+            "frame_rate": animation.frame_rate(),
+            "decode_seconds": decode_seconds,
+            "write_seconds": write_seconds,
+        }));
+    }
+    emit(&format!(
+        "{input}: {codec}, {f} frames × {v} vertices, {t} triangles, {fps} fps, decoded in {decode_seconds:.2} s\n\
+         → {out} (written in {write_seconds:.2} s)\n",
+        input = args.input.display(),
+        fps = animation.frame_rate(),
+        out = args.output.display(),
+    ))
+}

@@ -1,0 +1,207 @@
+//! `animcodec encode`: animation file → `.anim` container, streamed to disk.
+
+use std::fs::File;
+use std::io::{BufWriter, Write};
+use std::path::Path;
+use std::time::Instant;
+
+use animcodec::formats::ReadOptions;
+use codec_core::params::find_spec;
+use codec_core::synth;
+use codec_core::{Animation, AnimationCodec, ParamSet, StreamEncoder, Topology};
+use serde_json::{json, Map, Value};
+
+use super::{bpvf, emit, emit_json, load_animation, param_json, raw_bytes, CmdResult};
+use crate::EncodeArgs;
+
+/// Builds the parameter set of `codec` from `key=value` strings (defaults for the rest).
+/// Errors name the codec and the key, and list valid keys or the allowed range.
+pub fn parse_params(codec: &dyn AnimationCodec, pairs: &[String]) -> CmdResult<ParamSet> {
+    let specs = codec.param_specs();
+    let mut params = codec.default_params();
+    for pair in pairs {
+        let (key, value) = pair
+            .split_once('=')
+            .ok_or_else(|| format!("{}: parameter '{pair}' is not of the form key=value", codec.name()))?;
+        let spec = find_spec(codec.name(), &specs, key.trim())?;
+        let value = spec.parse(codec.name(), value)?;
+        params.set(&specs, spec.name, value)?;
+    }
+    codec.validate(&params)?;
+    Ok(params)
+}
+
+/// Runs `encode`.
+pub fn run(args: &EncodeArgs) -> CmdResult {
+    // Codec and parameters first: a typo should not cost a long read.
+    let registry = animcodec::registry();
+    let codec = registry.by_name(&args.codec)?;
+    let params = parse_params(codec, &args.params)?;
+
+    let read_start = Instant::now();
+    let source = match parse_streamed_flag(&args.input)? {
+        Some((cols, rows, frames)) => Source::Flag { cols, rows, frames },
+        None => {
+            let options = ReadOptions { topology: args.topology.clone(), frame_rate: args.fps };
+            Source::Whole(load_animation(&args.input, &options)?)
+        }
+    };
+    let topology = source.topology();
+    let (frame_count, frame_rate) = source.frames_and_rate(args.fps);
+    let read_seconds = read_start.elapsed().as_secs_f64();
+
+    let start = Instant::now();
+    let result =
+        encode_to_file(codec, &params, &source, (&topology, frame_count, frame_rate), &args.output, args.feed as usize);
+    let bytes = match result {
+        Ok(bytes) => bytes,
+        Err(e) => {
+            // Do not leave a truncated container behind that looks like a result.
+            let _ = std::fs::remove_file(&args.output);
+            return Err(e);
+        }
+    };
+    let encode_seconds = start.elapsed().as_secs_f64();
+
+    let (v, f, t) = (topology.vertex_count(), frame_count, topology.triangle_count());
+    let rate = bpvf(bytes, v, f);
+    let ratio = raw_bytes(v, f) as f64 / bytes as f64;
+    if args.json {
+        let mut p = Map::new();
+        for (name, value) in params.iter() {
+            p.insert(name.into(), param_json(value));
+        }
+        return emit_json(&json!({
+            "codec": codec.name(),
+            "params": Value::Object(p),
+            "input": args.input,
+            "output": args.output.display().to_string(),
+            "bytes": bytes,
+            "bpvf": rate,
+            "ratio": ratio,
+            "frames": f,
+            "vertices": v,
+            "triangles": t,
+            "frame_rate": frame_rate,
+            "read_seconds": read_seconds,
+            "encode_seconds": encode_seconds,
+        }));
+    }
+    emit(&format!(
+        "{input}: {f} frames × {v} vertices, {t} triangles, {fps} fps (read in {read_seconds:.2} s)\n\
+         {codec} [{params}] → {out}\n\
+         {bytes} bytes, {rate:.3} bits/vertex/frame, {ratio:.1}:1 vs raw f32, encoded in {encode_seconds:.2} s\n",
+        input = args.input,
+        fps = frame_rate,
+        codec = codec.name(),
+        out = args.output.display(),
+    ))
+}
+
+/// Where the frames come from: a loaded animation, or a synthetic flag generated one frame
+/// at a time (so sequences far larger than memory can be encoded).
+enum Source {
+    Whole(Animation),
+    Flag { cols: usize, rows: usize, frames: usize },
+}
+
+impl Source {
+    fn topology(&self) -> Topology {
+        match self {
+            Source::Whole(a) => a.topology().clone(),
+            Source::Flag { cols, rows, .. } => synth::flag_topology(*cols, *rows),
+        }
+    }
+
+    fn frames_and_rate(&self, fps: Option<f32>) -> (usize, f32) {
+        match self {
+            Source::Whole(a) => (a.frame_count(), a.frame_rate()),
+            Source::Flag { frames, .. } => (*frames, fps.unwrap_or(synth::FRAME_RATE)),
+        }
+    }
+}
+
+/// Recognises `synth:flag:COLSxROWSxFRAMES`, the streamed form of the synthetic flag.
+fn parse_streamed_flag(input: &str) -> CmdResult<Option<(usize, usize, usize)>> {
+    let Some(dims) = input.strip_prefix("synth:flag:") else { return Ok(None) };
+    if !dims.contains('x') {
+        return Ok(None); // a size preset such as `synth:flag:small`
+    }
+    let parts: Vec<usize> = dims
+        .split('x')
+        .map(|p| p.trim().parse::<usize>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| format!("'{input}': expected synth:flag:COLSxROWSxFRAMES with three positive integers"))?;
+    match parts[..] {
+        [c, r, f] if c >= 2 && r >= 2 && f >= 1 && c.checked_mul(r).is_some_and(|n| n <= u32::MAX as usize) => {
+            Ok(Some((c, r, f)))
+        }
+        _ => Err(format!(
+            "'{input}': expected synth:flag:COLSxROWSxFRAMES with COLS, ROWS ≥ 2, FRAMES ≥ 1 and COLS×ROWS < 2^32"
+        )
+        .into()),
+    }
+}
+
+/// Encodes `source` into `path` through a buffered file, feeding `feed` frames per call;
+/// returns the container size in bytes.
+fn encode_to_file(
+    codec: &dyn AnimationCodec,
+    params: &ParamSet,
+    source: &Source,
+    (topology, frame_count, frame_rate): (&Topology, usize, f32),
+    path: &Path,
+    feed: usize,
+) -> CmdResult<u64> {
+    let file = File::create(path).map_err(|e| codec_core::Error::io(format!("creating {}", path.display()), e))?;
+    let mut encoder = StreamEncoder::new(
+        codec,
+        params,
+        topology,
+        frame_count,
+        frame_rate,
+        false,
+        CountingWriter { inner: BufWriter::new(file), count: 0 },
+    )?;
+    let per_frame = topology.vertex_count() * 3;
+    match source {
+        Source::Whole(animation) => {
+            for block in animation.positions().chunks(feed.max(1) * per_frame) {
+                encoder.push_frames(block)?;
+            }
+        }
+        Source::Flag { cols, rows, frames } => {
+            let mut block = Vec::with_capacity(feed.max(1) * per_frame);
+            let mut frame = Vec::with_capacity(per_frame);
+            for t in 0..*frames {
+                synth::flag_frame(*cols, *rows, t, *frames, &mut frame);
+                block.extend_from_slice(&frame);
+                if block.len() == feed.max(1) * per_frame || t + 1 == *frames {
+                    encoder.push_frames(&block)?;
+                    block.clear();
+                }
+            }
+        }
+    }
+    let (_, mut sink) = encoder.finish()?;
+    sink.flush().map_err(|e| codec_core::Error::io(format!("writing {}", path.display()), e))?;
+    Ok(sink.count)
+}
+
+/// Counts the bytes written through it.
+struct CountingWriter<W: Write> {
+    inner: W,
+    count: u64,
+}
+
+impl<W: Write> Write for CountingWriter<W> {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        let n = self.inner.write(buf)?;
+        self.count += n as u64;
+        Ok(n)
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.inner.flush()
+    }
+}

@@ -1,0 +1,108 @@
+//! `animcodec info`: what is inside an `.anim` container, read from its header and index
+//! without decoding any packet.
+
+use std::fmt::Write as _;
+
+use codec_core::container::{self, INDEX_ENTRY_BYTES, TRAILER_BYTES};
+use codec_core::Limits;
+use serde_json::json;
+
+use super::decode::open;
+use super::{bpvf, emit, emit_json, CmdResult, WithContext};
+use crate::InfoArgs;
+
+/// Packets listed by the text output unless `--all-packets` is given.
+const SHOWN_PACKETS: usize = 32;
+
+/// Runs `info`.
+pub fn run(args: &InfoArgs, limits: Limits) -> CmdResult {
+    let mut src = open(&args.input)?;
+    let (header, index) = container::read_index(&mut src, limits).context(|| args.input.display().to_string())?;
+    // read_index has checked that header, packets, index and trailer tile the file exactly,
+    // so the total is their sum.
+    let packet_bytes: u64 = index.iter().map(|e| e.stored_bytes()).sum();
+    let payload_bytes: u64 = index.iter().map(|e| e.payload_bytes as u64).sum();
+    let index_bytes = (8 + index.len() * INDEX_ENTRY_BYTES + 4 + TRAILER_BYTES) as u64;
+    let total = header.header_bytes as u64 + packet_bytes + index_bytes;
+
+    let info = &header.info;
+    let registry = animcodec::registry();
+    let codec = registry.by_fourcc(info.fourcc).ok().map(|c| c.name());
+    let (v, f, t) = (info.vertex_count(), info.frame_count, info.topology.triangle_count());
+    let rate = bpvf(total, v, f);
+    let geometry_rate = bpvf(payload_bytes, v, f);
+    let keyframes = index.iter().filter(|e| e.keyframe).count();
+
+    if args.json {
+        let packets: Vec<_> = index
+            .iter()
+            .map(|e| {
+                json!({
+                    "first_frame": e.first_frame,
+                    "frame_count": e.frame_count,
+                    "keyframe": e.keyframe,
+                    "bytes": e.payload_bytes,
+                    "offset": e.offset,
+                })
+            })
+            .collect();
+        return emit_json(&json!({
+            "codec": codec,
+            "fourcc": info.fourcc.to_string(),
+            "codec_version": info.codec_version,
+            "container_version": header.container_version,
+            "frames": f,
+            "vertices": v,
+            "triangles": t,
+            "frame_rate": info.frame_rate,
+            "bytes": total,
+            "header_bytes": header.header_bytes,
+            "config_bytes": header.config.len(),
+            "topology_bytes": header.topology_bytes,
+            "packet_bytes": packet_bytes,
+            "payload_bytes": payload_bytes,
+            "index_bytes": index_bytes,
+            "bpvf": rate,
+            "geometry_bpvf": geometry_rate,
+            "keyframes": keyframes,
+            "packets": packets,
+        }));
+    }
+
+    let mut out = String::new();
+    let _ = writeln!(out, "file       {} ({total} bytes)", args.input.display());
+    let _ = writeln!(
+        out,
+        "codec      {} (FourCC {}, stream version {}, container version {})",
+        codec.unwrap_or("unknown to this build"),
+        info.fourcc,
+        info.codec_version,
+        header.container_version
+    );
+    let _ = writeln!(out, "animation  {f} frames × {v} vertices, {t} triangles, {} fps", info.frame_rate);
+    let _ = writeln!(
+        out,
+        "header     {} bytes (codec config {} bytes, topology {} bytes)",
+        header.header_bytes,
+        header.config.len(),
+        header.topology_bytes
+    );
+    let _ = writeln!(
+        out,
+        "packets    {} ({keyframes} keyframes): {payload_bytes} payload bytes + {} framing; index + trailer {index_bytes} bytes",
+        index.len(),
+        packet_bytes - payload_bytes
+    );
+    let _ =
+        writeln!(out, "bpvf       {rate:.4} bits/vertex/frame (geometry only, packet payloads: {geometry_rate:.4})");
+    let _ = writeln!(out, "\n{:>7}  {:>11}  {:>7}  {:>3}  {:>10}", "packet", "first_frame", "frames", "key", "bytes");
+    let shown = if args.all_packets { index.len() } else { index.len().min(SHOWN_PACKETS) };
+    for (i, e) in index.iter().take(shown).enumerate() {
+        let key = if e.keyframe { "yes" } else { "no" };
+        let _ = writeln!(out, "{i:>7}  {:>11}  {:>7}  {key:>3}  {:>10}", e.first_frame, e.frame_count, e.payload_bytes);
+    }
+    if shown < index.len() {
+        let _ = writeln!(out, "… {} more packets (--all-packets lists them)", index.len() - shown);
+    }
+    emit(&out)
+}

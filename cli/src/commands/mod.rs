@@ -1,0 +1,200 @@
+//! The subcommands, one module each, and what they share: error reporting, stdout output,
+//! input loading and JSON conversions.
+
+pub mod decode;
+pub mod demo;
+pub mod encode;
+pub mod info;
+pub mod list;
+pub mod synth;
+
+use std::error::Error as StdError;
+use std::io::Write;
+use std::path::Path;
+
+use animcodec::formats::{self, ReadOptions};
+use codec_core::synth::{self as gen, SynthSize};
+use codec_core::{Animation, Limits, ParamValue};
+use serde_json::Value;
+
+/// What every subcommand returns. Errors are codec-core errors, I/O errors, or plain messages.
+pub type CmdResult<T = ()> = Result<T, Box<dyn StdError + Send + Sync>>;
+
+/// Prints `error: <message>` followed by each `source()` not already part of the message,
+/// on one line (codec-core's `Io` error, for example, already prints its source).
+pub fn report_error(e: &(dyn StdError + 'static)) {
+    let mut line = format!("error: {e}");
+    let mut source = e.source();
+    while let Some(s) = source {
+        let text = s.to_string();
+        if !line.contains(&text) {
+            line.push_str(": ");
+            line.push_str(&text);
+        }
+        source = s.source();
+    }
+    // A single line even if some message contains a newline.
+    let line = line.replace('\n', " ");
+    let _ = writeln!(std::io::stderr(), "{line}");
+}
+
+/// An error with what was being done (usually the file concerned) in front of it.
+#[derive(Debug)]
+pub struct Context {
+    context: String,
+    source: Box<dyn StdError + Send + Sync>,
+}
+
+impl std::fmt::Display for Context {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}: {}", self.context, self.source)
+    }
+}
+
+impl StdError for Context {
+    fn source(&self) -> Option<&(dyn StdError + 'static)> {
+        Some(self.source.as_ref())
+    }
+}
+
+/// Adds context (such as the file name) to errors.
+pub trait WithContext<T> {
+    /// Prefixes the error with `context()`.
+    fn context(self, context: impl FnOnce() -> String) -> CmdResult<T>;
+}
+
+impl<T, E: Into<Box<dyn StdError + Send + Sync>>> WithContext<T> for Result<T, E> {
+    fn context(self, context: impl FnOnce() -> String) -> CmdResult<T> {
+        self.map_err(|e| Box::new(Context { context: context(), source: e.into() }) as _)
+    }
+}
+
+/// Parses a frame rate for `--fps`: a finite positive number.
+pub fn parse_fps(text: &str) -> Result<f32, String> {
+    match text.trim().parse::<f32>() {
+        Ok(f) if f.is_finite() && f > 0.0 => Ok(f),
+        _ => Err(format!("'{text}' is not a finite positive frame rate")),
+    }
+}
+
+/// Writes `text` to stdout. A closed pipe (`animcodec list | head`) ends output quietly
+/// instead of panicking as `println!` would.
+pub fn emit(text: &str) -> CmdResult {
+    let mut out = std::io::stdout().lock();
+    match out.write_all(text.as_bytes()).and_then(|()| out.flush()) {
+        Err(e) if e.kind() != std::io::ErrorKind::BrokenPipe => Err(Box::new(e)),
+        _ => Ok(()),
+    }
+}
+
+/// Writes pretty JSON and a newline to stdout.
+pub fn emit_json(value: &Value) -> CmdResult {
+    let mut text = serde_json::to_string_pretty(value)?;
+    text.push('\n');
+    emit(&text)
+}
+
+/// Parses a byte count: a plain number or one with a K, M, G or T suffix (powers of 1024;
+/// `KB`/`KiB` spellings and lower case accepted).
+pub fn parse_bytes(text: &str) -> Result<u64, String> {
+    let t = text.trim();
+    let split = t.find(|c: char| !c.is_ascii_digit()).unwrap_or(t.len());
+    let (digits, suffix) = t.split_at(split);
+    let number: u64 = digits.parse().map_err(|_| format!("'{text}' is not a byte count like 512M or 4G"))?;
+    let shift = match suffix.trim().to_ascii_lowercase().as_str() {
+        "" | "b" => 0,
+        "k" | "kb" | "kib" => 10,
+        "m" | "mb" | "mib" => 20,
+        "g" | "gb" | "gib" => 30,
+        "t" | "tb" | "tib" => 40,
+        _ => return Err(format!("'{text}' has an unknown unit (use K, M, G or T)")),
+    };
+    number.checked_mul(1u64 << shift).filter(|&n| n > 0).ok_or_else(|| format!("'{text}' is out of range"))
+}
+
+/// Decoding limits, with `max_memory` (if given) as the per-allocation bound.
+pub fn limits(max_memory: Option<u64>) -> Limits {
+    let mut limits = Limits::default();
+    if let Some(m) = max_memory {
+        limits.max_alloc_bytes = usize::try_from(m).unwrap_or(usize::MAX);
+    }
+    limits
+}
+
+/// Loads an input animation: `synth:NAME[:SIZE]` builds a synthetic one (size default
+/// small), anything else goes through [`formats::read_animation`].
+pub fn load_animation(input: &str, options: &ReadOptions) -> CmdResult<Animation> {
+    if let Some(spec) = input.strip_prefix("synth:") {
+        let (name, size) = match spec.split_once(':') {
+            Some((name, size)) => (name, SynthSize::from_name(size)?),
+            None => (spec, SynthSize::Small),
+        };
+        let animation = gen::by_name(name, size)?;
+        return Ok(match options.frame_rate {
+            Some(fps) => {
+                let (topology, positions, _) = animation.into_parts();
+                Animation::new(topology, positions, fps)?
+            }
+            None => animation,
+        });
+    }
+    let path = Path::new(input);
+    if !path.exists() && !input.contains(['*', '?', '{', '#']) {
+        return Err(format!("cannot read '{input}': no such file or directory").into());
+    }
+    Ok(formats::read_animation(path, options)?)
+}
+
+/// A parameter value as JSON (numbers, booleans, strings).
+pub fn param_json(value: &ParamValue) -> Value {
+    match value {
+        ParamValue::Int(v) => Value::from(*v),
+        ParamValue::Float(v) => Value::from(*v),
+        ParamValue::Bool(v) => Value::from(*v),
+        ParamValue::Choice(v) => Value::from(*v),
+    }
+}
+
+/// Bits per vertex per frame.
+pub fn bpvf(bytes: u64, vertices: usize, frames: usize) -> f64 {
+    bytes as f64 * 8.0 / (vertices as f64 * frames as f64)
+}
+
+/// Bytes of the animation stored as raw `f32` coordinates.
+pub fn raw_bytes(vertices: usize, frames: usize) -> u64 {
+    vertices as u64 * frames as u64 * 12
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn byte_counts_parse_with_units() {
+        assert_eq!(parse_bytes("1000"), Ok(1000));
+        assert_eq!(parse_bytes("4K"), Ok(4096));
+        assert_eq!(parse_bytes("512MiB"), Ok(512 << 20));
+        assert_eq!(parse_bytes("2g"), Ok(2 << 30));
+        assert!(parse_bytes("").is_err());
+        assert!(parse_bytes("0").is_err());
+        assert!(parse_bytes("12Q").unwrap_err().contains("unknown unit"));
+        assert!(parse_bytes("99999999999999999999T").is_err());
+        assert!(parse_bytes("16777216T").is_err());
+        assert_eq!(parse_fps("24"), Ok(24.0));
+        for bad in ["0", "-3", "nan", "inf", "x"] {
+            assert!(parse_fps(bad).is_err(), "{bad}");
+        }
+    }
+
+    #[test]
+    fn synth_inputs_load_without_files() {
+        let a = load_animation("synth:tumble", &ReadOptions::default()).unwrap();
+        assert_eq!(a.frame_count(), SynthSize::Small.frames());
+        let opts = ReadOptions { frame_rate: Some(24.0), ..Default::default() };
+        assert_eq!(load_animation("synth:flag:small", &opts).unwrap().frame_rate(), 24.0);
+        assert!(load_animation("synth:flag:huge", &opts).unwrap_err().to_string().contains("small, medium, large"));
+        assert!(load_animation("synth:teapot", &opts).unwrap_err().to_string().contains("flag, cylinder"));
+        let e = load_animation("/nonexistent/x.pc2", &opts).unwrap_err().to_string();
+        assert!(e.contains("/nonexistent/x.pc2") && e.contains("no such file"), "{e}");
+    }
+}

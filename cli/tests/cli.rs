@@ -1,0 +1,273 @@
+//! End-to-end tests of the `animcodec` binary: output formats, round trips through files,
+//! and error messages (exit code, one line, no panic).
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use serde_json::Value;
+
+fn animcodec(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_animcodec")).args(args).output().expect("the animcodec binary runs")
+}
+
+fn stdout(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// Runs a command expected to succeed and returns its stdout.
+fn ok(args: &[&str]) -> String {
+    let o = animcodec(args);
+    assert!(o.status.success(), "animcodec {args:?} failed: {}", stderr(&o));
+    stdout(&o)
+}
+
+fn ok_json(args: &[&str]) -> Value {
+    let text = ok(args);
+    serde_json::from_str(&text).unwrap_or_else(|e| panic!("animcodec {args:?} printed invalid JSON ({e}): {text}"))
+}
+
+/// Runs a command expected to fail with exit code 1 and a single `error:` line containing
+/// every one of `needles`.
+fn fails(args: &[&str], needles: &[&str]) -> String {
+    let o = animcodec(args);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "animcodec {args:?}: expected exit 1, stderr: {err}");
+    assert!(!err.contains("panicked"), "animcodec {args:?} panicked: {err}");
+    let lines: Vec<&str> = err.lines().collect();
+    assert_eq!(lines.len(), 1, "animcodec {args:?}: expected one line of stderr, got: {err}");
+    assert!(lines[0].starts_with("error: "), "{err}");
+    for n in needles {
+        assert!(err.contains(n), "animcodec {args:?}: stderr does not mention '{n}': {err}");
+    }
+    err
+}
+
+/// A scratch directory unique to this test process and test, removed on drop.
+struct Scratch(PathBuf);
+
+impl Scratch {
+    fn new(test: &str) -> Self {
+        let dir = std::env::temp_dir().join(format!("animcodec-cli-{}-{test}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        Self(dir)
+    }
+
+    fn path(&self, name: &str) -> String {
+        self.0.join(name).to_str().unwrap().to_string()
+    }
+}
+
+impl Drop for Scratch {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+#[test]
+fn list_json_describes_quant_delta_and_its_params() {
+    let v = ok_json(&["list", "--json"]);
+    let codecs = v.as_array().expect("an array of codecs");
+    let qd = codecs.iter().find(|c| c["name"] == "quant-delta").expect("quant-delta is listed");
+    assert_eq!(qd["fourcc"].as_str().map(str::len), Some(4));
+    assert!(!qd["summary"].as_str().unwrap().is_empty());
+    let params = qd["params"].as_array().unwrap();
+    let bits = params.iter().find(|p| p["name"] == "bits").expect("bits parameter");
+    assert_eq!(bits["kind"], "int");
+    assert_eq!(bits["min"], 1);
+    assert_eq!(bits["max"], 24);
+    assert_eq!(bits["default"], 12);
+    assert!(!bits["doc"].as_str().unwrap().is_empty());
+    for p in params {
+        assert!(p["name"].is_string() && p["kind"].is_string() && !p["default"].is_null(), "{p}");
+    }
+    assert!(qd["rate_ladder"]["param"].is_string());
+    assert!(!qd["rate_ladder"]["steps"].as_array().unwrap().is_empty());
+    // Every registered codec appears once, with a distinct FourCC.
+    let registry = animcodec::registry();
+    assert_eq!(codecs.len(), registry.iter().count());
+    let mut fourccs: Vec<&str> = codecs.iter().map(|c| c["fourcc"].as_str().unwrap()).collect();
+    fourccs.sort();
+    fourccs.dedup();
+    assert_eq!(fourccs.len(), codecs.len());
+}
+
+#[test]
+fn list_text_shows_every_codec_and_ladder() {
+    let text = ok(&["list"]);
+    for codec in animcodec::registry().iter() {
+        assert!(text.contains(codec.name()), "{text}");
+        assert!(text.contains(&codec.fourcc().to_string()), "{text}");
+    }
+    assert!(text.contains("rate ladder"), "{text}");
+}
+
+#[test]
+fn help_documents_every_subcommand_and_flag() {
+    let top = ok(&["--help"]);
+    for sub in ["list", "encode", "decode", "info", "synth", "demo"] {
+        assert!(top.contains(sub), "--help lacks {sub}: {top}");
+    }
+    let enc = ok(&["encode", "--help"]);
+    for flag in ["--codec", "--param", "--output", "--topology", "--fps", "--json", "--max-memory"] {
+        assert!(enc.contains(flag), "encode --help lacks {flag}: {enc}");
+    }
+    // clap usage errors keep their own exit code 2.
+    assert_eq!(animcodec(&["encode"]).status.code(), Some(2));
+    assert_eq!(animcodec(&["frobnicate"]).status.code(), Some(2));
+}
+
+#[test]
+fn bad_codec_params_and_files_give_one_line_errors() {
+    let s = Scratch::new("errors");
+    let out = s.path("x.anim");
+    fails(&["encode", "synth:flag", "-c", "nope", "-o", &out], &["unknown codec 'nope'", "quant-delta"]);
+    fails(&["encode", "synth:flag", "-c", "quant-delta", "-p", "bitz=3", "-o", &out], &["bitz", "bits"]);
+    fails(&["encode", "synth:flag", "-c", "quant-delta", "-p", "bits=99", "-o", &out], &["bits", "1..=24"]);
+    fails(&["encode", "synth:flag", "-c", "quant-delta", "-p", "bits=many", "-o", &out], &["bits", "integer"]);
+    fails(&["encode", "synth:flag", "-c", "quant-delta", "-p", "bits", "-o", &out], &["key=value"]);
+    fails(&["encode", "synth:teapot", "-c", "quant-delta", "-o", &out], &["teapot", "flag"]);
+    let missing = s.path("missing.pc2");
+    fails(&["encode", &missing, "-c", "quant-delta", "-o", &out], &[&missing]);
+    assert!(!Path::new(&out).exists(), "a failed encode left {out} behind");
+    fails(&["info", &s.path("missing.anim")], &["missing.anim"]);
+    fails(&["decode", &s.path("missing.anim"), "-o", &s.path("y.pc2")], &["missing.anim"]);
+    // A file that is not a container.
+    let junk = s.path("junk.anim");
+    std::fs::write(&junk, b"this is not an animation container at all, just text").unwrap();
+    fails(&["info", &junk], &["container"]);
+    fails(&["decode", &junk, "-o", &s.path("y.pc2")], &["container"]);
+    fails(&["demo", "--size", "small", "--codecs", "nope"], &["unknown codec 'nope'"]);
+}
+
+#[test]
+fn encode_info_agree_and_corruption_is_caught() {
+    let s = Scratch::new("encode-info");
+    let out = s.path("t.anim");
+    let e = ok_json(&[
+        "encode",
+        "synth:tumble",
+        "-c",
+        "quant-delta",
+        "-p",
+        "bits=14",
+        "-p",
+        "block=8",
+        "-o",
+        &out,
+        "--json",
+    ]);
+    let size = std::fs::metadata(&out).unwrap().len();
+    assert_eq!(e["codec"], "quant-delta");
+    assert_eq!(e["params"]["bits"], 14);
+    assert_eq!(e["params"]["block"], 8);
+    assert_eq!(e["bytes"], size);
+    let (v, f) = (e["vertices"].as_u64().unwrap(), e["frames"].as_u64().unwrap());
+    assert!((e["bpvf"].as_f64().unwrap() - size as f64 * 8.0 / (v * f) as f64).abs() < 1e-9);
+    assert!(e["triangles"].as_u64().unwrap() > 0);
+    assert!(e["encode_seconds"].as_f64().unwrap() >= 0.0);
+
+    let i = ok_json(&["info", &out, "--json"]);
+    assert_eq!(i["codec"], "quant-delta");
+    assert_eq!(i["bytes"], size);
+    assert_eq!(i["frames"], f);
+    assert_eq!(i["vertices"], v);
+    assert_eq!(i["triangles"], e["triangles"]);
+    let packets = i["packets"].as_array().unwrap();
+    // block=8 over 40 frames: 5 packets tiling the frames in order.
+    assert_eq!(packets.len() as u64, f.div_ceil(8));
+    let mut next = 0;
+    for p in packets {
+        assert_eq!(p["first_frame"], next);
+        next += p["frame_count"].as_u64().unwrap();
+        assert!(p["bytes"].as_u64().unwrap() > 0);
+    }
+    assert_eq!(next, f);
+    let geometry = i["geometry_bpvf"].as_f64().unwrap();
+    assert!(geometry > 0.0 && geometry < i["bpvf"].as_f64().unwrap());
+    let text = ok(&["info", &out]);
+    assert!(text.contains("quant-delta") && text.contains(&size.to_string()), "{text}");
+
+    // Flip a byte in the middle of the packets: decoding must fail cleanly.
+    let mut bytes = std::fs::read(&out).unwrap();
+    let mid = bytes.len() / 2;
+    bytes[mid] ^= 0x5a;
+    let bad = s.path("bad.anim");
+    std::fs::write(&bad, &bytes).unwrap();
+    fails(&["decode", &bad, "-o", &s.path("bad.pc2")], &[]);
+    // Truncation is caught by info too.
+    std::fs::write(&bad, &bytes[..bytes.len() - 5]).unwrap();
+    fails(&["info", &bad], &[]);
+    // A memory limit below one decoded packet is refused before decoding.
+    fails(&["--max-memory", "1K", "decode", &out, "-o", &s.path("small.pc2")], &["limit"]);
+}
+
+/// synth → PC2 → encode → info → decode → PC2, checking the decoded file against the
+/// original within quant-delta's bound. Needs `formats` (PC2 read/write).
+#[test]
+fn synth_encode_info_decode_round_trip_through_pc2() {
+    let s = Scratch::new("round-trip");
+    let src = s.path("flag.pc2");
+    let text = ok(&["synth", "flag", "--size", "small", "-o", &src]);
+    assert!(text.contains("flag"), "{text}");
+    let anim = s.path("flag.anim");
+    let e = ok_json(&["encode", &src, "-c", "quant-delta", "-p", "bits=16", "-o", &anim, "--json"]);
+    let i = ok_json(&["info", &anim, "--json"]);
+    assert_eq!(i["bytes"], e["bytes"]);
+    assert_eq!(i["frames"], e["frames"]);
+    let dst = s.path("decoded.pc2");
+    let d = ok_json(&["decode", &anim, "-o", &dst, "--json"]);
+    assert_eq!(d["frames"], e["frames"]);
+
+    let opts = animcodec::formats::ReadOptions::default();
+    let original = animcodec::formats::read_animation(Path::new(&src), &opts).unwrap();
+    let decoded = animcodec::formats::read_animation(Path::new(&dst), &opts).unwrap();
+    let expected = codec_core::synth::by_name("flag", codec_core::synth::SynthSize::Small).unwrap();
+    assert_eq!(original.positions(), expected.positions(), "PC2 stores f32 exactly");
+    assert_eq!(decoded.topology(), original.topology());
+    // The codec's own promise at the parameters used.
+    let registry = animcodec::registry();
+    let codec = registry.by_name("quant-delta").unwrap();
+    let params = codec.default_params().with(&codec.param_specs(), "bits", codec_core::ParamValue::Int(16)).unwrap();
+    let bound = codec.error_bound(&params, &original).unwrap().max_coordinate_error.unwrap();
+    let max_err =
+        original.positions().iter().zip(decoded.positions()).map(|(a, b)| (a - b).abs() as f64).fold(0.0, f64::max);
+    assert!(max_err <= bound, "max coordinate error {max_err} > {bound}");
+    assert!(max_err > 0.0, "16-bit quantization cannot be lossless on this animation");
+}
+
+#[test]
+fn streamed_flag_encodes_to_the_same_bytes_as_the_whole_flag() {
+    let s = Scratch::new("streamed-flag");
+    let (a, b) = (s.path("whole.anim"), s.path("streamed.anim"));
+    // Small flag = 20 × 12 vertices × 40 frames; different feed sizes must not matter either.
+    ok(&["encode", "synth:flag:small", "-c", "quant-delta", "-o", &a, "--feed", "40"]);
+    ok(&["encode", "synth:flag:20x12x40", "-c", "quant-delta", "-o", &b, "--feed", "3"]);
+    assert_eq!(std::fs::read(&a).unwrap(), std::fs::read(&b).unwrap());
+    fails(&["encode", "synth:flag:20x1x40", "-c", "quant-delta", "-o", &b], &["COLSxROWSxFRAMES"]);
+    fails(&["encode", "synth:flag:20xtenx40", "-c", "quant-delta", "-o", &b], &["COLSxROWSxFRAMES"]);
+}
+
+#[test]
+fn demo_runs_quant_delta_on_every_synthetic_animation() {
+    let text = ok(&["demo", "--size", "small", "--codecs", "quant-delta"]);
+    for name in codec_core::synth::NAMES {
+        assert!(
+            text.lines().any(|l| l.starts_with(name) && l.contains("quant-delta") && l.ends_with("ok")),
+            "{name}: {text}"
+        );
+    }
+    let v = ok_json(&["demo", "--size", "small", "--codecs", "quant-delta", "--animations", "flag,tumble", "--json"]);
+    let runs = v.as_array().unwrap();
+    assert_eq!(runs.len(), 2);
+    for r in runs {
+        assert_eq!(r["ok"], true, "{r}");
+        assert!(r["bpvf"].as_f64().unwrap() > 0.0 && r["bpvf"].as_f64().unwrap() < 96.0, "{r}");
+        let rel = r["max_error_relative"].as_f64().unwrap();
+        assert!(rel > 0.0 && rel < 1e-2, "{r}");
+    }
+}
