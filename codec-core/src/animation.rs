@@ -179,6 +179,15 @@ pub fn bounding_box(positions: &[f32]) -> ([f32; 3], [f32; 3]) {
 /// Checks that every coordinate is finite; the error names frame, vertex and axis.
 /// `first_frame` offsets the reported frame number (for streaming blocks).
 pub fn check_finite(positions: &[f32], vertex_count: usize, first_frame: usize) -> Result<()> {
+    // Fast path: a branch-free scan of the exponent bits in blocks vectorizes (several times
+    // faster than an early-exit search on a 20 MB cache); the slow search only names the culprit.
+    const EXPONENT: u32 = 0x7f80_0000;
+    let any_bad = positions
+        .chunks(4096)
+        .any(|block| block.iter().map(|x| ((x.to_bits() & EXPONENT) == EXPONENT) as u32).sum::<u32>() != 0);
+    if !any_bad {
+        return Ok(());
+    }
     if let Some(i) = positions.iter().position(|x| !x.is_finite()) {
         let per_frame = vertex_count * 3;
         return Err(Error::InvalidAnimation(format!(

@@ -138,14 +138,7 @@ fn in_file(file: &str, error: Error) -> Error {
 /// a short-circuiting `is_finite` search on multi-megabyte caches); the slow path only runs to
 /// build the message.
 fn check_finite_in(file: &str, positions: &[f32], vertex_count: usize) -> Result<()> {
-    const EXPONENT: u32 = 0x7f80_0000;
-    let any_bad = positions
-        .chunks(4096)
-        .any(|block| block.iter().map(|x| ((x.to_bits() & EXPONENT) == EXPONENT) as u32).sum::<u32>() != 0);
-    if any_bad {
-        codec_core::animation::check_finite(positions, vertex_count, 0).map_err(|e| in_file(file, e))?;
-    }
-    Ok(())
+    codec_core::animation::check_finite(positions, vertex_count, 0).map_err(|e| in_file(file, e))
 }
 
 /// Checks a frame count and vertex count read from a file header against the default [`Limits`]
