@@ -1,0 +1,1279 @@
+//! The checks of the conformance suite, each a function of a registry that returns the
+//! [`Failures`] it found, named by codec. `tests/*.rs` run them on `animcodec::registry()`;
+//! `tests/mutants.rs` runs them on deliberately broken codecs to show that each check can fail.
+//!
+//! Decodes of untrusted bytes run under `catch_unwind` (a panic is reported with the codec
+//! and the corruption instead of aborting) and under `allocation_counter::measure`, with tight
+//! [`Limits`]; the peak bytes held on the calling thread must stay within [`peak_budget`].
+//! Allocations made on other threads (rayon inside a decoder) are not seen.
+
+use std::io::Cursor;
+use std::time::{Duration, Instant};
+
+use codec_core::container::IndexEntry;
+use codec_core::{
+    decode_animation, decode_frame, encode_animation, encode_animation_fed, Animation, AnimationCodec, CodecRegistry,
+    Limits, Packet, ParamKind, ParamSet, ParamValue, StreamEncoder, Topology,
+};
+
+use crate::*;
+
+/// A check: runs on every codec of a registry and returns what failed.
+pub type Check = fn(&CodecRegistry) -> Failures;
+
+/// Every check of the suite, by name.
+pub const ALL: &[(&str, Check)] = &[
+    ("round_trip_matches_reconstruction_and_bound", round_trip_matches_reconstruction_and_bound),
+    ("edge_case_animations_round_trip_or_error", edge_case_animations_round_trip_or_error),
+    ("feeding_pattern_does_not_change_bytes", feeding_pattern_does_not_change_bytes),
+    ("bytes_do_not_depend_on_thread_count", bytes_do_not_depend_on_thread_count),
+    ("random_access_matches_full_decode", random_access_matches_full_decode),
+    ("out_of_range_parameters_are_rejected_with_the_range", out_of_range_parameters_are_rejected_with_the_range),
+    ("defaults_and_ladder_steps_validate", defaults_and_ladder_steps_validate),
+    ("rate_ladder_sizes_are_non_decreasing", rate_ladder_sizes_are_non_decreasing),
+    ("registry_names_and_fourccs_are_unique", registry_names_and_fourccs_are_unique),
+    ("unknown_fourcc_and_default_limits", unknown_fourcc_and_default_limits),
+    ("every_truncation_is_an_error", every_truncation_is_an_error),
+    ("byte_flips_are_detected", byte_flips_are_detected),
+    ("payload_flips_with_valid_crc_never_panic", payload_flips_with_valid_crc_never_panic),
+    ("corrupt_config_and_version_never_panic", corrupt_config_and_version_never_panic),
+    ("structural_mutations_never_panic", structural_mutations_never_panic),
+    ("encoder_rejects_bad_input", encoder_rejects_bad_input),
+    ("empty_pushes_are_harmless", empty_pushes_are_harmless),
+];
+
+fn encode_with_reconstruction(
+    codec: &dyn AnimationCodec,
+    params: &ParamSet,
+    anim: &Animation,
+    feed: usize,
+) -> Result<(Vec<u8>, Animation), String> {
+    let enc = encode_animation_fed(codec, params, anim, true, feed).map_err(|e| format!("encode failed: {e}"))?;
+    let rec = enc.reconstruction.ok_or("encoder returned no reconstruction though asked for one")?;
+    Ok((enc.bytes, rec))
+}
+
+/// Suite item 1: at default params and both ends of the rate ladder, on several animations,
+/// the decoded frames equal the encoder's reconstruction bit for bit and the error is within
+/// the declared bound.
+pub fn round_trip_matches_reconstruction_and_bound(registry: &CodecRegistry) -> Failures {
+    let anims = animations();
+    let mut failures = Failures::new();
+    for codec in registry.iter() {
+        failures.run(codec.name(), |f| {
+            let settings = match test_settings(codec) {
+                Ok(s) => s,
+                Err(e) => return f.push(codec.name(), e),
+            };
+            for (anim_name, anim) in &anims {
+                for (label, params) in &settings {
+                    let ctx = format!("{anim_name}, {label}");
+                    f.count(1);
+                    let (bytes, rec) = match encode_with_reconstruction(codec, params, anim, anim.frame_count()) {
+                        Ok(x) => x,
+                        Err(e) => {
+                            f.push(codec.name(), format!("{ctx}: {e}"));
+                            continue;
+                        }
+                    };
+                    let limits = tight_limits(anim);
+                    let dec = match decode_animation(&bytes, registry, limits) {
+                        Ok(d) => d,
+                        Err(e) => {
+                            f.push(codec.name(), format!("{ctx}: decode (limits {limits:?}) failed: {e}"));
+                            continue;
+                        }
+                    };
+                    if dec.positions() != rec.positions() {
+                        let first = dec.positions().iter().zip(rec.positions()).position(|(a, b)| a.to_bits() != b.to_bits());
+                        f.push(
+                            codec.name(),
+                            format!("{ctx}: decoded frames differ from the encoder's reconstruction (first at coordinate {first:?})"),
+                        );
+                    }
+                    if dec.topology() != anim.topology() || dec.frame_rate() != anim.frame_rate() {
+                        f.push(codec.name(), format!("{ctx}: topology or frame rate not preserved"));
+                    }
+                    let bound = match codec.error_bound(params, anim) {
+                        Ok(b) => b,
+                        Err(e) => {
+                            f.push(codec.name(), format!("{ctx}: error_bound failed: {e}"));
+                            continue;
+                        }
+                    };
+                    match measure_error(anim, &dec).and_then(|m| check_bound(&bound, &m)) {
+                        Ok(()) => {}
+                        Err(e) => f.push(codec.name(), format!("{ctx}: {e}")),
+                    }
+                }
+            }
+        });
+    }
+    failures
+}
+
+/// Unusual animations (one frame, static, no triangles, degenerate triangles, one vertex,
+/// a flat axis, far from the origin, exact repeats): encode within the bound and decode to
+/// the reconstruction, or refuse with an error. Never panic.
+pub fn edge_case_animations_round_trip_or_error(registry: &CodecRegistry) -> Failures {
+    let mut failures = Failures::new();
+    for codec in registry.iter() {
+        failures.run(codec.name(), |f| {
+            for (name, anim) in edge_animations() {
+                let params = codec.default_params();
+                f.count(1);
+                let enc = match catch(|| encode_with_reconstruction(codec, &params, &anim, 3)) {
+                    Err(p) => {
+                        f.push(codec.name(), format!("{name}: encoder {p}"));
+                        continue;
+                    }
+                    Ok(Err(e)) => {
+                        if e.trim().is_empty() {
+                            f.push(codec.name(), format!("{name}: empty error message"));
+                        }
+                        eprintln!("note: {} refuses edge case {name}: {e}", codec.name());
+                        continue;
+                    }
+                    Ok(Ok(x)) => x,
+                };
+                let (bytes, rec) = enc;
+                match catch(|| decode_animation(&bytes, registry, tight_limits(&anim))) {
+                    Err(p) => f.push(codec.name(), format!("{name}: decoder {p}")),
+                    Ok(Err(e)) => f.push(codec.name(), format!("{name}: encoded, but decoding failed: {e}")),
+                    Ok(Ok(dec)) => {
+                        if dec.positions() != rec.positions() {
+                            f.push(codec.name(), format!("{name}: decoded frames differ from the reconstruction"));
+                        }
+                        match codec.error_bound(&params, &anim) {
+                            Err(e) => f.push(codec.name(), format!("{name}: error_bound failed: {e}")),
+                            Ok(b) => {
+                                if let Err(e) = measure_error(&anim, &dec).and_then(|m| check_bound(&b, &m)) {
+                                    f.push(codec.name(), format!("{name}: {e}"));
+                                }
+                            }
+                        }
+                    }
+                }
+            }
+        });
+    }
+    failures
+}
+
+/// Suite item 2: the bytes do not depend on how frames are fed (1 at a time, odd blocks, all
+/// at once) nor on whether the reconstruction was requested.
+pub fn feeding_pattern_does_not_change_bytes(registry: &CodecRegistry) -> Failures {
+    let anim = small_animation();
+    let mut failures = Failures::new();
+    for codec in registry.iter() {
+        failures.run(codec.name(), |f| {
+            let params = codec.default_params();
+            let reference = match encode_animation(codec, &params, &anim) {
+                Ok(b) => b,
+                Err(e) => return f.push(codec.name(), format!("encode failed: {e}")),
+            };
+            let n = anim.frame_count();
+            for (feed, want_rec) in [(1, false), (3, true), (7, false), (13, true), (n - 1, false), (n, true), (1000, false)]
+            {
+                f.count(1);
+                match encode_animation_fed(codec, &params, &anim, want_rec, feed) {
+                    Err(e) => f.push(codec.name(), format!("feed {feed}: encode failed: {e}")),
+                    Ok(enc) if enc.bytes != reference => f.push(
+                        codec.name(),
+                        format!(
+                            "feeding {feed} frame(s) at a time (reconstruction {want_rec}) gives {} bytes differing from all-at-once ({} bytes)",
+                            enc.bytes.len(),
+                            reference.len()
+                        ),
+                    ),
+                    Ok(_) => {}
+                }
+            }
+        });
+    }
+    failures
+}
+
+/// Suite item 3: identical bytes whether encoding runs in a 1-thread or a 4-thread rayon
+/// pool, and identical frames when decoding in either.
+pub fn bytes_do_not_depend_on_thread_count(registry: &CodecRegistry) -> Failures {
+    let anims = [small_animation(), synth::bending_cylinder(8, 10, 30)];
+    let pool = |n| rayon::ThreadPoolBuilder::new().num_threads(n).build().expect("thread pool");
+    let (one, four) = (pool(1), pool(4));
+    let mut failures = Failures::new();
+    for codec in registry.iter() {
+        failures.run(codec.name(), |f| {
+            let settings = match test_settings(codec) {
+                Ok(s) => s,
+                Err(e) => return f.push(codec.name(), e),
+            };
+            for (i, anim) in anims.iter().enumerate() {
+                for (label, params) in &settings {
+                    f.count(1);
+                    let a = one.install(|| encode_animation(codec, params, anim));
+                    let b = four.install(|| encode_animation(codec, params, anim));
+                    match (a, b) {
+                        (Ok(a), Ok(b)) if a == b => {
+                            let d1 = one.install(|| decode_animation(&a, registry, Limits::default()));
+                            let d4 = four.install(|| decode_animation(&a, registry, Limits::default()));
+                            match (d1, d4) {
+                                (Ok(x), Ok(y)) if x.positions() == y.positions() => {}
+                                (Ok(_), Ok(_)) => f.push(
+                                    codec.name(),
+                                    format!(
+                                        "animation {i}, {label}: decoding with 1 and 4 threads gives different frames"
+                                    ),
+                                ),
+                                (x, y) => f.push(
+                                    codec.name(),
+                                    format!("animation {i}, {label}: decode failed: {:?} / {:?}", x.err(), y.err()),
+                                ),
+                            }
+                        }
+                        (Ok(a), Ok(b)) => f.push(
+                            codec.name(),
+                            format!(
+                                "animation {i}, {label}: 1 thread gives {} bytes, 4 threads {} bytes, not identical",
+                                a.len(),
+                                b.len()
+                            ),
+                        ),
+                        (a, b) => f.push(
+                            codec.name(),
+                            format!("animation {i}, {label}: encode failed: {:?} / {:?}", a.err(), b.err()),
+                        ),
+                    }
+                }
+            }
+        });
+    }
+    failures
+}
+
+/// Suite item 6: `decode_frame` on a seekable stream returns the same frame as the full
+/// decode, for every frame (first, middle and last included), bit for bit.
+pub fn random_access_matches_full_decode(registry: &CodecRegistry) -> Failures {
+    let anims = [small_animation(), synth::phased_motion_sized(8, 10, 36).0];
+    let mut failures = Failures::new();
+    for codec in registry.iter() {
+        failures.run(codec.name(), |f| {
+            for (i, anim) in anims.iter().enumerate() {
+                let bytes = match encode_animation(codec, &codec.default_params(), anim) {
+                    Ok(b) => b,
+                    Err(e) => return f.push(codec.name(), format!("animation {i}: encode failed: {e}")),
+                };
+                let limits = tight_limits(anim);
+                let full = match decode_animation(&bytes, registry, limits) {
+                    Ok(a) => a,
+                    Err(e) => return f.push(codec.name(), format!("animation {i}: decode failed: {e}")),
+                };
+                let mut cursor = Cursor::new(&bytes);
+                for t in 0..anim.frame_count() {
+                    f.count(1);
+                    match decode_frame(&mut cursor, registry, limits, t) {
+                        Ok(frame) if frame == full.frame(t) => {}
+                        Ok(_) => f.push(
+                            codec.name(),
+                            format!("animation {i}: decode_frame({t}) differs from the full decode"),
+                        ),
+                        Err(e) => f.push(codec.name(), format!("animation {i}: decode_frame({t}) failed: {e}")),
+                    }
+                }
+                if decode_frame(&mut cursor, registry, limits, anim.frame_count()).is_ok() {
+                    f.push(codec.name(), format!("animation {i}: decode_frame past the end succeeded"));
+                }
+            }
+        });
+    }
+    failures
+}
+
+// ---------------------------------------------------------------------------------------
+// Parameters (suite item 7) and registry (suite item 10)
+// ---------------------------------------------------------------------------------------
+
+/// The next `f64` below/above `x` (towards −∞ / +∞), for "just outside the range".
+fn next_f64(x: f64, up: bool) -> f64 {
+    if x == 0.0 {
+        return if up { f64::from_bits(1) } else { -f64::from_bits(1) };
+    }
+    let bits = x.to_bits();
+    let bigger_magnitude = (x > 0.0) == up;
+    f64::from_bits(if bigger_magnitude { bits + 1 } else { bits - 1 })
+}
+
+/// Suite item 7: for every `ParamSpec`, values just outside its range are rejected by
+/// `ParamSet::set` with a message naming the codec, the parameter and the range; values of
+/// the wrong kind and unknown names are rejected too.
+pub fn out_of_range_parameters_are_rejected_with_the_range(registry: &CodecRegistry) -> Failures {
+    let mut failures = Failures::new();
+    for codec in registry.iter() {
+        failures.run(codec.name(), |f| {
+            let specs = codec.param_specs();
+            let mut names: Vec<&str> = specs.iter().map(|s| s.name).collect();
+            names.sort_unstable();
+            if names.windows(2).any(|w| w[0] == w[1]) {
+                f.push(codec.name(), format!("duplicate parameter names: {names:?}"));
+            }
+            for spec in &specs {
+                if let Err(e) = spec.check(codec.name(), &spec.default) {
+                    f.push(codec.name(), format!("default of '{}' is outside its own spec: {e}", spec.name));
+                }
+                if spec.doc.trim().is_empty() {
+                    f.push(codec.name(), format!("parameter '{}' has no doc", spec.name));
+                }
+                let (bad, range_text): (Vec<ParamValue>, Vec<String>) = match &spec.kind {
+                    ParamKind::Int { min, max } => {
+                        let mut v = Vec::new();
+                        if let Some(x) = min.checked_sub(1) {
+                            v.push(ParamValue::Int(x));
+                        }
+                        if let Some(x) = max.checked_add(1) {
+                            v.push(ParamValue::Int(x));
+                        }
+                        v.push(ParamValue::Float(*min as f64));
+                        (v, vec![format!("{min}..={max}")])
+                    }
+                    ParamKind::Float { min, max } => (
+                        vec![
+                            ParamValue::Float(next_f64(*min, false)),
+                            ParamValue::Float(next_f64(*max, true)),
+                            ParamValue::Float(f64::NAN),
+                            ParamValue::Float(f64::INFINITY),
+                        ],
+                        vec![format!("{min}..={max}")],
+                    ),
+                    ParamKind::Bool => (vec![ParamValue::Int(1), ParamValue::Choice("true")], vec![]),
+                    ParamKind::Choice(options) => (
+                        vec![ParamValue::Choice("no-such-option"), ParamValue::Int(0)],
+                        options.iter().map(|o| o.to_string()).collect(),
+                    ),
+                };
+                for value in bad {
+                    f.count(1);
+                    let mut p = codec.default_params();
+                    match p.set(&specs, spec.name, value.clone()) {
+                        Ok(()) => f.push(codec.name(), format!("'{}' = {value} was accepted", spec.name)),
+                        Err(e) => {
+                            let msg = e.to_string();
+                            // A wrong-kind value is reported by kind; an out-of-range one must state the range.
+                            let wrong_kind = !matches!(
+                                (&spec.kind, &value),
+                                (ParamKind::Int { .. }, ParamValue::Int(_))
+                                    | (ParamKind::Float { .. }, ParamValue::Float(_))
+                                    | (ParamKind::Choice(_), ParamValue::Choice(_))
+                            );
+                            let states_range = wrong_kind || range_text.iter().all(|r| msg.contains(r.as_str()));
+                            if !msg.contains(codec.name()) || !msg.contains(spec.name) || !states_range {
+                                f.push(
+                                    codec.name(),
+                                    format!("rejecting '{}' = {value}: message does not name codec, parameter and range {range_text:?}: {msg}", spec.name),
+                                );
+                            }
+                            if p != codec.default_params() {
+                                f.push(codec.name(), format!("a rejected set of '{}' changed the parameter set", spec.name));
+                            }
+                        }
+                    }
+                }
+            }
+            match codec.default_params().set(&specs, "no-such-parameter", ParamValue::Int(1)) {
+                Ok(()) => f.push(codec.name(), "unknown parameter name accepted"),
+                Err(e) => {
+                    let msg = e.to_string();
+                    if !specs.iter().all(|s| msg.contains(s.name)) {
+                        f.push(codec.name(), format!("unknown-parameter error does not list the valid names: {msg}"));
+                    }
+                }
+            }
+        });
+    }
+    failures
+}
+
+/// Suite item 7: defaults validate; every rate-ladder step is settable and validates; a
+/// parameter set made for another codec is refused.
+pub fn defaults_and_ladder_steps_validate(registry: &CodecRegistry) -> Failures {
+    let mut failures = Failures::new();
+    for codec in registry.iter() {
+        failures.run(codec.name(), |f| {
+            let defaults = codec.default_params();
+            if defaults.codec() != codec.name() {
+                f.push(codec.name(), format!("default_params() belongs to '{}'", defaults.codec()));
+            }
+            if let Err(e) = codec.validate(&defaults) {
+                f.push(codec.name(), format!("defaults do not validate: {e}"));
+            }
+            let ladder = codec.rate_ladder();
+            if !codec.param_specs().iter().any(|s| s.name == ladder.param) {
+                f.push(codec.name(), format!("rate ladder walks '{}', which is not a parameter", ladder.param));
+            }
+            if ladder.steps.len() < 2 {
+                f.push(codec.name(), format!("rate ladder has {} step(s); at least 2 needed", ladder.steps.len()));
+            }
+            for step in &ladder.steps {
+                f.count(1);
+                match params_with(codec, ladder.param, step.clone()) {
+                    Err(e) => f.push(codec.name(), format!("ladder step {}={step} rejected by set: {e}", ladder.param)),
+                    Ok(p) => {
+                        if let Err(e) = codec.validate(&p) {
+                            f.push(codec.name(), format!("ladder step {}={step} does not validate: {e}", ladder.param));
+                        }
+                    }
+                }
+            }
+            let foreign = ParamSet::defaults("some-other-codec", &codec.param_specs());
+            if codec.validate(&foreign).is_ok() {
+                f.push(codec.name(), "validate() accepts a parameter set made for another codec");
+            }
+        });
+    }
+    failures
+}
+
+/// Suite item 7: the rate ladder's streams do not shrink from one step to the next (small →
+/// large), on two synthetic animations. No tolerance: a smaller stream at a higher step is
+/// reported.
+pub fn rate_ladder_sizes_are_non_decreasing(registry: &CodecRegistry) -> Failures {
+    let anims =
+        [("waving-flag", synth::waving_flag(10, 8, 24)), ("bending-cylinder", synth::bending_cylinder(8, 10, 30))];
+    let mut failures = Failures::new();
+    for codec in registry.iter() {
+        failures.run(codec.name(), |f| {
+            let ladder = codec.rate_ladder();
+            for (name, anim) in &anims {
+                let mut sizes = Vec::new();
+                for step in &ladder.steps {
+                    f.count(1);
+                    let r = params_with(codec, ladder.param, step.clone())
+                        .and_then(|p| encode_animation(codec, &p, anim))
+                        .map(|b| b.len());
+                    match r {
+                        Ok(n) => sizes.push((step.clone(), n)),
+                        Err(e) => {
+                            f.push(codec.name(), format!("{name}: {}={step}: encode failed: {e}", ladder.param));
+                            return;
+                        }
+                    }
+                }
+                let listing = sizes.iter().map(|(s, n)| format!("{s}:{n}")).collect::<Vec<_>>().join(" ");
+                if sizes.windows(2).any(|w| w[1].1 < w[0].1) {
+                    f.push(
+                        codec.name(),
+                        format!("{name}: stream sizes along the '{}' ladder shrink: {listing}", ladder.param),
+                    );
+                }
+                if sizes.first().map(|x| x.1) == sizes.last().map(|x| x.1) {
+                    f.push(codec.name(), format!("{name}: the ladder does not change the stream size: {listing}"));
+                }
+            }
+        });
+    }
+    failures
+}
+
+/// Suite item 10: names and FourCCs unique and well formed; `by_name` of an unknown name
+/// lists the valid ones; every codec is found by its own name and FourCC.
+pub fn registry_names_and_fourccs_are_unique(registry: &CodecRegistry) -> Failures {
+    let codecs: Vec<&dyn AnimationCodec> = registry.iter().collect();
+    let mut failures = Failures::new();
+    if codecs.is_empty() {
+        failures.push("registry", "the registry is empty");
+    }
+    for (i, a) in codecs.iter().enumerate() {
+        for b in &codecs[..i] {
+            if a.name() == b.name() {
+                failures.push(a.name(), "name registered twice");
+            }
+            if a.fourcc() == b.fourcc() {
+                failures.push(a.name(), format!("FourCC {} also used by {}", a.fourcc(), b.name()));
+            }
+        }
+        let name = a.name();
+        failures.count(1);
+        if name.is_empty() || !name.bytes().all(|c| c.is_ascii_lowercase() || c.is_ascii_digit() || c == b'-') {
+            failures.push(name, "name is not lower-case kebab (used on the command line)");
+        }
+        if !a.fourcc().0.iter().all(|c| c.is_ascii_graphic()) {
+            failures.push(name, format!("FourCC {} is not printable ASCII", a.fourcc()));
+        }
+        if a.stream_version() == 0 {
+            failures.push(name, "stream_version 0 (decoders reject it)");
+        }
+        if a.summary().trim().is_empty() {
+            failures.push(name, "empty summary");
+        }
+        match registry.by_name(name) {
+            Ok(c) if c.fourcc() == a.fourcc() => {}
+            _ => failures.push(name, "by_name does not find it"),
+        }
+        match registry.by_fourcc(a.fourcc()) {
+            Ok(c) if c.name() == name => {}
+            _ => failures.push(name, "by_fourcc does not find it"),
+        }
+    }
+    match registry.by_name("no-such-codec") {
+        Ok(_) => failures.push("registry", "by_name found a codec called no-such-codec"),
+        Err(e) => {
+            let msg = e.to_string();
+            for c in &codecs {
+                if !msg.contains(c.name()) || !msg.contains("no-such-codec") {
+                    failures.push(c.name(), format!("unknown-codec error does not name it or the request: {msg}"));
+                }
+            }
+        }
+    }
+    if registry.by_fourcc(codec_core::FourCc::new(b"\0\0\0\0")).is_ok() {
+        failures.push("registry", "by_fourcc found a codec for FourCC 0");
+    }
+    failures
+}
+
+/// Decoding needs nothing but the bitstream: a stream whose FourCC no codec has is refused by
+/// name, and the default limits decode a valid stream like the tight ones do.
+pub fn unknown_fourcc_and_default_limits(registry: &CodecRegistry) -> Failures {
+    let anim = small_animation();
+    let mut failures = Failures::new();
+    for codec in registry.iter() {
+        failures.run(codec.name(), |f| {
+            let bytes = match encode_animation(codec, &codec.default_params(), &anim) {
+                Ok(b) => b,
+                Err(e) => return f.push(codec.name(), format!("encode failed: {e}")),
+            };
+            f.count(1);
+            let a = decode_animation(&bytes, registry, Limits::default());
+            let b = decode_animation(&bytes, registry, tight_limits(&anim));
+            match (a, b) {
+                (Ok(a), Ok(b)) if a == b => {}
+                (a, b) => {
+                    f.push(codec.name(), format!("default vs tight limits differ: {:?} / {:?}", a.err(), b.err()))
+                }
+            }
+            let mut other = bytes.clone();
+            other[10..14].copy_from_slice(b"\x01ZZ\x02");
+            let parts = split(&bytes).expect("valid stream");
+            patch_header_crc(&mut other, &parts.header);
+            match decode_animation(&other, registry, Limits::default()) {
+                Err(codec_core::Error::UnknownCodec { .. }) => {}
+                r => f.push(codec.name(), format!("unknown FourCC gave {:?}", r.map(|_| ()))),
+            }
+        });
+    }
+    failures
+}
+
+/// Which part of the stream byte `pos` belongs to (for failure messages).
+fn region(parts: &Parts, total: usize, pos: usize) -> String {
+    if pos < parts.header.header_bytes {
+        let cfg = config_range(&parts.header);
+        return if cfg.contains(&pos) {
+            format!("header config byte {}", pos - cfg.start)
+        } else {
+            format!("header byte {pos}")
+        };
+    }
+    for (i, e) in parts.index.iter().enumerate() {
+        let start = e.offset as usize;
+        let end = start + e.stored_bytes() as usize;
+        if (start..end).contains(&pos) {
+            let p = payload_range(e);
+            let what = if pos < start + 4 {
+                "tag".to_string()
+            } else if pos < p.start {
+                "fields".to_string()
+            } else if pos < p.end {
+                format!("payload byte {}", pos - p.start)
+            } else {
+                "crc".to_string()
+            };
+            return format!("packet {i} {what}");
+        }
+    }
+    if pos >= total - 12 {
+        "trailer".into()
+    } else {
+        "index".into()
+    }
+}
+
+fn encode_or_report(f: &mut Failures, codec: &dyn AnimationCodec, anim: &Animation, what: &str) -> Option<Vec<u8>> {
+    match encode_animation(codec, &codec.default_params(), anim) {
+        Ok(b) => Some(b),
+        Err(e) => {
+            f.push(codec.name(), format!("{what}: encode failed: {e}"));
+            None
+        }
+    }
+}
+
+/// Time budgets for the corruption checks, per codec and stream. Each case is one full
+/// decode attempt; a codec whose decoder is slow in the dev profile gets an evenly spread
+/// subset of the cases (never fewer than the floor), so the suite stays fast for every codec.
+const TRUNCATION_BUDGET: Duration = Duration::from_secs(2);
+const FLIP_BUDGET: Duration = Duration::from_secs(4);
+const PAYLOAD_BUDGET: Duration = Duration::from_millis(1500);
+
+/// Fastest of three decodes of a valid stream.
+fn decode_time(bytes: &[u8], registry: &CodecRegistry, limits: Limits) -> Duration {
+    (0..3)
+        .map(|_| {
+            let t = Instant::now();
+            let _ = decode_animation(bytes, registry, limits);
+            t.elapsed()
+        })
+        .min()
+        .unwrap_or_default()
+}
+
+/// Keeps an evenly spread subset of `cases` that fits `budget` at `per_case` each (at least
+/// `floor` cases), and says so on stderr when it drops any.
+fn thin<T>(cases: Vec<T>, per_case: Duration, budget: Duration, floor: usize, what: &str) -> Vec<T> {
+    let total = cases.len();
+    let fit = (budget.as_secs_f64() / per_case.as_secs_f64().max(1e-9)) as usize;
+    let keep = fit.max(floor).min(total);
+    if keep == total {
+        return cases;
+    }
+    eprintln!("note: {what}: {keep} of {total} cases kept (one decode takes {per_case:.1?})");
+    let step = total as f64 / keep as f64;
+    let picks: std::collections::BTreeSet<usize> = (0..keep).map(|i| (i as f64 * step) as usize).collect();
+    cases.into_iter().enumerate().filter(|(i, _)| picks.contains(i)).map(|(_, c)| c).collect()
+}
+
+/// The packets the per-packet corruptions visit: first, second, middle and last (all of
+/// them when there are at most four), so a codec coding one packet per frame stays fast.
+fn sample_packets(n: usize) -> Vec<usize> {
+    let mut v: Vec<usize> = [0, 1, n / 2, n.saturating_sub(1)].into_iter().filter(|&i| i < n).collect();
+    v.sort_unstable();
+    v.dedup();
+    v
+}
+
+/// Cut positions: every prefix for streams up to `exhaustive` bytes, else every prefix in the
+/// first and last 512 bytes and about 1500 evenly spaced ones between.
+fn cuts(len: usize, exhaustive: usize) -> Vec<usize> {
+    if len <= exhaustive {
+        return (0..len).collect();
+    }
+    let mut v: Vec<usize> = (0..512.min(len)).chain(len.saturating_sub(512)..len).collect();
+    let step = (len / 1500).max(1);
+    v.extend((512..len.saturating_sub(512)).step_by(step));
+    v.sort_unstable();
+    v.dedup();
+    v
+}
+
+/// Suite item 4: every truncation of a valid stream is an error from `decode_animation` and
+/// `decode_frame` — never a panic, never a large allocation; so is trailing junk.
+pub fn every_truncation_is_an_error(registry: &CodecRegistry) -> Failures {
+    let mut failures = Failures::new();
+    for codec in registry.iter() {
+        failures.run(codec.name(), |f| {
+            for (what, anim, exhaustive) in [("tiny", tiny_animation(), 1 << 14), ("small", small_animation(), 3000)] {
+                let Some(bytes) = encode_or_report(f, codec, &anim, what) else { continue };
+                let limits = tight_limits(&anim);
+                let parts = split(&bytes).expect("encoder output is a valid container");
+                let per = decode_time(&bytes, registry, limits);
+                let label = format!("{} truncations of the {what} stream", codec.name());
+                let cuts = thin(cuts(bytes.len(), exhaustive), per, TRUNCATION_BUDGET, 400, &label);
+                for (i, cut) in cuts.into_iter().enumerate() {
+                    let at = format!(
+                        "{what} stream of {} bytes cut at {cut} ({})",
+                        bytes.len(),
+                        region(&parts, bytes.len(), cut)
+                    );
+                    f.count(1);
+                    match decode_guarded(&bytes[..cut], registry, limits) {
+                        Err(p) => f.push(codec.name(), format!("{at}: {p}")),
+                        Ok(out) => {
+                            if out.result.is_ok() {
+                                f.push(codec.name(), format!("{at}: decoded without error"));
+                            }
+                            if out.peak_bytes > peak_budget(&limits) {
+                                f.push(codec.name(), format!("{at}: peak {} bytes", out.peak_bytes));
+                            }
+                        }
+                    }
+                    if i % 3 == 0 {
+                        let t = anim.frame_count() / 2;
+                        match decode_frame_guarded(&bytes[..cut], registry, limits, t) {
+                            Err(p) => f.push(codec.name(), format!("{at}: decode_frame {p}")),
+                            Ok((Ok(_), _)) => f.push(codec.name(), format!("{at}: decode_frame({t}) succeeded")),
+                            Ok((Err(_), peak)) if peak > peak_budget(&limits) => {
+                                f.push(codec.name(), format!("{at}: decode_frame peak {peak} bytes"))
+                            }
+                            Ok(_) => {}
+                        }
+                    }
+                }
+                let mut longer = bytes.clone();
+                longer.push(0);
+                if codec_core::decode_animation(&longer, registry, limits).is_ok() {
+                    f.push(codec.name(), format!("{what}: a byte after the trailer was accepted"));
+                }
+            }
+        });
+    }
+    failures
+}
+
+/// Suite item 5, container level: random single- and multi-byte changes anywhere (header,
+/// packets, index, trailer) and every byte of header, packet framing and index flipped. All
+/// bytes are covered by a checksum or a checked tag, so every one must be an error;
+/// `decode_frame` (which reads only the packets it needs) may succeed but must return a
+/// frame of the right size.
+pub fn byte_flips_are_detected(registry: &CodecRegistry) -> Failures {
+    let anim = small_animation();
+    let limits = tight_limits(&anim);
+    let mut failures = Failures::new();
+    for codec in registry.iter() {
+        failures.run(codec.name(), |f| {
+            let Some(bytes) = encode_or_report(f, codec, &anim, "small") else { return };
+            let parts = split(&bytes).expect("valid container");
+            let mut rng = Rng::for_codec(codec.name(), 5);
+            // (positions, masks) of each corruption.
+            let mut cases: Vec<Vec<(usize, u8)>> = Vec::new();
+            let framing = |pos: usize| {
+                pos < parts.header.header_bytes || parts.index.iter().all(|e| !payload_range(e).contains(&pos))
+            };
+            for pos in (0..bytes.len()).filter(|&p| framing(p)) {
+                cases.push(vec![(pos, 0x01)]);
+                cases.push(vec![(pos, 0x80)]);
+            }
+            for _ in 0..2500 {
+                cases.push(vec![(rng.below(bytes.len()), rng.nonzero_byte())]);
+            }
+            for _ in 0..300 {
+                let n = 2 + rng.below(3);
+                cases.push((0..n).map(|_| (rng.below(bytes.len()), rng.nonzero_byte())).collect());
+            }
+            let v3 = anim.vertex_count() * 3;
+            let per = decode_time(&bytes, registry, limits);
+            let cases = thin(cases, per, FLIP_BUDGET, 600, &format!("{} byte flips", codec.name()));
+            for (k, case) in cases.iter().enumerate() {
+                let mut b = bytes.clone();
+                for &(pos, mask) in case {
+                    b[pos] ^= mask;
+                }
+                if b == bytes {
+                    continue; // two flips of one byte cancelled out
+                }
+                let at = case
+                    .iter()
+                    .map(|&(p, m)| format!("{p} ({}) ^= {m:#04x}", region(&parts, bytes.len(), p)))
+                    .collect::<Vec<_>>()
+                    .join(", ");
+                f.count(1);
+                match decode_guarded(&b, registry, limits) {
+                    Err(p) => f.push(codec.name(), format!("flip {at}: {p}")),
+                    Ok(out) => {
+                        if out.result.is_ok() {
+                            f.push(codec.name(), format!("flip {at}: accepted (byte not covered by a checksum)"));
+                        }
+                        if out.peak_bytes > peak_budget(&limits) {
+                            f.push(codec.name(), format!("flip {at}: peak {} bytes", out.peak_bytes));
+                        }
+                    }
+                }
+                if k % 8 == 0 {
+                    let t = rng.below(anim.frame_count());
+                    match decode_frame_guarded(&b, registry, limits, t) {
+                        Err(p) => f.push(codec.name(), format!("flip {at}: decode_frame({t}) {p}")),
+                        Ok((Ok(frame), _)) if frame.len() != v3 || frame.iter().any(|x| !x.is_finite()) => {
+                            f.push(codec.name(), format!("flip {at}: decode_frame({t}) gave a bad frame"))
+                        }
+                        Ok((_, peak)) if peak > peak_budget(&limits) => {
+                            f.push(codec.name(), format!("flip {at}: decode_frame peak {peak} bytes"))
+                        }
+                        Ok(_) => {}
+                    }
+                }
+            }
+        });
+    }
+    failures
+}
+
+/// The streams the codec-level corruption tests start from: defaults and both ladder ends.
+fn base_streams(f: &mut Failures, codec: &dyn AnimationCodec, anim: &Animation) -> Vec<(String, Vec<u8>)> {
+    let settings = match test_settings(codec) {
+        Ok(s) => s,
+        Err(e) => {
+            f.push(codec.name(), e);
+            return Vec::new();
+        }
+    };
+    let mut out = Vec::new();
+    for (label, params) in settings {
+        match encode_animation(codec, &params, anim) {
+            Ok(b) => out.push((label, b)),
+            Err(e) => f.push(codec.name(), format!("{label}: encode failed: {e}")),
+        }
+    }
+    out
+}
+
+/// Suite item 5, codec level: bytes flipped inside packet payloads with the packet CRC
+/// recomputed, so the codec's parser sees them. Err or a finite animation of the right size;
+/// never a panic or a large allocation.
+pub fn payload_flips_with_valid_crc_never_panic(registry: &CodecRegistry) -> Failures {
+    let anim = small_animation();
+    let limits = tight_limits(&anim);
+    let (frames, verts) = (anim.frame_count(), anim.vertex_count());
+    let mut failures = Failures::new();
+    for codec in registry.iter() {
+        failures.run(codec.name(), |f| {
+            let mut rng = Rng::for_codec(codec.name(), 17);
+            for (label, bytes) in base_streams(f, codec, &anim) {
+                let parts = split(&bytes).expect("valid container");
+                // Streams with many packets: the first, second, middle and last packets.
+                let payloads: Vec<(usize, IndexEntry)> =
+                    sample_packets(parts.index.len()).into_iter().map(|i| (i, parts.index[i])).collect();
+                let mut cases: Vec<(usize, Vec<(usize, u8)>)> = Vec::new();
+                for &(i, e) in &payloads {
+                    let len = e.payload_bytes as usize;
+                    // Codec payload headers (sizes, ranges, counts) sit at the start: flip
+                    // each of the first 48 bytes three ways.
+                    for off in 0..len.min(48) {
+                        for mask in [0x01, 0x80, 0xFF] {
+                            cases.push((i, vec![(off, mask)]));
+                        }
+                    }
+                    if len > 0 {
+                        for _ in 0..120 {
+                            cases.push((i, vec![(rng.below(len), rng.nonzero_byte())]));
+                        }
+                        for _ in 0..30 {
+                            cases.push((i, (0..3).map(|_| (rng.below(len), rng.nonzero_byte())).collect()));
+                        }
+                    }
+                }
+                let per = decode_time(&bytes, registry, limits);
+                let cases = thin(cases, per, PAYLOAD_BUDGET, 200, &format!("{} payload flips, {label}", codec.name()));
+                for (i, flips) in cases {
+                    let e = parts.index[i];
+                    let mut b = bytes.clone();
+                    let start = payload_range(&e).start;
+                    for &(off, mask) in &flips {
+                        b[start + off] ^= mask;
+                    }
+                    patch_packet_crc(&mut b, &e);
+                    let at = format!("{label}: packet {i} payload {flips:?} (offset, xor)");
+                    f.count(1);
+                    if let Some(msg) = judge_corrupt_decode(&at, &b, registry, limits, frames, verts) {
+                        f.push(codec.name(), msg);
+                    }
+                }
+            }
+        });
+    }
+    failures
+}
+
+/// Suite item 5, codec level: the codec configuration in the header corrupted (each byte
+/// flipped, truncated, extended, emptied) with the header CRC valid, and unsupported stream
+/// versions. The configuration reaches `new_decoder` as untrusted bytes.
+pub fn corrupt_config_and_version_never_panic(registry: &CodecRegistry) -> Failures {
+    let anim = small_animation();
+    let limits = tight_limits(&anim);
+    let (frames, verts) = (anim.frame_count(), anim.vertex_count());
+    let mut failures = Failures::new();
+    for codec in registry.iter() {
+        failures.run(codec.name(), |f| {
+            let mut rng = Rng::for_codec(codec.name(), 23);
+            for (label, bytes) in base_streams(f, codec, &anim) {
+                let parts = split(&bytes).expect("valid container");
+                let h = &parts.header;
+                let cfg = config_range(h);
+                for pos in cfg.clone() {
+                    for mask in [0x01, 0x80, 0xFF, rng.nonzero_byte()] {
+                        let mut b = bytes.clone();
+                        b[pos] ^= mask;
+                        patch_header_crc(&mut b, h);
+                        let at = format!("{label}: config byte {} ^= {mask:#04x}", pos - cfg.start);
+                        f.count(1);
+                        if let Some(m) = judge_corrupt_decode(&at, &b, registry, limits, frames, verts) {
+                            f.push(codec.name(), m);
+                        }
+                    }
+                }
+                let mut configs: Vec<(String, Vec<u8>)> = (0..h.config.len())
+                    .map(|n| (format!("config truncated to {n} bytes"), h.config[..n].to_vec()))
+                    .collect();
+                for extra in [vec![0u8], vec![0xFF; 8], (0..64).map(|_| rng.nonzero_byte()).collect()] {
+                    configs.push((format!("config + {} junk bytes", extra.len()), [h.config.clone(), extra].concat()));
+                }
+                configs.push(("config of 4096 0xFF bytes".into(), vec![0xFF; 4096]));
+                let version = h.info.codec_version;
+                for (what, config) in configs {
+                    match rebuild(h, &config, version, None, None, &parts.packets) {
+                        Err(e) => f.push(codec.name(), format!("{label}: {what}: rebuild failed: {e}")),
+                        Ok(b) => {
+                            if let Some(m) =
+                                judge_corrupt_decode(&format!("{label}: {what}"), &b, registry, limits, frames, verts)
+                            {
+                                f.push(codec.name(), m);
+                            }
+                        }
+                    }
+                }
+                for v in [0, codec.stream_version() + 1, u16::MAX] {
+                    let b = rebuild(h, &h.config, v, None, None, &parts.packets).expect("rebuild");
+                    match decode_guarded(&b, registry, limits) {
+                        Ok(out) if out.result.is_err() => {}
+                        Ok(_) => f.push(codec.name(), format!("{label}: stream version {v} accepted")),
+                        Err(p) => f.push(codec.name(), format!("{label}: stream version {v}: {p}")),
+                    }
+                }
+                for v in 1..codec.stream_version() {
+                    let b = rebuild(h, &h.config, v, None, None, &parts.packets).expect("rebuild");
+                    if let Some(m) = judge_corrupt_decode(
+                        &format!("{label}: older version {v}"),
+                        &b,
+                        registry,
+                        limits,
+                        frames,
+                        verts,
+                    ) {
+                        f.push(codec.name(), m);
+                    }
+                }
+            }
+        });
+    }
+    failures
+}
+
+/// One structural mutation of a stream: a name, the rebuilt bytes, and the shape a decoder
+/// must produce if it accepts them.
+struct Mutation {
+    what: String,
+    bytes: Vec<u8>,
+    frames: usize,
+    vertices: usize,
+}
+
+fn mutations(parts: &Parts, other: &[(String, Parts)], rng: &mut Rng) -> Vec<Result<Mutation, String>> {
+    let h = &parts.header;
+    let info = &h.info;
+    let (frames, verts) = (info.frame_count, info.vertex_count());
+    let version = info.codec_version;
+    let mut out = Vec::new();
+    let mut add =
+        |what: String, topology: Option<&Topology>, frame_count: Option<usize>, config: &[u8], packets: &[Packet]| {
+            let f = frame_count.unwrap_or(frames);
+            let v = topology.map_or(verts, |t| t.vertex_count());
+            out.push(
+                rebuild(h, config, version, topology, frame_count, packets)
+                    .map(|bytes| Mutation { what: what.clone(), bytes, frames: f, vertices: v })
+                    .map_err(|e| format!("{what}: rebuild failed: {e}")),
+            );
+        };
+    let n = parts.packets.len();
+    for i in sample_packets(n) {
+        let len = parts.packets[i].data.len();
+        let mut cut_lengths = vec![0, 1, len / 2, len.saturating_sub(1)];
+        cut_lengths.dedup();
+        for keep in cut_lengths.into_iter().filter(|&k| k < len) {
+            let mut p = parts.packets.clone();
+            p[i].data.truncate(keep);
+            add(format!("packet {i} payload cut to {keep} of {len} bytes"), None, None, &h.config, &p);
+        }
+        let junk: Vec<Vec<u8>> = vec![vec![0], vec![0xFF; 8], (0..64).map(|_| rng.nonzero_byte()).collect()];
+        for extra in junk {
+            let mut p = parts.packets.clone();
+            p[i].data.extend_from_slice(&extra);
+            add(format!("packet {i} payload + {} junk bytes", extra.len()), None, None, &h.config, &p);
+        }
+        let mut p = parts.packets.clone();
+        p[i].keyframe = !p[i].keyframe;
+        add(format!("packet {i} keyframe flag toggled"), None, None, &h.config, &p);
+        let mut p = parts.packets.clone();
+        p[i].data = (0..len).map(|_| rng.next_u64() as u8).collect();
+        add(format!("packet {i} payload replaced by {len} random bytes"), None, None, &h.config, &p);
+    }
+    if n >= 2 {
+        let mut p = parts.packets.clone();
+        let (a, b) = (p[0].data.clone(), p[n - 1].data.clone());
+        p[0].data = b;
+        p[n - 1].data = a;
+        add("first and last payloads swapped".into(), None, None, &h.config, &p);
+        let mut p = parts.packets.clone();
+        for q in p.iter_mut().skip(1) {
+            q.data = parts.packets[0].data.clone();
+        }
+        add("every payload replaced by the first".into(), None, None, &h.config, &p);
+        // Move one frame from the first packet to the second: payloads now disagree with
+        // the frame counts they are decoded for.
+        if parts.packets[0].frame_count > 1 {
+            let mut p = parts.packets.clone();
+            p[0].frame_count -= 1;
+            p[1].first_frame -= 1;
+            p[1].frame_count += 1;
+            add("one frame moved from packet 0 to packet 1".into(), None, None, &h.config, &p);
+        }
+        let kept = &parts.packets[..n - 1];
+        let kept_frames: usize = kept.iter().map(|p| p.frame_count as usize).sum();
+        add("last packet dropped (header says fewer frames)".into(), None, Some(kept_frames), &h.config, kept);
+    }
+    // One packet claiming every frame, holding the first packet's payload.
+    if n >= 1 {
+        let p = vec![Packet {
+            first_frame: 0,
+            frame_count: frames as u32,
+            keyframe: true,
+            data: parts.packets[0].data.clone(),
+        }];
+        add("a single packet claiming every frame".into(), None, None, &h.config, &p);
+    }
+    // Header topology with more and with fewer vertices than the packets were coded for.
+    let tris = info.topology.triangles().to_vec();
+    let more = Topology::new(verts + 3, tris.clone()).expect("valid");
+    add(
+        format!("header declares {} vertices instead of {verts}", verts + 3),
+        Some(&more),
+        None,
+        &h.config,
+        &parts.packets,
+    );
+    let half = (verts / 2).max(1);
+    let fewer_tris: Vec<[u32; 3]> = tris.iter().copied().filter(|t| t.iter().all(|&i| (i as usize) < half)).collect();
+    let fewer = Topology::new(half, fewer_tris).expect("valid");
+    add(format!("header declares {half} vertices instead of {verts}"), Some(&fewer), None, &h.config, &parts.packets);
+    // Packets and configuration from other streams of the same codec.
+    for (label, o) in other {
+        let same_split = o
+            .packets
+            .iter()
+            .map(|p| (p.first_frame, p.frame_count))
+            .eq(parts.packets.iter().map(|p| (p.first_frame, p.frame_count)));
+        if same_split && o.header.info.topology == info.topology && o.header.config != h.config {
+            add(
+                format!("configuration of the {label} stream with these packets"),
+                None,
+                None,
+                &o.header.config,
+                &parts.packets,
+            );
+        }
+        if o.header.info.topology != info.topology {
+            let f: usize = o.packets.iter().map(|p| p.frame_count as usize).sum();
+            add(
+                format!("packets of the {label} stream ({} vertices)", o.header.info.vertex_count()),
+                None,
+                Some(f),
+                &o.header.config,
+                &o.packets,
+            );
+        }
+    }
+    out
+}
+
+/// Suite item 5, codec level: rebuilt streams (all checksums and the index consistent) with
+/// payloads cut, extended, replaced, swapped, frame ranges moved, keyframe flags toggled,
+/// header vertex counts changed, and packets or configuration taken from other streams.
+/// `decode_animation` and `decode_frame` must give Err or the right shape; never panic.
+pub fn structural_mutations_never_panic(registry: &CodecRegistry) -> Failures {
+    let anim = small_animation();
+    let tiny = tiny_animation();
+    let mut failures = Failures::new();
+    for codec in registry.iter() {
+        failures.run(codec.name(), |f| {
+            let mut rng = Rng::for_codec(codec.name(), 31);
+            let streams: Vec<(String, Parts)> = base_streams(f, codec, &anim)
+                .into_iter()
+                .map(|(l, b)| (l, split(&b).expect("valid container")))
+                .collect();
+            let mut others = streams.clone();
+            if let Some(b) = encode_or_report(f, codec, &tiny, "tiny") {
+                others.push(("tiny animation".into(), split(&b).expect("valid container")));
+            }
+            for (label, parts) in &streams {
+                let others: Vec<(String, Parts)> = others.iter().filter(|(l, _)| l != label).cloned().collect();
+                for m in mutations(parts, &others, &mut rng) {
+                    let m = match m {
+                        Ok(m) => m,
+                        Err(e) => {
+                            f.push(codec.name(), format!("{label}: {e}"));
+                            continue;
+                        }
+                    };
+                    let limits = Limits {
+                        max_vertices: m.vertices.max(anim.vertex_count()),
+                        max_frames: m.frames.max(anim.frame_count()),
+                        max_triangles: anim.triangles().len(),
+                        ..tight_limits(&anim)
+                    };
+                    check_mutation(f, codec, registry, label, &m, limits);
+                }
+            }
+        });
+    }
+    failures
+}
+
+fn check_mutation(
+    f: &mut Failures,
+    codec: &dyn AnimationCodec,
+    registry: &CodecRegistry,
+    label: &str,
+    m: &Mutation,
+    limits: Limits,
+) {
+    let at = format!("{label}: {}", m.what);
+    f.count(1);
+    if let Some(msg) = judge_corrupt_decode(&at, &m.bytes, registry, limits, m.frames, m.vertices) {
+        f.push(codec.name(), msg);
+    }
+    for t in [0, m.frames / 2, m.frames - 1] {
+        match decode_frame_guarded(&m.bytes, registry, limits, t) {
+            Err(p) => f.push(codec.name(), format!("{at}: decode_frame({t}) {p}")),
+            Ok((Ok(frame), _)) if frame.len() != m.vertices * 3 || frame.iter().any(|x| !x.is_finite()) => {
+                f.push(codec.name(), format!("{at}: decode_frame({t}) gave {} values or non-finite ones", frame.len()))
+            }
+            Ok((_, peak)) if peak > peak_budget(&limits) => {
+                f.push(codec.name(), format!("{at}: decode_frame({t}) peak {peak} bytes"))
+            }
+            Ok(_) => {}
+        }
+    }
+}
+
+fn new_encoder(
+    codec: &dyn AnimationCodec,
+    params: &ParamSet,
+    topology: &Topology,
+    frames: usize,
+    rate: f32,
+) -> codec_core::Result<StreamEncoder<Vec<u8>>> {
+    StreamEncoder::new(codec, params, topology, frames, rate, true, Vec::new())
+}
+
+/// Pushes `blocks` into a fresh encoder declared for `declared` frames and finishes it;
+/// returns the first error.
+fn push_all(
+    codec: &dyn AnimationCodec,
+    anim: &Animation,
+    declared: usize,
+    blocks: &[Vec<f32>],
+) -> codec_core::Result<()> {
+    let mut enc = new_encoder(codec, &codec.default_params(), anim.topology(), declared, 30.0)?;
+    for b in blocks {
+        enc.push_frames(b)?;
+    }
+    enc.finish().map(|_| ())
+}
+
+fn expect_err(f: &mut Failures, codec: &str, what: &str, r: Result<codec_core::Result<()>, String>) {
+    f.count(1);
+    match r {
+        Err(p) => f.push(codec, format!("{what}: {p}")),
+        Ok(Ok(())) => f.push(codec, format!("{what}: accepted")),
+        Ok(Err(e)) if e.to_string().trim().is_empty() => f.push(codec, format!("{what}: empty error message")),
+        Ok(Err(_)) => {}
+    }
+}
+
+/// Suite item 8: NaN or infinite coordinates, frames of the wrong size, more or fewer frames
+/// than declared, zero frames, bad frame rates, another codec's parameters and an absurd frame
+/// count all give `Err` from `StreamEncoder` — never a panic or a large allocation.
+pub fn encoder_rejects_bad_input(registry: &CodecRegistry) -> Failures {
+    let anim = synth::waving_flag(6, 5, 10);
+    let n3 = anim.vertex_count() * 3;
+    let frames: Vec<Vec<f32>> = anim.frames().map(|f| f.to_vec()).collect();
+    let mut failures = Failures::new();
+    for codec in registry.iter() {
+        let name = codec.name();
+        failures.run(name, |f| {
+            // Sanity: the unmodified input encodes, so the rejections below are about the input.
+            if let Err(e) = push_all(codec, &anim, 10, &frames) {
+                return f.push(name, format!("valid input refused: {e}"));
+            }
+            for (what, bad) in [("NaN", f32::NAN), ("+inf", f32::INFINITY), ("-inf", f32::NEG_INFINITY)] {
+                for frame in [0usize, 7] {
+                    let mut blocks = frames.clone();
+                    blocks[frame][n3 / 2] = bad;
+                    expect_err(
+                        f,
+                        name,
+                        &format!("{what} in frame {frame}"),
+                        catch(|| push_all(codec, &anim, 10, &blocks)),
+                    );
+                }
+            }
+            let mut short = frames.clone();
+            short[3].pop();
+            expect_err(f, name, "a frame one coordinate short", catch(|| push_all(codec, &anim, 10, &short)));
+            let mut long = frames.clone();
+            long[3].extend_from_slice(&[0.0; 3]);
+            expect_err(f, name, "a frame one vertex too long", catch(|| push_all(codec, &anim, 10, &long)));
+            let mut extra = frames.clone();
+            extra.push(frames[0].clone());
+            expect_err(f, name, "11 frames pushed, 10 declared", catch(|| push_all(codec, &anim, 10, &extra)));
+            expect_err(f, name, "9 frames pushed, 10 declared", catch(|| push_all(codec, &anim, 10, &frames[..9])));
+            let all: Vec<f32> = frames.concat();
+            expect_err(f, name, "10 frames in one block, 4 declared", catch(|| push_all(codec, &anim, 4, &[all])));
+            expect_err(f, name, "zero frames declared", catch(|| push_all(codec, &anim, 0, &[])));
+            for rate in [0.0, -30.0, f32::NAN, f32::INFINITY] {
+                expect_err(
+                    f,
+                    name,
+                    &format!("frame rate {rate}"),
+                    catch(|| new_encoder(codec, &codec.default_params(), anim.topology(), 10, rate).map(|_| ())),
+                );
+            }
+            let foreign = ParamSet::defaults("some-other-codec", &codec.param_specs());
+            expect_err(
+                f,
+                name,
+                "parameters of another codec",
+                catch(|| new_encoder(codec, &foreign, anim.topology(), 10, 30.0).map(|_| ())),
+            );
+            // More frames than the container's 32-bit field: refused up front. The peak bytes
+            // held while refusing must stay small (no buffer sized from the declared count).
+            let mut r = None;
+            let info = allocation_counter::measure(|| {
+                r = Some(catch(|| {
+                    new_encoder(codec, &codec.default_params(), anim.topology(), 1 << 33, 30.0).map(|_| ())
+                }));
+            });
+            expect_err(f, name, "2^33 frames declared", r.expect("ran"));
+            if info.bytes_max > 64 << 20 {
+                f.push(name, format!("declaring 2^33 frames held {} bytes at peak", info.bytes_max));
+            }
+        });
+    }
+    failures
+}
+
+/// Pushing empty blocks between frames changes nothing (a zero-frame push is legal).
+pub fn empty_pushes_are_harmless(registry: &CodecRegistry) -> Failures {
+    let anim = synth::waving_flag(6, 5, 10);
+    let mut failures = Failures::new();
+    for codec in registry.iter() {
+        failures.run(codec.name(), |f| {
+            let params = codec.default_params();
+            let reference = match codec_core::encode_animation(codec, &params, &anim) {
+                Ok(b) => b,
+                Err(e) => return f.push(codec.name(), format!("encode failed: {e}")),
+            };
+            f.count(1);
+            let r = (|| {
+                let mut enc = new_encoder(codec, &params, anim.topology(), 10, anim.frame_rate())?;
+                enc.push_frames(&[])?;
+                for frame in anim.frames() {
+                    enc.push_frames(frame)?;
+                    enc.push_frames(&[])?;
+                }
+                enc.finish().map(|(_, bytes)| bytes)
+            })();
+            match r {
+                Ok(b) if b == reference => {}
+                Ok(_) => f.push(codec.name(), "empty pushes changed the bytes"),
+                Err(e) => f.push(codec.name(), format!("empty pushes: {e}")),
+            }
+        });
+    }
+    failures
+}
