@@ -1,1 +1,795 @@
-//! Codec crate placeholder: filled in by its own issue; not yet registered.
+//! `pca-aoi`: streaming block PCA whose dictionaries are tracked from block to block by
+//! adaptive orthogonal iterations (Lalos et al. 2017, "Adaptive compression of animated
+//! meshes by exploiting orthogonal iterations").
+//!
+//! Frames are cut into blocks of `block` frames as they arrive. Each block (and each spatial
+//! cluster of it) is centered by its per-frame centroid, its dictionary `E_i` is estimated
+//! ([`dictionary`]: direct SVD, BAOI or QAOI with a drift guard), the dictionary and the
+//! feature vectors `F_i = E_iᵀ X_i` are quantized uniformly (§4.1) and compressed with zstd.
+//! Every packet carries its own dictionary, so every packet is a keyframe. See the crate
+//! README for the stream layout and every choice the paper leaves open.
+
+pub mod cluster;
+pub mod dictionary;
+mod linalg;
+
+use std::time::Duration;
+
+use codec_core::bytes::{zigzag_decode, zigzag_encode, ByteReader, ByteWriter};
+use codec_core::{
+    entropy, Animation, AnimationCodec, EncodedPacket, EncoderSetup, Error, ErrorBound, FourCc, FrameDecoder,
+    FrameEncoder, Limits, Packet, ParamKind, ParamSet, ParamSpec, ParamValue, Quantizer, RateLadder, Result,
+    StreamInfo, Topology,
+};
+use faer::Mat;
+use rayon::prelude::*;
+
+use dictionary::{EstimatorSettings, Tracker};
+pub use dictionary::{Method, Mode};
+
+/// Codec name on the command line and in error messages.
+pub const NAME: &str = "pca-aoi";
+
+const MODES: &[&str] = &["svd", "baoi", "qaoi"];
+const DOMAINS: &[&str] = &["auto", "temporal", "spatial"];
+
+/// Which autocorrelation matrix the dictionary diagonalizes (Eq. 2).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Domain {
+    /// The smaller of the two (per cluster, from the nominal block size).
+    Auto,
+    /// `A = D Dᵀ` (`3d × 3d`): EigenTrajectories; dictionary rows are frame coordinates.
+    Temporal,
+    /// `A = Dᵀ D` (`n × n`): EigenShapes; dictionary rows are vertices.
+    Spatial,
+}
+
+/// Typed parameters of `pca-aoi`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PcaAoiParams {
+    /// Dictionary estimation method. Default `baoi`.
+    pub mode: Mode,
+    /// Subspace size (svd, baoi), 1..=512. Default 8. Not used by qaoi, whose first block takes
+    /// its size from the SVD spectrum (see the README).
+    pub k: u32,
+    /// Frames per block (= per packet), 1..=4096. Default 40.
+    pub block: u32,
+    /// Power of `A_i` per orthogonal iteration, 1..=16. Default 1.
+    pub z: u32,
+    /// Orthogonal iterations per block (baoi), 1..=64. Default 1.
+    pub tmax: u32,
+    /// QAOI band, lower edge (relative residual), 1e-6..=1. Default 0.002.
+    pub eps_low: f64,
+    /// QAOI band, upper edge (relative residual), 1e-6..=1. Default 0.01.
+    pub eps_high: f64,
+    /// Domain. Default `auto`.
+    pub domain: Domain,
+    /// Spatial clusters, 1..=65536 (capped at the vertex count). Default 1.
+    pub clusters: u32,
+    /// Bits per dictionary coefficient, 4..=24. Default 14 (§4.1).
+    pub dict_bits: u8,
+    /// Bits per feature coefficient, 4..=24. Default 12 (§4.1).
+    pub feat_bits: u8,
+    /// Drift guard factor: 0 disables it, otherwise ≥ 1. Default 2.
+    pub drift: f64,
+    /// zstd level, 1..=22. Default 15.
+    pub level: i32,
+}
+
+impl Default for PcaAoiParams {
+    fn default() -> Self {
+        Self {
+            mode: Mode::Baoi,
+            k: 8,
+            block: 40,
+            z: 1,
+            tmax: 1,
+            eps_low: 0.002,
+            eps_high: 0.01,
+            domain: Domain::Auto,
+            clusters: 1,
+            dict_bits: 14,
+            feat_bits: 12,
+            drift: 2.0,
+            level: 15,
+        }
+    }
+}
+
+fn mode_name(m: Mode) -> &'static str {
+    match m {
+        Mode::Svd => "svd",
+        Mode::Baoi => "baoi",
+        Mode::Qaoi => "qaoi",
+    }
+}
+
+fn domain_name(d: Domain) -> &'static str {
+    match d {
+        Domain::Auto => "auto",
+        Domain::Temporal => "temporal",
+        Domain::Spatial => "spatial",
+    }
+}
+
+impl PcaAoiParams {
+    /// Parameter descriptions, with the defaults of [`PcaAoiParams::default`].
+    pub fn specs() -> Vec<ParamSpec> {
+        let d = Self::default();
+        let int = |name, min, max, v: i64, doc| ParamSpec {
+            name,
+            kind: ParamKind::Int { min, max },
+            default: ParamValue::Int(v),
+            doc,
+        };
+        let float = |name, min, max, v: f64, doc| ParamSpec {
+            name,
+            kind: ParamKind::Float { min, max },
+            default: ParamValue::Float(v),
+            doc,
+        };
+        vec![
+            ParamSpec {
+                name: "mode",
+                kind: ParamKind::Choice(MODES),
+                default: ParamValue::Choice(mode_name(d.mode)),
+                doc: "dictionary estimation: svd (direct, per block), baoi (Alg. 1), qaoi (Alg. 2)",
+            },
+            int("k", 1, 512, d.k as i64, "subspace size (svd, baoi); qaoi sizes its first block from the SVD spectrum"),
+            int("block", 1, 4096, d.block as i64, "frames per block; one self-contained packet per block"),
+            int("z", 1, 16, d.z as i64, "power of A_i applied per orthogonal iteration"),
+            int("tmax", 1, 64, d.tmax as i64, "orthogonal iterations per block (baoi)"),
+            float("eps_low", 1e-6, 1.0, d.eps_low, "qaoi: drop components while the relative residual is below this"),
+            float("eps_high", 1e-6, 1.0, d.eps_high, "qaoi: add components while the relative residual is above this"),
+            ParamSpec {
+                name: "domain",
+                kind: ParamKind::Choice(DOMAINS),
+                default: ParamValue::Choice(domain_name(d.domain)),
+                doc: "temporal (3d x 3d autocorrelation), spatial (n x n), or auto: the smaller (Eq. 2)",
+            },
+            int("clusters", 1, 65536, d.clusters as i64, "spatial clusters along connectivity, coded independently"),
+            int("dict_bits", 4, 24, d.dict_bits as i64, "bits per dictionary coefficient"),
+            int("feat_bits", 4, 24, d.feat_bits as i64, "bits per feature-vector coefficient"),
+            float(
+                "drift",
+                0.0,
+                1e6,
+                d.drift,
+                "re-run SVD when an AOI block's residual exceeds drift x the last SVD block's (0 = off)",
+            ),
+            int("level", 1, 22, d.level as i64, "zstd compression level"),
+        ]
+    }
+
+    fn check_cross(&self) -> Result<()> {
+        if self.eps_low >= self.eps_high {
+            return Err(Error::parameter(
+                NAME,
+                "eps_low",
+                format!("{} must be below eps_high = {}", self.eps_low, self.eps_high),
+            ));
+        }
+        if self.drift != 0.0 && self.drift < 1.0 {
+            return Err(Error::parameter(NAME, "drift", format!("{} must be 0 (off) or in 1..=1e6", self.drift)));
+        }
+        Ok(())
+    }
+
+    /// Checks every field against the ranges in [`PcaAoiParams::specs`] and the constraints
+    /// between fields (`eps_low < eps_high`; `drift` is 0 or at least 1).
+    pub fn validate(&self) -> Result<()> {
+        self.to_param_set().map(|_| ())
+    }
+
+    /// Reads the typed parameters from a [`ParamSet`] made for this codec.
+    pub fn from_param_set(p: &ParamSet) -> Result<Self> {
+        if p.codec() != NAME {
+            return Err(Error::parameter(NAME, "params", format!("parameters belong to codec '{}'", p.codec())));
+        }
+        let mode = match p.choice("mode")? {
+            "svd" => Mode::Svd,
+            "qaoi" => Mode::Qaoi,
+            _ => Mode::Baoi,
+        };
+        let domain = match p.choice("domain")? {
+            "temporal" => Domain::Temporal,
+            "spatial" => Domain::Spatial,
+            _ => Domain::Auto,
+        };
+        let s = Self {
+            mode,
+            k: p.int("k")? as u32,
+            block: p.int("block")? as u32,
+            z: p.int("z")? as u32,
+            tmax: p.int("tmax")? as u32,
+            eps_low: p.float("eps_low")?,
+            eps_high: p.float("eps_high")?,
+            domain,
+            clusters: p.int("clusters")? as u32,
+            dict_bits: p.int("dict_bits")? as u8,
+            feat_bits: p.int("feat_bits")? as u8,
+            drift: p.float("drift")?,
+            level: p.int("level")? as i32,
+        };
+        s.check_cross()?;
+        Ok(s)
+    }
+
+    /// The generic form of these parameters; fails like [`PcaAoiParams::validate`].
+    pub fn to_param_set(&self) -> Result<ParamSet> {
+        let specs = Self::specs();
+        let set = ParamSet::defaults(NAME, &specs)
+            .with(&specs, "mode", ParamValue::Choice(mode_name(self.mode)))?
+            .with(&specs, "k", ParamValue::Int(self.k as i64))?
+            .with(&specs, "block", ParamValue::Int(self.block as i64))?
+            .with(&specs, "z", ParamValue::Int(self.z as i64))?
+            .with(&specs, "tmax", ParamValue::Int(self.tmax as i64))?
+            .with(&specs, "eps_low", ParamValue::Float(self.eps_low))?
+            .with(&specs, "eps_high", ParamValue::Float(self.eps_high))?
+            .with(&specs, "domain", ParamValue::Choice(domain_name(self.domain)))?
+            .with(&specs, "clusters", ParamValue::Int(self.clusters as i64))?
+            .with(&specs, "dict_bits", ParamValue::Int(self.dict_bits as i64))?
+            .with(&specs, "feat_bits", ParamValue::Int(self.feat_bits as i64))?
+            .with(&specs, "drift", ParamValue::Float(self.drift))?
+            .with(&specs, "level", ParamValue::Int(self.level as i64))?;
+        self.check_cross()?;
+        Ok(set)
+    }
+
+    fn settings(&self) -> EstimatorSettings {
+        EstimatorSettings {
+            mode: self.mode,
+            k: self.k as usize,
+            z: self.z as usize,
+            tmax: self.tmax as usize,
+            eps_low: self.eps_low,
+            eps_high: self.eps_high,
+            drift: self.drift,
+        }
+    }
+}
+
+/// The rate ladder of `qaoi` streams: `eps_high` from large to small residuals (the trait's
+/// ladder is per codec, not per mode, so [`AnimationCodec::rate_ladder`] walks `k`). Every
+/// step stays above the default `eps_low`.
+pub fn qaoi_rate_ladder() -> RateLadder {
+    RateLadder {
+        param: "eps_high",
+        steps: [0.2, 0.1, 0.05, 0.03, 0.02, 0.01, 0.007, 0.005, 0.003].into_iter().map(ParamValue::Float).collect(),
+    }
+}
+
+/// The `pca-aoi` codec.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct PcaAoi;
+
+impl AnimationCodec for PcaAoi {
+    fn name(&self) -> &'static str {
+        NAME
+    }
+    fn fourcc(&self) -> FourCc {
+        FourCc::new(b"PAOI")
+    }
+    fn stream_version(&self) -> u16 {
+        1
+    }
+    fn summary(&self) -> &'static str {
+        "streaming block PCA; dictionaries tracked by adaptive orthogonal iterations (Lalos et al. 2017)"
+    }
+    fn param_specs(&self) -> Vec<ParamSpec> {
+        PcaAoiParams::specs()
+    }
+    fn rate_ladder(&self) -> RateLadder {
+        RateLadder {
+            param: "k",
+            steps: [1, 2, 3, 4, 6, 8, 12, 16, 24, 32, 48].into_iter().map(ParamValue::Int).collect(),
+        }
+    }
+    fn validate(&self, params: &ParamSet) -> Result<()> {
+        PcaAoiParams::from_param_set(params).map(|_| ())
+    }
+    fn error_bound(&self, params: &ParamSet, animation: &Animation) -> Result<ErrorBound> {
+        let p = PcaAoiParams::from_param_set(params)?;
+        Ok(error_bound(&p, animation))
+    }
+    fn new_encoder(&self, params: &ParamSet, setup: &EncoderSetup<'_>) -> Result<Box<dyn FrameEncoder>> {
+        let p = PcaAoiParams::from_param_set(params)?;
+        Ok(Box::new(PcaAoiEncoder::new(&p, setup)?))
+    }
+    fn new_decoder(&self, info: &StreamInfo, config: &[u8], limits: &Limits) -> Result<Box<dyn FrameDecoder>> {
+        Ok(Box::new(PcaAoiDecoder::new(info, config, limits)?))
+    }
+}
+
+/// The relative RMS bound (see the README, "Error bound"): the projection never removes more
+/// than the data's spread around each frame's centroid, scaled by how far the quantized
+/// dictionary is from orthonormal, plus the feature quantization error and `f32` rounding.
+fn error_bound(p: &PcaAoiParams, animation: &Animation) -> ErrorBound {
+    let v = animation.vertex_count();
+    let diag = animation.bounding_box_diagonal();
+    let max_abs = animation.positions().iter().fold(0.0f64, |m, &x| m.max(x.abs() as f64));
+    if diag == 0.0 {
+        // Every vertex of every frame at one point: centered blocks are zero and the stored
+        // f32 means are exact.
+        return ErrorBound {
+            max_coordinate_error: Some(2.0 * max_abs * f32::EPSILON as f64),
+            relative_rms_error: None,
+        };
+    }
+    let mut centered = 0.0f64;
+    for frame in animation.frames() {
+        let mut c = [0.0f64; 3];
+        for q in frame.chunks_exact(3) {
+            for a in 0..3 {
+                c[a] += q[a] as f64;
+            }
+        }
+        for x in &mut c {
+            *x /= v as f64;
+        }
+        for q in frame.chunks_exact(3) {
+            for a in 0..3 {
+                centered += (q[a] as f64 - c[a]).powi(2);
+            }
+        }
+    }
+    let coords = (animation.positions().len()) as f64;
+    let block = p.block as usize;
+    let e_max = (3 * block).max(v) as f64;
+    let k_max = match p.mode {
+        Mode::Qaoi => (3 * block).min(v),
+        _ => (p.k as usize).min(3 * block).min(v),
+    } as f64;
+    let eps32 = f32::EPSILON as f64;
+    let levels = |bits: u8| ((1u64 << bits) - 1) as f64;
+    let eps_d = (e_max * k_max).sqrt() * (1.0 / levels(p.dict_bits) + eps32);
+    let grow = (1.0 + eps_d).powi(2);
+    let projection = 1.0f64.max(grow - 1.0) * (centered / coords).sqrt();
+    let features = grow * k_max.sqrt() * diag * (1.0 / levels(p.feat_bits) + 2.0 * eps32);
+    let rounding = 3.0 * (max_abs + diag) * eps32;
+    ErrorBound { max_coordinate_error: None, relative_rms_error: Some((projection + features + rounding) / diag) }
+}
+
+/// Statistics of one cluster of one block, kept by [`PcaAoiEncoder`] for benchmarks and tests.
+#[derive(Debug, Clone)]
+pub struct BlockStats {
+    /// First frame of the block.
+    pub first_frame: u32,
+    /// Frames in the block.
+    pub frames: u32,
+    /// Cluster index.
+    pub cluster: usize,
+    /// Subspace size `k_i`.
+    pub k: usize,
+    /// Relative residual `‖X − EEᵀX‖_F / ‖X‖_F` of the unquantized dictionary.
+    pub residual: f64,
+    /// How the dictionary was obtained.
+    pub method: Method,
+    /// Orthogonal iterations run.
+    pub iterations: usize,
+    /// Dictionary-estimation time (SVD, or the orthogonal iterations).
+    pub estimate_time: Duration,
+    /// Drift-guard time (residual check and any re-initializing SVD).
+    pub guard_time: Duration,
+    /// Payload bytes of this cluster.
+    pub bytes: usize,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Resolved {
+    Temporal,
+    Spatial,
+}
+
+/// The streaming encoder. Holds at most one incomplete block of frames plus, per cluster,
+/// the previous block's dictionary.
+pub struct PcaAoiEncoder {
+    params: PcaAoiParams,
+    settings: EstimatorSettings,
+    vertex_count: usize,
+    clusters: Vec<Vec<u32>>,
+    domains: Vec<Resolved>,
+    trackers: Vec<Tracker>,
+    pending: Vec<f32>,
+    next_frame: u32,
+    reconstruct: Option<PcaAoiDecoder>,
+    stats: Vec<BlockStats>,
+}
+
+impl PcaAoiEncoder {
+    /// An encoder for `setup` (the parameters must be valid).
+    pub fn new(params: &PcaAoiParams, setup: &EncoderSetup<'_>) -> Result<Self> {
+        params.validate()?;
+        let topology = setup.topology;
+        let clusters = cluster::partition(topology, params.clusters as usize);
+        let block = params.block as usize;
+        let domains = clusters
+            .iter()
+            .map(|c| match params.domain {
+                Domain::Temporal => Resolved::Temporal,
+                Domain::Spatial => Resolved::Spatial,
+                Domain::Auto if 3 * block <= c.len() => Resolved::Temporal,
+                Domain::Auto => Resolved::Spatial,
+            })
+            .collect();
+        let mut enc = Self {
+            params: *params,
+            settings: params.settings(),
+            vertex_count: topology.vertex_count(),
+            trackers: vec![Tracker::new(); clusters.len()],
+            clusters,
+            domains,
+            pending: Vec::new(),
+            next_frame: 0,
+            reconstruct: None,
+            stats: Vec::new(),
+        };
+        if setup.want_reconstruction {
+            enc.reconstruct = Some(PcaAoiDecoder {
+                dict_bits: params.dict_bits,
+                feat_bits: params.feat_bits,
+                vertex_count: enc.vertex_count,
+                clusters: enc.clusters.clone(),
+                limits: Limits::default(),
+            });
+        }
+        Ok(enc)
+    }
+
+    /// Per-block, per-cluster statistics of everything encoded so far.
+    pub fn stats(&self) -> &[BlockStats] {
+        &self.stats
+    }
+
+    /// The spatial clusters (vertex lists).
+    pub fn clusters(&self) -> &[Vec<u32>] {
+        &self.clusters
+    }
+
+    fn encode_block(&mut self, frames: &[f32]) -> Result<EncodedPacket> {
+        let per_frame = self.vertex_count * 3;
+        let d = frames.len() / per_frame;
+        let settings = self.settings;
+        let params = self.params;
+        let v = self.vertex_count;
+        let results: Vec<Result<(Vec<u8>, dictionary::BlockDictionary)>> = self
+            .clusters
+            .par_iter()
+            .zip(self.domains.par_iter())
+            .zip(self.trackers.par_iter_mut())
+            .map(|((verts, &domain), tracker)| encode_cluster(frames, d, v, verts, domain, tracker, &settings, &params))
+            .collect();
+        let mut w = ByteWriter::new();
+        for (c, r) in results.into_iter().enumerate() {
+            let (payload, dict) = r?;
+            w.length_prefixed(&payload);
+            self.stats.push(BlockStats {
+                first_frame: self.next_frame,
+                frames: d as u32,
+                cluster: c,
+                k: dict.e.ncols(),
+                residual: dict.residual,
+                method: dict.method,
+                iterations: dict.iterations,
+                estimate_time: dict.estimate_time,
+                guard_time: dict.guard_time,
+                bytes: payload.len(),
+            });
+        }
+        let packet = Packet { first_frame: self.next_frame, frame_count: d as u32, keyframe: true, data: w.into_vec() };
+        self.next_frame += d as u32;
+        // The reconstruction goes through the decoder itself, so it matches bit for bit.
+        let reconstruction = match self.reconstruct.as_mut() {
+            Some(dec) => Some(dec.decode_packet(&packet)?),
+            None => None,
+        };
+        Ok(EncodedPacket { packet, reconstruction })
+    }
+}
+
+impl FrameEncoder for PcaAoiEncoder {
+    fn config(&self) -> Vec<u8> {
+        let mut w = ByteWriter::new();
+        w.u8(self.params.dict_bits);
+        w.u8(self.params.feat_bits);
+        w.varint(self.clusters.len() as u64);
+        w.into_vec()
+    }
+
+    fn push_frames(&mut self, frames: &[f32]) -> Result<Vec<EncodedPacket>> {
+        let per_block = self.params.block as usize * self.vertex_count * 3;
+        let mut out = Vec::new();
+        let mut rest = frames;
+        if !self.pending.is_empty() {
+            let need = per_block - self.pending.len();
+            let take = need.min(rest.len());
+            self.pending.extend_from_slice(&rest[..take]);
+            rest = &rest[take..];
+            if self.pending.len() == per_block {
+                let block = std::mem::take(&mut self.pending);
+                out.push(self.encode_block(&block)?);
+            }
+        }
+        // Whole blocks straight from the caller's slice: no copy, no quadratic draining.
+        while rest.len() >= per_block {
+            out.push(self.encode_block(&rest[..per_block])?);
+            rest = &rest[per_block..];
+        }
+        self.pending.extend_from_slice(rest);
+        Ok(out)
+    }
+
+    fn finish(&mut self) -> Result<Vec<EncodedPacket>> {
+        if self.pending.is_empty() {
+            return Ok(Vec::new());
+        }
+        let block = std::mem::take(&mut self.pending);
+        Ok(vec![self.encode_block(&block)?])
+    }
+}
+
+fn plane_count(bits: u8) -> usize {
+    (bits as usize + 1).div_ceil(8)
+}
+
+/// Zigzag residuals of `codes` predicted from the code `stride` places earlier.
+fn push_residuals(codes: &[u32], stride: usize, out: &mut Vec<u32>) {
+    for (i, &c) in codes.iter().enumerate() {
+        let d = if i >= stride { c as i64 - codes[i - stride] as i64 } else { c as i64 };
+        out.push(zigzag_encode(d) as u32);
+    }
+}
+
+fn to_planes(values: &[u32], planes: usize, out: &mut Vec<u8>) {
+    for p in 0..planes {
+        out.extend(values.iter().map(|v| (v >> (8 * p)) as u8));
+    }
+}
+
+/// Builds the centered block matrix of one cluster: `e × m` with `e = 3d` rows (temporal) or
+/// `e = n_c` rows (spatial); returns it with the stored (f32) per-row means.
+fn block_matrix(frames: &[f32], d: usize, v: usize, verts: &[u32], domain: Resolved) -> (Mat<f64>, Vec<f32>) {
+    let n = verts.len();
+    let at = |r: usize, j: usize| frames[((r / 3) * v + verts[j] as usize) * 3 + r % 3] as f64;
+    let means: Vec<f32> = (0..3 * d).map(|r| ((0..n).map(|j| at(r, j)).sum::<f64>() / n as f64) as f32).collect();
+    let x = match domain {
+        Resolved::Temporal => Mat::from_fn(3 * d, n, |r, j| at(r, j) - means[r] as f64),
+        Resolved::Spatial => Mat::from_fn(n, 3 * d, |j, r| at(r, j) - means[r] as f64),
+    };
+    (x, means)
+}
+
+#[allow(clippy::too_many_arguments)]
+fn encode_cluster(
+    frames: &[f32],
+    d: usize,
+    v: usize,
+    verts: &[u32],
+    domain: Resolved,
+    tracker: &mut Tracker,
+    settings: &EstimatorSettings,
+    params: &PcaAoiParams,
+) -> Result<(Vec<u8>, dictionary::BlockDictionary)> {
+    let (x, means) = block_matrix(frames, d, v, verts, domain);
+    let dict = tracker.estimate(x.as_ref(), settings)?;
+    let (e_dim, m_dim) = x.shape();
+    let k = dict.e.ncols();
+    // Dictionary: per-column uniform quantizers (§4.1, q_d bits).
+    let mut dict_q = Vec::with_capacity(k);
+    let mut dict_codes = Vec::with_capacity(e_dim * k);
+    let mut e_hat = Mat::<f64>::zeros(e_dim, k);
+    for j in 0..k {
+        let col: Vec<f32> = (0..e_dim).map(|i| dict.e[(i, j)] as f32).collect();
+        let q = Quantizer::covering(&col, params.dict_bits)?;
+        for (i, &c) in col.iter().enumerate() {
+            let code = q.quantize(c);
+            dict_codes.push(code);
+            e_hat[(i, j)] = q.dequantize(code) as f64;
+        }
+        dict_q.push(q);
+    }
+    // Features from the quantized dictionary (closed loop), per-row quantizers (q_f bits).
+    let f = linalg::mul(e_hat.transpose(), x.as_ref());
+    let mut feat_q = Vec::with_capacity(k);
+    let mut feat_codes = Vec::with_capacity(k * m_dim);
+    for i in 0..k {
+        let row: Vec<f32> = (0..m_dim).map(|j| f[(i, j)] as f32).collect();
+        let q = Quantizer::covering(&row, params.feat_bits)?;
+        feat_codes.extend(row.iter().map(|&c| q.quantize(c)));
+        feat_q.push(q);
+    }
+    let (dict_stride, feat_stride) = match domain {
+        Resolved::Temporal => (3, 1),
+        Resolved::Spatial => (1, 3),
+    };
+    let mut dict_res = Vec::with_capacity(dict_codes.len());
+    for col in dict_codes.chunks(e_dim.max(1)) {
+        push_residuals(col, dict_stride, &mut dict_res);
+    }
+    let mut feat_res = Vec::with_capacity(feat_codes.len());
+    for row in feat_codes.chunks(m_dim.max(1)) {
+        push_residuals(row, feat_stride, &mut feat_res);
+    }
+    let mut raw = Vec::new();
+    to_planes(&dict_res, plane_count(params.dict_bits), &mut raw);
+    to_planes(&feat_res, plane_count(params.feat_bits), &mut raw);
+
+    let mut w = ByteWriter::new();
+    w.u8(match domain {
+        Resolved::Temporal => 0,
+        Resolved::Spatial => 1,
+    });
+    w.varint(k as u64);
+    for &m in &means {
+        w.f32(m);
+    }
+    for q in dict_q.iter().chain(&feat_q) {
+        q.write(&mut w);
+    }
+    w.bytes(&entropy::compress(&raw, params.level));
+    Ok((w.into_vec(), dict))
+}
+
+/// The decoder: every packet is decoded alone.
+pub struct PcaAoiDecoder {
+    dict_bits: u8,
+    feat_bits: u8,
+    vertex_count: usize,
+    clusters: Vec<Vec<u32>>,
+    limits: Limits,
+}
+
+impl PcaAoiDecoder {
+    /// Reads the stream configuration (untrusted) and recomputes the clusters from the topology.
+    pub fn new(info: &StreamInfo, config: &[u8], limits: &Limits) -> Result<Self> {
+        let mut r = ByteReader::new(config, NAME);
+        let dict_bits = r.u8("config.dict_bits")?;
+        let feat_bits = r.u8("config.feat_bits")?;
+        let v = info.vertex_count();
+        let clusters = r.varint("config.clusters")?;
+        r.expect_end("config")?;
+        for (field, bits) in [("config.dict_bits", dict_bits), ("config.feat_bits", feat_bits)] {
+            if !(4..=24).contains(&bits) {
+                return Err(r.malformed(field, format!("{bits} is outside 4..=24")));
+            }
+        }
+        if clusters == 0 || clusters > v as u64 {
+            return Err(r.malformed("config.clusters", format!("{clusters} is outside 1..={v}")));
+        }
+        Ok(Self {
+            dict_bits,
+            feat_bits,
+            vertex_count: v,
+            clusters: cluster::partition(&info.topology, clusters as usize),
+            limits: *limits,
+        })
+    }
+
+    /// The partition recomputed from a topology (exposed for tests).
+    pub fn partition(topology: &Topology, clusters: usize) -> Vec<Vec<u32>> {
+        cluster::partition(topology, clusters)
+    }
+
+    fn decode_cluster(&self, payload: &[u8], d: usize, verts: &[u32], out: &mut [f32]) -> Result<()> {
+        let mut r = ByteReader::new(payload, NAME);
+        let domain = match r.u8("cluster.domain")? {
+            0 => Resolved::Temporal,
+            1 => Resolved::Spatial,
+            x => return Err(r.malformed("cluster.domain", format!("{x} is neither 0 (temporal) nor 1 (spatial)"))),
+        };
+        let n = verts.len();
+        let (e_dim, m_dim) = match domain {
+            Resolved::Temporal => (3 * d, n),
+            Resolved::Spatial => (n, 3 * d),
+        };
+        let k = r.varint_max("cluster.k", e_dim.min(m_dim) as u64)? as usize;
+        let means_bytes = r.take(3 * d * 4, "cluster.means")?;
+        let mut means = Vec::with_capacity(3 * d);
+        for b in means_bytes.chunks_exact(4) {
+            let m = f32::from_le_bytes([b[0], b[1], b[2], b[3]]);
+            if !m.is_finite() {
+                return Err(r.malformed("cluster.means", format!("{m} is not finite")));
+            }
+            means.push(m as f64);
+        }
+        let mut quantizers = Vec::with_capacity(2 * k);
+        for i in 0..2 * k {
+            let (field, bits) = if i < k {
+                ("cluster.dict_quantizer", self.dict_bits)
+            } else {
+                ("cluster.feat_quantizer", self.feat_bits)
+            };
+            let q = Quantizer::read(&mut r, field)?;
+            if q.bits() != bits {
+                return Err(r.malformed(field, format!("{} bits, stream config says {bits}", q.bits())));
+            }
+            quantizers.push(q);
+        }
+        let (pd, pf) = (plane_count(self.dict_bits), plane_count(self.feat_bits));
+        let (nd, nf) = (e_dim * k, k * m_dim);
+        let raw_len = nd * pd + nf * pf;
+        self.limits.check_alloc(NAME, "cluster.codes", raw_len as u64)?;
+        self.limits.check_alloc(NAME, "cluster.matrices", ((nd + nf + e_dim * m_dim) * 8) as u64)?;
+        let block = r.take(r.remaining(), "cluster.codes")?;
+        let raw = entropy::decompress(block, NAME, "cluster.codes", raw_len)?;
+        if raw.len() != raw_len {
+            return Err(Error::malformed(NAME, "cluster.codes", format!("{} bytes, expected {raw_len}", raw.len())));
+        }
+        let (dict_stride, feat_stride) = match domain {
+            Resolved::Temporal => (3, 1),
+            Resolved::Spatial => (1, 3),
+        };
+        // Undoes the stride prediction of one vector of `len` codes starting at `offset`.
+        let codes = |plane_base: usize,
+                     count: usize,
+                     planes: usize,
+                     offset: usize,
+                     len: usize,
+                     stride: usize,
+                     max: u32,
+                     field: &'static str|
+         -> Result<Vec<u32>> {
+            let mut v: Vec<u32> = Vec::with_capacity(len);
+            for i in 0..len {
+                let mut z = 0u32;
+                for p in 0..planes {
+                    z |= (raw[plane_base + p * count + offset + i] as u32) << (8 * p);
+                }
+                let c = zigzag_decode(z as u64) + if i >= stride { v[i - stride] as i64 } else { 0 };
+                if !(0..=max as i64).contains(&c) {
+                    return Err(Error::malformed(NAME, field, format!("code {c} outside 0..={max}")));
+                }
+                v.push(c as u32);
+            }
+            Ok(v)
+        };
+        let mut e_hat = Mat::<f64>::zeros(e_dim, k);
+        for j in 0..k {
+            let q = &quantizers[j];
+            let col = codes(0, nd, pd, j * e_dim, e_dim, dict_stride, q.max_code(), "cluster.dictionary")?;
+            for (i, &c) in col.iter().enumerate() {
+                e_hat[(i, j)] = q.dequantize(c) as f64;
+            }
+        }
+        let mut f_hat = Mat::<f64>::zeros(k, m_dim);
+        for i in 0..k {
+            let q = &quantizers[k + i];
+            let row = codes(nd * pd, nf, pf, i * m_dim, m_dim, feat_stride, q.max_code(), "cluster.features")?;
+            for (j, &c) in row.iter().enumerate() {
+                f_hat[(i, j)] = q.dequantize(c) as f64;
+            }
+        }
+        // Eq. 5: D̂ = E F, plus the stored means.
+        let x_hat = linalg::mul(e_hat.as_ref(), f_hat.as_ref());
+        let v = self.vertex_count;
+        for (j, &vert) in verts.iter().enumerate() {
+            for (row, &mean) in means.iter().enumerate() {
+                let value = match domain {
+                    Resolved::Temporal => x_hat[(row, j)],
+                    Resolved::Spatial => x_hat[(j, row)],
+                };
+                out[((row / 3) * v + vert as usize) * 3 + row % 3] = (value + mean) as f32;
+            }
+        }
+        Ok(())
+    }
+}
+
+impl FrameDecoder for PcaAoiDecoder {
+    fn decode_packet(&mut self, packet: &Packet) -> Result<Vec<f32>> {
+        let d = packet.frame_count as usize;
+        if d == 0 {
+            return Err(Error::malformed(NAME, "packet.frame_count", "a packet holds at least one frame"));
+        }
+        let len = d as u64 * self.vertex_count as u64 * 3;
+        self.limits.check_alloc(NAME, "packet.frames", len * 4)?;
+        let mut out = vec![0f32; len as usize];
+        let mut r = ByteReader::new(&packet.data, NAME);
+        for verts in &self.clusters {
+            let payload = r.length_prefixed("cluster.payload")?;
+            self.decode_cluster(payload, d, verts, &mut out)?;
+        }
+        r.expect_end("packet")?;
+        Ok(out)
+    }
+}
