@@ -2,13 +2,16 @@
 //! file formats (OBJ sequences, PC2, MDD, glTF/GLB morph-target animations).
 
 pub mod formats;
+pub mod harness;
 
 use codec_core::{quant_delta::QuantDelta, CodecRegistry};
 
-/// Every codec, one line each. This is the only place codecs are registered.
+/// Every codec, one line each. This is the only place codecs are registered; streams name
+/// their codec by FourCC, so the order here is only the order of listings and sweeps.
 pub fn registry() -> CodecRegistry {
     CodecRegistry::new(vec![
-        Box::new(QuantDelta),
+        Box::new(QuantDelta),            // baseline, codec-core
+        Box::new(codec_pca_aoi::PcaAoi), // issue #4, Lalos et al. 2017
     ])
     .expect("codec names and FourCCs in the registry list are unique")
 }

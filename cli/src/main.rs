@@ -57,6 +57,10 @@ enum Command {
     Synth(SynthArgs),
     /// Encode and decode every synthetic animation with every codec and print a comparison.
     Demo(DemoArgs),
+    /// Every error metric (KG, STED, Hausdorff, MSE, …) between a reference and a candidate.
+    Eval(EvalArgs),
+    /// Walk every codec's rate ladder on one input: table, JSON, CSV and rate-distortion plot.
+    Sweep(SweepArgs),
 }
 
 /// Arguments of `animcodec list`.
@@ -76,7 +80,7 @@ pub struct EncodeArgs {
     #[arg(value_name = "INPUT")]
     pub input: String,
 
-    /// Codec name (see `animcodec list`).
+    /// Codec name (see `animcodec list`), or `auto` with `--target` (every codec).
     #[arg(short, long, value_name = "CODEC")]
     pub codec: String,
 
@@ -101,9 +105,132 @@ pub struct EncodeArgs {
     #[arg(long, value_name = "N", default_value_t = 32, value_parser = clap::value_parser!(u32).range(1..))]
     pub feed: u32,
 
+    /// Search the codec's rate ladder for the smallest stream whose decoded error meets
+    /// METRIC=VALUE (metrics: kg [%], sted, hausdorff, max_error, rmse; absolute values in
+    /// model units except kg). Other `-p` parameters stay fixed. With `-c auto`, every codec is
+    /// searched and the smallest stream kept. Fails, stating the best error reached, when no
+    /// ladder point meets the target.
+    #[arg(long, value_name = "METRIC=VALUE", value_parser = parse_target)]
+    pub target: Option<animcodec::harness::Target>,
+
+    /// STED options for `--target sted=…`.
+    #[command(flatten)]
+    pub sted: StedArgs,
+
     /// Print JSON: {codec, params, bytes, bpvf, frames, vertices, triangles, encode_seconds, …}.
     #[arg(long)]
     pub json: bool,
+}
+
+fn parse_target(text: &str) -> Result<animcodec::harness::Target, String> {
+    text.parse()
+}
+
+/// STED parameters (defaults: the metrics crate's `StedParams::default()`).
+#[derive(Debug, Args)]
+pub struct StedArgs {
+    /// STED neighbourhood radius in edge hops (1..=16; default 3).
+    #[arg(long, value_name = "R")]
+    pub sted_radius: Option<u32>,
+    /// STED temporal step as a fraction of the bounding-box diagonal (> 0; default 0.3).
+    #[arg(long, value_name = "DT")]
+    pub sted_dt: Option<f64>,
+    /// STED weight of the temporal part (≥ 0; default 0.5).
+    #[arg(long, value_name = "C")]
+    pub sted_c: Option<f64>,
+    /// Use signed relative edge differences in STED's spatial part (default absolute).
+    #[arg(long)]
+    pub sted_signed: bool,
+}
+
+/// Arguments of `animcodec eval`.
+#[derive(Debug, Args)]
+pub struct EvalArgs {
+    /// Reference animation (any input format, or an `.anim` container, which is decoded).
+    #[arg(value_name = "REFERENCE")]
+    pub reference: String,
+
+    /// Candidate animation (any input format, or an `.anim` container). Same vertex count,
+    /// frame count and triangles as the reference.
+    #[arg(value_name = "CANDIDATE")]
+    pub candidate: String,
+
+    /// OBJ file giving the triangles of .pc2/.mdd inputs (default: the OBJ beside each).
+    #[arg(long, value_name = "OBJ")]
+    pub topology: Option<PathBuf>,
+
+    /// STED options.
+    #[command(flatten)]
+    pub sted: StedArgs,
+
+    /// Skip STED.
+    #[arg(long)]
+    pub no_sted: bool,
+
+    /// Skip the Hausdorff distance.
+    #[arg(long)]
+    pub no_hausdorff: bool,
+
+    /// Print JSON with keys named after the metrics: kg, sted, sted_spatial, sted_temporal,
+    /// hausdorff, hausdorff_mean, hausdorff_relative, mse, rmse, rmse_relative, max_error,
+    /// sted_params, notes, ….
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Arguments of `animcodec sweep`.
+#[derive(Debug, Args)]
+pub struct SweepArgs {
+    /// Input animation (any `encode` input, or an `.anim` container, decoded first). Default:
+    /// the built-in synthetic `synth:flag` (small); any `synth:NAME[:SIZE]` works.
+    #[arg(value_name = "INPUT")]
+    pub input: Option<String>,
+
+    /// Comma-separated codecs (default: every registered codec).
+    #[arg(short, long = "codecs", value_name = "A,B", value_delimiter = ',')]
+    pub codecs: Vec<String>,
+
+    /// Ladder points per codec, spread evenly over its rate ladder, ends included (default:
+    /// every step).
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
+    pub points: Option<u32>,
+
+    /// Points measured at once (default: all cores via rayon). Use `--jobs 1` when the encode
+    /// and decode times matter: parallel points compete for the cores.
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
+    pub jobs: Option<u32>,
+
+    /// Write JSON to F (`-`: print it instead of the table): {input, vertices, frames,
+    /// eval_options, rows: [{codec, params, ladder_param, ladder_index, bytes, bpvf, kg, sted,
+    /// sted_spatial, sted_temporal, hausdorff, hausdorff_relative, mse, rmse, max_error,
+    /// encode_seconds, decode_seconds}], failures, monotone, total_seconds, jobs}.
+    #[arg(long, value_name = "F")]
+    pub json: Option<PathBuf>,
+
+    /// Write the rows as CSV to F (same columns; params as key=value;key=value).
+    #[arg(long, value_name = "F")]
+    pub csv: Option<PathBuf>,
+
+    /// Write an SVG with two panels: bpvf vs KG (left) and bpvf vs STED (right), one curve per
+    /// codec, error axes in log scale.
+    #[arg(long, value_name = "F.svg")]
+    pub plot: Option<PathBuf>,
+
+    /// OBJ file giving the triangles of a .pc2/.mdd input.
+    #[arg(long, value_name = "OBJ")]
+    pub topology: Option<PathBuf>,
+
+    /// STED options.
+    #[command(flatten)]
+    pub sted: StedArgs,
+
+    /// Skip STED.
+    #[arg(long)]
+    pub no_sted: bool,
+
+    /// Skip the Hausdorff distance.
+    #[arg(long)]
+    pub no_hausdorff: bool,
 }
 
 /// Arguments of `animcodec decode`.
@@ -219,10 +346,12 @@ fn run(cli: Cli) -> commands::CmdResult {
     let limits = commands::limits(cli.global.max_memory);
     match cli.command {
         Command::List(a) => commands::list::run(&a),
-        Command::Encode(a) => commands::encode::run(&a),
+        Command::Encode(a) => commands::encode::run(&a, limits),
         Command::Decode(a) => commands::decode::run(&a, limits),
         Command::Info(a) => commands::info::run(&a, limits),
         Command::Synth(a) => commands::synth::run(&a),
         Command::Demo(a) => commands::demo::run(&a, limits),
+        Command::Eval(a) => commands::eval::run(&a, limits),
+        Command::Sweep(a) => commands::sweep::run(&a, limits),
     }
 }

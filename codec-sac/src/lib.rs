@@ -1,1 +1,700 @@
-//! Codec crate placeholder: filled in by its own issue; not yet registered.
+//! `sac`: spectral animation compression of deformation gradients with manifold harmonics
+//! (*Spectral animation compression*, J. Comput. Sci. Technol.; see `README.md`).
+//!
+//! Per keyframe interval: the I-frame's positions are quantized near-losslessly; encoder and
+//! decoder compute the manifold harmonic bases of the *decoded* I-frame. Every later frame is
+//! coded as the deformation from the previous *reconstructed* frame (closed loop, §3.1):
+//! per-triangle deformation gradients (§3.2) → polar decomposition and rotation logarithm
+//! (§3.3) → least-squares spectral descriptors on the first `bases` harmonics (§3.4) →
+//! quantization and arithmetic coding (§3.5) → decoded gradients → least-squares Poisson
+//! reconstruction (§3.6) plus one stored translation per connected component.
+
+pub mod coding;
+pub mod geometry;
+pub mod harmonics;
+
+use codec_core::bytes::{ByteReader, ByteWriter};
+use codec_core::entropy;
+use codec_core::{
+    Animation, AnimationCodec, EncodedPacket, EncoderSetup, Error, ErrorBound, FourCc, FrameDecoder, FrameEncoder,
+    Limits, Packet, ParamKind, ParamSet, ParamSpec, ParamValue, Quantizer, RateLadder, Result, StreamInfo, Topology,
+};
+use faer::Mat;
+
+use crate::coding::Contexts;
+use crate::geometry::{PoissonSystem, Svd3, M3, V3};
+use crate::harmonics::Transfer;
+
+/// Codec name.
+pub const NAME: &str = "sac";
+
+/// Typed parameters of `sac`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SacParams {
+    /// Number of manifold harmonic bases `l` (the rate knob), 1..=1000. Default 100 (paper §4).
+    pub bases: u32,
+    /// Quantization bits of the spectral descriptors, 4..=30. Default 18 (paper §4).
+    pub bits: u8,
+    /// Polar decomposition into rotation and stretch (§3.3); `false` codes `J − I` directly
+    /// (the paper's comparison of §4.2). Default true.
+    pub polar: bool,
+    /// Frames between I-frames (random-access points); 0 = only the first frame. Default 0.
+    pub keyframe_interval: u32,
+    /// Bits per coordinate of I-frames and refresh frames, 8..=30. Default 20.
+    pub iframe_bits: u8,
+    /// Error guard: a P-frame whose RMS coordinate error exceeds this fraction of the frame's
+    /// bounding-box diagonal is replaced by a refresh frame (positions coded like an
+    /// I-frame, bases kept). 1e-6..=1. Default 0.05.
+    pub max_error: f64,
+    /// zstd level of I-frame and refresh-frame positions, 1..=22. Default 19.
+    pub level: i32,
+}
+
+impl Default for SacParams {
+    fn default() -> Self {
+        Self { bases: 100, bits: 18, polar: true, keyframe_interval: 0, iframe_bits: 20, max_error: 0.05, level: 19 }
+    }
+}
+
+impl SacParams {
+    /// Parameter descriptions, with the defaults of [`SacParams::default`].
+    pub fn specs() -> Vec<ParamSpec> {
+        let d = Self::default();
+        vec![
+            ParamSpec {
+                name: "bases",
+                kind: ParamKind::Int { min: 1, max: 1000 },
+                default: ParamValue::Int(d.bases as i64),
+                doc: "manifold harmonic bases kept (clamped to the vertex count)",
+            },
+            ParamSpec {
+                name: "bits",
+                kind: ParamKind::Int { min: 4, max: 30 },
+                default: ParamValue::Int(d.bits as i64),
+                doc: "quantization bits of the spectral descriptors",
+            },
+            ParamSpec {
+                name: "polar",
+                kind: ParamKind::Bool,
+                default: ParamValue::Bool(d.polar),
+                doc: "split gradients into rotation (log map) and stretch; false codes J - I",
+            },
+            ParamSpec {
+                name: "keyframe_interval",
+                kind: ParamKind::Int { min: 0, max: 1_000_000 },
+                default: ParamValue::Int(d.keyframe_interval as i64),
+                doc: "frames between I-frames (each recomputes the bases); 0 = only frame 0",
+            },
+            ParamSpec {
+                name: "iframe_bits",
+                kind: ParamKind::Int { min: 8, max: 30 },
+                default: ParamValue::Int(d.iframe_bits as i64),
+                doc: "bits per coordinate of I-frames and refresh frames",
+            },
+            ParamSpec {
+                name: "max_error",
+                kind: ParamKind::Float { min: 1e-6, max: 1.0 },
+                default: ParamValue::Float(d.max_error),
+                doc: "per-frame RMS error guard relative to the frame's bounding-box diagonal",
+            },
+            ParamSpec {
+                name: "level",
+                kind: ParamKind::Int { min: 1, max: 22 },
+                default: ParamValue::Int(d.level as i64),
+                doc: "zstd level of I-frame positions",
+            },
+        ]
+    }
+
+    /// Checks every field against the ranges in [`SacParams::specs`].
+    pub fn validate(&self) -> Result<()> {
+        self.to_param_set().map(|_| ())
+    }
+
+    /// Reads the typed parameters from a [`ParamSet`] made for this codec (values in a
+    /// `ParamSet` are already range-checked, so the casts are in range).
+    pub fn from_param_set(p: &ParamSet) -> Result<Self> {
+        if p.codec() != NAME {
+            return Err(Error::parameter(NAME, "params", format!("parameters belong to codec '{}'", p.codec())));
+        }
+        Ok(Self {
+            bases: p.int("bases")? as u32,
+            bits: p.int("bits")? as u8,
+            polar: p.bool("polar")?,
+            keyframe_interval: p.int("keyframe_interval")? as u32,
+            iframe_bits: p.int("iframe_bits")? as u8,
+            max_error: p.float("max_error")?,
+            level: p.int("level")? as i32,
+        })
+    }
+
+    /// The generic form of these parameters; fails like [`SacParams::validate`].
+    pub fn to_param_set(&self) -> Result<ParamSet> {
+        let s = Self::specs();
+        ParamSet::defaults(NAME, &s)
+            .with(&s, "bases", ParamValue::Int(self.bases as i64))?
+            .with(&s, "bits", ParamValue::Int(self.bits as i64))?
+            .with(&s, "polar", ParamValue::Bool(self.polar))?
+            .with(&s, "keyframe_interval", ParamValue::Int(self.keyframe_interval as i64))?
+            .with(&s, "iframe_bits", ParamValue::Int(self.iframe_bits as i64))?
+            .with(&s, "max_error", ParamValue::Float(self.max_error))?
+            .with(&s, "level", ParamValue::Int(self.level as i64))
+    }
+}
+
+/// The `sac` codec.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Sac;
+
+impl AnimationCodec for Sac {
+    fn name(&self) -> &'static str {
+        NAME
+    }
+    fn fourcc(&self) -> FourCc {
+        FourCc::new(b"SAC1")
+    }
+    fn stream_version(&self) -> u16 {
+        1
+    }
+    fn summary(&self) -> &'static str {
+        "spectral compression of deformation gradients (polar decomposition + manifold harmonics)"
+    }
+    fn param_specs(&self) -> Vec<ParamSpec> {
+        SacParams::specs()
+    }
+    fn rate_ladder(&self) -> RateLadder {
+        RateLadder {
+            param: "bases",
+            steps: [2, 4, 8, 16, 32, 64, 100, 160, 250].into_iter().map(ParamValue::Int).collect(),
+        }
+    }
+    fn validate(&self, params: &ParamSet) -> Result<()> {
+        SacParams::from_param_set(params).map(|_| ())
+    }
+    /// The error guard makes the bound provable: every P-frame that is kept has RMS error at
+    /// most `max_error × (its frame's bounding-box diagonal) ≤ max_error × (the animation's
+    /// diagonal)`; I-frames and refresh frames err by at most half a quantization step of the
+    /// frame's range per coordinate, no more than the same step over the animation's range.
+    /// The overall RMS is the root of the mean of per-frame mean squares, so it is below the
+    /// larger of the two.
+    fn error_bound(&self, params: &ParamSet, animation: &Animation) -> Result<ErrorBound> {
+        let p = SacParams::from_param_set(params)?;
+        let (lo, hi) = animation.bounding_box();
+        let diag = animation.bounding_box_diagonal();
+        let mut q = 0.0f64;
+        for a in 0..3 {
+            q = q.max(Quantizer::new(lo[a], hi[a], p.iframe_bits)?.max_error());
+        }
+        let rel = if diag > 0.0 { (q / diag).max(p.max_error) } else { 0.0 };
+        // Relative headroom for the f32 rounding of the stored frames.
+        Ok(ErrorBound { max_coordinate_error: None, relative_rms_error: Some(rel * (1.0 + 1e-6)) })
+    }
+    fn new_encoder(&self, params: &ParamSet, setup: &EncoderSetup<'_>) -> Result<Box<dyn FrameEncoder>> {
+        let p = SacParams::from_param_set(params)?;
+        let shared = Shared::new(
+            setup.topology,
+            Settings { bits: p.bits, bases: p.bases, polar: p.polar, iframe_bits: p.iframe_bits },
+        )?;
+        Ok(Box::new(SacEncoder {
+            params: p,
+            shared,
+            want_reconstruction: setup.want_reconstruction,
+            next_frame: 0,
+            gop: None,
+        }))
+    }
+    fn new_decoder(&self, info: &StreamInfo, config: &[u8], limits: &Limits) -> Result<Box<dyn FrameDecoder>> {
+        let mut r = ByteReader::new(config, NAME);
+        let bits = r.u8("config.bits")?;
+        let bases = r.u32("config.bases")?;
+        let polar = r.u8("config.polar")?;
+        let iframe_bits = r.u8("config.iframe_bits")?;
+        r.expect_end("config")?;
+        if !(4..=30).contains(&bits) {
+            return Err(r.malformed("config.bits", format!("{bits} is outside 4..=30")));
+        }
+        if !(1..=1000).contains(&bases) {
+            return Err(r.malformed("config.bases", format!("{bases} is outside 1..=1000")));
+        }
+        if polar > 1 {
+            return Err(r.malformed("config.polar", format!("{polar} is not 0 or 1")));
+        }
+        if !(8..=30).contains(&iframe_bits) {
+            return Err(r.malformed("config.iframe_bits", format!("{iframe_bits} is outside 8..=30")));
+        }
+        // The harmonic basis (n × bases f64) and analysis matrices are the largest allocations.
+        let n = info.vertex_count() as u64;
+        let m = info.topology.triangle_count() as u64;
+        limits.check_alloc(NAME, "bases", (n + m) * (bases as u64).min(n) * 8)?;
+        limits.check_alloc(NAME, "topology", (n + m) * 200)?;
+        let shared = Shared::new(&info.topology, Settings { bits, bases, polar: polar == 1, iframe_bits })?;
+        Ok(Box::new(SacDecoder { shared, limits: *limits, gop: None }))
+    }
+}
+
+/// What the decoder must know (stored in the stream config).
+#[derive(Debug, Clone, Copy)]
+struct Settings {
+    bits: u8,
+    bases: u32,
+    polar: bool,
+    iframe_bits: u8,
+}
+
+impl Settings {
+    fn config(&self) -> Vec<u8> {
+        let mut w = ByteWriter::new();
+        w.u8(self.bits);
+        w.u32(self.bases);
+        w.u8(self.polar as u8);
+        w.u8(self.iframe_bits);
+        w.into_vec()
+    }
+    /// Channels per group: rotation (3) and stretch (6), or the nine entries of `J − I`.
+    fn groups(&self) -> &'static [usize] {
+        if self.polar {
+            &[3, 6]
+        } else {
+            &[9]
+        }
+    }
+}
+
+const KIND_I: u8 = 0;
+const KIND_P: u8 = 1;
+const KIND_REFRESH: u8 = 2;
+
+/// State that depends only on the connectivity, shared by encoder and decoder.
+struct Shared {
+    settings: Settings,
+    n: usize,
+    /// Triangles with three distinct vertices (a repeated index has no area and is ignored).
+    tris: Vec<[usize; 3]>,
+    component: Vec<usize>,
+    component_sizes: Vec<usize>,
+    poisson: Option<PoissonSystem>,
+}
+
+/// State of the current keyframe interval.
+struct Gop {
+    transfer: Option<Transfer>,
+    /// Encoder only: the analysis operator.
+    analysis: Option<Mat<f64>>,
+    contexts: Contexts,
+    prev: Vec<V3>,
+}
+
+fn to_v3(frame: &[f32]) -> Vec<V3> {
+    frame.chunks_exact(3).map(|p| [p[0] as f64, p[1] as f64, p[2] as f64]).collect()
+}
+
+impl Shared {
+    fn new(topology: &Topology, settings: Settings) -> Result<Self> {
+        let n = topology.vertex_count();
+        let tris: Vec<[usize; 3]> = topology
+            .triangles()
+            .iter()
+            .map(|t| [t[0] as usize, t[1] as usize, t[2] as usize])
+            .filter(|t| t[0] != t[1] && t[1] != t[2] && t[0] != t[2])
+            .collect();
+        let (component, pins) = geometry::components(n, &tris);
+        let mut component_sizes = vec![0usize; pins.len()];
+        for &c in &component {
+            component_sizes[c] += 1;
+        }
+        let poisson = if tris.is_empty() { None } else { Some(PoissonSystem::new(n, &tris, &pins)?) };
+        Ok(Self { settings, n, tris, component, component_sizes, poisson })
+    }
+
+    fn components(&self) -> usize {
+        self.component_sizes.len()
+    }
+
+    /// Starts a keyframe interval from the decoded I-frame. `with_basis` is read from the
+    /// stream by the decoder; the encoder tries to compute the basis and reports whether it could.
+    fn start_gop(&self, frame: &[f32], with_basis: Option<bool>, encoder: bool) -> Result<Gop> {
+        let prev = to_v3(frame);
+        let contexts = Contexts::new(self.settings.groups().len(), self.settings.bits);
+        let want = with_basis.unwrap_or(true) && self.poisson.is_some();
+        let mut gop = Gop { transfer: None, analysis: None, contexts, prev };
+        if !want {
+            return Ok(gop);
+        }
+        let result = harmonics::harmonics(&gop.prev, &self.tris, self.settings.bases as usize).and_then(|h| {
+            let t = Transfer::new(&h, &self.tris);
+            let a = if encoder {
+                let w = geometry::triangle_areas(&gop.prev, &self.tris);
+                Some(t.analysis(&w)?)
+            } else {
+                None
+            };
+            Ok((t, a))
+        });
+        match result {
+            Ok((t, a)) => {
+                gop.transfer = Some(t);
+                gop.analysis = a;
+            }
+            // The encoder falls back to refresh frames for this interval and says so in the
+            // stream; the decoder was told a basis exists, so failing here is an error.
+            Err(e) if !encoder => return Err(e),
+            Err(_) => {}
+        }
+        Ok(gop)
+    }
+
+    /// Decoded gradients from the group codes and amplitudes (paper Eq. 10–11, `J̃ = Ũ P̃`),
+    /// then the Poisson solve (Eq. 12). Returns positions before the component translations.
+    fn reconstruct(&self, gop: &Gop, codes: &[Vec<i64>], amps: &[f32]) -> Result<Vec<V3>> {
+        let transfer =
+            gop.transfer.as_ref().ok_or_else(|| Error::malformed(NAME, "packet", "P-frame without bases"))?;
+        let poisson =
+            self.poisson.as_ref().ok_or_else(|| Error::malformed(NAME, "packet", "P-frame without triangles"))?;
+        let l = transfer.bases();
+        let m = self.tris.len();
+        let mut fields: Vec<Vec<f64>> = Vec::with_capacity(9);
+        for (g, group) in codes.iter().enumerate() {
+            let step = coding::step(amps[g], self.settings.bits);
+            for chan in group.chunks_exact(l) {
+                let c: Vec<f64> = chan.iter().map(|&q| q as f64 * step).collect();
+                let mut f = vec![0.0; m];
+                transfer.synthesize(&c, &mut f);
+                fields.push(f);
+            }
+        }
+        let targets: Vec<M3> = (0..m)
+            .map(|j| {
+                let f = |ch: usize| fields[ch][j];
+                if self.settings.polar {
+                    let u = geometry::exp_rotation([f(0), f(1), f(2)]);
+                    let (a, b, c, d, e, ff) = (1.0 + f(3), 1.0 + f(4), 1.0 + f(5), f(6), f(7), f(8));
+                    geometry::mul(&u, &[[a, d, e], [d, b, ff], [e, ff, c]])
+                } else {
+                    std::array::from_fn(|r| std::array::from_fn(|c| geometry::IDENTITY[r][c] + f(3 * r + c)))
+                }
+            })
+            .collect();
+        poisson.solve(&gop.prev, &targets)
+    }
+
+    /// Adds each component's stored translation and rounds to `f32`.
+    fn translate(&self, solved: &[V3], shifts: &[[f32; 3]]) -> Vec<f32> {
+        let mut out = Vec::with_capacity(self.n * 3);
+        for (v, p) in solved.iter().enumerate() {
+            let s = shifts[self.component[v]];
+            for k in 0..3 {
+                out.push((p[k] + s[k] as f64) as f32);
+            }
+        }
+        out
+    }
+}
+
+/// Near-lossless positions: each axis quantized over the frame's range, codes as byte planes
+/// through zstd (the paper leaves the I-frame coder open, §3.1 step 1).
+fn encode_positions(w: &mut ByteWriter, frame: &[f32], bits: u8, level: i32) -> Result<Vec<f32>> {
+    let mut qs = Vec::with_capacity(3);
+    for a in 0..3 {
+        let axis: Vec<f32> = frame.iter().skip(a).step_by(3).copied().collect();
+        qs.push(Quantizer::covering(&axis, bits)?);
+    }
+    let planes = (bits as usize).div_ceil(8);
+    let count = frame.len();
+    let mut raw = vec![0u8; count * planes];
+    let mut rec = Vec::with_capacity(count);
+    for (i, &x) in frame.iter().enumerate() {
+        let q = qs[i % 3].quantize(x);
+        rec.push(qs[i % 3].dequantize(q));
+        for p in 0..planes {
+            raw[p * count + i] = (q >> (8 * p)) as u8;
+        }
+    }
+    for q in &qs {
+        q.write(w);
+    }
+    w.bytes(&entropy::compress(&raw, level));
+    Ok(rec)
+}
+
+fn decode_positions(r: &mut ByteReader<'_>, n: usize, bits: u8, limits: &Limits) -> Result<Vec<f32>> {
+    let mut qs = Vec::with_capacity(3);
+    for _ in 0..3 {
+        let q = Quantizer::read(r, "positions.quantizer")?;
+        if q.bits() != bits {
+            return Err(r.malformed("positions.quantizer", format!("{} bits, stream config says {bits}", q.bits())));
+        }
+        qs.push(q);
+    }
+    let planes = (bits as usize).div_ceil(8);
+    let count = n * 3;
+    let len = count * planes;
+    limits.check_alloc(NAME, "positions", len as u64)?;
+    let raw = entropy::decompress(r.take(r.remaining(), "positions")?, NAME, "positions", len)?;
+    if raw.len() != len {
+        return Err(Error::malformed(NAME, "positions", format!("{} bytes, expected {len}", raw.len())));
+    }
+    Ok((0..count)
+        .map(|i| {
+            let q = (0..planes).fold(0u32, |acc, p| acc | (raw[p * count + i] as u32) << (8 * p));
+            qs[i % 3].dequantize(q)
+        })
+        .collect())
+}
+
+/// A coded P-frame: payload, reconstruction, and the entropy statistics after it.
+type CodedP = (Vec<u8>, Vec<f32>, Contexts);
+
+struct SacEncoder {
+    params: SacParams,
+    shared: Shared,
+    want_reconstruction: bool,
+    next_frame: u32,
+    gop: Option<Gop>,
+}
+
+/// RMS coordinate error of `rec` against `orig`, and `orig`'s bounding-box diagonal.
+fn frame_error(orig: &[f32], rec: &[f32]) -> (f64, f64) {
+    let mse =
+        orig.iter().zip(rec).map(|(&a, &b)| (a as f64 - b as f64).powi(2)).sum::<f64>() / orig.len().max(1) as f64;
+    let (lo, hi) = codec_core::animation::bounding_box(orig);
+    let diag = (0..3).map(|a| (hi[a] as f64 - lo[a] as f64).powi(2)).sum::<f64>().sqrt();
+    (mse.sqrt(), diag)
+}
+
+impl SacEncoder {
+    fn encode_frame(&mut self, frame: &[f32]) -> Result<EncodedPacket> {
+        let t = self.next_frame;
+        self.next_frame += 1;
+        let k = self.params.keyframe_interval;
+        let key = self.gop.is_none() || (k > 0 && t % k == 0);
+        let (data, rec) = if key { self.encode_key(frame)? } else { self.encode_p(frame)? };
+        let packet = Packet { first_frame: t, frame_count: 1, keyframe: key, data };
+        Ok(EncodedPacket { packet, reconstruction: self.want_reconstruction.then_some(rec) })
+    }
+
+    fn encode_key(&mut self, frame: &[f32]) -> Result<(Vec<u8>, Vec<f32>)> {
+        let mut body = ByteWriter::new();
+        let rec = encode_positions(&mut body, frame, self.params.iframe_bits, self.params.level)?;
+        let gop = self.shared.start_gop(&rec, None, true)?;
+        let mut w = ByteWriter::new();
+        w.u8(KIND_I);
+        w.u8(gop.transfer.is_some() as u8);
+        w.bytes(body.as_slice());
+        self.gop = Some(gop);
+        Ok((w.into_vec(), rec))
+    }
+
+    fn encode_refresh(&mut self, frame: &[f32]) -> Result<(Vec<u8>, Vec<f32>)> {
+        let mut w = ByteWriter::new();
+        w.u8(KIND_REFRESH);
+        let rec = encode_positions(&mut w, frame, self.params.iframe_bits, self.params.level)?;
+        if let Some(g) = self.gop.as_mut() {
+            g.prev = to_v3(&rec);
+        }
+        Ok((w.into_vec(), rec))
+    }
+
+    /// The P-frame pipeline; `None` when it cannot run or misses the error guard.
+    fn try_p(&self, frame: &[f32]) -> Result<Option<CodedP>> {
+        let gop = self.gop.as_ref().expect("a keyframe starts every interval");
+        let (Some(analysis), Some(_)) = (gop.analysis.as_ref(), gop.transfer.as_ref()) else { return Ok(None) };
+        let s = &self.shared;
+        let settings = s.settings;
+        let target = to_v3(frame);
+        // §3.7 a)–c): gradients from the previous reconstruction, polar decomposition, log map.
+        let grads = geometry::deformation_gradients(&s.tris, &gop.prev, &target);
+        let m = s.tris.len();
+        let mut fields = vec![vec![0.0f64; m]; 9];
+        let mut svd = Svd3::new();
+        for (j, g) in grads.iter().enumerate() {
+            if settings.polar {
+                let Some((u, p)) = svd.polar(g) else { return Ok(None) };
+                let w = geometry::log_rotation(&u);
+                let vals = [w[0], w[1], w[2], p[0][0] - 1.0, p[1][1] - 1.0, p[2][2] - 1.0, p[0][1], p[0][2], p[1][2]];
+                for (ch, v) in vals.into_iter().enumerate() {
+                    fields[ch][j] = v;
+                }
+            } else {
+                for ch in 0..9 {
+                    fields[ch][j] = g[ch / 3][ch % 3] - geometry::IDENTITY[ch / 3][ch % 3];
+                }
+            }
+        }
+        if fields.iter().any(|f| f.iter().any(|x| !x.is_finite())) {
+            return Ok(None);
+        }
+        // §3.4 Eq. 8–9 (least-squares form) and §3.5 quantization.
+        let coeffs: Vec<Vec<f64>> = fields.iter().map(|f| harmonics::analyze(analysis, f)).collect();
+        let mut codes = Vec::new();
+        let mut amps = Vec::new();
+        let mut ch = 0;
+        for &count in settings.groups() {
+            let group = &coeffs[ch..ch + count];
+            ch += count;
+            let amax = group.iter().flatten().fold(0.0f64, |a, &c| a.max(c.abs()));
+            let amp = coding::amplitude(amax);
+            if !amp.is_finite() {
+                return Ok(None);
+            }
+            let step = coding::step(amp, settings.bits);
+            codes.push(group.iter().flatten().map(|&c| coding::quantize(c, step, settings.bits)).collect::<Vec<_>>());
+            amps.push(amp);
+        }
+        let mut contexts = gop.contexts.clone();
+        let coded = coding::encode(&codes, analysis.nrows(), &mut contexts);
+        // §3.7 e)–f) through the decoder's own code path.
+        let solved = match s.reconstruct(gop, &codes, &amps) {
+            Ok(x) => x,
+            Err(Error::Numerical { .. }) => return Ok(None),
+            Err(e) => return Err(e),
+        };
+        let mut sums = vec![[0.0f64; 3]; s.components()];
+        for (v, p) in solved.iter().enumerate() {
+            for k in 0..3 {
+                sums[s.component[v]][k] += target[v][k] - p[k];
+            }
+        }
+        let shifts: Vec<[f32; 3]> = sums
+            .iter()
+            .zip(&s.component_sizes)
+            .map(|(d, &c)| std::array::from_fn(|k| (d[k] / c as f64) as f32))
+            .collect();
+        let rec = s.translate(&solved, &shifts);
+        if rec.iter().any(|x| !x.is_finite()) {
+            return Ok(None);
+        }
+        let (rms, diag) = frame_error(frame, &rec);
+        if rms.is_nan() || rms > self.params.max_error * diag {
+            return Ok(None);
+        }
+        let mut w = ByteWriter::new();
+        w.u8(KIND_P);
+        for a in &amps {
+            w.f32(*a);
+        }
+        for sh in &shifts {
+            for &x in sh {
+                w.f32(x);
+            }
+        }
+        w.bytes(&coded);
+        Ok(Some((w.into_vec(), rec, contexts)))
+    }
+
+    fn encode_p(&mut self, frame: &[f32]) -> Result<(Vec<u8>, Vec<f32>)> {
+        match self.try_p(frame)? {
+            Some((data, rec, contexts)) => {
+                let g = self.gop.as_mut().expect("keyframe first");
+                g.contexts = contexts;
+                g.prev = to_v3(&rec);
+                Ok((data, rec))
+            }
+            None => self.encode_refresh(frame),
+        }
+    }
+}
+
+impl FrameEncoder for SacEncoder {
+    fn config(&self) -> Vec<u8> {
+        self.shared.settings.config()
+    }
+
+    fn push_frames(&mut self, frames: &[f32]) -> Result<Vec<EncodedPacket>> {
+        frames.chunks_exact(self.shared.n * 3).map(|f| self.encode_frame(f)).collect()
+    }
+
+    fn finish(&mut self) -> Result<Vec<EncodedPacket>> {
+        Ok(Vec::new())
+    }
+}
+
+struct SacDecoder {
+    shared: Shared,
+    limits: Limits,
+    gop: Option<Gop>,
+}
+
+impl FrameDecoder for SacDecoder {
+    fn decode_packet(&mut self, packet: &Packet) -> Result<Vec<f32>> {
+        if packet.frame_count != 1 {
+            return Err(Error::malformed(
+                NAME,
+                "packet",
+                format!("{} frames; sac packets hold one", packet.frame_count),
+            ));
+        }
+        let s = &self.shared;
+        let mut r = ByteReader::new(&packet.data, NAME);
+        let kind = r.u8("kind")?;
+        match kind {
+            KIND_I => {
+                if !packet.keyframe {
+                    return Err(r.malformed("kind", "I-frame in a packet not flagged as keyframe"));
+                }
+                let with_basis = match r.u8("has_bases")? {
+                    0 => false,
+                    1 => true,
+                    b => return Err(r.malformed("has_bases", format!("{b} is not 0 or 1"))),
+                };
+                let rec = decode_positions(&mut r, s.n, s.settings.iframe_bits, &self.limits)?;
+                self.gop = Some(s.start_gop(&rec, Some(with_basis), false)?);
+                Ok(rec)
+            }
+            KIND_REFRESH | KIND_P => {
+                let Some(gop) = self.gop.as_mut() else {
+                    return Err(r.malformed("kind", "a P-frame before any keyframe"));
+                };
+                if kind == KIND_REFRESH {
+                    let rec = decode_positions(&mut r, s.n, s.settings.iframe_bits, &self.limits)?;
+                    gop.prev = to_v3(&rec);
+                    return Ok(rec);
+                }
+                let Some(transfer) = gop.transfer.as_ref() else {
+                    return Err(r.malformed("kind", "a P-frame in an interval without bases"));
+                };
+                let l = transfer.bases();
+                let groups = s.settings.groups();
+                let mut amps = Vec::with_capacity(groups.len());
+                for _ in groups {
+                    let a = r.f32("amplitude")?;
+                    if !(a.is_finite() && a >= 0.0) {
+                        return Err(r.malformed("amplitude", format!("{a} is not a finite non-negative number")));
+                    }
+                    amps.push(a);
+                }
+                let comps = s.components();
+                if r.remaining() < comps * 12 {
+                    return Err(r.truncated("translations"));
+                }
+                let mut shifts = Vec::with_capacity(comps);
+                for _ in 0..comps {
+                    let mut sh = [0.0f32; 3];
+                    for x in sh.iter_mut() {
+                        *x = r.finite_f32("translation")?;
+                    }
+                    shifts.push(sh);
+                }
+                let sizes: Vec<usize> = groups.iter().map(|&c| c * l).collect();
+                let rest = r.take(r.remaining(), "descriptors")?;
+                let mut contexts = gop.contexts.clone();
+                let codes = coding::decode(rest, &sizes, l, &mut contexts)?;
+                let solved = s.reconstruct(gop, &codes, &amps)?;
+                let rec = s.translate(&solved, &shifts);
+                if rec.iter().any(|x| !x.is_finite()) {
+                    return Err(Error::malformed(NAME, "packet", "decoded positions are not finite"));
+                }
+                gop.contexts = contexts;
+                gop.prev = to_v3(&rec);
+                Ok(rec)
+            }
+            k => Err(r.malformed("kind", format!("{k} is not a frame kind (0 = I, 1 = P, 2 = refresh)"))),
+        }
+    }
+
+    fn reset(&mut self) {
+        self.gop = None;
+    }
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,1 +1,673 @@
-//! Codec crate placeholder: filled in by its own issue; not yet registered.
+//! `stseg`: spatio-temporal segmentation + PCA (Luo, Deng, Zhao, Jin, Zeng, Xie, Seo,
+//! "Spatio-temporal Segmentation based Adaptive Compression of Dynamic Mesh Sequences",
+//! ACM TOMM 2020).
+//!
+//! The encoder consumes frames in order (§4.5). For each block it runs the initial temporal
+//! cut (§4.1), clusters vertices into at most `groups` groups (§4.2, Alg. 1), finds the next
+//! temporal boundary from changes in each group's number of principal components (§4.3,
+//! Alg. 2), and codes every group of the segment by PCA at persistence `omega` with `eta`-ring
+//! overlap (§4.4), quantized and entropy-coded with zstd. One packet per temporal segment;
+//! every packet is a keyframe. See `README.md` for the stream layout.
+//! [`segment_animation`] exposes the segmentation (group labels and boundaries).
+
+mod linalg;
+mod segment;
+
+use codec_core::bytes::{zigzag_decode, zigzag_encode, ByteReader, ByteWriter};
+use codec_core::{
+    entropy, Animation, AnimationCodec, EncodedPacket, EncoderSetup, Error, ErrorBound, FourCc, FrameDecoder,
+    FrameEncoder, Limits, Packet, ParamKind, ParamSet, ParamSpec, ParamValue, Quantizer, RateLadder, Result,
+    StreamInfo,
+};
+use faer::Mat;
+use rayon::prelude::*;
+
+pub use segment::{segment_animation, BlockKind, Segment, Segmentation};
+
+use linalg::{gram, mul, pcs_for_persistence, sym_eig_desc};
+use segment::{frame_diagonal, MeshGraph, Segmenter, NEGLIGIBLE_AMPLITUDE};
+
+pub(crate) const NAME: &str = "stseg";
+/// Most vertex groups a stream may declare (labels are stored as bytes).
+pub const MAX_GROUPS: usize = 16;
+
+/// Typed parameters of `stseg` (names follow the paper's notation).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StsegParams {
+    /// Information persistence rate ω of the PCA that codes each group and segment (§4.4):
+    /// the rate knob. Default 0.99.
+    pub omega: f64,
+    /// Persistence rate used by the segmentation (Alg. 1 group models, Alg. 2 PC counts). The
+    /// paper uses one ω for both; keeping them apart makes the segmentation, and so the packet
+    /// structure, the same at every rung of the rate ladder. Default 0.99 (the paper's ω).
+    pub omega_seg: f64,
+    /// Smoothing window `w` of the initial cut (§4.1). Default 5.
+    pub w: u32,
+    /// Range γ_init of the initial cut. Default 20.
+    pub gamma_init: u32,
+    /// Maximal segment length γ_max (§4.3). Default 50.
+    pub gamma_max: u32,
+    /// Kernel parameter λ of Eq. 3, relative to the median squared window distance. Default 1.
+    pub lambda: f64,
+    /// Smallest maximum-mean discrepancy that counts as an initial cut. Default 0.1.
+    pub cut_threshold: f64,
+    /// Maximal number of vertex groups N_g (§4.2). Default 4.
+    pub groups: u32,
+    /// Share ρ of the edges taken as rigid (§4.2.1). Default 0.2.
+    pub rho: f64,
+    /// Rings η of neighbours added to each group before its PCA (§4.4). Default 2.
+    pub eta: u32,
+    /// Bits of the mean shapes and PCA bases. Default 12.
+    pub bits: u8,
+    /// Bits of the PCA coefficients (orthonormal rows, values in [−1, 1]). Default 12.
+    pub coef_bits: u8,
+    /// zstd level. Default 19.
+    pub level: i32,
+}
+
+impl Default for StsegParams {
+    fn default() -> Self {
+        Self {
+            omega: 0.99,
+            omega_seg: 0.99,
+            w: 5,
+            gamma_init: 20,
+            gamma_max: 50,
+            lambda: 1.0,
+            cut_threshold: 0.1,
+            groups: 4,
+            rho: 0.2,
+            eta: 2,
+            bits: 12,
+            coef_bits: 12,
+            level: 19,
+        }
+    }
+}
+
+fn int_spec(name: &'static str, min: i64, max: i64, default: i64, doc: &'static str) -> ParamSpec {
+    ParamSpec { name, kind: ParamKind::Int { min, max }, default: ParamValue::Int(default), doc }
+}
+fn float_spec(name: &'static str, min: f64, max: f64, default: f64, doc: &'static str) -> ParamSpec {
+    ParamSpec { name, kind: ParamKind::Float { min, max }, default: ParamValue::Float(default), doc }
+}
+
+impl StsegParams {
+    /// Parameter descriptions, with the defaults of [`StsegParams::default`].
+    pub fn specs() -> Vec<ParamSpec> {
+        let d = Self::default();
+        vec![
+            float_spec("omega", 0.5, 0.999999, d.omega, "PCA information persistence rate ω (rate knob)"),
+            float_spec("omega_seg", 0.5, 0.999999, d.omega_seg, "persistence rate of the segmentation (Alg. 1, 2)"),
+            int_spec("w", 2, 32, d.w as i64, "initial-cut smoothing window w (frames)"),
+            int_spec("gamma_init", 8, 128, d.gamma_init as i64, "initial-cut range γ_init (frames), ≥ w + 4"),
+            int_spec("gamma_max", 8, 1024, d.gamma_max as i64, "maximal segment length γ_max (frames), ≥ gamma_init"),
+            float_spec("lambda", 0.01, 100.0, d.lambda, "kernel parameter λ (Eq. 3), in units of the median distance"),
+            float_spec("cut_threshold", 0.0, 2.0, d.cut_threshold, "smallest MMD that counts as an initial cut"),
+            int_spec("groups", 1, MAX_GROUPS as i64, d.groups as i64, "maximal number of vertex groups N_g"),
+            float_spec("rho", 0.01, 0.99, d.rho, "share ρ of edges taken as rigid"),
+            int_spec("eta", 0, 8, d.eta as i64, "η-ring overlap of vertex groups for boundary consistency"),
+            int_spec("bits", 6, 20, d.bits as i64, "bits of mean shapes and PCA bases"),
+            int_spec("coef_bits", 6, 20, d.coef_bits as i64, "bits of PCA coefficients"),
+            int_spec("level", 1, 22, d.level as i64, "zstd compression level"),
+        ]
+    }
+
+    /// Checks every field against the ranges in [`StsegParams::specs`] and the constraints
+    /// between them (`gamma_init ≥ w + 4`, `gamma_max ≥ gamma_init`).
+    pub fn validate(&self) -> Result<()> {
+        self.to_param_set().map(|_| ())
+    }
+
+    fn check_cross(&self) -> Result<()> {
+        if self.gamma_init < self.w + 4 {
+            return Err(Error::parameter(
+                NAME,
+                "gamma_init",
+                format!(
+                    "{} must be at least w + 4 = {} (the cut needs two windows each side)",
+                    self.gamma_init,
+                    self.w + 4
+                ),
+            ));
+        }
+        if self.gamma_max < self.gamma_init {
+            return Err(Error::parameter(
+                NAME,
+                "gamma_max",
+                format!("{} must be at least gamma_init = {}", self.gamma_max, self.gamma_init),
+            ));
+        }
+        Ok(())
+    }
+
+    /// Reads the typed parameters from a [`ParamSet`] made for this codec (values in it were
+    /// range-checked against the specs, so the narrowing casts are in range).
+    pub fn from_param_set(p: &ParamSet) -> Result<Self> {
+        if p.codec() != NAME {
+            return Err(Error::parameter(NAME, "params", format!("parameters belong to codec '{}'", p.codec())));
+        }
+        let s = Self {
+            omega: p.float("omega")?,
+            omega_seg: p.float("omega_seg")?,
+            w: p.int("w")? as u32,
+            gamma_init: p.int("gamma_init")? as u32,
+            gamma_max: p.int("gamma_max")? as u32,
+            lambda: p.float("lambda")?,
+            cut_threshold: p.float("cut_threshold")?,
+            groups: p.int("groups")? as u32,
+            rho: p.float("rho")?,
+            eta: p.int("eta")? as u32,
+            bits: p.int("bits")? as u8,
+            coef_bits: p.int("coef_bits")? as u8,
+            level: p.int("level")? as i32,
+        };
+        s.check_cross()?;
+        Ok(s)
+    }
+
+    /// The generic form of these parameters; fails like [`StsegParams::validate`].
+    pub fn to_param_set(&self) -> Result<ParamSet> {
+        let specs = Self::specs();
+        let p = ParamSet::defaults(NAME, &specs)
+            .with(&specs, "omega", ParamValue::Float(self.omega))?
+            .with(&specs, "omega_seg", ParamValue::Float(self.omega_seg))?
+            .with(&specs, "w", ParamValue::Int(self.w as i64))?
+            .with(&specs, "gamma_init", ParamValue::Int(self.gamma_init as i64))?
+            .with(&specs, "gamma_max", ParamValue::Int(self.gamma_max as i64))?
+            .with(&specs, "lambda", ParamValue::Float(self.lambda))?
+            .with(&specs, "cut_threshold", ParamValue::Float(self.cut_threshold))?
+            .with(&specs, "groups", ParamValue::Int(self.groups as i64))?
+            .with(&specs, "rho", ParamValue::Float(self.rho))?
+            .with(&specs, "eta", ParamValue::Int(self.eta as i64))?
+            .with(&specs, "bits", ParamValue::Int(self.bits as i64))?
+            .with(&specs, "coef_bits", ParamValue::Int(self.coef_bits as i64))?
+            .with(&specs, "level", ParamValue::Int(self.level as i64))?;
+        self.check_cross()?;
+        Ok(p)
+    }
+
+    /// Largest number of frames in one packet.
+    fn max_segment(&self) -> usize {
+        self.gamma_max.max(self.gamma_init) as usize
+    }
+}
+
+/// The `stseg` codec.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Stseg;
+
+impl AnimationCodec for Stseg {
+    fn name(&self) -> &'static str {
+        NAME
+    }
+    fn fourcc(&self) -> FourCc {
+        FourCc::new(b"STSG")
+    }
+    fn stream_version(&self) -> u16 {
+        1
+    }
+    fn summary(&self) -> &'static str {
+        "spatio-temporal segmentation (initial cut, vertex groups, PC-count boundaries) + per-segment PCA"
+    }
+    fn param_specs(&self) -> Vec<ParamSpec> {
+        StsegParams::specs()
+    }
+    fn rate_ladder(&self) -> RateLadder {
+        RateLadder {
+            param: "omega",
+            steps: [0.9, 0.95, 0.98, 0.99, 0.995, 0.998, 0.999, 0.9995, 0.9998, 0.9999]
+                .into_iter()
+                .map(ParamValue::Float)
+                .collect(),
+        }
+    }
+    fn validate(&self, params: &ParamSet) -> Result<()> {
+        StsegParams::from_param_set(params).map(|_| ())
+    }
+    fn error_bound(&self, params: &ParamSet, animation: &Animation) -> Result<ErrorBound> {
+        let p = StsegParams::from_param_set(params)?;
+        Ok(ErrorBound { max_coordinate_error: None, relative_rms_error: relative_rms_bound(&p, animation) })
+    }
+    fn new_encoder(&self, params: &ParamSet, setup: &EncoderSetup<'_>) -> Result<Box<dyn FrameEncoder>> {
+        let p = StsegParams::from_param_set(params)?;
+        Ok(Box::new(StsegEncoder {
+            params: p,
+            segmenter: Segmenter::new(p, setup.topology),
+            graph: MeshGraph::new(setup.topology),
+            vertex_count: setup.topology.vertex_count(),
+            total: setup.frame_count,
+            want_reconstruction: setup.want_reconstruction,
+            pending: Vec::new(),
+            next_frame: 0,
+        }))
+    }
+    fn new_decoder(&self, info: &StreamInfo, config: &[u8], limits: &Limits) -> Result<Box<dyn FrameDecoder>> {
+        let mut r = ByteReader::new(config, NAME);
+        let bits = r.u8("config.bits")?;
+        let coef_bits = r.u8("config.coef_bits")?;
+        r.expect_end("config")?;
+        for (field, b) in [("config.bits", bits), ("config.coef_bits", coef_bits)] {
+            if !(6..=20).contains(&b) {
+                return Err(r.malformed(field, format!("{b} is outside 6..=20")));
+            }
+        }
+        Ok(Box::new(StsegDecoder { bits, coef_bits, vertex_count: info.vertex_count(), limits: *limits }))
+    }
+}
+
+/// The declared relative RMS bound (see README "Error bound"). With `D` the animation's
+/// bounding-box diagonal, `G` = `groups`, `T` the longest segment, `δ = T/(2^coef_bits − 1)`:
+/// - truncation at persistence ω: the discarded energy of each group's η-extended, centred
+///   block is ≤ (1−ω) of its energy; a vertex lies in at most `G` extended groups and each
+///   centred coordinate is ≤ `D` away, so this term is ≤ `√((1−ω)·G/3)·D` (RMS per coordinate);
+/// - coefficient quantization (each entry off by ≤ half a step of [−1, 1]): `‖W − B̂ᵀ‖₂ ≤ δ`,
+///   adding ≤ `δ·D`;
+/// - basis quantization: `|A| ≤ √T·D/(1−δ)`, half a step per entry, times `‖B̂‖₂ ≤ 1+δ`:
+///   ≤ `√T·(1+δ)/((1−δ)(2^bits−1))·D`;
+/// - mean quantization: ≤ `D/(2(2^bits−1))`; plus f32 rounding.
+///
+/// These add (Minkowski). `None` (no promise) when `δ ≥ 1/2`.
+fn relative_rms_bound(p: &StsegParams, animation: &Animation) -> Option<f64> {
+    let t = p.max_segment() as f64;
+    let delta = t / ((1u64 << p.coef_bits) - 1) as f64;
+    if delta >= 0.5 {
+        return None;
+    }
+    let qa = ((1u64 << p.bits) - 1) as f64;
+    let trunc = ((1.0 - p.omega) * p.groups as f64 / 3.0).sqrt();
+    let basis = t.sqrt() * (1.0 + delta) / ((1.0 - delta) * qa);
+    let mean = 0.5 / qa;
+    let diag = animation.bounding_box_diagonal();
+    let (lo, hi) = animation.bounding_box();
+    let mag = lo.iter().chain(&hi).fold(0.0f64, |m, &x| m.max((x as f64).abs()));
+    let rounding = if diag > 0.0 { 4.0 * mag * f32::EPSILON as f64 / diag } else { 0.0 };
+    Some(trunc + delta + basis + mean + rounding + 1e-12)
+}
+
+/// Fixed-size temporal blocks with a single vertex group: the segmentation of the paper's
+/// "Adapted PCA" baseline (§5.3.1), for comparisons with [`encode_with_segmentation`].
+pub fn fixed_block_segmentation(vertex_count: usize, frame_count: usize, block: usize) -> Segmentation {
+    let block = block.max(1);
+    let segments = (0..frame_count)
+        .step_by(block)
+        .map(|first_frame| Segment {
+            first_frame,
+            frame_count: block.min(frame_count - first_frame),
+            kind: BlockKind::NoCut,
+            detected_boundary: false,
+            window: None,
+            group_count: 1,
+            labels: vec![0; vertex_count],
+        })
+        .collect();
+    Segmentation { segments }
+}
+
+/// Codes `animation` with the PCA stage of `stseg` (§4.4) over a given segmentation (for
+/// example [`fixed_block_segmentation`]) and returns the packets, in the `stseg` stream
+/// format, and the decoded frames. [`Stseg`]'s encoder is this with [`segment_animation`].
+pub fn encode_with_segmentation(
+    animation: &Animation,
+    params: &StsegParams,
+    segmentation: &Segmentation,
+) -> Result<(Vec<Packet>, Vec<f32>)> {
+    params.validate()?;
+    let graph = MeshGraph::new(animation.topology());
+    let v = animation.vertex_count();
+    let n3 = v * 3;
+    let mut next = 0;
+    let mut packets = Vec::new();
+    let mut rec = Vec::with_capacity(animation.positions().len());
+    for seg in &segmentation.segments {
+        if seg.first_frame != next
+            || seg.frame_count == 0
+            || next + seg.frame_count > animation.frame_count()
+            || seg.labels.len() != v
+            || seg.group_count == 0
+            || seg.group_count > MAX_GROUPS
+            || seg.labels.iter().any(|&l| l as usize >= seg.group_count)
+        {
+            return Err(Error::parameter(
+                NAME,
+                "segmentation",
+                format!("segment at frame {} is inconsistent", seg.first_frame),
+            ));
+        }
+        let block = &animation.positions()[next * n3..(next + seg.frame_count) * n3];
+        let data = encode_segment(params, &graph, seg, block)?;
+        let dec =
+            StsegDecoder { bits: params.bits, coef_bits: params.coef_bits, vertex_count: v, limits: Limits::default() };
+        rec.extend_from_slice(&dec.decode(&data, seg.frame_count)?);
+        packets.push(Packet { first_frame: next as u32, frame_count: seg.frame_count as u32, keyframe: true, data });
+        next += seg.frame_count;
+    }
+    if next != animation.frame_count() {
+        return Err(Error::parameter(
+            NAME,
+            "segmentation",
+            format!("covers {next} of {} frames", animation.frame_count()),
+        ));
+    }
+    Ok((packets, rec))
+}
+
+struct StsegEncoder {
+    params: StsegParams,
+    segmenter: Segmenter,
+    graph: MeshGraph,
+    vertex_count: usize,
+    total: usize,
+    want_reconstruction: bool,
+    pending: Vec<f32>,
+    next_frame: usize,
+}
+
+impl StsegEncoder {
+    fn drain(&mut self) -> Result<Vec<EncodedPacket>> {
+        let n3 = self.vertex_count * 3;
+        let mut out = Vec::new();
+        while let Some(seg) = self.segmenter.next(&self.pending, self.total - self.next_frame, self.next_frame)? {
+            let block: Vec<f32> = self.pending.drain(..seg.frame_count * n3).collect();
+            let data = encode_segment(&self.params, &self.graph, &seg, &block)?;
+            let reconstruction = if self.want_reconstruction {
+                let dec = StsegDecoder {
+                    bits: self.params.bits,
+                    coef_bits: self.params.coef_bits,
+                    vertex_count: self.vertex_count,
+                    limits: Limits::default(),
+                };
+                Some(dec.decode(&data, seg.frame_count)?)
+            } else {
+                None
+            };
+            let packet = Packet {
+                first_frame: self.next_frame as u32,
+                frame_count: seg.frame_count as u32,
+                keyframe: true,
+                data,
+            };
+            self.next_frame += seg.frame_count;
+            out.push(EncodedPacket { packet, reconstruction });
+        }
+        Ok(out)
+    }
+}
+
+impl FrameEncoder for StsegEncoder {
+    fn config(&self) -> Vec<u8> {
+        vec![self.params.bits, self.params.coef_bits]
+    }
+
+    fn push_frames(&mut self, frames: &[f32]) -> Result<Vec<EncodedPacket>> {
+        self.pending.extend_from_slice(frames);
+        self.drain()
+    }
+
+    fn finish(&mut self) -> Result<Vec<EncodedPacket>> {
+        let out = self.drain()?;
+        if !self.pending.is_empty() {
+            return Err(Error::Unsupported {
+                context: NAME.into(),
+                detail: "frames left after the last segment".into(),
+            });
+        }
+        Ok(out)
+    }
+}
+
+/// Byte planes needed for zigzag differences of `bits`-bit codes.
+fn plane_count(bits: u8) -> usize {
+    (bits as usize + 1).div_ceil(8)
+}
+
+/// Appends codes as zigzag differences from the previous code of the same run.
+fn push_run(out: &mut Vec<u32>, codes: impl Iterator<Item = u32>) {
+    let mut prev = 0i64;
+    for c in codes {
+        out.push(zigzag_encode(c as i64 - prev) as u32);
+        prev = c as i64;
+    }
+}
+
+/// One group's coded PCA (§4.4, Eq. 5): `X ≈ mean·1ᵀ + A·B`.
+struct GroupCode {
+    mean_q: [Quantizer; 3],
+    a_q: Vec<Quantizer>,
+    b_q: Vec<Quantizer>,
+    /// mean codes (axis-major), A codes (column, axis, vertex), B codes (row, frame).
+    values: Vec<u32>,
+}
+
+/// PCA of one group in one segment with η-ring overlap, quantized.
+fn code_group(p: &StsegParams, graph: &MeshGraph, own: &[u32], block: &[f32], frames: usize) -> Result<GroupCode> {
+    let n3 = graph.vertex_count() * 3;
+    let ext = graph.grow_rings(own, p.eta as usize);
+    let x_at = |v: u32, c: usize, t: usize| block[t * n3 + v as usize * 3 + c] as f64;
+    let row_mean = |v: u32, c: usize| (0..frames).map(|t| x_at(v, c, t)).sum::<f64>() / frames as f64;
+    // Centred extended block (rows: vertex-major coordinates, columns: frames).
+    let ext_means: Vec<f64> =
+        ext.iter().flat_map(|&v| (0..3).map(move |c| (v, c))).map(|(v, c)| row_mean(v, c)).collect();
+    let xe = Mat::from_fn(ext.len() * 3, frames, |r, t| x_at(ext[r / 3], r % 3, t) - ext_means[r]);
+    let scale = frame_diagonal(&block[..n3]);
+    let negligible = (NEGLIGIBLE_AMPLITUDE * scale).powi(2) * (ext.len() * 3 * frames) as f64;
+    let (vals, vecs) = sym_eig_desc(gram(xe.as_ref()).as_ref(), "segment PCA")?;
+    let k = pcs_for_persistence(&vals, p.omega, negligible).min(frames);
+
+    // Coefficients B = W_kᵀ (orthonormal rows), quantized first; the basis is then fitted to
+    // the quantized coefficients by least squares so it absorbs their error.
+    let mut b_q = Vec::with_capacity(k);
+    let mut b_codes = Vec::with_capacity(k * frames);
+    let mut bh = Mat::<f64>::zeros(k, frames);
+    for j in 0..k {
+        let row: Vec<f32> = (0..frames).map(|t| vecs[(t, j)] as f32).collect();
+        let q = Quantizer::covering(&row, p.coef_bits)?;
+        for (t, &x) in row.iter().enumerate() {
+            let c = q.quantize(x);
+            b_codes.push(c);
+            bh[(j, t)] = q.dequantize(c) as f64;
+        }
+        b_q.push(q);
+    }
+    let own_means: Vec<f64> =
+        own.iter().flat_map(|&v| (0..3).map(move |c| (v, c))).map(|(v, c)| row_mean(v, c)).collect();
+    let mut a = Mat::<f64>::zeros(own.len() * 3, k);
+    if k > 0 {
+        let xo = Mat::from_fn(own.len() * 3, frames, |r, t| x_at(own[r / 3], r % 3, t) - own_means[r]);
+        // A = X̂·B̂ᵀ·(B̂·B̂ᵀ)⁻¹, the inverse through the eigen-decomposition of the small SPD matrix.
+        let m = mul(bh.as_ref(), bh.transpose());
+        let (mv, mu) = sym_eig_desc(m.as_ref(), "coefficient Gram")?;
+        let inv = Mat::from_fn(k, k, |i, j| {
+            (0..k).filter(|&l| mv[l] > 1e-12 * mv[0]).map(|l| mu[(i, l)] * mu[(j, l)] / mv[l]).sum::<f64>()
+        });
+        a = mul(mul(xo.as_ref(), bh.transpose()).as_ref(), inv.as_ref());
+    }
+    let mut values = Vec::with_capacity(own.len() * 3 * (k + 1) + k * frames);
+    let mean_q: [Quantizer; 3] = {
+        let mut qs = Vec::with_capacity(3);
+        for c in 0..3 {
+            let axis: Vec<f32> = (0..own.len()).map(|i| own_means[i * 3 + c] as f32).collect();
+            let q = Quantizer::covering(&axis, p.bits)?;
+            push_run(&mut values, axis.iter().map(|&x| q.quantize(x)));
+            qs.push(q);
+        }
+        [qs[0], qs[1], qs[2]]
+    };
+    let mut a_q = Vec::with_capacity(k);
+    for j in 0..k {
+        let col: Vec<f32> = (0..own.len() * 3).map(|r| a[(r, j)] as f32).collect();
+        let q = Quantizer::covering(&col, p.bits)?;
+        for c in 0..3 {
+            push_run(&mut values, (0..own.len()).map(|i| q.quantize(col[i * 3 + c])));
+        }
+        a_q.push(q);
+    }
+    for j in 0..k {
+        push_run(&mut values, b_codes[j * frames..(j + 1) * frames].iter().copied());
+    }
+    Ok(GroupCode { mean_q, a_q, b_q, values })
+}
+
+/// Packet payload of one segment (layout in README.md).
+fn encode_segment(p: &StsegParams, graph: &MeshGraph, seg: &Segment, block: &[f32]) -> Result<Vec<u8>> {
+    let v = graph.vertex_count();
+    let frames = seg.frame_count;
+    let groups: Vec<Vec<u32>> = (0..seg.group_count)
+        .map(|g| (0..v as u32).filter(|&i| seg.labels[i as usize] as usize == g).collect())
+        .collect();
+    // Groups are independent (§4.3 "parallel computing"); collect keeps their order.
+    let codes: Vec<GroupCode> =
+        groups.par_iter().map(|own| code_group(p, graph, own, block, frames)).collect::<Result<_>>()?;
+    let mut w = ByteWriter::new();
+    w.u8(seg.kind.case());
+    w.varint(seg.group_count as u64);
+    for c in &codes {
+        w.varint(c.a_q.len() as u64);
+        for q in c.mean_q.iter().chain(&c.a_q).chain(&c.b_q) {
+            q.write(&mut w);
+        }
+    }
+    let values: Vec<u32> = codes.iter().flat_map(|c| c.values.iter().copied()).collect();
+    let planes = plane_count(p.bits.max(p.coef_bits));
+    let mut raw = Vec::with_capacity(v + values.len() * planes);
+    raw.extend_from_slice(&seg.labels);
+    for pl in 0..planes {
+        raw.extend(values.iter().map(|&x| (x >> (8 * pl)) as u8));
+    }
+    w.bytes(&entropy::compress(&raw, p.level));
+    Ok(w.into_vec())
+}
+
+struct StsegDecoder {
+    bits: u8,
+    coef_bits: u8,
+    vertex_count: usize,
+    limits: Limits,
+}
+
+impl StsegDecoder {
+    fn decode(&self, data: &[u8], frames: usize) -> Result<Vec<f32>> {
+        let v = self.vertex_count;
+        let mut r = ByteReader::new(data, NAME);
+        let case = r.u8("case")?;
+        if BlockKind::from_case(case).is_none() {
+            return Err(r.malformed("case", format!("{case} is not a block case 1..=4")));
+        }
+        let group_count = r.varint("group_count")? as usize;
+        if group_count == 0 || group_count > MAX_GROUPS.min(v.max(1)) {
+            return Err(
+                r.malformed("group_count", format!("{group_count} is outside 1..={}", MAX_GROUPS.min(v.max(1))))
+            );
+        }
+        let max_k = frames.min(3 * v) as u64;
+        let mut ks = Vec::with_capacity(group_count);
+        let mut quants = Vec::with_capacity(group_count);
+        for _ in 0..group_count {
+            let k = r.varint("components")?;
+            if k > max_k {
+                return Err(r.malformed("components", format!("{k} exceeds min(frames, 3·vertices) = {max_k}")));
+            }
+            let k = k as usize;
+            // Each quantizer takes 9 bytes: a k beyond the remaining bytes is caught before allocating.
+            if r.remaining() < (3 + 2 * k) * 9 {
+                return Err(r.truncated("quantizers"));
+            }
+            let mut qs = Vec::with_capacity(3 + 2 * k);
+            for i in 0..3 + 2 * k {
+                let q = Quantizer::read(&mut r, "quantizer")?;
+                let want = if i < 3 + k { self.bits } else { self.coef_bits };
+                if q.bits() != want {
+                    return Err(r.malformed("quantizer", format!("{} bits, stream config says {want}", q.bits())));
+                }
+                qs.push(q);
+            }
+            ks.push(k);
+            quants.push(qs);
+        }
+        let planes = plane_count(self.bits.max(self.coef_bits));
+        let sum_k: usize = ks.iter().sum();
+        let max_k_used = ks.iter().copied().max().unwrap_or(0);
+        let bound =
+            (v as u64) + planes as u64 * (3 * v as u64 * (1 + max_k_used as u64) + sum_k as u64 * frames as u64);
+        self.limits.check_alloc(NAME, "values", bound.saturating_mul(8))?;
+        let raw = entropy::decompress(r.take(r.remaining(), "values")?, NAME, "values", bound as usize)?;
+        if raw.len() < v {
+            return Err(Error::malformed(NAME, "labels", format!("{} bytes for {v} vertex labels", raw.len())));
+        }
+        let labels = &raw[..v];
+        let mut members: Vec<Vec<usize>> = vec![Vec::new(); group_count];
+        for (i, &l) in labels.iter().enumerate() {
+            if l as usize >= group_count {
+                return Err(Error::malformed(NAME, "labels", format!("vertex {i}: group {l} of {group_count}")));
+            }
+            members[l as usize].push(i);
+        }
+        let count: usize = members.iter().zip(&ks).map(|(m, &k)| 3 * m.len() * (1 + k) + k * frames).sum();
+        if raw.len() != v + planes * count {
+            return Err(Error::malformed(
+                NAME,
+                "values",
+                format!("{} bytes, expected {}", raw.len() - v, planes * count),
+            ));
+        }
+        let planes_raw = &raw[v..];
+        let mut idx = 0usize;
+        let mut next_run = |len: usize| -> Vec<u32> {
+            let mut prev = 0i64;
+            let mut out = Vec::with_capacity(len);
+            for _ in 0..len {
+                let mut z = 0u32;
+                for pl in 0..planes {
+                    z |= (planes_raw[pl * count + idx] as u32) << (8 * pl);
+                }
+                idx += 1;
+                prev += zigzag_decode(z as u64);
+                out.push(prev.clamp(0, u32::MAX as i64) as u32);
+            }
+            out
+        };
+        let n3 = v * 3;
+        let mut out = vec![0f32; frames * n3];
+        for ((own, &k), qs) in members.iter().zip(&ks).zip(&quants) {
+            let n = own.len();
+            let mean: Vec<Vec<f64>> =
+                (0..3).map(|c| next_run(n).into_iter().map(|q| qs[c].dequantize(q) as f64).collect()).collect();
+            // a[j][c][i]
+            let a: Vec<Vec<Vec<f64>>> = (0..k)
+                .map(|j| {
+                    (0..3).map(|_| next_run(n).into_iter().map(|q| qs[3 + j].dequantize(q) as f64).collect()).collect()
+                })
+                .collect();
+            let b: Vec<Vec<f64>> = (0..k)
+                .map(|j| next_run(frames).into_iter().map(|q| qs[3 + k + j].dequantize(q) as f64).collect())
+                .collect();
+            for t in 0..frames {
+                for c in 0..3 {
+                    for (i, &vi) in own.iter().enumerate() {
+                        let mut x = mean[c][i];
+                        for j in 0..k {
+                            x += a[j][c][i] * b[j][t];
+                        }
+                        out[t * n3 + vi * 3 + c] = x as f32;
+                    }
+                }
+            }
+        }
+        // Corrupt quantizer ranges can overflow f32; say so here rather than emit infinities.
+        if out.iter().any(|x| !x.is_finite()) {
+            return Err(Error::malformed(NAME, "values", "decoded coordinates are not finite"));
+        }
+        Ok(out)
+    }
+}
+
+impl FrameDecoder for StsegDecoder {
+    fn decode_packet(&mut self, packet: &Packet) -> Result<Vec<f32>> {
+        let frames = packet.frame_count as usize;
+        self.limits.check_alloc(NAME, "frame_count", (frames as u64) * self.vertex_count as u64 * 12)?;
+        self.decode(&packet.data, frames)
+    }
+}
+
+#[cfg(test)]
+mod tests;

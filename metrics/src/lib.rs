@@ -1,1 +1,27 @@
-//! Error metrics for mesh animations (filled in by the metrics issue).
+//! Error metrics for mesh animations.
+//!
+//! Every metric takes a `(reference, candidate)` pair of [`Animation`]s with the same vertex
+//! count, frame count and triangle list (checked: a mismatch is an `Err`, never a panic):
+//!
+//! * [`kg_error`] — Karni & Gotsman's KG error (percent),
+//! * [`displacement_stats`] — MSE, RMSE (absolute and relative to the bounding-box
+//!   diagonal) and the largest vertex displacement,
+//! * [`hausdorff`] — per-frame symmetric vertex-to-surface Hausdorff distance,
+//! * [`sted`] — Váša & Skala's spatio-temporal edge difference with [`StedParams`],
+//! * [`per_vertex_displacement`], [`sted_with_fields`] — per-vertex fields for heatmaps,
+//! * [`bpvf`] / [`geometry_bpvf`] — bits per vertex per frame from byte counts,
+//! * [`evaluate`] — everything at once as a serializable [`MetricReport`].
+
+pub mod bpvf;
+pub mod common;
+pub mod displacement;
+pub mod hausdorff;
+pub mod report;
+pub mod sted;
+
+pub use bpvf::{bpvf, geometry_bpvf};
+pub use common::check_compatible;
+pub use displacement::{displacement_stats, kg_error, per_vertex_displacement, DisplacementStats, VertexDisplacement};
+pub use hausdorff::{hausdorff, point_triangle_distance, vertex_to_surface_distances, HausdorffMode, HausdorffStats};
+pub use report::{evaluate, EvalOptions, MetricReport};
+pub use sted::{sted, sted_with_fields, EdgeDifference, StedParams, StedResult};

@@ -6,11 +6,14 @@ use std::path::Path;
 use std::time::Instant;
 
 use animcodec::formats::ReadOptions;
+use animcodec::harness::{self, Target, TargetHit};
 use codec_core::params::find_spec;
 use codec_core::synth;
-use codec_core::{Animation, AnimationCodec, ParamSet, StreamEncoder, Topology};
+use codec_core::{Animation, AnimationCodec, Limits, ParamSet, StreamEncoder, Topology};
+use metrics::EvalOptions;
 use serde_json::{json, Map, Value};
 
+use super::eval::sted_params;
 use super::{bpvf, emit, emit_json, load_animation, param_json, raw_bytes, CmdResult};
 use crate::EncodeArgs;
 
@@ -32,7 +35,10 @@ pub fn parse_params(codec: &dyn AnimationCodec, pairs: &[String]) -> CmdResult<P
 }
 
 /// Runs `encode`.
-pub fn run(args: &EncodeArgs) -> CmdResult {
+pub fn run(args: &EncodeArgs, limits: Limits) -> CmdResult {
+    if let Some(target) = args.target {
+        return run_target(args, target, limits);
+    }
     // Codec and parameters first: a typo should not cost a long read.
     let registry = animcodec::registry();
     let codec = registry.by_name(&args.codec)?;
@@ -204,4 +210,125 @@ impl<W: Write> Write for CountingWriter<W> {
     fn flush(&mut self) -> std::io::Result<()> {
         self.inner.flush()
     }
+}
+
+/// `encode --target`: searches the rate ladder (see [`harness::search_target`]) and writes the
+/// smallest stream that meets the target.
+fn run_target(args: &EncodeArgs, target: Target, limits: Limits) -> CmdResult {
+    let registry = animcodec::registry();
+    let auto = args.codec == "auto";
+    let chosen: Option<(&dyn AnimationCodec, ParamSet)> = if auto {
+        if !args.params.is_empty() {
+            return Err("-p cannot be combined with -c auto: parameters belong to one codec".into());
+        }
+        None
+    } else {
+        let codec = registry.by_name(&args.codec)?;
+        let ladder = codec.rate_ladder();
+        if let Some(p) = args.params.iter().find(|p| p.split_once('=').is_some_and(|(k, _)| k.trim() == ladder.param)) {
+            return Err(format!(
+                "{}: '-p {p}' sets the rate ladder's parameter, which --target {target} chooses; leave it out",
+                codec.name()
+            )
+            .into());
+        }
+        Some((codec, parse_params(codec, &args.params)?))
+    };
+    let eval = EvalOptions { sted: sted_params(&args.sted)?, ..EvalOptions::default() };
+
+    let read_start = Instant::now();
+    let animation = match parse_streamed_flag(&args.input)? {
+        // The search decodes and compares whole animations, so the flag is built in memory.
+        Some((cols, rows, frames)) => {
+            let (topology, positions, _) = synth::waving_flag(cols, rows, frames).into_parts();
+            Animation::new(topology, positions, args.fps.unwrap_or(synth::FRAME_RATE))?
+        }
+        None => {
+            let options = ReadOptions { topology: args.topology.clone(), frame_rate: args.fps };
+            load_animation(&args.input, &options)?
+        }
+    };
+    let read_seconds = read_start.elapsed().as_secs_f64();
+
+    let start = Instant::now();
+    let (hit, others) = match chosen {
+        Some((codec, params)) => {
+            (harness::search_target(&registry, codec, &params, &animation, target, &eval, limits)?, Vec::new())
+        }
+        None => {
+            let codecs: Vec<&dyn AnimationCodec> = registry.iter().collect();
+            harness::search_target_auto(&registry, &codecs, &animation, target, &eval, limits)?
+        }
+    };
+    let search_seconds = start.elapsed().as_secs_f64();
+    let write = File::create(&args.output)
+        .and_then(|mut f| f.write_all(&hit.stream).and_then(|()| f.flush()))
+        .map_err(|e| codec_core::Error::io(format!("writing {}", args.output.display()), e));
+    if let Err(e) = write {
+        let _ = std::fs::remove_file(&args.output);
+        return Err(e.into());
+    }
+
+    let p = &hit.point;
+    let reached = target.metric.value(&p.report).unwrap_or(f64::NAN);
+    let (v, f) = (animation.vertex_count(), animation.frame_count());
+    if args.json {
+        let summary = |h: &TargetHit| {
+            json!({
+                "codec": h.point.codec,
+                "params": harness::params_json(&h.point.params),
+                "bytes": h.point.bytes,
+                "bpvf": h.point.bpvf,
+                "value": target.metric.value(&h.point.report),
+            })
+        };
+        return emit_json(&json!({
+            "codec": p.codec,
+            "params": harness::params_json(&p.params),
+            "input": args.input,
+            "output": args.output.display().to_string(),
+            "target": { "metric": target.metric.name(), "value": target.value },
+            "reached": reached,
+            "bytes": p.bytes,
+            "bpvf": p.bpvf,
+            "ratio": raw_bytes(v, f) as f64 / p.bytes as f64,
+            "frames": f,
+            "vertices": v,
+            "triangles": animation.topology().triangle_count(),
+            "frame_rate": animation.frame_rate(),
+            "read_seconds": read_seconds,
+            "search_seconds": search_seconds,
+            "encode_seconds": p.encode_seconds,
+            "linear_fallback": hit.linear_fallback,
+            "tried": hit.tried.iter().map(|t| json!({
+                "ladder_index": t.ladder_index,
+                "params": harness::params_json(&t.params),
+                "bytes": t.bytes,
+                "bpvf": t.bpvf,
+                "value": target.metric.value(&t.report),
+            })).collect::<Vec<_>>(),
+            "other_codecs": others.iter().map(summary).collect::<Vec<_>>(),
+        }));
+    }
+    let mut out = format!(
+        "{input}: {f} frames × {v} vertices (read in {read_seconds:.2} s)\n\
+         target {target}: {codec} [{params}] reaches {metric}={reached:.6} → {output}\n\
+         {bytes} bytes, {rate:.3} bits/vertex/frame; searched {n} ladder points in {search_seconds:.2} s{fallback}\n",
+        input = args.input,
+        codec = p.codec,
+        params = p.params,
+        metric = target.metric.name(),
+        output = args.output.display(),
+        bytes = p.bytes,
+        rate = p.bpvf,
+        n = hit.tried.len(),
+        fallback = if hit.linear_fallback { " (errors not monotone along the ladder: linear scan used)" } else { "" },
+    );
+    for o in &others {
+        out.push_str(&format!(
+            "  also meets it: {} [{}] {} bytes, {:.3} bpvf\n",
+            o.point.codec, o.point.params, o.point.bytes, o.point.bpvf
+        ));
+    }
+    emit(&out)
 }

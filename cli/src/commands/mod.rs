@@ -4,8 +4,10 @@
 pub mod decode;
 pub mod demo;
 pub mod encode;
+pub mod eval;
 pub mod info;
 pub mod list;
+pub mod sweep;
 pub mod synth;
 
 use std::error::Error as StdError;

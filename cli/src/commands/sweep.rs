@@ -1,0 +1,143 @@
+//! `animcodec sweep`: walk every codec's rate ladder on one input, measure every point, print
+//! a table and write JSON, CSV and an SVG rate-distortion plot.
+
+use std::fmt::Write as _;
+use std::io::IsTerminal;
+use std::time::Instant;
+
+use animcodec::formats::ReadOptions;
+use animcodec::harness::{self, monotone_report, Sweep, SweepOptions};
+use codec_core::{AnimationCodec, Limits};
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use metrics::EvalOptions;
+
+use super::eval::{load_any, sted_params};
+use super::{emit, emit_json, CmdResult};
+use crate::SweepArgs;
+
+/// Input swept when none is given.
+pub const DEFAULT_INPUT: &str = "synth:flag";
+
+/// Runs `sweep`.
+pub fn run(args: &SweepArgs, limits: Limits) -> CmdResult {
+    let registry = animcodec::registry();
+    let codecs: Vec<&dyn AnimationCodec> = if args.codecs.is_empty() {
+        registry.iter().collect()
+    } else {
+        args.codecs.iter().map(|n| registry.by_name(n.trim())).collect::<Result<_, _>>()?
+    };
+    let eval = EvalOptions {
+        sted: sted_params(&args.sted)?,
+        compute_sted: !args.no_sted,
+        compute_hausdorff: !args.no_hausdorff,
+    };
+    let input = args.input.as_deref().unwrap_or(DEFAULT_INPUT);
+    let read = ReadOptions { topology: args.topology.clone(), frame_rate: None };
+    let animation = load_any(input, &read, limits)?;
+
+    let options =
+        SweepOptions { points: args.points.map(|n| n as usize), jobs: args.jobs.map(|n| n as usize), eval, limits };
+    let total = harness::sweep_jobs(&codecs, options.points).len() as u64;
+    let bar = if std::io::stderr().is_terminal() {
+        let bar = ProgressBar::with_draw_target(Some(total), ProgressDrawTarget::stderr());
+        if let Ok(style) = ProgressStyle::with_template("{bar:30} {pos}/{len} {elapsed} sweeping {msg}") {
+            bar.set_style(style);
+        }
+        bar.set_message(input.to_string());
+        bar
+    } else {
+        ProgressBar::hidden()
+    };
+    let start = Instant::now();
+    let result = harness::sweep(&registry, &codecs, &animation, &options, &|| bar.inc(1))?;
+    let seconds = start.elapsed().as_secs_f64();
+    bar.finish_and_clear();
+
+    let to_stdout = args.json.as_deref().is_some_and(|p| p.as_os_str() == "-");
+    if let Some(path) = args.json.as_ref().filter(|_| !to_stdout) {
+        let mut value = harness::sweep_json(input, &animation, &eval, &result);
+        value["total_seconds"] = seconds.into();
+        value["jobs"] = options.jobs.map_or_else(|| "rayon".into(), |j| j.into());
+        harness::write_text(path, &(serde_json::to_string_pretty(&value)? + "\n"))?;
+    }
+    if let Some(path) = &args.csv {
+        harness::write_text(path, &harness::csv_text(&result.points))?;
+    }
+    if let Some(path) = &args.plot {
+        let title = format!("{input}: {} frames × {} vertices", animation.frame_count(), animation.vertex_count());
+        harness::plot_svg(path, &title, &result.points)?;
+    }
+    if to_stdout {
+        let mut value = harness::sweep_json(input, &animation, &eval, &result);
+        value["total_seconds"] = seconds.into();
+        value["jobs"] = options.jobs.map_or_else(|| "rayon".into(), |j| j.into());
+        emit_json(&value)?;
+    } else {
+        emit(&table(input, &animation, &result, seconds))?;
+    }
+    if result.failures.is_empty() {
+        Ok(())
+    } else {
+        let list: Vec<String> =
+            result.failures.iter().map(|f| format!("{} step {}: {}", f.codec, f.ladder_index, f.message)).collect();
+        Err(format!("{} sweep points failed: {}", list.len(), list.join("; ")).into())
+    }
+}
+
+fn num(v: Option<f64>) -> String {
+    v.map_or_else(|| "n/a".to_string(), |x| format!("{x:.4e}"))
+}
+
+fn table(input: &str, animation: &codec_core::Animation, sweep: &Sweep, seconds: f64) -> String {
+    let mut out = String::new();
+    let _ = writeln!(
+        out,
+        "{input}: {} frames × {} vertices; {} points in {seconds:.2} s",
+        animation.frame_count(),
+        animation.vertex_count(),
+        sweep.points.len()
+    );
+    let _ = writeln!(
+        out,
+        "{:<14} {:<16} {:>10} {:>8} {:>11} {:>11} {:>11} {:>11} {:>8} {:>8}",
+        "codec", "knob", "bytes", "bpvf", "kg (%)", "sted", "hausdorff", "mse", "enc s", "dec s"
+    );
+    for p in &sweep.points {
+        let knob = format!("{}={}", p.ladder_param, p.ladder_value().map(|v| v.to_string()).unwrap_or_default());
+        let r = &p.report;
+        let _ = writeln!(
+            out,
+            "{:<14} {:<16} {:>10} {:>8.4} {:>11} {:>11} {:>11} {:>11} {:>8.3} {:>8.3}",
+            p.codec,
+            knob,
+            p.bytes,
+            p.bpvf,
+            num(r.kg),
+            num(r.sted),
+            num(r.hausdorff),
+            num(Some(r.mse)),
+            p.encode_seconds,
+            p.decode_seconds
+        );
+    }
+    for m in monotone_report(&sweep.points) {
+        let ok = m.bpvf_increasing && m.kg_decreasing && m.sted_decreasing;
+        let _ = writeln!(
+            out,
+            "{}: {}",
+            m.codec,
+            if ok {
+                "monotone (bpvf rises, KG and STED fall along the ladder)".to_string()
+            } else {
+                format!(
+                    "NOT monotone (bpvf rising {}, KG falling {}, STED falling {}; at ladder steps {:?})",
+                    m.bpvf_increasing, m.kg_decreasing, m.sted_decreasing, m.violations
+                )
+            }
+        );
+    }
+    for f in &sweep.failures {
+        let _ = writeln!(out, "{} step {}: FAILED: {}", f.codec, f.ladder_index, f.message);
+    }
+    out
+}

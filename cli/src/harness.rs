@@ -1,0 +1,837 @@
+//! The evaluation harness behind `animcodec eval`, `animcodec sweep` and
+//! `animcodec encode --target`: rate-ladder sweeps, rate-distortion tables and plots, and
+//! target-error search. Everything here works on in-memory [`Animation`]s so it can be tested
+//! without the binary.
+//!
+//! * [`measure_point`] encodes one animation at one parameter set, decodes the stream (the
+//!   decoder sees nothing but the bytes) and measures it with [`metrics::evaluate`].
+//! * [`sweep`] walks the [`RateLadder`] of every chosen codec ([`ladder_indices`] picks the
+//!   points), in parallel with rayon or sequentially (`jobs = 1`, for timing), and returns
+//!   the rows sorted by codec then ladder position, whatever the scheduling.
+//! * [`write_json`], [`write_csv`] and [`plot_svg`] write the rows; [`monotone_report`] checks
+//!   that bpvf rises and the errors fall along each ladder.
+//! * [`search_target`] finds the smallest stream of one codec that meets a [`Target`], and
+//!   [`search_target_auto`] does it for several codecs and keeps the smallest.
+
+use std::fmt;
+use std::path::Path;
+use std::str::FromStr;
+use std::time::Instant;
+
+use codec_core::{
+    encode_animation, Animation, AnimationCodec, CodecRegistry, Limits, ParamSet, ParamValue, RateLadder, StreamDecoder,
+};
+use metrics::{EvalOptions, MetricReport};
+use rayon::prelude::*;
+use serde_json::{json, Map, Value};
+
+/// Errors of the harness: codec-core errors, I/O errors or plain messages.
+pub type HarnessError = Box<dyn std::error::Error + Send + Sync>;
+
+/// Result alias of the harness.
+pub type HResult<T> = Result<T, HarnessError>;
+
+/// Indices of `points` ladder steps spread evenly over a ladder of `len` steps, always
+/// including both ends (`None`, or `points ≥ len`: every step). Sorted, without repeats.
+pub fn ladder_indices(len: usize, points: Option<usize>) -> Vec<usize> {
+    match points {
+        _ if len == 0 => Vec::new(),
+        None => (0..len).collect(),
+        Some(n) if n >= len => (0..len).collect(),
+        Some(0) => Vec::new(),
+        Some(1) => vec![len - 1],
+        Some(n) => {
+            // Rounded positions i·(len−1)/(n−1); distinct because n < len.
+            let mut v: Vec<usize> = (0..n).map(|i| (i * (len - 1) + (n - 1) / 2) / (n - 1)).collect();
+            v.dedup();
+            v
+        }
+    }
+}
+
+/// `base` with the ladder's parameter set to `step`, validated by the codec (so a step that
+/// conflicts with a fixed parameter is an error naming both).
+pub fn ladder_params(
+    codec: &dyn AnimationCodec,
+    base: &ParamSet,
+    ladder: &RateLadder,
+    step: usize,
+) -> HResult<ParamSet> {
+    let value = ladder.steps.get(step).ok_or_else(|| {
+        format!(
+            "{}: rate ladder step {step} does not exist (the ladder has {} steps)",
+            codec.name(),
+            ladder.steps.len()
+        )
+    })?;
+    let params = base.clone().with(&codec.param_specs(), ladder.param, value.clone())?;
+    codec.validate(&params)?;
+    Ok(params)
+}
+
+/// One measured (codec, parameters) point.
+#[derive(Debug, Clone)]
+pub struct Point {
+    /// Codec name.
+    pub codec: &'static str,
+    /// Parameters used.
+    pub params: ParamSet,
+    /// The ladder's parameter.
+    pub ladder_param: &'static str,
+    /// Position on the codec's rate ladder (0 = smallest stream).
+    pub ladder_index: usize,
+    /// Container size in bytes (header and topology included).
+    pub bytes: u64,
+    /// Bits per vertex per frame of the whole container.
+    pub bpvf: f64,
+    /// Every metric of the decoded animation against the input.
+    pub report: MetricReport,
+    /// Wall-clock encoding time.
+    pub encode_seconds: f64,
+    /// Wall-clock decoding time (from the container bytes alone).
+    pub decode_seconds: f64,
+}
+
+impl Point {
+    /// The ladder parameter's value.
+    pub fn ladder_value(&self) -> Option<&ParamValue> {
+        self.params.get(self.ladder_param)
+    }
+}
+
+/// Encodes `animation` with `codec` at `params`, decodes it through the container and
+/// measures it. Also returns the container bytes.
+pub fn measure_point(
+    registry: &CodecRegistry,
+    codec: &dyn AnimationCodec,
+    params: &ParamSet,
+    (ladder_param, ladder_index): (&'static str, usize),
+    animation: &Animation,
+    eval: &EvalOptions,
+    limits: Limits,
+) -> HResult<(Point, Vec<u8>)> {
+    let start = Instant::now();
+    let bytes = encode_animation(codec, params, animation)?;
+    let encode_seconds = start.elapsed().as_secs_f64();
+    let start = Instant::now();
+    let decoded = StreamDecoder::new(bytes.as_slice(), registry, limits)?.decode_all()?;
+    let decode_seconds = start.elapsed().as_secs_f64();
+    let report = metrics::evaluate(animation, &decoded, eval)?;
+    let size = bytes.len() as u64;
+    let point = Point {
+        codec: codec.name(),
+        params: params.clone(),
+        ladder_param,
+        ladder_index,
+        bytes: size,
+        bpvf: metrics::bpvf(size, animation.vertex_count(), animation.frame_count())?,
+        report,
+        encode_seconds,
+        decode_seconds,
+    };
+    Ok((point, bytes))
+}
+
+/// How [`sweep`] runs.
+#[derive(Debug, Clone, Default)]
+pub struct SweepOptions {
+    /// Ladder points per codec, spread evenly (`None`: every step).
+    pub points: Option<usize>,
+    /// Points measured at once: `None` uses rayon's pool, `Some(1)` runs sequentially (for
+    /// timing: parallel encodes compete for the cores), `Some(n)` a pool of `n` threads.
+    pub jobs: Option<usize>,
+    /// Metrics to compute.
+    pub eval: EvalOptions,
+    /// Decoder limits.
+    pub limits: Limits,
+}
+
+/// A sweep point that failed, with the reason.
+#[derive(Debug, Clone)]
+pub struct Failure {
+    /// Codec name.
+    pub codec: &'static str,
+    /// Position on the ladder.
+    pub ladder_index: usize,
+    /// What went wrong.
+    pub message: String,
+}
+
+/// Result of [`sweep`]: measured points sorted by codec (in the order given) then ladder
+/// position, and the points that failed.
+#[derive(Debug, Clone, Default)]
+pub struct Sweep {
+    /// Measured points.
+    pub points: Vec<Point>,
+    /// Points that could not be measured.
+    pub failures: Vec<Failure>,
+}
+
+/// Walks the rate ladder of every codec in `codecs` on `animation`. `progress` is called once
+/// per finished point (from worker threads). Output order does not depend on scheduling.
+pub fn sweep(
+    registry: &CodecRegistry,
+    codecs: &[&dyn AnimationCodec],
+    animation: &Animation,
+    options: &SweepOptions,
+    progress: &(dyn Fn() + Sync),
+) -> HResult<Sweep> {
+    let jobs = sweep_jobs(codecs, options.points);
+    let run = |&(c, step): &(usize, usize)| -> (usize, usize, HResult<Point>) {
+        let codec = codecs[c];
+        let ladder = codec.rate_ladder();
+        let result = ladder_params(codec, &codec.default_params(), &ladder, step).and_then(|params| {
+            measure_point(registry, codec, &params, (ladder.param, step), animation, &options.eval, options.limits)
+                .map(|(p, _)| p)
+        });
+        progress();
+        (c, step, result)
+    };
+    let mut results: Vec<(usize, usize, HResult<Point>)> = match options.jobs {
+        Some(1) => jobs.iter().map(run).collect(),
+        None => jobs.par_iter().map(run).collect(),
+        Some(n) => rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .build()
+            .map_err(|e| format!("cannot set up {n} sweep threads: {e}"))?
+            .install(|| jobs.par_iter().map(run).collect()),
+    };
+    // `collect` keeps input order already; sorting states the contract explicitly.
+    results.sort_by_key(|(c, step, _)| (*c, *step));
+    let mut out = Sweep::default();
+    for (c, step, r) in results {
+        match r {
+            Ok(p) => out.points.push(p),
+            Err(e) => {
+                out.failures.push(Failure { codec: codecs[c].name(), ladder_index: step, message: e.to_string() })
+            }
+        }
+    }
+    Ok(out)
+}
+
+/// The (codec position, ladder step) pairs a sweep measures.
+pub fn sweep_jobs(codecs: &[&dyn AnimationCodec], points: Option<usize>) -> Vec<(usize, usize)> {
+    codecs
+        .iter()
+        .enumerate()
+        .flat_map(|(c, codec)| ladder_indices(codec.rate_ladder().steps.len(), points).into_iter().map(move |s| (c, s)))
+        .collect()
+}
+
+/// The parameters as a JSON object.
+pub fn params_json(params: &ParamSet) -> Value {
+    let mut p = Map::new();
+    for (name, value) in params.iter() {
+        p.insert(
+            name.into(),
+            match value {
+                ParamValue::Int(v) => Value::from(*v),
+                ParamValue::Float(v) => Value::from(*v),
+                ParamValue::Bool(v) => Value::from(*v),
+                ParamValue::Choice(v) => Value::from(*v),
+            },
+        );
+    }
+    Value::Object(p)
+}
+
+/// Every metric of a report as JSON, keys named after the metrics (`kg`, `sted`, …,
+/// `sted_params`, `notes`). Undefined metrics are `null`.
+pub fn report_json(report: &MetricReport) -> Value {
+    serde_json::to_value(report).unwrap_or(Value::Null)
+}
+
+/// One sweep row as JSON: `codec`, `params`, `ladder_param`, `ladder_index`, `bytes`, `bpvf`,
+/// `kg`, `sted`, `sted_spatial`, `sted_temporal`, `hausdorff`, `hausdorff_relative`, `mse`,
+/// `rmse`, `max_error`, `encode_seconds`, `decode_seconds`.
+pub fn point_json(p: &Point) -> Value {
+    let r = &p.report;
+    json!({
+        "codec": p.codec,
+        "params": params_json(&p.params),
+        "ladder_param": p.ladder_param,
+        "ladder_index": p.ladder_index,
+        "bytes": p.bytes,
+        "bpvf": p.bpvf,
+        "kg": r.kg,
+        "sted": r.sted,
+        "sted_spatial": r.sted_spatial,
+        "sted_temporal": r.sted_temporal,
+        "hausdorff": r.hausdorff,
+        "hausdorff_relative": r.hausdorff_relative,
+        "mse": r.mse,
+        "rmse": r.rmse,
+        "max_error": r.max_error,
+        "encode_seconds": p.encode_seconds,
+        "decode_seconds": p.decode_seconds,
+    })
+}
+
+/// Columns of [`write_csv`], in order (the same keys as [`point_json`]).
+pub const CSV_COLUMNS: &[&str] = &[
+    "codec",
+    "params",
+    "ladder_index",
+    "bytes",
+    "bpvf",
+    "kg",
+    "sted",
+    "sted_spatial",
+    "sted_temporal",
+    "hausdorff",
+    "hausdorff_relative",
+    "mse",
+    "rmse",
+    "max_error",
+    "encode_seconds",
+    "decode_seconds",
+];
+
+fn opt(v: Option<f64>) -> String {
+    v.map(|x| format!("{x}")).unwrap_or_default()
+}
+
+/// The rows as CSV: a header line of [`CSV_COLUMNS`], then one line per point. `params` is
+/// `key=value` pairs separated by `;` (so the field needs no quoting); a missing metric is an
+/// empty field.
+pub fn csv_text(points: &[Point]) -> String {
+    let mut out = CSV_COLUMNS.join(",");
+    out.push('\n');
+    for p in points {
+        let r = &p.report;
+        let params: Vec<String> = p.params.iter().map(|(n, v)| format!("{n}={v}")).collect();
+        let fields = [
+            p.codec.to_string(),
+            params.join(";"),
+            p.ladder_index.to_string(),
+            p.bytes.to_string(),
+            format!("{}", p.bpvf),
+            opt(r.kg),
+            opt(r.sted),
+            opt(r.sted_spatial),
+            opt(r.sted_temporal),
+            opt(r.hausdorff),
+            opt(r.hausdorff_relative),
+            format!("{}", r.mse),
+            format!("{}", r.rmse),
+            format!("{}", r.max_error),
+            format!("{}", p.encode_seconds),
+            format!("{}", p.decode_seconds),
+        ];
+        out.push_str(&fields.join(","));
+        out.push('\n');
+    }
+    out
+}
+
+/// Monotonicity of one codec's curve along its ladder.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Monotonicity {
+    /// Codec name.
+    pub codec: &'static str,
+    /// bpvf never falls from one ladder point to the next.
+    pub bpvf_increasing: bool,
+    /// KG never rises (beyond a relative 1e-9) from one ladder point to the next.
+    pub kg_decreasing: bool,
+    /// STED never rises (same tolerance).
+    pub sted_decreasing: bool,
+    /// Ladder indices where one of the above fails (the later point of each bad pair).
+    pub violations: Vec<usize>,
+}
+
+/// Checks every codec's curve in sorted `points` (as [`sweep`] returns them). Metric values
+/// that are missing are skipped. The tolerance absorbs float noise only.
+pub fn monotone_report(points: &[Point]) -> Vec<Monotonicity> {
+    let mut out: Vec<Monotonicity> = Vec::new();
+    for pair in points.windows(2) {
+        let (a, b) = (&pair[0], &pair[1]);
+        if a.codec != b.codec {
+            continue;
+        }
+        let not_above = |x: Option<f64>, y: Option<f64>| match (x, y) {
+            (Some(x), Some(y)) => y <= x + 1e-9 * x.abs().max(y.abs()),
+            _ => true,
+        };
+        let bpvf_ok = b.bpvf >= a.bpvf;
+        let kg_ok = not_above(a.report.kg, b.report.kg);
+        let sted_ok = not_above(a.report.sted, b.report.sted);
+        let m = match out.iter_mut().find(|m| m.codec == a.codec) {
+            Some(m) => m,
+            None => {
+                out.push(Monotonicity {
+                    codec: a.codec,
+                    bpvf_increasing: true,
+                    kg_decreasing: true,
+                    sted_decreasing: true,
+                    violations: Vec::new(),
+                });
+                out.last_mut().expect("just pushed")
+            }
+        };
+        m.bpvf_increasing &= bpvf_ok;
+        m.kg_decreasing &= kg_ok;
+        m.sted_decreasing &= sted_ok;
+        if !(bpvf_ok && kg_ok && sted_ok) {
+            m.violations.push(b.ladder_index);
+        }
+    }
+    out
+}
+
+/// Writes `text` to `path`, naming the file in the error.
+pub fn write_text(path: &Path, text: &str) -> HResult<()> {
+    std::fs::write(path, text).map_err(|e| codec_core::Error::io(format!("writing {}", path.display()), e).into())
+}
+
+/// Writes the sweep as JSON: `{input, vertices, frames, eval_options, rows: [point_json…],
+/// failures: [{codec, ladder_index, error}], monotone: [{codec, bpvf_increasing, kg_decreasing,
+/// sted_decreasing, violations}]}`.
+pub fn sweep_json(input: &str, animation: &Animation, eval: &EvalOptions, sweep: &Sweep) -> Value {
+    json!({
+        "input": input,
+        "vertices": animation.vertex_count(),
+        "frames": animation.frame_count(),
+        "eval_options": serde_json::to_value(eval).unwrap_or(Value::Null),
+        "rows": sweep.points.iter().map(point_json).collect::<Vec<_>>(),
+        "failures": sweep.failures.iter().map(|f| json!({
+            "codec": f.codec, "ladder_index": f.ladder_index, "error": f.message,
+        })).collect::<Vec<_>>(),
+        "monotone": monotone_report(&sweep.points).iter().map(|m| json!({
+            "codec": m.codec,
+            "bpvf_increasing": m.bpvf_increasing,
+            "kg_decreasing": m.kg_decreasing,
+            "sted_decreasing": m.sted_decreasing,
+            "violations": m.violations,
+        })).collect::<Vec<_>>(),
+    })
+}
+
+/// Draws the rate-distortion curves into one SVG file with two panels side by side: bpvf vs
+/// KG (left) and bpvf vs STED (right), one line per codec, error axes in log₁₀ scale (points
+/// with a zero or missing error are left out of a panel). Text is written as SVG `<text>`
+/// elements by plotters' SVG backend, so no font files are needed (plotters is built without
+/// its `ttf` feature and estimates text sizes itself).
+pub fn plot_svg(path: &Path, title: &str, points: &[Point]) -> HResult<()> {
+    let mut svg = String::new();
+    draw_rd(&mut svg, title, points)?;
+    write_text(path, &svg)
+}
+
+type PanelData = Vec<(&'static str, Vec<(f64, f64)>)>;
+
+fn panel_data(points: &[Point], metric: impl Fn(&MetricReport) -> Option<f64>) -> PanelData {
+    let mut out: PanelData = Vec::new();
+    for p in points {
+        let Some(y) = metric(&p.report).filter(|y| *y > 0.0 && y.is_finite()) else { continue };
+        if !p.bpvf.is_finite() {
+            continue;
+        }
+        match out.iter_mut().find(|(c, _)| *c == p.codec) {
+            Some((_, v)) => v.push((p.bpvf, y.log10())),
+            None => out.push((p.codec, vec![(p.bpvf, y.log10())])),
+        }
+    }
+    out
+}
+
+/// Renders the two panels into `svg` (an SVG document).
+pub fn draw_rd(svg: &mut String, title: &str, points: &[Point]) -> HResult<()> {
+    use plotters::prelude::*;
+    let plot_err = |e: &dyn fmt::Display| -> HarnessError { format!("drawing the rate-distortion plot: {e}").into() };
+    {
+        let root = SVGBackend::with_string(svg, (1200, 520)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| plot_err(&e))?;
+        let root = root.titled(title, ("sans-serif", 20)).map_err(|e| plot_err(&e))?;
+        let panels = root.split_evenly((1, 2));
+        let series = [("KG error (%)", panel_data(points, |r| r.kg)), ("STED", panel_data(points, |r| r.sted))];
+        for (area, (label, data)) in panels.iter().zip(series.iter()) {
+            let xs = data.iter().flat_map(|(_, v)| v.iter().map(|p| p.0));
+            let ys = data.iter().flat_map(|(_, v)| v.iter().map(|p| p.1));
+            let (x0, x1) = padded_range(xs, false);
+            let (y0, y1) = padded_range(ys, true);
+            let mut chart = ChartBuilder::on(area)
+                .caption(format!("bpvf vs {label}"), ("sans-serif", 16))
+                .margin(12)
+                .x_label_area_size(40)
+                .y_label_area_size(60)
+                .build_cartesian_2d(x0..x1, y0..y1)
+                .map_err(|e| plot_err(&e))?;
+            chart
+                .configure_mesh()
+                .x_desc("bits per vertex per frame")
+                .y_desc(format!("{label}, log scale"))
+                .y_label_formatter(&|v| format!("{:.2e}", 10f64.powf(*v)))
+                .x_label_formatter(&|v| format!("{v:.2}"))
+                .draw()
+                .map_err(|e| plot_err(&e))?;
+            for (i, (codec, pts)) in data.iter().enumerate() {
+                let color = Palette99::pick(i).to_rgba();
+                chart
+                    .draw_series(LineSeries::new(pts.iter().copied(), color.stroke_width(2)))
+                    .map_err(|e| plot_err(&e))?
+                    .label(*codec)
+                    .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2)));
+                chart
+                    .draw_series(pts.iter().map(|&(x, y)| Circle::new((x, y), 3, color.filled())))
+                    .map_err(|e| plot_err(&e))?;
+            }
+            if !data.is_empty() {
+                chart
+                    .configure_series_labels()
+                    .background_style(WHITE.mix(0.8))
+                    .border_style(BLACK)
+                    .draw()
+                    .map_err(|e| plot_err(&e))?;
+            }
+        }
+        root.present().map_err(|e| plot_err(&e))?;
+    }
+    Ok(())
+}
+
+/// `(min, max)` of `values` widened by 5 % (or ±1 / ±0.5 decades when empty or flat).
+fn padded_range(values: impl Iterator<Item = f64>, log: bool) -> (f64, f64) {
+    let (lo, hi) = values.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(v), b.max(v)));
+    if !lo.is_finite() || !hi.is_finite() {
+        return (0.0, 1.0);
+    }
+    if hi - lo <= f64::EPSILON * hi.abs().max(1.0) {
+        let pad = if log { 0.5 } else { lo.abs().max(1.0) * 0.1 };
+        return (lo - pad, hi + pad);
+    }
+    let pad = (hi - lo) * 0.05;
+    (lo - pad, hi + pad)
+}
+
+/// The metric a [`Target`] bounds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TargetMetric {
+    /// KG error in percent.
+    Kg,
+    /// STED (combined).
+    Sted,
+    /// Largest per-frame Hausdorff distance (absolute, model units).
+    Hausdorff,
+    /// Largest vertex displacement (absolute).
+    MaxError,
+    /// Root mean square vertex displacement (absolute).
+    Rmse,
+}
+
+impl TargetMetric {
+    /// Every metric with its command-line name.
+    pub const ALL: [(TargetMetric, &'static str); 5] = [
+        (TargetMetric::Kg, "kg"),
+        (TargetMetric::Sted, "sted"),
+        (TargetMetric::Hausdorff, "hausdorff"),
+        (TargetMetric::MaxError, "max_error"),
+        (TargetMetric::Rmse, "rmse"),
+    ];
+
+    /// Command-line name (also the JSON key of the metric).
+    pub fn name(self) -> &'static str {
+        Self::ALL.iter().find(|(m, _)| *m == self).map(|(_, n)| *n).unwrap_or("?")
+    }
+
+    /// The metric's value in `report` (`None` when undefined or not computed).
+    pub fn value(self, report: &MetricReport) -> Option<f64> {
+        match self {
+            TargetMetric::Kg => report.kg,
+            TargetMetric::Sted => report.sted,
+            TargetMetric::Hausdorff => report.hausdorff,
+            TargetMetric::MaxError => Some(report.max_error),
+            TargetMetric::Rmse => Some(report.rmse),
+        }
+    }
+
+    /// Evaluation options computing this metric and skipping the expensive ones it does not
+    /// need (STED parameters from `base`).
+    pub fn eval_options(self, base: &EvalOptions) -> EvalOptions {
+        EvalOptions {
+            sted: base.sted,
+            compute_sted: self == TargetMetric::Sted,
+            compute_hausdorff: self == TargetMetric::Hausdorff,
+        }
+    }
+}
+
+/// An error target such as `kg=0.5`: the decoded animation must have `metric ≤ value`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Target {
+    /// Metric bounded.
+    pub metric: TargetMetric,
+    /// Largest acceptable value.
+    pub value: f64,
+}
+
+impl fmt::Display for Target {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}={}", self.metric.name(), self.value)
+    }
+}
+
+impl FromStr for Target {
+    type Err = String;
+
+    fn from_str(text: &str) -> Result<Self, String> {
+        let names: Vec<&str> = TargetMetric::ALL.iter().map(|(_, n)| *n).collect();
+        let (key, value) = text.split_once('=').ok_or_else(|| {
+            format!("target '{text}' is not of the form METRIC=VALUE (metrics: {})", names.join(", "))
+        })?;
+        let key = key.trim().to_ascii_lowercase().replace('-', "_");
+        let metric = TargetMetric::ALL
+            .iter()
+            .find(|(_, n)| *n == key)
+            .map(|(m, _)| *m)
+            .ok_or_else(|| format!("target '{text}': unknown metric '{key}' (metrics: {})", names.join(", ")))?;
+        let value: f64 = value.trim().parse().map_err(|_| format!("target '{text}': '{value}' is not a number"))?;
+        if !(value.is_finite() && value >= 0.0) {
+            return Err(format!("target '{text}': the value must be finite and ≥ 0"));
+        }
+        Ok(Target { metric, value })
+    }
+}
+
+/// What [`search_target`] found: the chosen point, its container bytes, and every point it
+/// measured on the way (sorted by ladder position).
+#[derive(Debug, Clone)]
+pub struct TargetHit {
+    /// The smallest stream found that meets the target.
+    pub point: Point,
+    /// Its container bytes.
+    pub stream: Vec<u8>,
+    /// Every point measured, by ladder position.
+    pub tried: Vec<Point>,
+    /// True when the measured errors were not monotone along the ladder and the search fell
+    /// back to a linear scan below the binary search's answer.
+    pub linear_fallback: bool,
+}
+
+/// Why [`search_target`] found nothing: no ladder point meets the target.
+#[derive(Debug, Clone)]
+pub struct TargetMiss {
+    /// Codec name.
+    pub codec: &'static str,
+    /// The target.
+    pub target: Target,
+    /// The measured point with the smallest error (`None` if the metric was undefined at
+    /// every point measured).
+    pub best: Option<Point>,
+}
+
+impl fmt::Display for TargetMiss {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let m = self.target.metric;
+        match self.best.as_ref().and_then(|b| m.value(&b.report).map(|v| (b, v))) {
+            Some((b, v)) => write!(
+                f,
+                "{}: no rate-ladder point meets {}: the best reached is {}={v:.6} at [{}] ({} bytes, {:.4} bpvf)",
+                self.codec,
+                self.target,
+                m.name(),
+                b.params,
+                b.bytes,
+                b.bpvf
+            ),
+            None => write!(
+                f,
+                "{}: no rate-ladder point meets {}: {} is undefined for this input",
+                self.codec,
+                self.target,
+                m.name()
+            ),
+        }
+    }
+}
+
+impl std::error::Error for TargetMiss {}
+
+/// Finds the smallest stream `codec` makes of `animation` whose decoded error meets `target`,
+/// walking the codec's rate ladder with the other parameters fixed at `base`.
+///
+/// Search: errors are assumed to fall along the ladder (small streams first). The top step is
+/// measured first (if it misses, nothing can meet the target); then a binary search finds the
+/// first passing step `k`, which leaves `k` measured as passing and `k − 1` (if any) as
+/// failing. As a check near the answer, `k − 2` is measured as well (one extra point). If the
+/// points measured are *not* monotone (a later step has a larger error than an earlier one,
+/// beyond float noise; e.g. `k − 2` passes although `k − 1` fails), the assumption is broken,
+/// so every step below `k` is measured too (a linear scan; ladders are short). Among all
+/// passing points measured, the one with the fewest bytes wins (ties: lower ladder position).
+/// A non-monotone stretch far below the answer that the binary search never touches can go
+/// unnoticed: only a full scan would find it, and a full scan costs the whole ladder.
+///
+/// Errors: invalid parameters or codec failures as errors; no passing point as [`TargetMiss`].
+pub fn search_target(
+    registry: &CodecRegistry,
+    codec: &dyn AnimationCodec,
+    base: &ParamSet,
+    animation: &Animation,
+    target: Target,
+    eval: &EvalOptions,
+    limits: Limits,
+) -> HResult<TargetHit> {
+    let ladder = codec.rate_ladder();
+    let n = ladder.steps.len();
+    let eval = target.metric.eval_options(eval);
+    let mut measured: Vec<Option<(Point, Vec<u8>)>> = vec![None; n];
+    let measure = |i: usize, measured: &mut Vec<Option<(Point, Vec<u8>)>>| -> HResult<bool> {
+        if measured[i].is_none() {
+            let params = ladder_params(codec, base, &ladder, i)?;
+            measured[i] = Some(measure_point(registry, codec, &params, (ladder.param, i), animation, &eval, limits)?);
+        }
+        let p = &measured[i].as_ref().expect("measured above").0;
+        Ok(target.metric.value(&p.report).is_some_and(|v| v <= target.value))
+    };
+    let miss = |measured: &[Option<(Point, Vec<u8>)>]| -> HarnessError {
+        let best = measured
+            .iter()
+            .flatten()
+            .filter_map(|(p, _)| target.metric.value(&p.report).map(|v| (v, p)))
+            .min_by(|a, b| a.0.total_cmp(&b.0))
+            .map(|(_, p)| p.clone());
+        Box::new(TargetMiss { codec: codec.name(), target, best })
+    };
+    if n == 0 {
+        return Err(format!("{}: the rate ladder is empty", codec.name()).into());
+    }
+    if !measure(n - 1, &mut measured)? {
+        return Err(miss(&measured));
+    }
+    let (mut lo, mut hi) = (0, n - 1);
+    while lo < hi {
+        let mid = (lo + hi) / 2;
+        if measure(mid, &mut measured)? {
+            hi = mid;
+        } else {
+            lo = mid + 1;
+        }
+    }
+    let k = hi;
+    // Check one more point near the answer: `k − 1` failed, so with a monotone ladder `k − 2`
+    // fails too. If it passes, the ladder is not monotone here.
+    if k >= 2 {
+        measure(k - 2, &mut measured)?;
+    }
+    let values: Vec<f64> =
+        measured.iter().flatten().map(|(p, _)| target.metric.value(&p.report).unwrap_or(f64::INFINITY)).collect();
+    let monotone = values.windows(2).all(|w| w[1] <= w[0] + 1e-9 * w[0].abs().max(w[1].abs()) || w[0].is_infinite());
+    if !monotone {
+        for i in 0..k {
+            measure(i, &mut measured)?;
+        }
+    }
+    let tried: Vec<(Point, Vec<u8>)> = measured.into_iter().flatten().collect();
+    let best = tried
+        .iter()
+        .filter(|(p, _)| target.metric.value(&p.report).is_some_and(|v| v <= target.value))
+        .min_by_key(|(p, _)| (p.bytes, p.ladder_index))
+        .cloned()
+        .expect("the top step passed");
+    Ok(TargetHit {
+        point: best.0,
+        stream: best.1,
+        tried: tried.into_iter().map(|(p, _)| p).collect(),
+        linear_fallback: !monotone,
+    })
+}
+
+/// [`search_target`] for every codec in `codecs` (each at its default parameters), keeping
+/// the smallest stream (ties: the earlier codec). Codecs that cannot meet the target are
+/// skipped; if none can, the error lists each codec's best. Other codec failures are errors.
+pub fn search_target_auto(
+    registry: &CodecRegistry,
+    codecs: &[&dyn AnimationCodec],
+    animation: &Animation,
+    target: Target,
+    eval: &EvalOptions,
+    limits: Limits,
+) -> HResult<(TargetHit, Vec<TargetHit>)> {
+    let mut hits = Vec::new();
+    let mut misses = Vec::new();
+    for &codec in codecs {
+        match search_target(registry, codec, &codec.default_params(), animation, target, eval, limits) {
+            Ok(hit) => hits.push(hit),
+            Err(e) => match e.downcast::<TargetMiss>() {
+                Ok(miss) => misses.push(miss.to_string()),
+                Err(e) => return Err(format!("{}: {e}", codec.name()).into()),
+            },
+        }
+    }
+    let best = hits
+        .iter()
+        .enumerate()
+        .min_by_key(|(i, h)| (h.point.bytes, *i))
+        .map(|(i, _)| i)
+        .ok_or_else(|| format!("no codec meets {target}: {}", misses.join("; ")))?;
+    let chosen = hits.remove(best);
+    Ok((chosen, hits))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use codec_core::synth;
+
+    #[test]
+    fn ladder_indices_spread_evenly_and_keep_ends() {
+        assert_eq!(ladder_indices(9, None), (0..9).collect::<Vec<_>>());
+        assert_eq!(ladder_indices(9, Some(20)), (0..9).collect::<Vec<_>>());
+        assert_eq!(ladder_indices(9, Some(3)), vec![0, 4, 8]);
+        assert_eq!(ladder_indices(9, Some(2)), vec![0, 8]);
+        assert_eq!(ladder_indices(9, Some(1)), vec![8]);
+        assert_eq!(ladder_indices(0, Some(3)), Vec::<usize>::new());
+        for len in 2..30 {
+            for n in 2..len {
+                let v = ladder_indices(len, Some(n));
+                assert_eq!(v.len(), n, "len {len} n {n}");
+                assert_eq!((v[0], v[n - 1]), (0, len - 1));
+                assert!(v.windows(2).all(|w| w[0] < w[1]));
+            }
+        }
+    }
+
+    #[test]
+    fn targets_parse() {
+        assert_eq!("kg=0.5".parse::<Target>().unwrap(), Target { metric: TargetMetric::Kg, value: 0.5 });
+        assert_eq!("max-error=1e-3".parse::<Target>().unwrap().metric, TargetMetric::MaxError);
+        assert_eq!("STED = 0.01".parse::<Target>().unwrap().metric, TargetMetric::Sted);
+        assert!("kg".parse::<Target>().unwrap_err().contains("METRIC=VALUE"));
+        assert!("psnr=3".parse::<Target>().unwrap_err().contains("kg, sted, hausdorff"));
+        assert!("kg=-1".parse::<Target>().is_err());
+        assert!("kg=nan".parse::<Target>().is_err());
+        assert!("kg=x".parse::<Target>().is_err());
+    }
+
+    #[test]
+    fn padded_ranges_are_never_empty() {
+        assert_eq!(padded_range(std::iter::empty(), false), (0.0, 1.0));
+        let (a, b) = padded_range([2.0].into_iter(), true);
+        assert!(a < 2.0 && b > 2.0);
+        let (a, b) = padded_range([1.0, 3.0].into_iter(), false);
+        assert!(a < 1.0 && b > 3.0);
+    }
+
+    #[test]
+    fn miss_reports_the_best_point() {
+        let registry = crate::registry();
+        let codec = registry.by_name("quant-delta").unwrap();
+        let a = synth::tumbling_body_sized(8, 6, 4);
+        let target = Target { metric: TargetMetric::MaxError, value: 0.0 };
+        let e = search_target(
+            &registry,
+            codec,
+            &codec.default_params(),
+            &a,
+            target,
+            &EvalOptions::default(),
+            Limits::default(),
+        )
+        .unwrap_err();
+        let miss = e.downcast_ref::<TargetMiss>().expect("a TargetMiss");
+        let top = codec.rate_ladder().steps.len() - 1;
+        assert_eq!(miss.best.as_ref().unwrap().ladder_index, top);
+        let text = miss.to_string();
+        assert!(text.contains("best reached is max_error=") && text.contains("quant-delta"), "{text}");
+    }
+}

@@ -1,0 +1,443 @@
+//! Tests of the evaluation harness: `animcodec eval`, `animcodec sweep` and
+//! `animcodec encode --target`, through the binary and through `animcodec::harness`.
+//! Everything runs on small synthetic animations so the suite stays fast.
+
+use std::path::PathBuf;
+use std::process::{Command, Output};
+
+use animcodec::harness::{
+    self, ladder_params, measure_point, search_target, search_target_auto, Target, TargetMetric, TargetMiss,
+    CSV_COLUMNS,
+};
+use codec_core::quant_delta::QuantDelta;
+use codec_core::synth;
+use codec_core::{
+    Animation, AnimationCodec, CodecRegistry, EncodedPacket, EncoderSetup, ErrorBound, FourCc, FrameDecoder,
+    FrameEncoder, Limits, Packet, ParamSet, ParamSpec, ParamValue, RateLadder, StreamInfo,
+};
+use metrics::EvalOptions;
+use serde_json::Value;
+
+fn animcodec(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_animcodec")).args(args).output().expect("the animcodec binary runs")
+}
+
+fn ok(args: &[&str]) -> String {
+    let o = animcodec(args);
+    assert!(o.status.success(), "animcodec {args:?} failed: {}", String::from_utf8_lossy(&o.stderr));
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+fn ok_json(args: &[&str]) -> Value {
+    let text = ok(args);
+    serde_json::from_str(&text).unwrap_or_else(|e| panic!("animcodec {args:?} printed invalid JSON ({e}): {text}"))
+}
+
+/// Expects exit code 1 and one `error:` line mentioning every needle.
+fn fails(args: &[&str], needles: &[&str]) -> String {
+    let o = animcodec(args);
+    let err = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert_eq!(o.status.code(), Some(1), "animcodec {args:?}: expected exit 1, stderr: {err}");
+    assert!(!err.contains("panicked"), "{err}");
+    assert_eq!(err.lines().count(), 1, "{err}");
+    for n in needles {
+        assert!(err.contains(n), "animcodec {args:?}: stderr does not mention '{n}': {err}");
+    }
+    err
+}
+
+struct Scratch(PathBuf);
+
+impl Scratch {
+    fn new(test: &str) -> Self {
+        let dir = std::env::temp_dir().join(format!("animcodec-harness-{}-{test}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        Self(dir)
+    }
+
+    fn path(&self, name: &str) -> String {
+        self.0.join(name).to_str().unwrap().to_string()
+    }
+}
+
+impl Drop for Scratch {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+fn f(v: &Value) -> f64 {
+    v.as_f64().unwrap_or_else(|| panic!("{v} is not a number"))
+}
+
+/// A small animation: a few hundred vertices × 12 frames.
+fn small() -> Animation {
+    synth::waving_flag(12, 9, 12)
+}
+
+#[test]
+fn eval_identical_files_gives_zeros_and_anim_candidates_are_decoded() {
+    let s = Scratch::new("eval");
+    let pc2 = s.path("flag.pc2");
+    ok(&["synth", "flag", "-o", &pc2]);
+    let v = ok_json(&["eval", &pc2, &pc2, "--json"]);
+    for key in ["kg", "sted", "sted_spatial", "sted_temporal", "hausdorff", "mse", "rmse", "max_error"] {
+        assert_eq!(f(&v[key]), 0.0, "{key} of identical files: {v}");
+    }
+    assert!(v["sted_params"]["ring_radius"].is_u64(), "{v}");
+    let text = ok(&["eval", &pc2, &pc2]);
+    assert!(text.contains("kg") && text.contains("hausdorff"), "{text}");
+
+    // A .anim candidate is decoded; its metrics match the library on the same pair.
+    let anim = s.path("flag.anim");
+    ok(&["encode", &pc2, "-c", "quant-delta", "-p", "bits=6", "-o", &anim]);
+    let v = ok_json(&["eval", &pc2, &anim, "--json", "--sted-radius", "1"]);
+    assert_eq!(v["sted_params"]["ring_radius"], 1);
+    let registry = animcodec::registry();
+    let reference = animcodec::formats::read_animation(pc2.as_ref(), &Default::default()).unwrap();
+    let decoded = codec_core::decode_animation(&std::fs::read(&anim).unwrap(), &registry, Limits::default()).unwrap();
+    let opts = EvalOptions { sted: metrics::StedParams { ring_radius: 1, ..Default::default() }, ..Default::default() };
+    let expected = metrics::evaluate(&reference, &decoded, &opts).unwrap();
+    assert!(expected.kg.unwrap() > 0.0);
+    assert_eq!(f(&v["kg"]), expected.kg.unwrap());
+    assert_eq!(f(&v["sted"]), expected.sted.unwrap());
+    assert_eq!(f(&v["max_error"]), expected.max_error);
+
+    // Mismatched animations and bad STED options are clear errors.
+    let other = s.path("tumble.pc2");
+    ok(&["synth", "tumble", "-o", &other]);
+    fails(&["eval", &pc2, &other], &["triangles"]);
+    fails(&["eval", &pc2, &pc2, "--sted-dt", "0"], &["dt"]);
+}
+
+#[test]
+fn sweep_writes_json_csv_and_svg_with_monotone_ladders() {
+    let s = Scratch::new("sweep");
+    let (json_path, csv_path, svg_path) = (s.path("rd.json"), s.path("rd.csv"), s.path("rd.svg"));
+    let text = ok(&[
+        "sweep",
+        "synth:flag",
+        "-c",
+        "quant-delta",
+        "--points",
+        "4",
+        "--json",
+        &json_path,
+        "--csv",
+        &csv_path,
+        "--plot",
+        &svg_path,
+    ]);
+    assert!(text.contains("quant-delta") && text.contains("monotone"), "{text}");
+    let v: Value = serde_json::from_str(&std::fs::read_to_string(&json_path).unwrap()).unwrap();
+    let rows = v["rows"].as_array().unwrap();
+    assert_eq!(rows.len(), 4, "{v}");
+    let keys =
+        ["codec", "params", "bytes", "bpvf", "kg", "sted", "hausdorff", "mse", "encode_seconds", "decode_seconds"];
+    for r in rows {
+        for k in keys {
+            assert!(!r[k].is_null(), "row lacks {k}: {r}");
+        }
+        assert_eq!(r["codec"], "quant-delta");
+    }
+    // Evenly spread over the ladder, ends included, in ladder order.
+    let ladder = QuantDelta.rate_ladder();
+    let idx: Vec<u64> = rows.iter().map(|r| r["ladder_index"].as_u64().unwrap()).collect();
+    assert_eq!(idx.first(), Some(&0));
+    assert_eq!(idx.last(), Some(&(ladder.steps.len() as u64 - 1)));
+    assert!(rows.windows(2).all(|w| f(&w[1]["bpvf"]) > f(&w[0]["bpvf"])), "bpvf must rise along the ladder");
+    assert!(rows.windows(2).all(|w| f(&w[1]["kg"]) < f(&w[0]["kg"])), "kg must fall along the ladder");
+    assert_eq!(v["monotone"][0]["bpvf_increasing"], true);
+
+    let csv = std::fs::read_to_string(&csv_path).unwrap();
+    let lines: Vec<&str> = csv.lines().collect();
+    assert_eq!(lines[0], CSV_COLUMNS.join(","));
+    assert_eq!(lines.len(), 5);
+    assert!(lines[1..].iter().all(|l| l.split(',').count() == CSV_COLUMNS.len()), "{csv}");
+
+    // The SVG is complete and carries its text as SVG text (no font files involved).
+    let svg = std::fs::read_to_string(&svg_path).unwrap();
+    assert!(svg.trim_start().starts_with("<svg") && svg.trim_end().ends_with("</svg>"), "{svg}");
+    assert!(svg.contains("<text") && svg.contains("bpvf vs KG") && svg.contains("bpvf vs STED"));
+    assert!(svg.contains("quant-delta") && svg.contains("<polyline"), "legend and curves");
+    assert_eq!(svg.matches("<text").count(), svg.matches("</text>").count(), "text elements are closed");
+    assert_eq!(svg.matches("<svg").count(), 1);
+}
+
+#[test]
+fn sweep_without_input_uses_synthetic_data_and_is_deterministic() {
+    let a = ok_json(&["sweep", "--points", "2", "--json", "-", "--no-hausdorff"]);
+    let b = ok_json(&["sweep", "--points", "2", "--json", "-", "--no-hausdorff", "--jobs", "1"]);
+    assert_eq!(a["input"], "synth:flag");
+    let (ra, rb) = (a["rows"].as_array().unwrap(), b["rows"].as_array().unwrap());
+    assert_eq!(ra.len(), 2 * animcodec::registry().iter().count());
+    assert_eq!(ra.len(), rb.len());
+    for (x, y) in ra.iter().zip(rb) {
+        for k in ["codec", "params", "bytes", "kg", "sted", "mse"] {
+            assert_eq!(x[k], y[k], "{k} differs between parallel and sequential sweeps");
+        }
+        assert!(x["hausdorff"].is_null());
+    }
+    fails(&["sweep", "-c", "nope"], &["nope"]);
+}
+
+#[test]
+fn target_search_meets_the_target_and_the_next_smaller_point_does_not() {
+    let registry = animcodec::registry();
+    let codec = registry.by_name("quant-delta").unwrap();
+    let animation = small();
+    let ladder = codec.rate_ladder();
+    let eval = EvalOptions { compute_sted: false, compute_hausdorff: false, ..Default::default() };
+    let kg: Vec<f64> = (0..ladder.steps.len())
+        .map(|i| {
+            let p = ladder_params(codec, &codec.default_params(), &ladder, i).unwrap();
+            let (pt, _) =
+                measure_point(&registry, codec, &p, (ladder.param, i), &animation, &eval, Limits::default()).unwrap();
+            pt.report.kg.unwrap()
+        })
+        .collect();
+    assert!(kg.windows(2).all(|w| w[1] < w[0]), "quant-delta's KG falls along its ladder: {kg:?}");
+    for want in [1, kg.len() / 2, kg.len() - 1] {
+        let target = Target { metric: TargetMetric::Kg, value: (kg[want] + kg[want - 1]) / 2.0 };
+        let hit =
+            search_target(&registry, codec, &codec.default_params(), &animation, target, &eval, Limits::default())
+                .unwrap();
+        assert_eq!(hit.point.ladder_index, want, "target {target}");
+        assert!(hit.point.report.kg.unwrap() <= target.value);
+        assert!(kg[want - 1] > target.value, "the next-smaller ladder point misses");
+        assert!(!hit.linear_fallback);
+        // Top step + binary search + the check below the answer: fewer than the whole ladder.
+        assert!(hit.tried.len() <= 2 + (ladder.steps.len() as f64).log2().ceil() as usize);
+        // The stream is the chosen point's and decodes to what was measured.
+        assert_eq!(hit.stream.len() as u64, hit.point.bytes);
+    }
+    // Exactly on a ladder point's value counts as meeting it.
+    let target = Target { metric: TargetMetric::Kg, value: kg[0] };
+    let hit =
+        search_target(&registry, codec, &codec.default_params(), &animation, target, &eval, Limits::default()).unwrap();
+    assert_eq!(hit.point.ladder_index, 0);
+}
+
+#[test]
+fn encode_target_through_the_binary() {
+    let s = Scratch::new("target");
+    let out = s.path("t.anim");
+    let v = ok_json(&["encode", "synth:flag", "-c", "quant-delta", "--target", "kg=0.5", "-o", &out, "--json"]);
+    assert!(f(&v["reached"]) <= 0.5, "{v}");
+    assert_eq!(v["target"]["metric"], "kg");
+    assert_eq!(v["bytes"].as_u64().unwrap(), std::fs::metadata(&out).unwrap().len());
+    // The file on disk really has the reported error.
+    let e = ok_json(&["eval", "synth:flag", &out, "--json", "--no-hausdorff"]);
+    assert_eq!(f(&e["kg"]), f(&v["reached"]));
+    // Every point tried below the chosen one missed (the binary search's neighbour check).
+    let chosen = v["tried"].as_array().unwrap().iter().find(|t| t["bytes"] == v["bytes"]).unwrap().clone();
+    for t in v["tried"].as_array().unwrap() {
+        if t["ladder_index"].as_u64() < chosen["ladder_index"].as_u64() {
+            assert!(f(&t["value"]) > 0.5, "{t}");
+        }
+    }
+    let text = ok(&["encode", "synth:flag", "-c", "quant-delta", "--target", "max_error=0.01", "-o", &out]);
+    assert!(text.contains("reaches max_error="), "{text}");
+
+    // Unreachable targets say what was reached; the ladder knob cannot be fixed; -p with auto.
+    let missed = s.path("missed.anim");
+    fails(&["encode", "synth:flag", "-c", "quant-delta", "--target", "max_error=0", "-o", &missed], &["best reached"]);
+    assert!(!std::path::Path::new(&missed).exists(), "no file is written when the target is missed");
+    fails(&["encode", "synth:flag", "-c", "quant-delta", "--target", "kg=1", "-p", "bits=8", "-o", &out], &["bits"]);
+    fails(&["encode", "synth:flag", "-c", "auto", "--target", "kg=1", "-p", "bits=8", "-o", &out], &["auto"]);
+    let o = animcodec(&["encode", "synth:flag", "-c", "quant-delta", "--target", "psnr=1", "-o", &out]);
+    assert_eq!(o.status.code(), Some(2), "a malformed --target is a usage error");
+}
+
+#[test]
+fn encode_target_auto_keeps_the_smallest_stream() {
+    let s = Scratch::new("auto");
+    let out = s.path("auto.anim");
+    let v = ok_json(&["encode", "synth:tumble", "-c", "auto", "--target", "max_error=0.05", "-o", &out, "--json"]);
+    assert!(f(&v["reached"]) <= 0.05);
+    for o in v["other_codecs"].as_array().unwrap() {
+        assert!(o["bytes"].as_u64() >= v["bytes"].as_u64(), "{o} is smaller than the chosen {v}");
+        assert!(f(&o["value"]) <= 0.05);
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// A test codec: quant-delta under another name, with `pad` extra bytes per packet and its own
+// ladder, so `-c auto` has a choice and the non-monotone fallback can be exercised.
+
+struct Wrapped {
+    name: &'static str,
+    fourcc: FourCc,
+    pad: usize,
+    ladder: Vec<i64>,
+}
+
+struct PadEncoder(Box<dyn FrameEncoder>, usize);
+
+impl FrameEncoder for PadEncoder {
+    fn config(&self) -> Vec<u8> {
+        self.0.config()
+    }
+    fn push_frames(&mut self, frames: &[f32]) -> codec_core::Result<Vec<EncodedPacket>> {
+        let p = self.0.push_frames(frames)?;
+        Ok(self.pad(p))
+    }
+    fn finish(&mut self) -> codec_core::Result<Vec<EncodedPacket>> {
+        let p = self.0.finish()?;
+        Ok(self.pad(p))
+    }
+}
+
+impl PadEncoder {
+    fn pad(&self, mut packets: Vec<EncodedPacket>) -> Vec<EncodedPacket> {
+        for p in &mut packets {
+            p.packet.data.extend(std::iter::repeat_n(0u8, self.1));
+        }
+        packets
+    }
+}
+
+struct PadDecoder(Box<dyn FrameDecoder>, usize);
+
+impl FrameDecoder for PadDecoder {
+    fn decode_packet(&mut self, packet: &Packet) -> codec_core::Result<Vec<f32>> {
+        let n = packet
+            .data
+            .len()
+            .checked_sub(self.1)
+            .ok_or(codec_core::Error::Truncated { context: "wrapped".into(), field: "padding".into() })?;
+        let inner = Packet { data: packet.data[..n].to_vec(), ..packet.clone() };
+        self.0.decode_packet(&inner)
+    }
+}
+
+/// The same values as a quant-delta parameter set (quant-delta checks whose set it is given).
+fn inner(params: &ParamSet) -> codec_core::Result<ParamSet> {
+    let specs = QuantDelta.param_specs();
+    let mut p = QuantDelta.default_params();
+    for (name, value) in params.iter() {
+        p.set(&specs, name, value.clone())?;
+    }
+    Ok(p)
+}
+
+impl AnimationCodec for Wrapped {
+    fn name(&self) -> &'static str {
+        self.name
+    }
+    fn fourcc(&self) -> FourCc {
+        self.fourcc
+    }
+    fn stream_version(&self) -> u16 {
+        QuantDelta.stream_version()
+    }
+    fn summary(&self) -> &'static str {
+        "quant-delta with padding (test only)"
+    }
+    fn param_specs(&self) -> Vec<ParamSpec> {
+        QuantDelta.param_specs()
+    }
+    fn rate_ladder(&self) -> RateLadder {
+        RateLadder { param: "bits", steps: self.ladder.iter().map(|&b| ParamValue::Int(b)).collect() }
+    }
+    fn validate(&self, params: &ParamSet) -> codec_core::Result<()> {
+        QuantDelta.validate(&inner(params)?)
+    }
+    fn error_bound(&self, params: &ParamSet, animation: &Animation) -> codec_core::Result<ErrorBound> {
+        QuantDelta.error_bound(&inner(params)?, animation)
+    }
+    fn new_encoder(&self, params: &ParamSet, setup: &EncoderSetup<'_>) -> codec_core::Result<Box<dyn FrameEncoder>> {
+        Ok(Box::new(PadEncoder(QuantDelta.new_encoder(&inner(params)?, setup)?, self.pad)))
+    }
+    fn new_decoder(
+        &self,
+        info: &StreamInfo,
+        config: &[u8],
+        limits: &Limits,
+    ) -> codec_core::Result<Box<dyn FrameDecoder>> {
+        Ok(Box::new(PadDecoder(QuantDelta.new_decoder(info, config, limits)?, self.pad)))
+    }
+}
+
+fn wrapped_registry() -> CodecRegistry {
+    let ladder: Vec<i64> = (4..=20).step_by(2).collect();
+    CodecRegistry::new(vec![
+        Box::new(Wrapped { name: "padded", fourcc: FourCc::new(b"TPAD"), pad: 64, ladder: ladder.clone() }),
+        Box::new(Wrapped { name: "plain", fourcc: FourCc::new(b"TPLN"), pad: 0, ladder }),
+        // Not monotone: bits 12 sits between 8 and 10.
+        Box::new(Wrapped { name: "shuffled", fourcc: FourCc::new(b"TSHF"), pad: 0, ladder: vec![4, 6, 8, 12, 10, 14] }),
+    ])
+    .unwrap()
+}
+
+#[test]
+fn auto_search_keeps_the_smallest_stream_whatever_the_order() {
+    let registry = wrapped_registry();
+    let animation = small();
+    let eval = EvalOptions::default();
+    let target = Target { metric: TargetMetric::MaxError, value: 1e-2 };
+    let padded = registry.by_name("padded").unwrap();
+    let plain = registry.by_name("plain").unwrap();
+    for order in [[padded, plain], [plain, padded]] {
+        let (best, others) =
+            search_target_auto(&registry, &order, &animation, target, &eval, Limits::default()).unwrap();
+        assert_eq!(best.point.codec, "plain");
+        assert_eq!(others.len(), 1);
+        assert!(others[0].point.bytes > best.point.bytes);
+    }
+    // Nothing reachable: the error lists each codec's best.
+    let target = Target { metric: TargetMetric::MaxError, value: 0.0 };
+    let e = search_target_auto(&registry, &[padded, plain], &animation, target, &eval, Limits::default())
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("padded") && e.contains("plain") && e.contains("best reached"), "{e}");
+}
+
+#[test]
+fn non_monotone_ladders_fall_back_to_a_linear_scan() {
+    let registry = wrapped_registry();
+    let codec = registry.by_name("shuffled").unwrap();
+    let animation = small();
+    let eval = EvalOptions::default();
+    let ladder = codec.rate_ladder();
+    let bytes_and_err: Vec<(u64, f64)> = (0..ladder.steps.len())
+        .map(|i| {
+            let p = ladder_params(codec, &codec.default_params(), &ladder, i).unwrap();
+            let (pt, _) =
+                measure_point(&registry, codec, &p, (ladder.param, i), &animation, &eval, Limits::default()).unwrap();
+            (pt.bytes, pt.report.max_error)
+        })
+        .collect();
+    // A target met by bits 12 (step 3) but not by bits 10 (step 4): the binary search alone
+    // settles on step 5 (bits 14); the check of step 3 reveals the kink and the scan finds it.
+    let target = Target { metric: TargetMetric::MaxError, value: (bytes_and_err[3].1 + bytes_and_err[4].1) / 2.0 };
+    assert!(bytes_and_err[4].1 > target.value && bytes_and_err[3].1 <= target.value);
+    let hit =
+        search_target(&registry, codec, &codec.default_params(), &animation, target, &eval, Limits::default()).unwrap();
+    // The smallest passing stream among all steps.
+    let best = bytes_and_err.iter().filter(|(_, e)| *e <= target.value).map(|(b, _)| *b).min().unwrap();
+    assert_eq!(hit.point.bytes, best);
+    assert_eq!(hit.point.ladder_index, 3);
+    assert!(hit.linear_fallback);
+}
+
+#[test]
+fn target_miss_names_the_best_point() {
+    let registry = animcodec::registry();
+    let codec = registry.by_name("quant-delta").unwrap();
+    let target = Target { metric: TargetMetric::Kg, value: 0.0 };
+    let e = search_target(
+        &registry,
+        codec,
+        &codec.default_params(),
+        &small(),
+        target,
+        &EvalOptions::default(),
+        Limits::default(),
+    )
+    .unwrap_err();
+    let miss = e.downcast_ref::<TargetMiss>().unwrap();
+    assert_eq!(miss.best.as_ref().unwrap().ladder_index, codec.rate_ladder().steps.len() - 1);
+    let _ = harness::point_json(miss.best.as_ref().unwrap());
+}

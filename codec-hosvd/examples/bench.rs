@@ -1,0 +1,332 @@
+//! Release benchmark of `hosvd` on real animations (read straight from PC2 + OBJ).
+//!
+//! ```text
+//! cargo build --release -p codec-hosvd --example bench
+//! target/release/examples/bench [DATA_DIR] [NAME ...]     # default ../shared/data samba horse-gallop
+//! ```
+//!
+//! Per animation, all in one run:
+//! 1. rate-distortion: strategy ∈ {diagonal, iterative} × rigid ∈ {on, off} × ss ladder —
+//!    real container bytes (bpvf), Eq. 12 bytes (d_s = 4), KG, MSE, max vertex error, timings;
+//!    the `quant-delta` baseline (12 bits) encoded and decoded in the same run for time scale;
+//! 2. HO-SVD vs PCA at equal size (unquantized, the paper's comparison, §2.8/Fig. 10–11);
+//! 3. HOOI at equal ranks (unquantized error and quantized stream);
+//! 4. temporal blocks.
+//!
+//! KG = 100·‖A−Â‖_F / ‖A−E(A)‖_F with E(A) the per-frame centroid of the original (f64).
+//! MSE = mean over vertices and frames of the squared vertex distance (§2.7).
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use codec_core::container::ContainerWriter;
+use codec_core::quant_delta::{QuantDelta, QuantDeltaParams};
+use codec_core::AnimationCodec;
+use codec_core::{decode_animation, encode_animation_fed, Animation, CodecRegistry, FrameEncoder, Limits, Topology};
+use codec_hosvd::{
+    truncated_reconstruction, truncated_reconstruction_with, BlockStats, Hosvd, HosvdEncoder, HosvdParams, Strategy,
+};
+use faer::Mat;
+
+fn read_pc2(path: &Path) -> Result<(usize, usize, Vec<f32>), String> {
+    let b = std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    if b.len() < 32 || &b[..12] != b"POINTCACHE2\0" {
+        return Err(format!("{}: not a PC2 file", path.display()));
+    }
+    let i32_at = |o: usize| i32::from_le_bytes(b[o..o + 4].try_into().unwrap());
+    let (k, f) = (i32_at(16) as usize, i32_at(28) as usize);
+    let need = 32 + k * f * 12;
+    if b.len() < need {
+        return Err(format!("{}: truncated ({} < {need} bytes)", path.display(), b.len()));
+    }
+    let pos = b[32..need].chunks_exact(4).map(|c| f32::from_le_bytes(c.try_into().unwrap())).collect();
+    Ok((k, f, pos))
+}
+
+fn read_obj_triangles(path: &Path, k: usize) -> Result<Vec<[u32; 3]>, String> {
+    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let mut tris = Vec::new();
+    for line in text.lines().filter(|l| l.starts_with("f ")) {
+        let idx: Vec<u32> = line[2..]
+            .split_whitespace()
+            .map(|tok| {
+                let i: i64 = tok.split('/').next().unwrap().parse().map_err(|_| format!("bad face '{line}'"))?;
+                Ok(if i < 0 { (k as i64 + i) as u32 } else { (i - 1) as u32 })
+            })
+            .collect::<Result<_, String>>()?;
+        for w in 1..idx.len().saturating_sub(1) {
+            tris.push([idx[0], idx[w], idx[w + 1]]);
+        }
+    }
+    Ok(tris)
+}
+
+fn load(dir: &Path, name: &str) -> Result<Animation, String> {
+    let (k, _f, pos) = read_pc2(&dir.join(name).join(format!("{name}.pc2")))?;
+    let tris = read_obj_triangles(&dir.join(name).join(format!("{name}.obj")), k)?;
+    let topo = Topology::new(k, tris).map_err(|e| e.to_string())?;
+    Animation::new(topo, pos, 30.0).map_err(|e| e.to_string())
+}
+
+struct Errors {
+    kg: f64,
+    mse: f64,
+    max_vertex: f64,
+}
+
+fn errors(a: &Animation, rec: &[f32]) -> Errors {
+    let k = a.vertex_count();
+    let (mut num, mut den, mut maxv) = (0.0f64, 0.0f64, 0.0f64);
+    for (t, frame) in a.frames().enumerate() {
+        let mut c = [0.0f64; 3];
+        for p in frame.chunks_exact(3) {
+            for j in 0..3 {
+                c[j] += p[j] as f64;
+            }
+        }
+        let c = c.map(|x| x / k as f64);
+        for (i, p) in frame.chunks_exact(3).enumerate() {
+            let r = &rec[(t * k + i) * 3..(t * k + i) * 3 + 3];
+            let mut d2 = 0.0;
+            for j in 0..3 {
+                d2 += (p[j] as f64 - r[j] as f64).powi(2);
+                den += (p[j] as f64 - c[j]).powi(2);
+            }
+            num += d2;
+            maxv = maxv.max(d2.sqrt());
+        }
+    }
+    Errors { kg: 100.0 * (num / den).sqrt(), mse: num / (k * a.frame_count()) as f64, max_vertex: maxv }
+}
+
+struct Run {
+    bytes: usize,
+    rec: Vec<f32>,
+    stats: Vec<BlockStats>,
+    enc_s: f64,
+    dec_s: f64,
+}
+
+/// Drives the public encoder into a container (exactly what `StreamEncoder` writes) so the
+/// per-block statistics are available, then decodes through the registry.
+fn run(a: &Animation, p: &HosvdParams) -> Run {
+    let t0 = Instant::now();
+    let mut enc = HosvdEncoder::new(*p, a.vertex_count(), a.frame_count(), true);
+    let mut w = ContainerWriter::new(
+        Vec::new(),
+        Hosvd.fourcc(),
+        Hosvd.stream_version(),
+        a.topology(),
+        a.frame_count(),
+        a.frame_rate(),
+        &enc.config(),
+    )
+    .unwrap();
+    let mut rec = Vec::new();
+    for pk in enc.push_frames(a.positions()).unwrap().into_iter().chain(enc.finish().unwrap()) {
+        w.write_packet(&pk.packet).unwrap();
+        rec.extend(pk.reconstruction.unwrap());
+    }
+    let bytes = w.finish().unwrap();
+    let enc_s = t0.elapsed().as_secs_f64();
+    let reg = CodecRegistry::new(vec![Box::new(Hosvd)]).unwrap();
+    let t1 = Instant::now();
+    let dec = decode_animation(&bytes, &reg, Limits::default()).unwrap();
+    let dec_s = t1.elapsed().as_secs_f64();
+    assert_eq!(dec.positions(), &rec[..], "decoder disagrees with the encoder's reconstruction");
+    Run { bytes: bytes.len(), rec, stats: enc.stats().to_vec(), enc_s, dec_s }
+}
+
+/// PCA of §2.8 ([AM00]): frames as F vectors of 3K, centred (the mean shape is stored too),
+/// `p` components. Error from the trailing eigenvalues of the centred F×F Gram matrix.
+fn pca_error2(a: &Animation, p: usize) -> f64 {
+    let (k, f) = (a.vertex_count(), a.frame_count());
+    let n = 3 * k;
+    let mut mean = vec![0.0f64; n];
+    for fr in a.frames() {
+        for (m, &x) in mean.iter_mut().zip(fr) {
+            *m += x as f64 / f as f64;
+        }
+    }
+    let x = Mat::from_fn(f, n, |t, c| a.positions()[t * n + c] as f64 - mean[c]);
+    let g = &x * x.transpose();
+    let ev = g.self_adjoint_eigenvalues(faer::Side::Lower).unwrap();
+    // Ascending: the trailing f − p eigenvalues are the lost energy.
+    ev[..f.saturating_sub(p)].iter().map(|v| v.max(0.0)).sum()
+}
+
+fn centred_energy(a: &Animation) -> f64 {
+    let k = a.vertex_count();
+    let mut den = 0.0;
+    for frame in a.frames() {
+        let mut c = [0.0f64; 3];
+        for p in frame.chunks_exact(3) {
+            for j in 0..3 {
+                c[j] += p[j] as f64 / k as f64;
+            }
+        }
+        for p in frame.chunks_exact(3) {
+            for j in 0..3 {
+                den += (p[j] as f64 - c[j]).powi(2);
+            }
+        }
+    }
+    den
+}
+
+fn main() {
+    let mut args = std::env::args().skip(1);
+    let dir = PathBuf::from(args.next().unwrap_or_else(|| "../shared/data".into()));
+    let mut names: Vec<String> = args.collect();
+    if names.is_empty() {
+        names = vec!["samba".into(), "horse-gallop".into()];
+    }
+    if !dir.exists() {
+        println!("SKIP: {} not found", dir.display());
+        return;
+    }
+    let ladder = [0.99, 0.98, 0.95, 0.9, 0.8];
+    for name in &names {
+        let a = match load(&dir, name) {
+            Ok(a) => a,
+            Err(e) => {
+                println!("SKIP {name}: {e}");
+                continue;
+            }
+        };
+        let (k, f) = (a.vertex_count(), a.frame_count());
+        let raw = (k * f * 12) as f64;
+        println!("\n## {name}: {k} vertices, {f} frames, {} triangles\n", a.topology().triangle_count());
+
+        // Baseline in the same run, for time scale.
+        let qd = QuantDeltaParams { bits: 12, ..Default::default() }.to_param_set().unwrap();
+        let t0 = Instant::now();
+        let enc = encode_animation_fed(&QuantDelta, &qd, &a, false, f).unwrap();
+        let qd_enc = t0.elapsed().as_secs_f64();
+        let reg = CodecRegistry::new(vec![Box::new(QuantDelta)]).unwrap();
+        let t1 = Instant::now();
+        let dec = decode_animation(&enc.bytes, &reg, Limits::default()).unwrap();
+        let qd_dec = t1.elapsed().as_secs_f64();
+        let e = errors(&a, dec.positions());
+        println!(
+            "baseline quant-delta bits=12: bpvf {:.3}, KG {:.4}, encode {:.3} s, decode {:.3} s\n",
+            enc.bytes.len() as f64 * 8.0 / (k * f) as f64,
+            e.kg,
+            qd_enc,
+            qd_dec
+        );
+
+        println!("### Rate-distortion (quant=0.25, level=19, whole sequence)\n");
+        println!("| strategy | motion | ss | v | f | evals | Eq.12 bytes | stream bytes | bpvf | ratio | KG | MSE | max vertex err | trunc-only KG | enc s (decomp/search/code) | dec s |");
+        println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+        let den = centred_energy(&a);
+        for strategy in [Strategy::Diagonal, Strategy::Iterative] {
+            for (rigid, affine, motion) in [(true, true, "affine"), (true, false, "rotation"), (false, true, "off")] {
+                for &ss in &ladder {
+                    let p = HosvdParams { ss, strategy, rigid, affine, ..Default::default() };
+                    let r = run(&a, &p);
+                    let s = &r.stats[0];
+                    let e = errors(&a, &r.rec);
+                    // Truncation-only error, unquantized, in original coordinates.
+                    let (unq, _) = truncated_reconstruction_with(a.positions(), k, s.v, s.f, rigid, affine, 0).unwrap();
+                    let eu = errors(&a, &unq);
+                    println!(
+                        "| {} | {motion} | {ss} | {} | {} | {} | {} | {} | {:.3} | {:.1} | {:.4} | {:.3e} | {:.3e} | {:.4} | {:.2} ({:.2}/{:.3}/{:.2}) | {:.3} |",
+                        strategy.name(),
+                        s.v,
+                        s.f,
+                        s.evaluations,
+                        s.paper_numbers * 4,
+                        r.bytes,
+                        r.bytes as f64 * 8.0 / (k * f) as f64,
+                        raw / r.bytes as f64,
+                        e.kg,
+                        e.mse,
+                        e.max_vertex,
+                        eu.kg,
+                        r.enc_s,
+                        s.decompose_seconds,
+                        s.search_seconds,
+                        s.code_seconds,
+                        r.dec_s
+                    );
+                }
+            }
+        }
+
+        println!("\n### HO-SVD vs PCA at equal size (unquantized; numbers = Eq. 12 floats incl. 12F transforms for HO-SVD, (3K+F)p + 3K for PCA)\n");
+        println!(
+            "| ss | HO-SVD (v,f) exhaustive, affine | HO-SVD KG affine | rotation | no motion removal | PCA p | PCA KG | HO-SVD wins |"
+        );
+        println!("|---|---|---|---|---|---|---|---|");
+        for &ss in &ladder {
+            let p = HosvdParams { ss, strategy: Strategy::Exhaustive, rigid: true, ..Default::default() };
+            let s = codec_hosvd::encode_block(a.positions(), k, &p, false).unwrap().stats;
+            let (unq, _) = truncated_reconstruction(a.positions(), k, s.v, s.f, true, 0).unwrap();
+            let eh = errors(&a, &unq).kg;
+            let pn = HosvdParams { rigid: false, ..p };
+            let sn = codec_hosvd::encode_block(a.positions(), k, &pn, false).unwrap().stats;
+            let (unqn, _) = truncated_reconstruction(a.positions(), k, sn.v, sn.f, false, 0).unwrap();
+            let ehn = errors(&a, &unqn).kg;
+            let pr = HosvdParams { affine: false, ..p };
+            let sr = codec_hosvd::encode_block(a.positions(), k, &pr, false).unwrap().stats;
+            let (unqr, _) = truncated_reconstruction_with(a.positions(), k, sr.v, sr.f, true, false, 0).unwrap();
+            let ehr = errors(&a, &unqr).kg;
+            let budget = (1.0 - ss) * (3 * k * f) as f64;
+            let pc = ((budget - (3 * k) as f64) / (3 * k + f) as f64).floor().max(0.0) as usize;
+            let ep = if pc == 0 { 100.0 } else { 100.0 * (pca_error2(&a, pc.min(f)) / den).sqrt() };
+            println!(
+                "| {ss} | ({}, {}) | {eh:.4} | {ehr:.4} | {ehn:.4} | {pc} | {ep:.4} | {} |",
+                s.v,
+                s.f,
+                if eh.max(ehn).max(ehr) < ep {
+                    "yes (all three)"
+                } else if eh.min(ehn).min(ehr) < ep {
+                    "partly"
+                } else {
+                    "no"
+                }
+            );
+        }
+
+        println!("\n### HOOI at equal ranks (iterative choice at each ss, rigid)\n");
+        println!("| ss | v | f | HO-SVD KG (unq) | HOOI-3 KG (unq) | stream bytes hooi=0 | KG | stream bytes hooi=2 | KG | HOOI time s |");
+        println!("|---|---|---|---|---|---|---|---|---|---|");
+        for &ss in &[0.98, 0.95, 0.9] {
+            let p0 = HosvdParams { ss, ..Default::default() };
+            let r0 = run(&a, &p0);
+            let s = r0.stats[0];
+            let (u0, _) = truncated_reconstruction(a.positions(), k, s.v, s.f, true, 0).unwrap();
+            let (u3, _) = truncated_reconstruction(a.positions(), k, s.v, s.f, true, 3).unwrap();
+            let r2 = run(&a, &HosvdParams { hooi_iters: 2, ..p0 });
+            println!(
+                "| {ss} | {} | {} | {:.4} | {:.4} | {} | {:.4} | {} | {:.4} | {:.2} |",
+                s.v,
+                s.f,
+                errors(&a, &u0).kg,
+                errors(&a, &u3).kg,
+                r0.bytes,
+                errors(&a, &r0.rec).kg,
+                r2.bytes,
+                errors(&a, &r2.rec).kg,
+                r2.stats[0].hooi_seconds
+            );
+        }
+
+        println!("\n### Temporal blocks (iterative, rigid, ss = 0.95)\n");
+        println!("| block | packets | stream bytes | bpvf | KG | enc s | dec s |");
+        println!("|---|---|---|---|---|---|---|");
+        for block in [0u32, 64, 32] {
+            let r = run(&a, &HosvdParams { ss: 0.95, block, ..Default::default() });
+            println!(
+                "| {block} | {} | {} | {:.3} | {:.4} | {:.2} | {:.3} |",
+                r.stats.len(),
+                r.bytes,
+                r.bytes as f64 * 8.0 / (k * f) as f64,
+                errors(&a, &r.rec).kg,
+                r.enc_s,
+                r.dec_s
+            );
+        }
+    }
+}

@@ -1,0 +1,358 @@
+use super::*;
+use codec_core::{decode_animation, decode_frame, encode_animation_fed, CodecRegistry, Topology};
+
+/// A grid of `nx × ny` vertices; frame `t` bends it with a travelling wave (`deform`) and
+/// then rotates it about a tilted axis and translates it (`tumble`).
+fn flag(nx: usize, ny: usize, frames: usize, deform: f64, tumble: f64) -> Animation {
+    let mut tris = Vec::new();
+    for y in 0..ny - 1 {
+        for x in 0..nx - 1 {
+            let i = (y * nx + x) as u32;
+            tris.push([i, i + 1, i + nx as u32]);
+            tris.push([i + 1, i + nx as u32 + 1, i + nx as u32]);
+        }
+    }
+    let mut pos = Vec::new();
+    for t in 0..frames {
+        let tt = t as f64;
+        let (a, b) = (0.3 * tumble * tt, 0.17 * tumble * tt);
+        for y in 0..ny {
+            for x in 0..nx {
+                let (px, py) = (x as f64 * 0.1, y as f64 * 0.1 + 0.02 * (x as f64 * 0.9).cos());
+                // Per-vertex frequencies and phases (a fixed hash) make the motion high-rank, so
+                // truncation errors sit well above f32 rounding.
+                let h = ((y * nx + x) as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 40;
+                let (w, ph) = ((h % 97) as f64 / 97.0 * 0.9 + 0.1, (h % 89) as f64 / 89.0 * std::f64::consts::TAU);
+                let pz = deform * (px * (px * 4.0 - tt * 0.35).sin() * 0.3 + 0.03 * (w * tt + ph).sin())
+                    + 0.05 * (py * 3.0).sin();
+                // Rotation about z by a, then about x by b, then a translation.
+                let (x1, y1) = (px * a.cos() - py * a.sin(), px * a.sin() + py * a.cos());
+                let (y2, z2) = (y1 * b.cos() - pz * b.sin(), y1 * b.sin() + pz * b.cos());
+                pos.extend_from_slice(&[(x1 + 0.05 * tumble * tt) as f32, (y2 - 0.02 * tumble * tt) as f32, z2 as f32]);
+            }
+        }
+    }
+    Animation::new(Topology::new(nx * ny, tris).unwrap(), pos, 30.0).unwrap()
+}
+
+fn registry() -> CodecRegistry {
+    CodecRegistry::new(vec![Box::new(Hosvd)]).unwrap()
+}
+
+fn frob_error(a: &[f32], b: &[f32]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| (*x as f64 - *y as f64).powi(2)).sum::<f64>().sqrt()
+}
+
+fn params(p: HosvdParams) -> ParamSet {
+    p.to_param_set().unwrap()
+}
+
+#[test]
+fn round_trip_matches_encoder_reconstruction_stays_within_bound_and_ignores_feeding() {
+    let anim = flag(12, 9, 37, 1.0, 1.0);
+    let reg = registry();
+    for (ss, strategy, rigid, hooi, block) in [
+        (0.9, Strategy::Iterative, true, 0, 0),
+        (0.8, Strategy::Diagonal, false, 0, 0),
+        (0.7, Strategy::Exhaustive, true, 2, 0),
+        (0.6, Strategy::Iterative, true, 0, 10),
+        (0.85, Strategy::Iterative, true, 1, 0),
+    ] {
+        // The last case uses rotation-only motion removal.
+        let affine = ss != 0.85;
+        let p = params(HosvdParams { ss, strategy, rigid, affine, hooi_iters: hooi, block, ..Default::default() });
+        let enc = encode_animation_fed(&Hosvd, &p, &anim, true, 5).unwrap();
+        let dec = decode_animation(&enc.bytes, &reg, Limits::default()).unwrap();
+        assert_eq!(Some(&dec), enc.reconstruction.as_ref(), "{p}");
+        let whole = encode_animation_fed(&Hosvd, &p, &anim, false, 1000).unwrap();
+        assert_eq!(whole.bytes, enc.bytes, "bytes depend on how frames are fed: {p}");
+        let bound = Hosvd.error_bound(&p, &anim).unwrap();
+        let err = frob_error(anim.positions(), dec.positions());
+        assert!(err <= bound.max_coordinate_error.unwrap(), "{p}: error {err} > bound {bound:?}");
+        let rms = err / (anim.positions().len() as f64).sqrt() / anim.bounding_box_diagonal();
+        assert!(rms <= bound.relative_rms_error.unwrap(), "{p}: rms {rms} > {bound:?}");
+        // The bound is informative, not vacuous: well under the signal itself.
+        assert!(bound.relative_rms_error.unwrap() < 0.2, "{p}: {bound:?}");
+    }
+}
+
+#[test]
+fn quantization_adds_little_to_the_truncation_error() {
+    let anim = flag(12, 9, 30, 1.0, 1.0);
+    let k = anim.vertex_count();
+    let hp = HosvdParams { v: 6, f: 5, quant: 0.25, ..Default::default() };
+    let b = encode_block(anim.positions(), k, &hp, true).unwrap();
+    let (unq, _) = truncated_reconstruction(anim.positions(), k, 6, 5, true, 0).unwrap();
+    let eq = frob_error(anim.positions(), b.reconstruction.as_ref().unwrap());
+    let eu = frob_error(anim.positions(), &unq);
+    // quant = 0.25 targets a quantization RMS of a quarter of the truncation error, which adds
+    // about 3% in quadrature; allow 15% for the gap between target and realised noise.
+    assert!(eq >= eu * 0.9 && eq <= eu * 1.15, "quantized {eq} vs unquantized {eu}");
+    // Finer quantization lands closer and costs more bytes.
+    let fine = encode_block(anim.positions(), k, &HosvdParams { quant: 0.02, ..hp }, true).unwrap();
+    let ef = frob_error(anim.positions(), fine.reconstruction.as_ref().unwrap());
+    assert!((ef - eu).abs() < (eq - eu).abs() + 1e-6 * eu && fine.payload.len() > b.payload.len());
+}
+
+#[test]
+fn full_rank_is_exact_and_energies_give_the_truncation_error() {
+    let anim = flag(7, 5, 20, 1.0, 1.0);
+    let k = anim.vertex_count();
+    for rigid in [false, true] {
+        let (rec, err2) = truncated_reconstruction(anim.positions(), k, k, 20, rigid, 0).unwrap();
+        let scale = frob_error(anim.positions(), &vec![0.0; rec.len()]);
+        assert!(frob_error(anim.positions(), &rec) <= 1e-5 * scale, "rigid {rigid}");
+        assert!(err2.sqrt() <= 1e-6 * scale);
+    }
+    // Without rigid removal the reconstruction error equals √(‖T‖² − ‖C̃‖²) in f64.
+    let x: Vec<f64> = anim.positions().iter().map(|&p| p as f64).collect();
+    let t = Tensor::new(&x, k, 20);
+    let s = Spectrum::new(&t).unwrap();
+    for (v, f) in [(1, 1), (3, 2), (5, 9), (12, 4)] {
+        let (rec, err2) = truncated_reconstruction(anim.positions(), k, v, f, false, 0).unwrap();
+        let direct = frob_error(anim.positions(), &rec);
+        let scale = t.norm2.sqrt();
+        assert!((direct - err2.sqrt()).abs() <= 1e-5 * scale, "({v},{f}): {direct} vs {}", err2.sqrt());
+        assert!((s.truncation_error2(v, f).sqrt() - err2.sqrt()).abs() <= 1e-6 * scale, "({v},{f})");
+    }
+}
+
+#[test]
+fn gram_route_spans_the_same_subspace_as_a_direct_svd() {
+    let anim = flag(9, 7, 25, 1.0, 0.5);
+    let k = anim.vertex_count();
+    let x: Vec<f64> = anim.positions().iter().map(|&p| p as f64).collect();
+    let t = Tensor::new(&x, k, 25);
+    // Mode 1 (K = 63 < 3F = 75: the K×K Gram) and mode 3 (F = 25 < 3K: the F×F Gram), plus the
+    // tall case m > n through the transposed unfolding.
+    for (a, r) in [(t.x1.as_ref(), 6), (t.x3.as_ref(), 5), (t.x3.transpose(), 4)] {
+        let u = tensor::leading_left(a, r).unwrap();
+        let svd = a.thin_svd().unwrap();
+        let w = svd.U().subcols(0, r);
+        // ‖UUᵀ − WWᵀ‖_F via ‖UᵀW‖_F² = r when the subspaces coincide.
+        let mut s = 0.0;
+        for i in 0..r {
+            for j in 0..r {
+                let d: f64 = (0..u.nrows()).map(|q| u[(q, i)] * w[(q, j)]).sum();
+                s += d * d;
+            }
+        }
+        assert!((s - r as f64).abs() < 1e-8, "{s} vs {r}");
+        // Orthonormal columns.
+        for i in 0..r {
+            let n: f64 = (0..u.nrows()).map(|q| u[(q, i)].powi(2)).sum();
+            assert!((n - 1.0).abs() < 1e-10);
+        }
+    }
+}
+
+#[test]
+fn rigid_removal_turns_a_tumbling_body_into_a_static_one() {
+    // No deformation at all: after affine removal every frame equals frame 0, so f = 1 is exact.
+    let anim = flag(10, 8, 24, 0.0, 1.0);
+    let k = anim.vertex_count();
+    let (_, with) = truncated_reconstruction(anim.positions(), k, 3, 1, true, 0).unwrap();
+    let (_, without) = truncated_reconstruction(anim.positions(), k, 3, 1, false, 0).unwrap();
+    let (_, rotation) = truncated_reconstruction_with(anim.positions(), k, 3, 1, true, false, 0).unwrap();
+    let scale: f64 = anim.positions().iter().map(|&p| (p as f64).powi(2)).sum();
+    assert!(with <= 1e-9 * scale, "with removal {with}");
+    assert!(rotation <= 1e-9 * scale, "with rotation-only removal {rotation}");
+    assert!(without > 1e-3 * scale, "without removal {without}");
+    // And the recovered transforms reproduce the frames.
+    let (tr, x) = tensor::remove_affine_motion(anim.positions(), k, 24, true);
+    let frame0: Vec<f64> = anim.positions()[..k * 3].iter().map(|&p| p as f64).collect();
+    for t in 0..24 {
+        let xt = &x[t * k * 3..(t + 1) * k * 3];
+        let d = xt.iter().zip(&frame0).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+        assert!(d < 1e-4, "frame {t}: {d}");
+        assert!(tr[t].gain() < 2.0);
+    }
+}
+
+#[test]
+fn strategies_meet_the_budget_and_exhaustive_is_best() {
+    let anim = flag(14, 10, 40, 1.0, 1.0);
+    let k = anim.vertex_count();
+    for ss in [0.9, 0.95] {
+        let run = |strategy| {
+            let hp = HosvdParams { ss, strategy, ..Default::default() };
+            encode_block(anim.positions(), k, &hp, false).unwrap().stats
+        };
+        let (d, it, ex) = (run(Strategy::Diagonal), run(Strategy::Iterative), run(Strategy::Exhaustive));
+        let total = (3 * k * 40) as f64;
+        for s in [&d, &it, &ex] {
+            assert!(!s.over_budget);
+            assert!(s.paper_numbers as f64 <= (1.0 - ss) * total + 1e-9, "{s:?}");
+        }
+        // Errors are energies from one spectrum; only rounding (relative to ‖X‖²) separates ties.
+        let tol = 1e-10 * ex.norm2;
+        assert!(ex.truncation_error2 <= it.truncation_error2 + tol, "ss {ss}: {ex:?} vs {it:?}");
+        assert!(ex.truncation_error2 <= d.truncation_error2 + tol, "ss {ss}: {ex:?} vs {d:?}");
+        assert!(ex.truncation_error2 > 1e-6 * ex.norm2, "test data too simple: {ex:?}");
+        assert!(it.evaluations <= ex.evaluations && d.evaluations == 0);
+    }
+    // An unreachable budget falls back to (1, 1) and says so.
+    let s = encode_block(anim.positions(), k, &HosvdParams { ss: 0.9999, ..Default::default() }, false).unwrap().stats;
+    assert!(s.over_budget && (s.v, s.f) == (1, 1));
+}
+
+#[test]
+fn hooi_never_increases_the_error_at_equal_ranks() {
+    let anim = flag(12, 9, 30, 1.0, 1.0);
+    let k = anim.vertex_count();
+    for (v, f) in [(2, 2), (4, 3), (8, 6)] {
+        let (_, e0) = truncated_reconstruction(anim.positions(), k, v, f, true, 0).unwrap();
+        let (_, e3) = truncated_reconstruction(anim.positions(), k, v, f, true, 3).unwrap();
+        assert!(e3 <= e0 * (1.0 + 1e-9) + 1e-12, "({v},{f}): hooi {e3} > hosvd {e0}");
+    }
+}
+
+#[test]
+fn temporal_blocks_are_independent_keyframes() {
+    let anim = flag(8, 6, 33, 1.0, 1.0);
+    let p = params(HosvdParams { block: 8, ss: 0.6, ..Default::default() });
+    let enc = encode_animation_fed(&Hosvd, &p, &anim, true, 3).unwrap();
+    let reg = registry();
+    let mut stream = codec_core::StreamDecoder::new(&enc.bytes[..], &reg, Limits::default()).unwrap();
+    let mut sizes = Vec::new();
+    while let Some(pk) = stream.next_packet() {
+        sizes.push(pk.unwrap().frame_count);
+    }
+    assert_eq!(sizes, vec![8, 8, 8, 8, 1]);
+    let rec = enc.reconstruction.unwrap();
+    let per = anim.vertex_count() * 3;
+    for t in [0usize, 9, 17, 32] {
+        let frame = decode_frame(&mut std::io::Cursor::new(&enc.bytes), &reg, Limits::default(), t).unwrap();
+        assert_eq!(frame, rec.positions()[t * per..(t + 1) * per].to_vec(), "frame {t}");
+    }
+}
+
+#[test]
+fn malformed_streams_give_errors_not_panics() {
+    let anim = flag(6, 5, 12, 1.0, 1.0);
+    let k = anim.vertex_count();
+    let hp = HosvdParams { ss: 0.5, ..Default::default() };
+    let block = encode_block(anim.positions(), k, &hp, true).unwrap();
+    let info = StreamInfo {
+        fourcc: FOURCC,
+        codec_version: 1,
+        topology: anim.topology().clone(),
+        frame_count: 12,
+        frame_rate: 30.0,
+    };
+    let mut dec = Hosvd.new_decoder(&info, &12u32.to_le_bytes(), &Limits::default()).unwrap();
+    let packet = |data: Vec<u8>| Packet { first_frame: 0, frame_count: 12, keyframe: true, data };
+    assert_eq!(dec.decode_packet(&packet(block.payload.clone())).unwrap(), block.reconstruction.unwrap());
+    for cut in 0..block.payload.len() {
+        assert!(dec.decode_packet(&packet(block.payload[..cut].to_vec())).is_err(), "cut {cut}");
+    }
+    for i in 0..block.payload.len() {
+        let mut bad = block.payload.clone();
+        bad[i] ^= 0xA5;
+        let _ = dec.decode_packet(&packet(bad));
+    }
+    // Absurd ranks are rejected by name before anything is allocated.
+    let mut w = ByteWriter::new();
+    w.u8(1);
+    w.varint(1 << 40);
+    w.varint(3);
+    let e = dec.decode_packet(&packet(w.into_vec())).unwrap_err().to_string();
+    assert!(e.contains("hosvd") && e.contains("'v'"), "{e}");
+    // A packet claiming more frames than its data holds.
+    let e = dec
+        .decode_packet(&Packet { first_frame: 0, frame_count: 13, keyframe: true, data: block.payload.clone() })
+        .unwrap_err();
+    assert!(e.to_string().contains("hosvd"), "{e}");
+    assert!(Hosvd.new_decoder(&info, &[1, 2], &Limits::default()).is_err());
+    let tiny = Limits { max_alloc_bytes: 64, ..Limits::default() };
+    let mut small = Hosvd.new_decoder(&info, &12u32.to_le_bytes(), &tiny).unwrap();
+    assert!(matches!(small.decode_packet(&packet(block.payload)), Err(Error::LimitExceeded { .. })));
+}
+
+#[test]
+fn parameters_validate_with_ranges_and_cross_checks() {
+    let e = HosvdParams { ss: 1.5, ..Default::default() }.validate().unwrap_err().to_string();
+    assert!(e.contains("hosvd") && e.contains("ss") && e.contains("0.9999"), "{e}");
+    let e = HosvdParams { v: 4, ..Default::default() }.validate().unwrap_err().to_string();
+    assert!(e.contains("'f'") && e.contains("give both"), "{e}");
+    let p =
+        HosvdParams { v: 4, f: 3, strategy: Strategy::Exhaustive, rigid: false, affine: false, ..Default::default() };
+    assert_eq!(HosvdParams::from_param_set(&p.to_param_set().unwrap()).unwrap(), p);
+    let mut set = Hosvd.default_params();
+    set.set(&HosvdParams::specs(), "v", ParamValue::Int(3)).unwrap();
+    assert!(Hosvd.validate(&set).is_err());
+    // The ladder walks from small streams to large.
+    let ladder = Hosvd.rate_ladder();
+    let ss: Vec<f64> = ladder.steps.iter().map(|v| if let ParamValue::Float(x) = v { *x } else { panic!() }).collect();
+    assert!(ss.windows(2).all(|w| w[0] > w[1]));
+    for s in &ladder.steps {
+        set = Hosvd.default_params();
+        set.set(&HosvdParams::specs(), "ss", s.clone()).unwrap();
+        Hosvd.validate(&set).unwrap();
+    }
+}
+
+#[test]
+fn rate_ladder_ends_are_ordered_in_size_and_error() {
+    let anim = flag(14, 10, 40, 1.0, 1.0);
+    let ladder = Hosvd.rate_ladder();
+    let run = |v: &ParamValue| {
+        let mut set = Hosvd.default_params();
+        set.set(&HosvdParams::specs(), "ss", v.clone()).unwrap();
+        let enc = encode_animation_fed(&Hosvd, &set, &anim, true, 100).unwrap();
+        (enc.bytes.len(), frob_error(anim.positions(), enc.reconstruction.unwrap().positions()))
+    };
+    let (small, large) = (run(&ladder.steps[2]), run(ladder.steps.last().unwrap()));
+    assert!(small.0 < large.0 && small.1 > large.1, "{small:?} vs {large:?}");
+}
+
+/// Real data when present (`../shared/data`, relative to the repository root); skipped otherwise.
+#[test]
+fn horse_gallop_round_trip_within_bound_if_data_present() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/horse-gallop");
+    let Ok(b) = std::fs::read(dir.join("horse-gallop.pc2")) else {
+        println!("SKIP: {} not found", dir.display());
+        return;
+    };
+    assert!(b.len() >= 32 && &b[..12] == b"POINTCACHE2\0");
+    let i32_at = |o: usize| i32::from_le_bytes(b[o..o + 4].try_into().unwrap()) as usize;
+    let (k, f) = (i32_at(16), i32_at(28));
+    let pos: Vec<f32> =
+        b[32..32 + k * f * 12].chunks_exact(4).map(|c| f32::from_le_bytes(c.try_into().unwrap())).collect();
+    // Connectivity does not matter to this codec; a single triangle keeps the test independent of the OBJ.
+    let anim = Animation::new(Topology::new(k, vec![[0, 1, 2]]).unwrap(), pos, 30.0).unwrap();
+    let p = params(HosvdParams { ss: 0.95, strategy: Strategy::Diagonal, ..Default::default() });
+    let enc = encode_animation_fed(&Hosvd, &p, &anim, true, 16).unwrap();
+    let dec = decode_animation(&enc.bytes, &registry(), Limits::default()).unwrap();
+    assert_eq!(Some(&dec), enc.reconstruction.as_ref());
+    let bound = Hosvd.error_bound(&p, &anim).unwrap();
+    let err = frob_error(anim.positions(), dec.positions());
+    assert!(err <= bound.max_coordinate_error.unwrap(), "{err} > {bound:?}");
+    // ss = 0.95 of the float model: the real stream is smaller still.
+    assert!((enc.bytes.len() as f64) < 0.05 * (k * f * 12) as f64, "{} bytes", enc.bytes.len());
+}
+
+#[test]
+fn degenerate_inputs_round_trip() {
+    let reg = registry();
+    let tri = vec![[0u32, 1, 2]];
+    let cases: Vec<(usize, Vec<f32>)> = vec![
+        (3, vec![0.0; 9]),                                                // one frame, all zero
+        (3, vec![0.0; 9 * 4]),                                            // several frames, all zero
+        (3, (0..9 * 5).map(|i| (i % 7) as f32).collect()),                // tiny mesh, collinear-ish
+        (4, (0..12 * 2).map(|i| ((i * 37) % 11) as f32 - 5.0).collect()), // two frames
+    ];
+    for (k, pos) in cases {
+        let anim = Animation::new(Topology::new(k, tri.clone()).unwrap(), pos, 30.0).unwrap();
+        for strategy in [Strategy::Diagonal, Strategy::Iterative, Strategy::Exhaustive] {
+            for (rigid, affine) in [(true, true), (true, false), (false, true)] {
+                let p = params(HosvdParams { ss: 0.5, strategy, rigid, affine, hooi_iters: 1, ..Default::default() });
+                let enc = encode_animation_fed(&Hosvd, &p, &anim, true, 1).unwrap();
+                let dec = decode_animation(&enc.bytes, &reg, Limits::default()).unwrap();
+                assert_eq!(Some(&dec), enc.reconstruction.as_ref(), "{p}");
+                let bound = Hosvd.error_bound(&p, &anim).unwrap().max_coordinate_error.unwrap();
+                assert!(frob_error(anim.positions(), dec.positions()) <= bound, "{p}");
+            }
+        }
+    }
+}

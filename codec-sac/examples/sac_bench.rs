@@ -1,0 +1,344 @@
+//! Release benchmark of `sac` on the real animations in `/work/shared/data`.
+//!
+//! ```text
+//! cargo build --release -p codec-sac --example sac_bench
+//! target/release/examples/sac_bench [--frames N] [--bases 4,16,100] [--no-polar-at 16,100] [--bits 18] \
+//!     [--no-stages x] [--dump-laplacian DIR] DATASET...
+//! ```
+//!
+//! `--no-stages` takes a (dummy) value and skips the stage timing; `--dump-laplacian` also runs
+//! `examples/eigsh_bench.py` (python3 + scipy) on the dumped matrices in the same run. The
+//! baseline `quant-delta` at 8/10/12 bits is measured first for context.
+//!
+//! For each dataset: (1) per-frame time of every stage of the paper's outline (§3.7, the
+//! columns of its Table 1) on the closed loop at 100 bases; (2) rate points: stream bytes,
+//! bpvf, KG error (computed here: 100·‖A−Â‖_F / ‖A−E(A)‖_F, E(A) the per-frame centroid of the
+//! original, f64), refresh frames, encode and decode times, with and without polar
+//! decomposition, all measured in this run. `--dump-laplacian DIR` writes the stiffness and
+//! mass matrices of frame 0 (Matrix Market) so an independent eigensolver can be timed on
+//! exactly the same problem.
+
+use std::io::Write;
+use std::path::Path;
+use std::time::Instant;
+
+use codec_core::{Animation, AnimationCodec, EncoderSetup, Limits, StreamInfo, Topology};
+use codec_sac::geometry::{self, PoissonSystem, Svd3, V3};
+use codec_sac::{coding, harmonics, Sac, SacParams};
+
+fn read_pc2(path: &Path) -> std::io::Result<(usize, usize, Vec<f32>)> {
+    let b = std::fs::read(path)?;
+    let bad = || std::io::Error::new(std::io::ErrorKind::InvalidData, "bad pc2");
+    if b.len() < 32 || &b[..12] != b"POINTCACHE2\0" {
+        return Err(bad());
+    }
+    let i32_at = |o: usize| i32::from_le_bytes(b[o..o + 4].try_into().unwrap());
+    let (n, f) = (i32_at(16) as usize, i32_at(28) as usize);
+    if b.len() < 32 + n * f * 12 {
+        return Err(bad());
+    }
+    let pos = b[32..32 + n * f * 12].chunks_exact(4).map(|c| f32::from_le_bytes(c.try_into().unwrap())).collect();
+    Ok((n, f, pos))
+}
+
+fn read_obj_faces(path: &Path) -> std::io::Result<Vec<[u32; 3]>> {
+    let text = std::fs::read_to_string(path)?;
+    let mut tris = Vec::new();
+    for line in text.lines() {
+        let mut it = line.split_whitespace();
+        if it.next() != Some("f") {
+            continue;
+        }
+        let idx: Vec<u32> = it.filter_map(|t| t.split('/').next()?.parse::<u32>().ok()).map(|i| i - 1).collect();
+        for k in 1..idx.len().saturating_sub(1) {
+            tris.push([idx[0], idx[k], idx[k + 1]]);
+        }
+    }
+    Ok(tris)
+}
+
+fn kg(a: &Animation, b: &[f32]) -> f64 {
+    let n = a.vertex_count();
+    let (mut num, mut den) = (0.0, 0.0);
+    for (t, f) in a.frames().enumerate() {
+        let mut c = [0.0f64; 3];
+        for p in f.chunks_exact(3) {
+            for k in 0..3 {
+                c[k] += p[k] as f64 / n as f64;
+            }
+        }
+        for (i, &x) in f.iter().enumerate() {
+            num += (x as f64 - b[t * n * 3 + i] as f64).powi(2);
+            den += (x as f64 - c[i % 3]).powi(2);
+        }
+    }
+    100.0 * (num / den).sqrt()
+}
+
+fn to_v3(f: &[f32]) -> Vec<V3> {
+    f.chunks_exact(3).map(|p| [p[0] as f64, p[1] as f64, p[2] as f64]).collect()
+}
+
+/// Per-frame stage times of paper Table 1, on the closed loop (reference = previous
+/// reconstruction), 100 bases, polar decomposition, 18 bits.
+fn stage_times(anim: &Animation, bases: usize) -> codec_core::Result<()> {
+    let tris: Vec<[usize; 3]> =
+        anim.triangles().iter().map(|t| [t[0] as usize, t[1] as usize, t[2] as usize]).collect();
+    let n = anim.vertex_count();
+    let frame0 = to_v3(anim.frame(0));
+    let t = Instant::now();
+    let h = harmonics::harmonics(&frame0, &tris, bases)?;
+    let t_eigen = t.elapsed().as_secs_f64();
+    let t = Instant::now();
+    let transfer = harmonics::Transfer::new(&h, &tris);
+    let areas = geometry::triangle_areas(&frame0, &tris);
+    let analysis = transfer.analysis(&areas)?;
+    let t_transfer = t.elapsed().as_secs_f64();
+    let (_, pins) = geometry::components(n, &tris);
+    let t = Instant::now();
+    let poisson = PoissonSystem::new(n, &tris, &pins)?;
+    let t_symbolic = t.elapsed().as_secs_f64();
+    let mut st = [0.0f64; 6];
+    let mut prev = frame0.clone();
+    let mut svd = Svd3::new();
+    let mut ctx = coding::Contexts::new(2, 18);
+    let frames = anim.frame_count();
+    let m = tris.len();
+    for f in 1..frames {
+        let target = to_v3(anim.frame(f));
+        let t = Instant::now();
+        let grads = geometry::deformation_gradients(&tris, &prev, &target);
+        st[0] += t.elapsed().as_secs_f64();
+        let t = Instant::now();
+        let polar: Vec<_> = grads.iter().map(|g| svd.polar(g).expect("svd")).collect();
+        st[1] += t.elapsed().as_secs_f64();
+        let t = Instant::now();
+        let mut fields = vec![vec![0.0; m]; 9];
+        for (j, (u, p)) in polar.iter().enumerate() {
+            let w = geometry::log_rotation(u);
+            let v = [w[0], w[1], w[2], p[0][0] - 1.0, p[1][1] - 1.0, p[2][2] - 1.0, p[0][1], p[0][2], p[1][2]];
+            for c in 0..9 {
+                fields[c][j] = v[c];
+            }
+        }
+        let coeffs: Vec<Vec<f64>> = fields.iter().map(|f| harmonics::analyze(&analysis, f)).collect();
+        st[2] += t.elapsed().as_secs_f64();
+        let t = Instant::now();
+        let mut codes = Vec::new();
+        let mut steps = Vec::new();
+        for (lo, hi) in [(0, 3), (3, 9)] {
+            let amax = coeffs[lo..hi].iter().flatten().fold(0.0f64, |a, c| a.max(c.abs()));
+            let s = coding::step(coding::amplitude(amax), 18);
+            codes.push(coeffs[lo..hi].iter().flatten().map(|&c| coding::quantize(c, s, 18)).collect::<Vec<_>>());
+            steps.push(s);
+        }
+        let _bytes = coding::encode(&codes, bases.min(n), &mut ctx);
+        st[3] += t.elapsed().as_secs_f64();
+        let t = Instant::now();
+        let l = transfer.bases();
+        let mut dec = Vec::new();
+        for (g, group) in codes.iter().enumerate() {
+            for chan in group.chunks_exact(l) {
+                let c: Vec<f64> = chan.iter().map(|&q| q as f64 * steps[g]).collect();
+                let mut out = vec![0.0; m];
+                transfer.synthesize(&c, &mut out);
+                dec.push(out);
+            }
+        }
+        let targets: Vec<_> = (0..m)
+            .map(|j| {
+                let u = geometry::exp_rotation([dec[0][j], dec[1][j], dec[2][j]]);
+                let (a, b, c) = (1.0 + dec[3][j], 1.0 + dec[4][j], 1.0 + dec[5][j]);
+                let (d, e, ff) = (dec[6][j], dec[7][j], dec[8][j]);
+                geometry::mul(&u, &[[a, d, e], [d, b, ff], [e, ff, c]])
+            })
+            .collect();
+        st[4] += t.elapsed().as_secs_f64();
+        let t = Instant::now();
+        let solved = poisson.solve(&prev, &targets)?;
+        st[5] += t.elapsed().as_secs_f64();
+        prev = solved;
+        // Keep the loop honest about translation like the codec does (centroid match).
+        let mut d = [0.0; 3];
+        for (p, q) in target.iter().zip(&prev) {
+            for k in 0..3 {
+                d[k] += (p[k] - q[k]) / n as f64;
+            }
+        }
+        for p in prev.iter_mut() {
+            for k in 0..3 {
+                p[k] += d[k];
+            }
+        }
+    }
+    let pf = (frames - 1).max(1) as f64;
+    println!(
+        "  stages (s): T2 eigenbasis {:.3} (+ transfer/analysis setup {:.3}, poisson symbolic {:.3}, once per keyframe)",
+        t_eigen, t_transfer, t_symbolic
+    );
+    println!(
+        "  per frame (s): T3a grads {:.4}  T3b polar {:.4}  T3c log+analysis {:.4}  T3d quant+AC {:.4}  T3e synth+exp {:.4}  T3f poisson {:.4}  total {:.4}",
+        st[0] / pf,
+        st[1] / pf,
+        st[2] / pf,
+        st[3] / pf,
+        st[4] / pf,
+        st[5] / pf,
+        st.iter().sum::<f64>() / pf
+    );
+    println!(
+        "  eigenvalues: first {:.3e}, second {:.3e}, last {:.3e}",
+        h.eigenvalues[0],
+        h.eigenvalues.get(1).copied().unwrap_or(0.0),
+        h.eigenvalues.last().copied().unwrap_or(0.0)
+    );
+    Ok(())
+}
+
+fn rate_point(anim: &Animation, p: SacParams) -> codec_core::Result<()> {
+    let ps = p.to_param_set()?;
+    let setup = EncoderSetup {
+        topology: anim.topology(),
+        frame_count: anim.frame_count(),
+        frame_rate: anim.frame_rate(),
+        want_reconstruction: true,
+    };
+    let t = Instant::now();
+    let mut enc = Sac.new_encoder(&ps, &setup)?;
+    let mut packets = enc.push_frames(anim.positions())?;
+    packets.extend(enc.finish()?);
+    let t_enc = t.elapsed().as_secs_f64();
+    let bytes: usize = packets.iter().map(|p| p.packet.data.len()).sum::<usize>() + enc.config().len();
+    let refresh = packets.iter().filter(|p| p.packet.data[0] == 2).count();
+    let rec: Vec<f32> = packets.iter().flat_map(|p| p.reconstruction.clone().unwrap()).collect();
+    let info = StreamInfo {
+        fourcc: Sac.fourcc(),
+        codec_version: 1,
+        topology: anim.topology().clone(),
+        frame_count: anim.frame_count(),
+        frame_rate: anim.frame_rate(),
+    };
+    let t = Instant::now();
+    let mut dec = Sac.new_decoder(&info, &enc.config(), &Limits::default())?;
+    let mut out = Vec::with_capacity(rec.len());
+    for p in &packets {
+        out.extend(dec.decode_packet(&p.packet)?);
+    }
+    let t_dec = t.elapsed().as_secs_f64();
+    assert_eq!(out, rec, "decoder output differs from the encoder's reconstruction");
+    let bpvf = bytes as f64 * 8.0 / (anim.vertex_count() * anim.frame_count()) as f64;
+    println!(
+        "  bases {:4} polar {:5}: {:9} bytes  bpvf {:7.4}  KG {:8.4}  refresh {:3}  encode {:7.2}s  decode {:7.2}s",
+        p.bases,
+        p.polar,
+        bytes,
+        bpvf,
+        kg(anim, &rec),
+        refresh,
+        t_enc,
+        t_dec
+    );
+    Ok(())
+}
+
+/// The baseline `quant-delta` at `bits`, measured in the same run for context.
+fn baseline(anim: &Animation, bits: u8) -> codec_core::Result<()> {
+    use codec_core::quant_delta::{QuantDelta, QuantDeltaParams};
+    let ps = QuantDeltaParams { bits, ..Default::default() }.to_param_set()?;
+    let t = Instant::now();
+    let enc = codec_core::encode_animation_fed(&QuantDelta, &ps, anim, true, anim.frame_count())?;
+    let dt = t.elapsed().as_secs_f64();
+    let rec = enc.reconstruction.expect("asked for");
+    let bpvf = enc.bytes.len() as f64 * 8.0 / (anim.vertex_count() * anim.frame_count()) as f64;
+    println!(
+        "  baseline quant-delta bits {bits:2}: {:9} bytes (container)  bpvf {bpvf:7.4}  KG {:8.4}  encode {dt:7.2}s",
+        enc.bytes.len(),
+        kg(anim, rec.positions())
+    );
+    Ok(())
+}
+
+fn dump_laplacian(anim: &Animation, dir: &Path, name: &str) -> std::io::Result<()> {
+    let tris: Vec<[usize; 3]> =
+        anim.triangles().iter().map(|t| [t[0] as usize, t[1] as usize, t[2] as usize]).collect();
+    let (trip, mass, _) = harmonics::laplacian(&to_v3(anim.frame(0)), &tris);
+    let n = anim.vertex_count();
+    let mut f = std::io::BufWriter::new(std::fs::File::create(dir.join(format!("{name}.L.mtx")))?);
+    writeln!(f, "%%MatrixMarket matrix coordinate real symmetric\n{n} {n} {}", trip.len())?;
+    for t in &trip {
+        // Upper triangle as stored; Matrix Market "symmetric" wants the lower one.
+        writeln!(f, "{} {} {:.17e}", t.col + 1, t.row + 1, t.val)?;
+    }
+    let mut f = std::io::BufWriter::new(std::fs::File::create(dir.join(format!("{name}.M.txt")))?);
+    for m in mass {
+        writeln!(f, "{m:.17e}")?;
+    }
+    Ok(())
+}
+
+fn main() {
+    let mut args: Vec<String> = std::env::args().skip(1).collect();
+    let mut take = |flag: &str| -> Option<String> {
+        let i = args.iter().position(|a| a == flag)?;
+        let v = args.get(i + 1).cloned();
+        args.drain(i..(i + 2).min(args.len()));
+        v
+    };
+    let max_frames: usize = take("--frames").and_then(|v| v.parse().ok()).unwrap_or(usize::MAX);
+    let bases: Vec<u32> = take("--bases")
+        .map(|v| v.split(',').filter_map(|x| x.parse().ok()).collect())
+        .unwrap_or_else(|| vec![4, 16, 50, 100, 200]);
+    let dump = take("--dump-laplacian");
+    let bits: u8 = take("--bits").and_then(|v| v.parse().ok()).unwrap_or(18);
+    let skip_stages = take("--no-stages").is_some();
+    let no_polar = take("--no-polar-at").map(|v| v.split(',').filter_map(|x| x.parse().ok()).collect::<Vec<u32>>());
+    let names = if args.is_empty() { vec!["horse-gallop".to_string()] } else { args };
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data");
+    if !root.exists() {
+        println!("SKIP: {} is absent", root.display());
+        return;
+    }
+    for name in names {
+        let dir = root.join(&name);
+        let (n, frames, pos) = match read_pc2(&dir.join(format!("{name}.pc2"))) {
+            Ok(x) => x,
+            Err(e) => {
+                println!("SKIP {name}: {e}");
+                continue;
+            }
+        };
+        let tris = read_obj_faces(&dir.join(format!("{name}.obj"))).expect("obj");
+        let f = frames.min(max_frames);
+        let anim = Animation::new(Topology::new(n, tris).expect("topology"), pos[..f * n * 3].to_vec(), 30.0)
+            .expect("animation");
+        println!("{name}: {n} vertices, {} triangles, {f} frames", anim.topology().triangle_count());
+        if let Some(d) = &dump {
+            dump_laplacian(&anim, Path::new(d), &name).expect("dump");
+            // The independent solver, timed in this same run (needs python3 + scipy).
+            let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/eigsh_bench.py");
+            match std::process::Command::new("python3").arg(&script).arg(d).arg(&name).arg("100").output() {
+                Ok(o) => print!("{}{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr)),
+                Err(e) => println!("  scipy comparison skipped: {e}"),
+            }
+        }
+        if skip_stages {
+        } else if let Err(e) = stage_times(&anim, 100) {
+            println!("  stage timing failed: {e}");
+        }
+        for qb in [8u8, 10, 12] {
+            if let Err(e) = baseline(&anim, qb) {
+                println!("  baseline: {e}");
+            }
+        }
+        for &b in &bases {
+            if let Err(e) = rate_point(&anim, SacParams { bases: b, bits, ..Default::default() }) {
+                println!("  bases {b}: {e}");
+            }
+        }
+        for &b in no_polar.as_deref().unwrap_or(&[16, 100]) {
+            if let Err(e) = rate_point(&anim, SacParams { bases: b, bits, polar: false, ..Default::default() }) {
+                println!("  bases {b} no polar: {e}");
+            }
+        }
+    }
+}

@@ -1,0 +1,255 @@
+use super::*;
+use codec_core::{decode_animation, decode_frame, encode_animation_fed, synth, CodecRegistry};
+
+fn params(p: SacParams) -> ParamSet {
+    p.to_param_set().unwrap()
+}
+
+/// Encodes frame by frame straight through the encoder, returning the packets.
+fn packets(anim: &Animation, p: SacParams) -> Vec<EncodedPacket> {
+    let setup = EncoderSetup {
+        topology: anim.topology(),
+        frame_count: anim.frame_count(),
+        frame_rate: 30.0,
+        want_reconstruction: true,
+    };
+    let mut enc = Sac.new_encoder(&params(p), &setup).unwrap();
+    let mut out = enc.push_frames(anim.positions()).unwrap();
+    out.extend(enc.finish().unwrap());
+    out
+}
+
+fn kinds(packets: &[EncodedPacket]) -> Vec<u8> {
+    packets.iter().map(|p| p.packet.data[0]).collect()
+}
+
+/// RMS coordinate error relative to the bounding-box diagonal.
+fn rel_rms(a: &Animation, b: &[f32]) -> f64 {
+    let mse = a.positions().iter().zip(b).map(|(&x, &y)| (x as f64 - y as f64).powi(2)).sum::<f64>()
+        / a.positions().len() as f64;
+    mse.sqrt() / a.bounding_box_diagonal()
+}
+
+fn kg(a: &Animation, b: &[f32]) -> f64 {
+    let n = a.vertex_count();
+    let (mut num, mut den) = (0.0, 0.0);
+    for (t, f) in a.frames().enumerate() {
+        let mut c = [0.0f64; 3];
+        for p in f.chunks_exact(3) {
+            for k in 0..3 {
+                c[k] += p[k] as f64 / n as f64;
+            }
+        }
+        for (i, &x) in f.iter().enumerate() {
+            num += (x as f64 - b[t * n * 3 + i] as f64).powi(2);
+            den += (x as f64 - c[i % 3]).powi(2);
+        }
+    }
+    100.0 * (num / den).sqrt()
+}
+
+#[test]
+fn rigid_tumbling_body_is_near_lossless_even_with_one_basis() {
+    // Paper §4.3/§4.4 (Vase): a rigid motion has constant gradient fields, which the first
+    // (constant) harmonic carries exactly.
+    let anim = synth::tumbling_body(24);
+    for bases in [1u32, 4] {
+        let pk = packets(&anim, SacParams { bases, ..Default::default() });
+        let k = kinds(&pk);
+        assert_eq!(k[0], KIND_I);
+        assert!(k[1..].iter().all(|&k| k == KIND_P), "bases {bases}: some frames needed a refresh: {k:?}");
+        let rec: Vec<f32> = pk.iter().flat_map(|p| p.reconstruction.clone().unwrap()).collect();
+        let e = rel_rms(&anim, &rec);
+        eprintln!("tumbling body, bases {bases}: relative RMS {e:.3e}, KG {:.3e}", kg(&anim, &rec));
+        // Frame 0 is quantized at 20 bits over its range (≈ 1e-6 of the diagonal); the rigid
+        // P-frames must not add more than a few times that.
+        assert!(e < 5e-6, "bases {bases}: relative RMS error {e}");
+        assert!(kg(&anim, &rec) < 1e-3, "bases {bases}: KG {}", kg(&anim, &rec));
+    }
+}
+
+#[test]
+fn round_trip_matches_encoder_and_does_not_depend_on_chunking() {
+    let registry = CodecRegistry::new(vec![Box::new(Sac)]).unwrap();
+    let cases = [
+        (synth::waving_flag(12, 9, 12), SacParams { bases: 16, ..Default::default() }),
+        (synth::bending_cylinder(8, 10, 10), SacParams { bases: 30, polar: false, ..Default::default() }),
+        (synth::bending_cylinder(8, 10, 10), SacParams { bases: 2, keyframe_interval: 4, ..Default::default() }),
+    ];
+    for (anim, p) in cases {
+        let ps = params(p);
+        let enc = encode_animation_fed(&Sac, &ps, &anim, true, 3).unwrap();
+        let dec = decode_animation(&enc.bytes, &registry, Limits::default()).unwrap();
+        assert_eq!(Some(&dec), enc.reconstruction.as_ref(), "{p:?}");
+        let once = encode_animation_fed(&Sac, &ps, &anim, false, 1000).unwrap();
+        assert_eq!(once.bytes, enc.bytes, "bytes depend on how frames are fed ({p:?})");
+        let bound = Sac.error_bound(&ps, &anim).unwrap().relative_rms_error.unwrap();
+        let e = rel_rms(&anim, dec.positions());
+        assert!(e <= bound, "{p:?}: relative RMS {e} > bound {bound}");
+    }
+}
+
+#[test]
+fn more_bases_reduce_error_on_smooth_deformation() {
+    let anim = synth::waving_flag(14, 10, 10);
+    let mut errors = Vec::new();
+    for bases in [2u32, 8, 40] {
+        let pk = packets(&anim, SacParams { bases, max_error: 1.0, ..Default::default() });
+        assert!(kinds(&pk)[1..].iter().all(|&k| k == KIND_P));
+        let rec: Vec<f32> = pk.iter().flat_map(|p| p.reconstruction.clone().unwrap()).collect();
+        errors.push(kg(&anim, &rec));
+    }
+    assert!(errors[0] > errors[1] && errors[1] > errors[2], "KG by bases 2/8/40: {errors:?}");
+}
+
+#[test]
+fn error_guard_inserts_refresh_frames() {
+    let anim = synth::waving_flag(12, 9, 10);
+    let p = SacParams { bases: 1, max_error: 1e-6, ..Default::default() };
+    let pk = packets(&anim, p);
+    assert!(kinds(&pk)[1..].iter().all(|&k| k == KIND_REFRESH), "{:?}", kinds(&pk));
+    let rec: Vec<f32> = pk.iter().flat_map(|p| p.reconstruction.clone().unwrap()).collect();
+    let bound = Sac.error_bound(&params(p), &anim).unwrap().relative_rms_error.unwrap();
+    assert!(rel_rms(&anim, &rec) <= bound);
+}
+
+#[test]
+fn random_access_from_keyframes() {
+    let registry = CodecRegistry::new(vec![Box::new(Sac)]).unwrap();
+    let anim = synth::bending_cylinder(6, 8, 11);
+    let ps = params(SacParams { bases: 12, keyframe_interval: 5, ..Default::default() });
+    let enc = encode_animation_fed(&Sac, &ps, &anim, true, 4).unwrap();
+    let full = decode_animation(&enc.bytes, &registry, Limits::default()).unwrap();
+    for t in [0usize, 4, 5, 7, 10] {
+        let f = decode_frame(&mut std::io::Cursor::new(&enc.bytes), &registry, Limits::default(), t).unwrap();
+        assert_eq!(f.as_slice(), full.frame(t), "frame {t}");
+    }
+}
+
+#[test]
+fn awkward_meshes_give_finite_output_within_the_bound() {
+    // Two separate triangles strips, a vertex in no triangle, a repeated-index triangle and a
+    // zero-area triangle.
+    let tris: Vec<[u32; 3]> =
+        vec![[0, 1, 2], [1, 3, 2], [4, 5, 6], [5, 7, 6], [0, 0, 1], [2, 3, 3], [8, 9, 10], [1, 3, 1]];
+    let n = 12;
+    let mut pos = Vec::new();
+    for t in 0..8 {
+        let s = t as f32 * 0.1;
+        let base: [[f32; 3]; 12] = [
+            [0., 0., 0.],
+            [1., 0., s],
+            [0., 1., 0.],
+            [1., 1., s * 0.5],
+            [3., 0., 0.],
+            [4., 0., 0.],
+            [3., 1., s],
+            [4., 1. + s, 0.],
+            [6., 0., 0.],
+            [7., 0., 0.],
+            [8., 0., 0.], // collinear: zero area
+            [5., 5., s],  // in no triangle
+        ];
+        pos.extend(base.iter().flatten());
+    }
+    let anim = Animation::new(Topology::new(n, tris).unwrap(), pos, 30.0).unwrap();
+    let registry = CodecRegistry::new(vec![Box::new(Sac)]).unwrap();
+    let ps = params(SacParams { bases: 4, ..Default::default() });
+    let enc = encode_animation_fed(&Sac, &ps, &anim, true, 2).unwrap();
+    let dec = decode_animation(&enc.bytes, &registry, Limits::default()).unwrap();
+    assert_eq!(Some(&dec), enc.reconstruction.as_ref());
+    assert!(dec.positions().iter().all(|x| x.is_finite()));
+    let bound = Sac.error_bound(&ps, &anim).unwrap().relative_rms_error.unwrap();
+    assert!(rel_rms(&anim, dec.positions()) <= bound);
+}
+
+#[test]
+fn corrupt_streams_fail_cleanly() {
+    let anim = synth::waving_flag(6, 5, 5);
+    let ps = params(SacParams { bases: 8, ..Default::default() });
+    let setup = EncoderSetup {
+        topology: anim.topology(),
+        frame_count: anim.frame_count(),
+        frame_rate: 30.0,
+        want_reconstruction: false,
+    };
+    let mut enc = Sac.new_encoder(&ps, &setup).unwrap();
+    let pk = enc.push_frames(anim.positions()).unwrap();
+    let info = StreamInfo {
+        fourcc: Sac.fourcc(),
+        codec_version: 1,
+        topology: anim.topology().clone(),
+        frame_count: anim.frame_count(),
+        frame_rate: 30.0,
+    };
+    let config = enc.config();
+    for cut in 0..config.len() {
+        assert!(Sac.new_decoder(&info, &config[..cut], &Limits::default()).is_err());
+    }
+    let mut state = 7u64;
+    for trial in 0..300 {
+        let mut dec = Sac.new_decoder(&info, &config, &Limits::default()).unwrap();
+        for (i, p) in pk.iter().enumerate() {
+            let mut p = p.packet.clone();
+            if i == trial % pk.len() {
+                state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                if trial % 3 == 0 {
+                    p.data.truncate((state >> 33) as usize % p.data.len());
+                } else {
+                    let at = (state >> 33) as usize % p.data.len();
+                    p.data[at] ^= (state >> 20) as u8 | 1;
+                }
+            }
+            match dec.decode_packet(&p) {
+                Ok(f) => assert!(f.len() == anim.vertex_count() * 3 && f.iter().all(|x| x.is_finite())),
+                Err(_) => break,
+            }
+        }
+    }
+    // A P-frame first is an error, not a panic.
+    let mut dec = Sac.new_decoder(&info, &config, &Limits::default()).unwrap();
+    assert!(dec.decode_packet(&pk[1].packet).is_err());
+}
+
+#[test]
+fn parameters_are_validated_with_ranges() {
+    let e = SacParams { bases: 0, ..Default::default() }.validate().unwrap_err().to_string();
+    assert!(e.contains("sac") && e.contains("bases") && e.contains("1..=1000"), "{e}");
+    let e = SacParams { bits: 31, ..Default::default() }.validate().unwrap_err().to_string();
+    assert!(e.contains("bits") && e.contains("4..=30"), "{e}");
+    assert_eq!(SacParams::from_param_set(&Sac.default_params()).unwrap(), SacParams::default());
+    for step in Sac.rate_ladder().steps {
+        let mut p = Sac.default_params();
+        p.set(&Sac.param_specs(), "bases", step).unwrap();
+        Sac.validate(&p).unwrap();
+    }
+}
+
+#[test]
+fn bytes_do_not_depend_on_the_thread_count() {
+    let anim = synth::bending_cylinder(10, 12, 6);
+    let ps = params(SacParams { bases: 40, ..Default::default() });
+    let run = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        pool.install(|| encode_animation_fed(&Sac, &ps, &anim, false, 2).unwrap().bytes)
+    };
+    assert_eq!(run(1), run(3));
+}
+
+#[test]
+fn rate_ladder_streams_grow_on_synthetic_data() {
+    for name in ["flag", "cylinder"] {
+        let anim = synth::by_name(name, synth::SynthSize::Small).unwrap();
+        let frames = anim.frame_count().min(12);
+        let n3 = anim.vertex_count() * 3;
+        let anim = Animation::new(anim.topology().clone(), anim.positions()[..frames * n3].to_vec(), 30.0).unwrap();
+        let mut last = 0usize;
+        for step in Sac.rate_ladder().steps {
+            let mut p = Sac.default_params();
+            p.set(&Sac.param_specs(), "bases", step.clone()).unwrap();
+            let size = encode_animation_fed(&Sac, &p, &anim, false, frames).unwrap().bytes.len();
+            assert!(size >= last, "{name}: bases {step} gives {size} bytes, fewer than the previous step's {last}");
+            last = size;
+        }
+    }
+}

@@ -1,0 +1,665 @@
+//! The spatio-temporal segmentation of §4.1–4.3 and the sequential driver of §4.5.
+//!
+//! Frames are handled as frame-major `f32` slices (`frames × vertices × 3`) whose frame 0 is
+//! the first frame of the current (not yet coded) block.
+
+use codec_core::{Animation, Result, Topology};
+use faer::Mat;
+use rayon::prelude::*;
+
+use crate::linalg::{double_center, gram, pcs_for_persistence, sym_eig_desc, sym_eigvals_desc};
+use crate::StsegParams;
+
+/// Most principal components a vertex group keeps while grouping rigid clusters (Alg. 1).
+/// The paper does not say; a small cap keeps Eq. 4 a subspace fit rather than a copy.
+const MAX_GROUP_PCS: usize = 8;
+/// Most iterations of Alg. 1 (it stops earlier when the labels stop changing).
+const MAX_GROUPING_ITERATIONS: usize = 30;
+/// Amplitude, relative to the first frame's bounding-box diagonal, below which motion is
+/// treated as none (f32 positions carry ~6e-8 relative noise).
+pub(crate) const NEGLIGIBLE_AMPLITUDE: f64 = 1e-6;
+
+/// How a block was cut, following the four cases of §4.5 / Fig. 2.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum BlockKind {
+    /// (I) The initial cut found no distinct behaviour in `gamma_init` frames: one group.
+    NoCut = 1,
+    /// (II) New vertex clustering; a temporal boundary was detected before `gamma_max`.
+    Detected = 2,
+    /// (III) New vertex clustering; no boundary within `gamma_max` frames.
+    MaxLength = 3,
+    /// (IV) The previous block's grouping was reused (the previous block was (III) or (IV)).
+    Reused = 4,
+}
+
+impl BlockKind {
+    /// The case number of §4.5 (1..=4).
+    pub fn case(self) -> u8 {
+        self as u8
+    }
+    pub(crate) fn from_case(c: u8) -> Option<Self> {
+        Some(match c {
+            1 => Self::NoCut,
+            2 => Self::Detected,
+            3 => Self::MaxLength,
+            4 => Self::Reused,
+            _ => return None,
+        })
+    }
+}
+
+/// One temporal segment (one packet) and its vertex grouping.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Segment {
+    /// First frame of the segment.
+    pub first_frame: usize,
+    /// Number of frames.
+    pub frame_count: usize,
+    /// Which case of §4.5 produced it.
+    pub kind: BlockKind,
+    /// True when the segment ends at a boundary detected by a change in a group's number of
+    /// principal components (Alg. 2); false when it ends at `gamma_init`, `gamma_max` or the
+    /// end of the animation.
+    pub detected_boundary: bool,
+    /// Window length used by Alg. 2 (the initial-cut length `|τ_init|`), if a grouping was used.
+    pub window: Option<usize>,
+    /// Number of vertex groups.
+    pub group_count: usize,
+    /// Group label of every vertex (`0 .. group_count`).
+    pub labels: Vec<u8>,
+}
+
+/// The segmentation of a whole animation, as the encoder makes it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Segmentation {
+    /// Segments in frame order; they tile the animation.
+    pub segments: Vec<Segment>,
+}
+
+impl Segmentation {
+    /// First frames of every segment but the first (all temporal boundaries).
+    pub fn boundaries(&self) -> Vec<usize> {
+        self.segments.iter().skip(1).map(|s| s.first_frame).collect()
+    }
+
+    /// Boundaries detected by Alg. 2 (the frame after each segment with `detected_boundary`).
+    pub fn detected_boundaries(&self) -> Vec<usize> {
+        self.segments.iter().filter(|s| s.detected_boundary).map(|s| s.first_frame + s.frame_count).collect()
+    }
+
+    /// The segmentation as JSON: `{"segments": [{"first_frame", "frame_count", "case",
+    /// "detected_boundary", "window", "group_count", "labels": [...]}, ...],
+    /// "boundaries": [...], "detected_boundaries": [...]}`.
+    pub fn to_json(&self) -> String {
+        let list = |v: &[usize]| v.iter().map(|b| b.to_string()).collect::<Vec<_>>().join(",");
+        let segs: Vec<String> = self
+            .segments
+            .iter()
+            .map(|s| {
+                format!(
+                    "{{\"first_frame\":{},\"frame_count\":{},\"case\":{},\"detected_boundary\":{},\"window\":{},\
+                     \"group_count\":{},\"labels\":[{}]}}",
+                    s.first_frame,
+                    s.frame_count,
+                    s.kind.case(),
+                    s.detected_boundary,
+                    s.window.map_or("null".to_string(), |w| w.to_string()),
+                    s.group_count,
+                    s.labels.iter().map(|l| l.to_string()).collect::<Vec<_>>().join(",")
+                )
+            })
+            .collect();
+        format!(
+            "{{\"segments\":[{}],\"boundaries\":[{}],\"detected_boundaries\":[{}]}}",
+            segs.join(","),
+            list(&self.boundaries()),
+            list(&self.detected_boundaries())
+        )
+    }
+}
+
+/// Runs the encoder's segmentation (§4.1–4.3, §4.5) over a whole animation: per-vertex
+/// group labels and temporal boundaries, exactly as [`crate::Stseg`] codes them.
+pub fn segment_animation(animation: &Animation, params: &StsegParams) -> Result<Segmentation> {
+    params.validate()?;
+    let mut seg = Segmenter::new(*params, animation.topology());
+    let n3 = animation.vertex_count() * 3;
+    let total = animation.frame_count();
+    let mut start = 0;
+    let mut segments = Vec::new();
+    while start < total {
+        let rest = &animation.positions()[start * n3..];
+        let s = seg.next(rest, total - start, start)?.expect("all frames are available");
+        start += s.frame_count;
+        segments.push(s);
+    }
+    Ok(Segmentation { segments })
+}
+
+/// Mesh adjacency (CSR) and unique edges.
+#[derive(Debug, Clone)]
+pub(crate) struct MeshGraph {
+    pub edges: Vec<[u32; 2]>,
+    offsets: Vec<usize>,
+    neighbours: Vec<u32>,
+}
+
+impl MeshGraph {
+    pub fn new(topology: &Topology) -> Self {
+        let v = topology.vertex_count();
+        let mut edges: Vec<[u32; 2]> = Vec::with_capacity(topology.triangle_count() * 3);
+        for t in topology.triangles() {
+            for (a, b) in [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])] {
+                if a != b {
+                    edges.push([a.min(b), a.max(b)]);
+                }
+            }
+        }
+        edges.sort_unstable();
+        edges.dedup();
+        let mut deg = vec![0usize; v + 1];
+        for e in &edges {
+            deg[e[0] as usize] += 1;
+            deg[e[1] as usize] += 1;
+        }
+        let mut offsets = vec![0usize; v + 1];
+        for i in 0..v {
+            offsets[i + 1] = offsets[i] + deg[i];
+        }
+        let mut fill = offsets.clone();
+        let mut neighbours = vec![0u32; offsets[v]];
+        for e in &edges {
+            neighbours[fill[e[0] as usize]] = e[1];
+            fill[e[0] as usize] += 1;
+            neighbours[fill[e[1] as usize]] = e[0];
+            fill[e[1] as usize] += 1;
+        }
+        for i in 0..v {
+            neighbours[offsets[i]..offsets[i + 1]].sort_unstable();
+        }
+        Self { edges, offsets, neighbours }
+    }
+
+    pub fn vertex_count(&self) -> usize {
+        self.offsets.len() - 1
+    }
+
+    pub fn neighbours(&self, v: usize) -> &[u32] {
+        &self.neighbours[self.offsets[v]..self.offsets[v + 1]]
+    }
+
+    /// `members` (sorted) grown by `eta` rings of neighbours, sorted (§4.4 boundary consistency).
+    pub fn grow_rings(&self, members: &[u32], eta: usize) -> Vec<u32> {
+        let mut inside = vec![false; self.vertex_count()];
+        for &m in members {
+            inside[m as usize] = true;
+        }
+        let mut frontier: Vec<u32> = members.to_vec();
+        for _ in 0..eta {
+            let mut next = Vec::new();
+            for &f in &frontier {
+                for &n in self.neighbours(f as usize) {
+                    if !inside[n as usize] {
+                        inside[n as usize] = true;
+                        next.push(n);
+                    }
+                }
+            }
+            frontier = next;
+        }
+        (0..self.vertex_count() as u32).filter(|&i| inside[i as usize]).collect()
+    }
+}
+
+/// Bounding-box diagonal of one frame.
+pub(crate) fn frame_diagonal(frame: &[f32]) -> f64 {
+    let (lo, hi) = codec_core::animation::bounding_box(frame);
+    (0..3).map(|a| (hi[a] as f64 - lo[a] as f64).powi(2)).sum::<f64>().sqrt()
+}
+
+/// A reusable vertex grouping (kept across blocks in cases III/IV).
+#[derive(Debug, Clone)]
+struct Grouping {
+    labels: Vec<u8>,
+    group_count: usize,
+    window: usize,
+}
+
+/// The sequential segmentation state machine of §4.5.
+pub(crate) struct Segmenter {
+    params: StsegParams,
+    graph: MeshGraph,
+    grouping: Option<Grouping>,
+}
+
+impl Segmenter {
+    pub fn new(params: StsegParams, topology: &Topology) -> Self {
+        Self { params, graph: MeshGraph::new(topology), grouping: None }
+    }
+
+    /// Decides the next segment from the buffered frames (`buf`, starting at the first
+    /// uncoded frame, absolute index `first_frame`) when `remaining` frames are still to come
+    /// in total. Returns `None` when more frames are needed: the decision always looks at
+    /// exactly `min(gamma_max, remaining)` frames, so it never depends on how frames arrive.
+    pub fn next(&mut self, buf: &[f32], remaining: usize, first_frame: usize) -> Result<Option<Segment>> {
+        let v = self.graph.vertex_count();
+        let n3 = v * 3;
+        let buffered = buf.len() / n3;
+        let p = self.params;
+        let need = (p.gamma_max as usize).min(remaining);
+        if buffered < need || need == 0 {
+            return Ok(None);
+        }
+        let frames = &buf[..need * n3];
+        let scale = frame_diagonal(&frames[..n3]).max(f64::MIN_POSITIVE);
+        let (grouping, fresh) = match self.grouping.take() {
+            Some(g) => (g, false),
+            None => {
+                let n_cut = (p.gamma_init as usize).min(need);
+                match initial_cut(&frames[..n_cut * n3], v, p.w as usize, p.lambda, p.cut_threshold) {
+                    None => {
+                        // Case (I): the whole initial range goes to the compressor as one group.
+                        return Ok(Some(Segment {
+                            first_frame,
+                            frame_count: n_cut,
+                            kind: BlockKind::NoCut,
+                            detected_boundary: false,
+                            window: None,
+                            group_count: 1,
+                            labels: vec![0; v],
+                        }));
+                    }
+                    Some(window) => {
+                        let (labels, group_count) = cluster_vertices(&self.graph, &frames[..window * n3], &p)?;
+                        (Grouping { labels, group_count, window }, true)
+                    }
+                }
+            }
+        };
+        let change = temporal_segmentation(frames, &grouping, p.omega_seg, scale)?;
+        let (frame_count, detected) = match change {
+            Some(b) => (b, true),
+            None => (need, false),
+        };
+        let kind = match (fresh, detected) {
+            (false, _) => BlockKind::Reused,
+            (true, true) => BlockKind::Detected,
+            (true, false) => BlockKind::MaxLength,
+        };
+        let seg = Segment {
+            first_frame,
+            frame_count,
+            kind,
+            detected_boundary: detected,
+            window: Some(grouping.window),
+            group_count: grouping.group_count,
+            labels: grouping.labels.clone(),
+        };
+        // §4.5: after a detected boundary everything is recomputed; otherwise the grouping is
+        // reused for the next block (case IV).
+        if !detected {
+            self.grouping = Some(grouping);
+        }
+        Ok(Some(seg))
+    }
+}
+
+/// Initial temporal cut (§4.1, Eq. 2–3) over `frames` (n frames). Returns `|τ_init| = b + w`,
+/// or `None` when no distinct behaviour is found (case I).
+///
+/// Window `i` is the trajectory of every vertex over frames `i .. i + w`, taken relative to
+/// its first frame (so windows compare motion, not where the mesh happens to be). The kernel
+/// of Eq. 3 is `exp(−λ·d²/s)` with `s` the median pairwise squared distance (so `λ` does not
+/// depend on the mesh scale). The score is the maximum-mean-discrepancy estimate
+/// `H1 − 2·H2 + H3` with within-side averages over distinct pairs; the best split must exceed
+/// `threshold` to count as a cut.
+pub(crate) fn initial_cut(frames: &[f32], v: usize, w: usize, lambda: f64, threshold: f64) -> Option<usize> {
+    let n3 = v * 3;
+    let n = frames.len() / n3;
+    if n < w + 4 {
+        return None;
+    }
+    let nw = n - w + 1;
+    let x = |t: usize, i: usize| frames[t * n3 + i] as f64;
+    let mut d2 = vec![0.0f64; nw * nw];
+    for i in 0..nw {
+        for j in i + 1..nw {
+            let mut s = 0.0;
+            for k in 1..w {
+                for c in 0..n3 {
+                    let a = x(i + k, c) - x(i, c);
+                    let b = x(j + k, c) - x(j, c);
+                    s += (a - b) * (a - b);
+                }
+            }
+            d2[i * nw + j] = s;
+            d2[j * nw + i] = s;
+        }
+    }
+    let mut off: Vec<f64> =
+        (0..nw).flat_map(|i| (i + 1..nw).map(move |j| (i, j))).map(|(i, j)| d2[i * nw + j]).collect();
+    off.sort_by(f64::total_cmp);
+    let max = *off.last()?;
+    if max <= 0.0 {
+        return None;
+    }
+    let mut s = off[off.len() / 2];
+    if s <= 0.0 {
+        let pos: Vec<f64> = off.iter().copied().filter(|&d| d > 0.0).collect();
+        s = pos.iter().sum::<f64>() / pos.len() as f64;
+    }
+    let k: Vec<f64> = d2.iter().map(|&d| (-lambda * d / s).exp()).collect();
+    let mut best: Option<(usize, f64)> = None;
+    for b in 2..=nw - 2 {
+        let (n1, n2) = (b as f64, (nw - b) as f64);
+        let (mut h1, mut h2, mut h3) = (0.0, 0.0, 0.0);
+        for i in 0..nw {
+            for j in 0..nw {
+                if i == j {
+                    continue;
+                }
+                let kv = k[i * nw + j];
+                match (i < b, j < b) {
+                    (true, true) => h1 += kv,
+                    (false, false) => h3 += kv,
+                    (true, false) => h2 += kv,
+                    (false, true) => {}
+                }
+            }
+        }
+        let mmd = h1 / (n1 * (n1 - 1.0)) - 2.0 * h2 / (n1 * n2) + h3 / (n2 * (n2 - 1.0));
+        if best.is_none_or(|(_, m)| mmd > m) {
+            best = Some((b, mmd));
+        }
+    }
+    let (b, mmd) = best?;
+    (mmd > threshold).then_some(b + w)
+}
+
+/// Per-vertex trajectories over `frames`, each minus its temporal mean (`V × 3n`, row-major).
+fn centered_trajectories(frames: &[f32], v: usize) -> (Vec<f64>, usize) {
+    let n3 = v * 3;
+    let n = frames.len() / n3;
+    let d = 3 * n;
+    let mut y = vec![0.0f64; v * d];
+    for vi in 0..v {
+        for c in 0..3 {
+            let mean = (0..n).map(|t| frames[t * n3 + vi * 3 + c] as f64).sum::<f64>() / n as f64;
+            for t in 0..n {
+                y[vi * d + t * 3 + c] = frames[t * n3 + vi * 3 + c] as f64 - mean;
+            }
+        }
+    }
+    (y, d)
+}
+
+fn dist2(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| (x - y) * (x - y)).sum()
+}
+
+/// Two-stage vertex clustering (§4.2) on the initial-cut frames: rigid clusters from the
+/// maximal edge-length change, grown over deformed vertices, then grouped by clustered PCA
+/// (Alg. 1). Returns per-vertex group labels and the number of groups.
+pub(crate) fn cluster_vertices(graph: &MeshGraph, frames: &[f32], p: &StsegParams) -> Result<(Vec<u8>, usize)> {
+    let v = graph.vertex_count();
+    let n3 = v * 3;
+    let n = frames.len() / n3;
+    let (y, d) = centered_trajectories(frames, v);
+    let traj = |i: usize| &y[i * d..(i + 1) * d];
+
+    // Maximal edge-length change, relative to the edge's mean length so that the rigidity
+    // test does not depend on local mesh density.
+    let mec: Vec<f64> = graph
+        .edges
+        .iter()
+        .map(|e| {
+            let (a, b) = (e[0] as usize * 3, e[1] as usize * 3);
+            let (mut lo, mut hi, mut sum) = (f64::INFINITY, f64::NEG_INFINITY, 0.0);
+            for t in 0..n {
+                let f = &frames[t * n3..];
+                let l = (0..3).map(|c| (f[a + c] as f64 - f[b + c] as f64).powi(2)).sum::<f64>().sqrt();
+                lo = lo.min(l);
+                hi = hi.max(l);
+                sum += l;
+            }
+            let mean = sum / n as f64;
+            if mean > 0.0 {
+                (hi - lo) / mean
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    // Exponential fit (maximum likelihood: rate = 1/mean); its inverse CDF at ρ gives the
+    // rigidity threshold.
+    let mean_mec = mec.iter().sum::<f64>() / mec.len().max(1) as f64;
+    let threshold = -(1.0 - p.rho).ln() * mean_mec;
+
+    // Rigid regions: connected components of the rigid edges (union-find).
+    let mut parent: Vec<usize> = (0..v).collect();
+    fn find(parent: &mut [usize], mut i: usize) -> usize {
+        while parent[i] != i {
+            parent[i] = parent[parent[i]];
+            i = parent[i];
+        }
+        i
+    }
+    let mut rigid = vec![false; v];
+    for (e, &m) in graph.edges.iter().zip(&mec) {
+        if m <= threshold {
+            let (a, b) = (e[0] as usize, e[1] as usize);
+            rigid[a] = true;
+            rigid[b] = true;
+            let (ra, rb) = (find(&mut parent, a), find(&mut parent, b));
+            if ra != rb {
+                parent[ra.max(rb)] = ra.min(rb);
+            }
+        }
+    }
+    const NONE: usize = usize::MAX;
+    let mut cluster = vec![NONE; v];
+    let mut root_to_cluster = vec![NONE; v];
+    let mut count = 0usize;
+    for i in 0..v {
+        if rigid[i] {
+            let r = find(&mut parent, i);
+            if root_to_cluster[r] == NONE {
+                root_to_cluster[r] = count;
+                count += 1;
+            }
+            cluster[i] = root_to_cluster[r];
+        }
+    }
+    let mut sums: Vec<Vec<f64>> = vec![vec![0.0; d]; count];
+    let mut sizes = vec![0usize; count];
+    for i in 0..v {
+        if cluster[i] != NONE {
+            sizes[cluster[i]] += 1;
+            sums[cluster[i]].iter_mut().zip(traj(i)).for_each(|(s, x)| *s += x);
+        }
+    }
+    // Rigid cluster growing: wave by wave, each deformed vertex next to a cluster joins the
+    // adjacent cluster whose centre trajectory is closest; centres are updated after each wave.
+    loop {
+        let mut wave: Vec<(usize, usize)> = Vec::new();
+        for i in 0..v {
+            if cluster[i] != NONE {
+                continue;
+            }
+            let mut best: Option<(usize, f64)> = None;
+            for &nb in graph.neighbours(i) {
+                let c = cluster[nb as usize];
+                if c == NONE {
+                    continue;
+                }
+                let centre: Vec<f64> = sums[c].iter().map(|s| s / sizes[c] as f64).collect();
+                let dd = dist2(traj(i), &centre);
+                if best.is_none_or(|(bc, bd)| dd < bd || (dd == bd && c < bc)) {
+                    best = Some((c, dd));
+                }
+            }
+            if let Some((c, _)) = best {
+                wave.push((i, c));
+            }
+        }
+        if wave.is_empty() {
+            // A part with no rigid edge at all: seed a new cluster at its lowest vertex.
+            match (0..v).find(|&i| cluster[i] == NONE) {
+                None => break,
+                Some(i) => {
+                    wave.push((i, count));
+                    sums.push(vec![0.0; d]);
+                    sizes.push(0);
+                    count += 1;
+                }
+            }
+        }
+        for (i, c) in wave {
+            cluster[i] = c;
+            sizes[c] += 1;
+            sums[c].iter_mut().zip(traj(i)).for_each(|(s, x)| *s += x);
+        }
+    }
+    let members: Vec<Vec<usize>> = {
+        let mut m = vec![Vec::new(); count];
+        for i in 0..v {
+            m[cluster[i]].push(i);
+        }
+        m
+    };
+    let centres: Vec<Vec<f64>> = (0..count).map(|c| sums[c].iter().map(|s| s / sizes[c] as f64).collect()).collect();
+
+    // Alg. 1, rigid cluster grouping. Seeds: the largest cluster, then farthest-point on the
+    // cluster centres (the paper takes "the first N_g clusters"; this makes the seeds distinct).
+    let ng = (p.groups as usize).min(count);
+    let mut seeds = vec![(0..count).max_by_key(|&c| (sizes[c], std::cmp::Reverse(c))).unwrap_or(0)];
+    while seeds.len() < ng {
+        let far = (0..count)
+            .filter(|c| !seeds.contains(c))
+            .map(|c| (c, seeds.iter().map(|&s| dist2(&centres[c], &centres[s])).fold(f64::INFINITY, f64::min)))
+            .max_by(|a, b| a.1.total_cmp(&b.1).then(b.0.cmp(&a.0)));
+        match far {
+            Some((c, dd)) if dd > 0.0 => seeds.push(c),
+            _ => break,
+        }
+    }
+    let mut label: Vec<usize> = vec![usize::MAX; count];
+    for (g, &s) in seeds.iter().enumerate() {
+        label[s] = g;
+    }
+    let negligible = |rows: usize| (NEGLIGIBLE_AMPLITUDE * frame_diagonal(&frames[..n3])).powi(2) * rows as f64;
+    let model = |vertices: &mut dyn Iterator<Item = usize>| -> Result<Option<(Vec<f64>, Mat<f64>)>> {
+        let list: Vec<usize> = vertices.collect();
+        if list.is_empty() {
+            return Ok(None);
+        }
+        let mut centre = vec![0.0; d];
+        for &i in &list {
+            centre.iter_mut().zip(traj(i)).for_each(|(c, x)| *c += x);
+        }
+        centre.iter_mut().for_each(|c| *c /= list.len() as f64);
+        let ym = Mat::from_fn(list.len(), d, |r, c| traj(list[r])[c] - centre[c]);
+        let (vals, vecs) = sym_eig_desc(gram(ym.as_ref()).as_ref(), "group PCA")?;
+        let k = pcs_for_persistence(&vals, p.omega_seg, negligible(list.len())).min(MAX_GROUP_PCS);
+        Ok(Some((centre, vecs.subcols(0, k).to_owned())))
+    };
+    let mut models: Vec<Option<(Vec<f64>, Mat<f64>)>> =
+        seeds.iter().map(|&s| model(&mut members[s].iter().copied())).collect::<Result<_>>()?;
+    for _ in 0..MAX_GROUPING_ITERATIONS {
+        let prev = label.clone();
+        for c in 0..count {
+            let mut best: Option<(usize, f64)> = None;
+            for (g, m) in models.iter().enumerate() {
+                let Some((centre, basis)) = m else { continue };
+                // Eq. 4: squared reconstruction error of the cluster with the group's PCA.
+                let mut err = 0.0;
+                for &i in &members[c] {
+                    let r: Vec<f64> = traj(i).iter().zip(centre).map(|(x, m)| x - m).collect();
+                    let mut e = r.iter().map(|x| x * x).sum::<f64>();
+                    for j in 0..basis.ncols() {
+                        let proj: f64 = (0..d).map(|q| basis[(q, j)] * r[q]).sum();
+                        e -= proj * proj;
+                    }
+                    err += e.max(0.0);
+                }
+                if best.is_none_or(|(_, be)| err < be) {
+                    best = Some((g, err));
+                }
+            }
+            label[c] = best.map_or(0, |b| b.0);
+        }
+        if label == prev {
+            break;
+        }
+        models = (0..models.len())
+            .map(|g| model(&mut (0..count).filter(|&c| label[c] == g).flat_map(|c| members[c].iter().copied())))
+            .collect::<Result<_>>()?;
+    }
+    // Compact the labels (empty groups vanish) in order of each group's lowest vertex.
+    let mut remap = vec![usize::MAX; models.len()];
+    let mut next = 0;
+    let mut out = vec![0u8; v];
+    for i in 0..v {
+        let g = label[cluster[i]];
+        if remap[g] == usize::MAX {
+            remap[g] = next;
+            next += 1;
+        }
+        out[i] = remap[g] as u8;
+    }
+    Ok((out, next.max(1)))
+}
+
+/// Temporal segmentation (§4.3, Alg. 2): slides a window of the initial-cut length `L` over
+/// `frames`, starting right after the reference window `[0, L)` (Alg. 2 line 5), and returns
+/// the first window start `i ≥ L` at which any group's number of principal components (at
+/// persistence ω) differs from the reference window's, i.e. the boundary `b = i`.
+/// `None` when the count never changes within `frames` (`gamma_max` reached). Groups are
+/// independent and run in parallel; the earliest change wins, so the result does not depend
+/// on scheduling.
+fn temporal_segmentation(frames: &[f32], g: &Grouping, omega: f64, scale: f64) -> Result<Option<usize>> {
+    let v = g.labels.len();
+    let n3 = v * 3;
+    let n = frames.len() / n3;
+    let win = g.window;
+    if 2 * win > n {
+        return Ok(None);
+    }
+    let per_group: Vec<Result<Option<usize>>> = (0..g.group_count)
+        .into_par_iter()
+        .map(|grp| {
+            let verts: Vec<usize> = (0..v).filter(|&i| g.labels[i] as usize == grp).collect();
+            if verts.is_empty() {
+                return Ok(None);
+            }
+            // Rows: the group's coordinates, relative to frame 0 (centring is shift-invariant;
+            // this keeps the Gram entries small). One Gram matrix serves every window.
+            let x = Mat::from_fn(verts.len() * 3, n, |r, t| {
+                let i = verts[r / 3] * 3 + r % 3;
+                frames[t * n3 + i] as f64 - frames[i] as f64
+            });
+            let full = gram(x.as_ref());
+            let negligible = (NEGLIGIBLE_AMPLITUDE * scale).powi(2) * (verts.len() * 3 * win) as f64;
+            let count = |start: usize| -> Result<usize> {
+                let mut w = full.submatrix(start, start, win, win).to_owned();
+                double_center(&mut w);
+                Ok(pcs_for_persistence(&sym_eigvals_desc(w.as_ref(), "window PCA")?, omega, negligible))
+            };
+            let reference = count(0)?;
+            // Alg. 2 line 5: the scan starts right after the reference window.
+            for i in win..=n.saturating_sub(win) {
+                if count(i)? != reference {
+                    return Ok(Some(i));
+                }
+            }
+            Ok(None)
+        })
+        .collect();
+    let mut best: Option<usize> = None;
+    for r in per_group {
+        if let Some(i) = r? {
+            best = Some(best.map_or(i, |b| b.min(i)));
+        }
+    }
+    Ok(best)
+}

@@ -1,0 +1,211 @@
+use super::*;
+use codec_core::{decode_animation, encode_animation_fed, synth, CodecRegistry};
+
+fn registry() -> CodecRegistry {
+    CodecRegistry::new(vec![Box::new(Stseg)]).unwrap()
+}
+
+fn rel_rms(a: &Animation, b: &Animation) -> f64 {
+    let se: f64 = a.positions().iter().zip(b.positions()).map(|(x, y)| (*x as f64 - *y as f64).powi(2)).sum();
+    (se / a.positions().len() as f64).sqrt() / a.bounding_box_diagonal()
+}
+
+/// §4.5 sequential processing on a sequence whose motion changes character at known frames:
+/// every true boundary has a detected (Alg. 2) boundary within `w` frames, and the segments
+/// tile the animation. Extra boundaries inside the oscillating phases are allowed (see README).
+#[test]
+fn detected_boundaries_land_within_w_of_the_truth() {
+    let p = StsegParams::default();
+    for frames in [200usize, 400] {
+        let (anim, truth) = synth::phased_motion(frames);
+        let s = segment_animation(&anim, &p).unwrap();
+        let mut next = 0;
+        for seg in &s.segments {
+            assert_eq!(seg.first_frame, next);
+            assert!(seg.frame_count >= 1 && seg.frame_count <= p.gamma_max as usize);
+            assert_eq!(seg.labels.len(), anim.vertex_count());
+            assert!(seg.labels.iter().all(|&l| (l as usize) < seg.group_count));
+            next += seg.frame_count;
+        }
+        assert_eq!(next, frames);
+        let detected = s.detected_boundaries();
+        for &b in &truth {
+            let nearest = detected.iter().map(|&d| d.abs_diff(b)).min().unwrap_or(usize::MAX);
+            assert!(nearest <= p.w as usize, "F={frames}: truth {b}, detected {detected:?}");
+        }
+        // The spatial segmentation found more than one group somewhere (the tube's parts move
+        // differently in the bending phases).
+        assert!(s.segments.iter().any(|g| g.group_count > 1));
+        let json = s.to_json();
+        assert!(json.starts_with("{\"segments\":[") && json.contains("\"detected_boundaries\":["));
+    }
+}
+
+#[test]
+fn packets_are_the_segments_and_round_trip_matches_reconstruction_and_bound() {
+    let (anim, _) = synth::phased_motion_sized(8, 8, 150);
+    let reg = registry();
+    let params = StsegParams::default();
+    let ps = params.to_param_set().unwrap();
+    let enc = encode_animation_fed(&Stseg, &ps, &anim, true, 7).unwrap();
+    let dec = decode_animation(&enc.bytes, &reg, Limits::default()).unwrap();
+    assert_eq!(Some(&dec), enc.reconstruction.as_ref());
+    let all_at_once = encode_animation_fed(&Stseg, &ps, &anim, false, 1000).unwrap();
+    assert_eq!(all_at_once.bytes, enc.bytes, "bytes depend on how frames are fed");
+    let bound = Stseg.error_bound(&ps, &anim).unwrap().relative_rms_error.unwrap();
+    let err = rel_rms(&anim, &dec);
+    assert!(err <= bound, "error {err} > bound {bound}");
+    // One packet per segment.
+    let seg = segment_animation(&anim, &params).unwrap();
+    let mut sd = codec_core::StreamDecoder::new(&enc.bytes[..], &reg, Limits::default()).unwrap();
+    let mut ranges = Vec::new();
+    while let Some(p) = sd.next_packet() {
+        let p = p.unwrap();
+        ranges.push((p.first_frame, p.frame_count));
+    }
+    let want: Vec<(usize, usize)> = seg.segments.iter().map(|s| (s.first_frame, s.frame_count)).collect();
+    assert_eq!(ranges, want);
+}
+
+#[test]
+fn higher_omega_costs_more_and_errs_less() {
+    let (anim, _) = synth::phased_motion_sized(8, 8, 120);
+    let reg = registry();
+    let mut last: Option<(usize, f64)> = None;
+    for omega in [0.9, 0.99, 0.9999] {
+        let ps = StsegParams { omega, ..Default::default() }.to_param_set().unwrap();
+        let enc = encode_animation_fed(&Stseg, &ps, &anim, true, 13).unwrap();
+        let dec = decode_animation(&enc.bytes, &reg, Limits::default()).unwrap();
+        assert_eq!(Some(&dec), enc.reconstruction.as_ref());
+        let err = rel_rms(&anim, &dec);
+        let bound = Stseg.error_bound(&ps, &anim).unwrap().relative_rms_error.unwrap();
+        assert!(err <= bound, "omega {omega}: {err} > {bound}");
+        if let Some((bytes, e)) = last {
+            assert!(enc.bytes.len() > bytes, "omega {omega}: {} bytes <= {bytes}", enc.bytes.len());
+            assert!(err < e, "omega {omega}: error {err} >= {e}");
+        }
+        last = Some((enc.bytes.len(), err));
+    }
+}
+
+#[test]
+fn rigid_and_still_inputs_code_exactly_enough() {
+    // A still mesh: every block is case I, no components, only the mean.
+    let flag = synth::waving_flag(5, 4, 1);
+    let still: Vec<f32> = flag.positions().iter().cycle().take(flag.positions().len() * 30).copied().collect();
+    let anim = Animation::new(flag.topology().clone(), still, 30.0).unwrap();
+    let reg = registry();
+    let ps = StsegParams::default().to_param_set().unwrap();
+    let enc = encode_animation_fed(&Stseg, &ps, &anim, true, 4).unwrap();
+    let dec = decode_animation(&enc.bytes, &reg, Limits::default()).unwrap();
+    assert!(rel_rms(&anim, &dec) <= 1.0 / 4095.0, "{}", rel_rms(&anim, &dec));
+    // Fewer frames than the initial-cut range and a single frame still code.
+    for frames in [1usize, 3, 9] {
+        let a = synth::waving_flag(5, 4, frames);
+        let enc = encode_animation_fed(&Stseg, &ps, &a, true, 2).unwrap();
+        let dec = decode_animation(&enc.bytes, &reg, Limits::default()).unwrap();
+        assert_eq!(Some(&dec), enc.reconstruction.as_ref());
+        assert_eq!(dec.frame_count(), frames);
+    }
+}
+
+#[test]
+fn corrupt_and_truncated_streams_error_without_panicking() {
+    let (anim, _) = synth::phased_motion_sized(4, 5, 60);
+    let reg = registry();
+    let ps = StsegParams::default().to_param_set().unwrap();
+    let bytes = encode_animation_fed(&Stseg, &ps, &anim, false, 60).unwrap().bytes;
+    for cut in (0..bytes.len()).step_by(7) {
+        assert!(decode_animation(&bytes[..cut], &reg, Limits::default()).is_err(), "cut {cut}");
+    }
+    // Flip bytes everywhere: decoding may fail (checksums, structure) but never panics.
+    for i in (0..bytes.len()).step_by(3) {
+        let mut b = bytes.clone();
+        b[i] ^= 0xA5;
+        let _ = decode_animation(&b, &reg, Limits::default());
+    }
+    // The decoder itself, without the container's checksum, on garbage payloads.
+    let mut dec =
+        StsegDecoder { bits: 12, coef_bits: 12, vertex_count: anim.vertex_count(), limits: Limits::default() };
+    for payload in [vec![], vec![2u8], vec![2, 200, 1], vec![9, 1, 0], vec![1, 1, 0xff, 0xff, 0xff, 0xff, 0x0f]] {
+        let p = Packet { first_frame: 0, frame_count: 10, keyframe: true, data: payload };
+        assert!(dec.decode_packet(&p).is_err());
+    }
+}
+
+#[test]
+fn typed_validation_states_ranges_and_cross_constraints() {
+    let e = StsegParams { omega: 1.5, ..Default::default() }.validate().unwrap_err().to_string();
+    assert!(e.contains("stseg") && e.contains("omega"), "{e}");
+    let e = StsegParams { gamma_max: 10, gamma_init: 20, ..Default::default() }.validate().unwrap_err().to_string();
+    assert!(e.contains("gamma_max") && e.contains("at least"), "{e}");
+    let e = StsegParams { w: 20, gamma_init: 20, ..Default::default() }.validate().unwrap_err().to_string();
+    assert!(e.contains("gamma_init"), "{e}");
+    let ps = StsegParams::default().to_param_set().unwrap();
+    assert_eq!(StsegParams::from_param_set(&ps).unwrap(), StsegParams::default());
+    assert_eq!(Stseg.default_params(), ps);
+    let ladder = Stseg.rate_ladder();
+    for step in &ladder.steps {
+        let mut p = ps.clone();
+        p.set(&Stseg.param_specs(), ladder.param, step.clone()).unwrap();
+        Stseg.validate(&p).unwrap();
+    }
+}
+
+#[test]
+fn encode_with_segmentation_reproduces_the_codec_and_runs_fixed_blocks() {
+    let (anim, _) = synth::phased_motion_sized(6, 6, 90);
+    let p = StsegParams::default();
+    let ps = p.to_param_set().unwrap();
+    let reg = registry();
+    let enc = encode_animation_fed(&Stseg, &ps, &anim, false, 90).unwrap();
+    let dec = decode_animation(&enc.bytes, &reg, Limits::default()).unwrap();
+    let seg = segment_animation(&anim, &p).unwrap();
+    let (_, rec) = encode_with_segmentation(&anim, &p, &seg).unwrap();
+    assert_eq!(rec, dec.positions());
+    let fixed = fixed_block_segmentation(anim.vertex_count(), anim.frame_count(), 16);
+    assert_eq!(fixed.segments.len(), 6);
+    let (packets, rec) = encode_with_segmentation(&anim, &p, &fixed).unwrap();
+    assert_eq!(packets.len(), 6);
+    assert!(rel_rms(&anim, &Animation::new(anim.topology().clone(), rec, 30.0).unwrap()) < 0.01);
+    let mut bad = fixed.clone();
+    bad.segments[1].first_frame += 1;
+    assert!(encode_with_segmentation(&anim, &p, &bad).is_err());
+}
+
+/// What the conformance suite will check, on every small synthetic animation: the ladder's
+/// streams grow from rung to rung and both ends stay within the declared bound.
+#[test]
+fn ladder_is_monotone_and_within_bound_on_small_synthetic_animations() {
+    let reg = registry();
+    let ladder = Stseg.rate_ladder();
+    for name in synth::NAMES {
+        let anim = synth::by_name(name, synth::SynthSize::Small).unwrap();
+        let mut last = 0usize;
+        for (i, step) in ladder.steps.iter().enumerate() {
+            let mut ps = Stseg.default_params();
+            ps.set(&Stseg.param_specs(), ladder.param, step.clone()).unwrap();
+            let enc = encode_animation_fed(&Stseg, &ps, &anim, true, 5).unwrap();
+            assert!(enc.bytes.len() >= last, "{name} rung {i}: {} < {last}", enc.bytes.len());
+            last = enc.bytes.len();
+            if i == 0 || i + 1 == ladder.steps.len() {
+                let dec = decode_animation(&enc.bytes, &reg, Limits::default()).unwrap();
+                assert_eq!(Some(&dec), enc.reconstruction.as_ref(), "{name}");
+                let bound = Stseg.error_bound(&ps, &anim).unwrap().relative_rms_error.unwrap();
+                let err = rel_rms(&anim, &dec);
+                assert!(err <= bound, "{name} rung {i}: {err} > {bound}");
+            }
+        }
+    }
+}
+
+#[test]
+fn bytes_do_not_depend_on_the_thread_count() {
+    let (anim, _) = synth::phased_motion_sized(6, 8, 100);
+    let ps = StsegParams::default().to_param_set().unwrap();
+    let run = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        pool.install(|| encode_animation_fed(&Stseg, &ps, &anim, false, 17).unwrap().bytes)
+    };
+    assert_eq!(run(1), run(4));
+}

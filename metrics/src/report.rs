@@ -1,0 +1,132 @@
+//! [`evaluate`]: every metric at once, as one serializable [`MetricReport`].
+
+use codec_core::{Animation, Result};
+use serde::Serialize;
+
+use crate::common::check_compatible;
+use crate::displacement::{displacement_stats, kg_error};
+use crate::hausdorff::{hausdorff, HausdorffMode};
+use crate::sted::{sted, StedParams};
+
+/// What [`evaluate`] computes.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct EvalOptions {
+    /// STED parameters.
+    pub sted: StedParams,
+    /// Compute STED (default true).
+    pub compute_sted: bool,
+    /// Compute the Hausdorff distance, the slowest metric (default true).
+    pub compute_hausdorff: bool,
+}
+
+impl Default for EvalOptions {
+    fn default() -> Self {
+        Self { sted: StedParams::default(), compute_sted: true, compute_hausdorff: true }
+    }
+}
+
+/// All metrics of a `(reference, candidate)` pair. A metric that is undefined for the input
+/// (KG of a reference collapsed to a point, STED of a point cloud, relative values of a
+/// zero-size box) or was not requested is `None` (JSON `null`), with the reason in `notes`.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct MetricReport {
+    /// KG error in percent.
+    pub kg: Option<f64>,
+    /// `sqrt(sted_spatial² + c²·sted_temporal²)`.
+    pub sted: Option<f64>,
+    /// STED spatial part.
+    pub sted_spatial: Option<f64>,
+    /// STED temporal part.
+    pub sted_temporal: Option<f64>,
+    /// Largest per-frame symmetric Hausdorff distance.
+    pub hausdorff: Option<f64>,
+    /// Mean over frames of the per-frame Hausdorff distance.
+    pub hausdorff_mean: Option<f64>,
+    /// `hausdorff` over the reference bounding-box diagonal.
+    pub hausdorff_relative: Option<f64>,
+    /// `hausdorff_mean` over the reference bounding-box diagonal.
+    pub hausdorff_mean_relative: Option<f64>,
+    /// Point-to-triangle, or point-to-point for meshes without triangles.
+    pub hausdorff_mode: Option<HausdorffMode>,
+    /// Mean squared vertex displacement.
+    pub mse: f64,
+    /// Root of `mse`.
+    pub rmse: f64,
+    /// `mse / diag²`.
+    pub mse_relative: Option<f64>,
+    /// `rmse / diag`.
+    pub rmse_relative: Option<f64>,
+    /// Largest vertex displacement.
+    pub max_error: f64,
+    /// STED parameters used (reported even when STED was skipped).
+    pub sted_params: StedParams,
+    /// Reference bounding-box diagonal over all frames (`diag` above).
+    pub bbox_diagonal: f64,
+    /// Vertices per frame.
+    pub vertex_count: usize,
+    /// Frames.
+    pub frame_count: usize,
+    /// Why a metric is missing, and other remarks.
+    pub notes: Vec<String>,
+}
+
+/// Computes every metric. Fails on mismatched animations or invalid [`StedParams`]; metrics
+/// that are undefined for valid input are `None` with a note instead.
+pub fn evaluate(reference: &Animation, candidate: &Animation, options: &EvalOptions) -> Result<MetricReport> {
+    check_compatible(reference, candidate)?;
+    options.sted.validate()?;
+    let mut notes = Vec::new();
+    let disp = displacement_stats(reference, candidate)?;
+    if disp.mse_relative.is_none() {
+        notes.push("relative values undefined: the reference bounding box has zero diagonal".to_string());
+    }
+    let kg = kg_error(reference, candidate).map_err(|e| notes.push(e.to_string())).ok();
+    let st = if options.compute_sted {
+        sted(reference, candidate, &options.sted).map_err(|e| notes.push(e.to_string())).ok()
+    } else {
+        notes.push("sted not requested".to_string());
+        None
+    };
+    if let Some(s) = &st {
+        if reference.frame_count() < 2 {
+            notes.push("sted_temporal is 0: a single frame has no temporal edges".to_string());
+        }
+        if s.skipped_vertex_frames > 0 {
+            notes.push(format!(
+                "sted_spatial: {} vertex-frames without a positive-length edge in their neighbourhood were left out",
+                s.skipped_vertex_frames
+            ));
+        }
+    }
+    let h = if options.compute_hausdorff {
+        let h = hausdorff(reference, candidate)?;
+        if h.mode == HausdorffMode::PointToPoint {
+            notes.push("hausdorff: the mesh has no triangles, distances are point-to-point".to_string());
+        }
+        Some(h)
+    } else {
+        notes.push("hausdorff not requested".to_string());
+        None
+    };
+    Ok(MetricReport {
+        kg,
+        sted: st.as_ref().map(|s| s.sted),
+        sted_spatial: st.as_ref().map(|s| s.spatial),
+        sted_temporal: st.as_ref().map(|s| s.temporal),
+        hausdorff: h.as_ref().map(|h| h.max),
+        hausdorff_mean: h.as_ref().map(|h| h.mean),
+        hausdorff_relative: h.as_ref().and_then(|h| h.max_relative),
+        hausdorff_mean_relative: h.as_ref().and_then(|h| h.mean_relative),
+        hausdorff_mode: h.as_ref().map(|h| h.mode),
+        mse: disp.mse,
+        rmse: disp.rmse,
+        mse_relative: disp.mse_relative,
+        rmse_relative: disp.rmse_relative,
+        max_error: disp.max_error,
+        sted_params: options.sted,
+        bbox_diagonal: disp.bbox_diagonal,
+        vertex_count: reference.vertex_count(),
+        frame_count: reference.frame_count(),
+        notes,
+    })
+}
