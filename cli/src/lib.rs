@@ -12,6 +12,9 @@ pub fn registry() -> CodecRegistry {
     CodecRegistry::new(vec![
         Box::new(QuantDelta),            // baseline, codec-core
         Box::new(codec_pca_aoi::PcaAoi), // issue #4, Lalos et al. 2017
+        Box::new(codec_hosvd::Hosvd),    // issue #5, Romaszewski, Gawron, Opozda
+        Box::new(codec_sac::Sac),        // issue #6, spectral deformation-gradient compression
+        Box::new(codec_stseg::Stseg),    // issue #7, Luo et al. 2020
     ])
     .expect("codec names and FourCCs in the registry list are unique")
 }

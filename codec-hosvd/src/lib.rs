@@ -539,7 +539,7 @@ pub fn encode_block(positions: &[f32], k: usize, p: &HosvdParams, want_reconstru
 
     let code_start = Instant::now();
     let norm2 = t.norm2;
-    let trunc2 = (norm2 - tk.core_norm2()).max(0.0);
+    let trunc2 = (norm2 - tk.captured_norm2()).max(0.0);
     drop(t);
     let u1 = row_major(&tk.u1);
     let u3 = row_major(&tk.u3);

@@ -405,6 +405,29 @@ impl Tucker {
         self.core.iter().map(|c| c * c).sum()
     }
 
+    /// `‖T ×₁ U1ᵀ ×₃ U3ᵀ‖²`: the energy the (v, 3, f) subspace captures, as if U2 were exactly
+    /// orthonormal. `‖T‖² − ‖C‖²` is not a safe truncation error once U2 has been rounded to
+    /// f32: the rounding perturbs `‖C‖²` by about `2·‖U2ᵀU2 − I‖·‖T‖²`, which on a large
+    /// tensor exceeds a small truncation error and clamps it to zero. Undoing U2 on the core
+    /// (`C[i, :, l] = U2ᵀ·P[i, :, l]`, so `P = U2⁻ᵀ·C`) recovers the projection exactly enough.
+    /// Falls back to `‖C‖²` if U2 is singular (it never is: it is a rounded rotation).
+    pub fn captured_norm2(&self) -> f64 {
+        let u2t: [f64; 9] = std::array::from_fn(|i| self.u2[(i % 3, i / 3)]);
+        let Some(inv) = mat3_inverse(&u2t) else { return self.core_norm2() };
+        let f = self.u3.ncols();
+        let mut sum = 0.0;
+        for i in 0..self.u1.ncols() {
+            for l in 0..f {
+                let c: [f64; 3] = std::array::from_fn(|j| self.core[(i * 3 + j) * f + l]);
+                for row in 0..3 {
+                    let p: f64 = (0..3).map(|j| inv[row * 3 + j] * c[j]).sum();
+                    sum += p * p;
+                }
+            }
+        }
+        sum
+    }
+
     /// Beyond the paper: `iters` HOOI sweeps (alternating least squares for the Tucker model,
     /// Kolda & Bader §4.2). Each factor becomes the leading left singular vectors of the tensor
     /// projected on the other factor; mode 2 is kept whole so it never changes. A mode whose
