@@ -74,6 +74,9 @@ pub fn ladder_params(
 pub struct Point {
     /// Codec name.
     pub codec: &'static str,
+    /// The curve this point belongs to: the codec name, or for a [`SweepSeries`] with
+    /// non-default base parameters `codec[key=value,…]`.
+    pub series: String,
     /// Parameters used.
     pub params: ParamSet,
     /// The ladder's parameter.
@@ -120,6 +123,7 @@ pub fn measure_point(
     let size = bytes.len() as u64;
     let point = Point {
         codec: codec.name(),
+        series: codec.name().to_string(),
         params: params.clone(),
         ladder_param,
         ladder_index,
@@ -151,6 +155,8 @@ pub struct SweepOptions {
 pub struct Failure {
     /// Codec name.
     pub codec: &'static str,
+    /// Curve name (see [`Point::series`]).
+    pub series: String,
     /// Position on the ladder.
     pub ladder_index: usize,
     /// What went wrong.
@@ -167,22 +173,71 @@ pub struct Sweep {
     pub failures: Vec<Failure>,
 }
 
-/// Walks the rate ladder of every codec in `codecs` on `animation`. `progress` is called once
-/// per finished point (from worker threads). Output order does not depend on scheduling.
+/// One curve of a sweep: a codec and the parameters its rate ladder is walked on.
+#[derive(Clone)]
+pub struct SweepSeries<'a> {
+    /// The codec.
+    pub codec: &'a dyn AnimationCodec,
+    /// Parameters every ladder step starts from (the step then sets the ladder parameter).
+    pub base: ParamSet,
+    /// Curve name in tables, JSON and plots.
+    pub label: String,
+}
+
+impl<'a> SweepSeries<'a> {
+    /// The codec at its defaults, labelled with its name.
+    pub fn defaults(codec: &'a dyn AnimationCodec) -> Self {
+        Self { codec, base: codec.default_params(), label: codec.name().to_string() }
+    }
+
+    /// The codec on `base`, labelled `codec[key=value,…]` with the parameters that differ from
+    /// the defaults (just the codec name when none do). Fails if `base` does not validate.
+    pub fn with_base(codec: &'a dyn AnimationCodec, base: ParamSet) -> HResult<Self> {
+        codec.validate(&base)?;
+        let defaults = codec.default_params();
+        let changed: Vec<String> =
+            base.iter().filter(|(n, v)| defaults.get(n) != Some(*v)).map(|(n, v)| format!("{n}={v}")).collect();
+        let label = if changed.is_empty() {
+            codec.name().to_string()
+        } else {
+            format!("{}[{}]", codec.name(), changed.join(","))
+        };
+        Ok(Self { codec, base, label })
+    }
+
+    fn ladder(&self) -> RateLadder {
+        self.codec.rate_ladder(&self.base)
+    }
+}
+
+/// Walks the rate ladder of every series on `animation`. `progress` is called once per
+/// finished point (from worker threads). Output order (series, then ladder step) does not
+/// depend on scheduling.
 pub fn sweep(
     registry: &CodecRegistry,
-    codecs: &[&dyn AnimationCodec],
+    series: &[SweepSeries<'_>],
     animation: &Animation,
     options: &SweepOptions,
     progress: &(dyn Fn() + Sync),
 ) -> HResult<Sweep> {
-    let jobs = sweep_jobs(codecs, options.points);
+    let jobs = sweep_jobs(series, options.points);
     let run = |&(c, step): &(usize, usize)| -> (usize, usize, HResult<Point>) {
-        let codec = codecs[c];
-        let ladder = codec.rate_ladder();
-        let result = ladder_params(codec, &codec.default_params(), &ladder, step).and_then(|params| {
-            measure_point(registry, codec, &params, (ladder.param, step), animation, &options.eval, options.limits)
-                .map(|(p, _)| p)
+        let entry = &series[c];
+        let ladder = entry.ladder();
+        let result = ladder_params(entry.codec, &entry.base, &ladder, step).and_then(|params| {
+            measure_point(
+                registry,
+                entry.codec,
+                &params,
+                (ladder.param, step),
+                animation,
+                &options.eval,
+                options.limits,
+            )
+            .map(|(mut p, _)| {
+                p.series.clone_from(&entry.label);
+                p
+            })
         });
         progress();
         (c, step, result)
@@ -202,20 +257,23 @@ pub fn sweep(
     for (c, step, r) in results {
         match r {
             Ok(p) => out.points.push(p),
-            Err(e) => {
-                out.failures.push(Failure { codec: codecs[c].name(), ladder_index: step, message: e.to_string() })
-            }
+            Err(e) => out.failures.push(Failure {
+                codec: series[c].codec.name(),
+                series: series[c].label.clone(),
+                ladder_index: step,
+                message: e.to_string(),
+            }),
         }
     }
     Ok(out)
 }
 
-/// The (codec position, ladder step) pairs a sweep measures.
-pub fn sweep_jobs(codecs: &[&dyn AnimationCodec], points: Option<usize>) -> Vec<(usize, usize)> {
-    codecs
+/// The (series position, ladder step) pairs a sweep measures.
+pub fn sweep_jobs(series: &[SweepSeries<'_>], points: Option<usize>) -> Vec<(usize, usize)> {
+    series
         .iter()
         .enumerate()
-        .flat_map(|(c, codec)| ladder_indices(codec.rate_ladder().steps.len(), points).into_iter().map(move |s| (c, s)))
+        .flat_map(|(c, entry)| ladder_indices(entry.ladder().steps.len(), points).into_iter().map(move |s| (c, s)))
         .collect()
 }
 
@@ -242,13 +300,14 @@ pub fn report_json(report: &MetricReport) -> Value {
     serde_json::to_value(report).unwrap_or(Value::Null)
 }
 
-/// One sweep row as JSON: `codec`, `params`, `ladder_param`, `ladder_index`, `bytes`, `bpvf`,
+/// One sweep row as JSON: `codec`, `series`, `params`, `ladder_param`, `ladder_index`, `bytes`, `bpvf`,
 /// `kg`, `sted`, `sted_spatial`, `sted_temporal`, `hausdorff`, `hausdorff_relative`, `mse`,
 /// `rmse`, `max_error`, `encode_seconds`, `decode_seconds`.
 pub fn point_json(p: &Point) -> Value {
     let r = &p.report;
     json!({
         "codec": p.codec,
+        "series": p.series,
         "params": params_json(&p.params),
         "ladder_param": p.ladder_param,
         "ladder_index": p.ladder_index,
@@ -271,6 +330,7 @@ pub fn point_json(p: &Point) -> Value {
 /// Columns of [`write_csv`], in order (the same keys as [`point_json`]).
 pub const CSV_COLUMNS: &[&str] = &[
     "codec",
+    "series",
     "params",
     "ladder_index",
     "bytes",
@@ -288,6 +348,15 @@ pub const CSV_COLUMNS: &[&str] = &[
     "decode_seconds",
 ];
 
+/// A series label holds commas (`pca-aoi[mode=baoi,tmax=2]`): quote it as RFC 4180 says.
+fn csv_field(text: &str) -> String {
+    if text.contains([',', '"', '\n']) {
+        format!("\"{}\"", text.replace('"', "\"\""))
+    } else {
+        text.to_string()
+    }
+}
+
 fn opt(v: Option<f64>) -> String {
     v.map(|x| format!("{x}")).unwrap_or_default()
 }
@@ -303,6 +372,7 @@ pub fn csv_text(points: &[Point]) -> String {
         let params: Vec<String> = p.params.iter().map(|(n, v)| format!("{n}={v}")).collect();
         let fields = [
             p.codec.to_string(),
+            csv_field(&p.series),
             params.join(";"),
             p.ladder_index.to_string(),
             p.bytes.to_string(),
@@ -328,8 +398,8 @@ pub fn csv_text(points: &[Point]) -> String {
 /// Monotonicity of one codec's curve along its ladder.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Monotonicity {
-    /// Codec name.
-    pub codec: &'static str,
+    /// Curve name (see [`Point::series`]).
+    pub series: String,
     /// bpvf never falls from one ladder point to the next.
     pub bpvf_increasing: bool,
     /// KG never rises (beyond a relative 1e-9) from one ladder point to the next.
@@ -340,13 +410,13 @@ pub struct Monotonicity {
     pub violations: Vec<usize>,
 }
 
-/// Checks every codec's curve in sorted `points` (as [`sweep`] returns them). Metric values
+/// Checks every series' curve in sorted `points` (as [`sweep`] returns them). Metric values
 /// that are missing are skipped. The tolerance absorbs float noise only.
 pub fn monotone_report(points: &[Point]) -> Vec<Monotonicity> {
     let mut out: Vec<Monotonicity> = Vec::new();
     for pair in points.windows(2) {
         let (a, b) = (&pair[0], &pair[1]);
-        if a.codec != b.codec {
+        if a.series != b.series {
             continue;
         }
         let not_above = |x: Option<f64>, y: Option<f64>| match (x, y) {
@@ -356,11 +426,11 @@ pub fn monotone_report(points: &[Point]) -> Vec<Monotonicity> {
         let bpvf_ok = b.bpvf >= a.bpvf;
         let kg_ok = not_above(a.report.kg, b.report.kg);
         let sted_ok = not_above(a.report.sted, b.report.sted);
-        let m = match out.iter_mut().find(|m| m.codec == a.codec) {
+        let m = match out.iter_mut().find(|m| m.series == a.series) {
             Some(m) => m,
             None => {
                 out.push(Monotonicity {
-                    codec: a.codec,
+                    series: a.series.clone(),
                     bpvf_increasing: true,
                     kg_decreasing: true,
                     sted_decreasing: true,
@@ -395,10 +465,10 @@ pub fn sweep_json(input: &str, animation: &Animation, eval: &EvalOptions, sweep:
         "eval_options": serde_json::to_value(eval).unwrap_or(Value::Null),
         "rows": sweep.points.iter().map(point_json).collect::<Vec<_>>(),
         "failures": sweep.failures.iter().map(|f| json!({
-            "codec": f.codec, "ladder_index": f.ladder_index, "error": f.message,
+            "codec": f.codec, "series": f.series, "ladder_index": f.ladder_index, "error": f.message,
         })).collect::<Vec<_>>(),
         "monotone": monotone_report(&sweep.points).iter().map(|m| json!({
-            "codec": m.codec,
+            "series": m.series,
             "bpvf_increasing": m.bpvf_increasing,
             "kg_decreasing": m.kg_decreasing,
             "sted_decreasing": m.sted_decreasing,
@@ -418,7 +488,7 @@ pub fn plot_svg(path: &Path, title: &str, points: &[Point]) -> HResult<()> {
     write_text(path, &svg)
 }
 
-type PanelData = Vec<(&'static str, Vec<(f64, f64)>)>;
+type PanelData = Vec<(String, Vec<(f64, f64)>)>;
 
 fn panel_data(points: &[Point], metric: impl Fn(&MetricReport) -> Option<f64>) -> PanelData {
     let mut out: PanelData = Vec::new();
@@ -427,9 +497,9 @@ fn panel_data(points: &[Point], metric: impl Fn(&MetricReport) -> Option<f64>) -
         if !p.bpvf.is_finite() {
             continue;
         }
-        match out.iter_mut().find(|(c, _)| *c == p.codec) {
+        match out.iter_mut().find(|(c, _)| *c == p.series) {
             Some((_, v)) => v.push((p.bpvf, y.log10())),
-            None => out.push((p.codec, vec![(p.bpvf, y.log10())])),
+            None => out.push((p.series.clone(), vec![(p.bpvf, y.log10())])),
         }
     }
     out
@@ -470,7 +540,7 @@ pub fn draw_rd(svg: &mut String, title: &str, points: &[Point]) -> HResult<()> {
                 chart
                     .draw_series(LineSeries::new(pts.iter().copied(), color.stroke_width(2)))
                     .map_err(|e| plot_err(&e))?
-                    .label(*codec)
+                    .label(codec.as_str())
                     .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2)));
                 chart
                     .draw_series(pts.iter().map(|&(x, y)| Circle::new((x, y), 3, color.filled())))
@@ -671,7 +741,7 @@ pub fn search_target(
     eval: &EvalOptions,
     limits: Limits,
 ) -> HResult<TargetHit> {
-    let ladder = codec.rate_ladder();
+    let ladder = codec.rate_ladder(base);
     let n = ladder.steps.len();
     let eval = target.metric.eval_options(eval);
     let mut measured: Vec<Option<(Point, Vec<u8>)>> = vec![None; n];
@@ -829,7 +899,7 @@ mod tests {
         )
         .unwrap_err();
         let miss = e.downcast_ref::<TargetMiss>().expect("a TargetMiss");
-        let top = codec.rate_ladder().steps.len() - 1;
+        let top = codec.rate_ladder(&codec.default_params()).steps.len() - 1;
         assert_eq!(miss.best.as_ref().unwrap().ladder_index, top);
         let text = miss.to_string();
         assert!(text.contains("best reached is max_error=") && text.contains("quant-delta"), "{text}");

@@ -186,9 +186,21 @@ pub struct SweepArgs {
     #[arg(value_name = "INPUT")]
     pub input: Option<String>,
 
-    /// Comma-separated codecs (default: every registered codec).
+    /// Comma-separated codecs (default: every registered codec, unless --series is given).
     #[arg(short, long = "codecs", value_name = "A,B", value_delimiter = ',')]
     pub codecs: Vec<String>,
+
+    /// Parameter for the codecs of -c (repeatable), the base each ladder step starts from, e.g.
+    /// `-c pca-aoi -p mode=qaoi` (whose ladder then walks the error band). Setting the ladder's
+    /// own parameter is an error: the sweep walks it.
+    #[arg(short = 'p', long = "param", value_name = "KEY=VALUE")]
+    pub params: Vec<String>,
+
+    /// An extra curve: a codec and its base parameters (repeatable), e.g.
+    /// `--series pca-aoi:mode=baoi,tmax=2`. Curves are labelled `codec[key=value,…]` with the
+    /// parameters that differ from the defaults, so one codec can be compared with itself.
+    #[arg(long = "series", value_name = "CODEC:KEY=VALUE,...")]
+    pub series: Vec<String>,
 
     /// Ladder points per codec, spread evenly over its rate ladder, ends included (default:
     /// every step).

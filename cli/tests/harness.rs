@@ -142,7 +142,7 @@ fn sweep_writes_json_csv_and_svg_with_monotone_ladders() {
         assert_eq!(r["codec"], "quant-delta");
     }
     // Evenly spread over the ladder, ends included, in ladder order.
-    let ladder = QuantDelta.rate_ladder();
+    let ladder = QuantDelta.rate_ladder(&QuantDelta.default_params());
     let idx: Vec<u64> = rows.iter().map(|r| r["ladder_index"].as_u64().unwrap()).collect();
     assert_eq!(idx.first(), Some(&0));
     assert_eq!(idx.last(), Some(&(ladder.steps.len() as u64 - 1)));
@@ -163,6 +163,52 @@ fn sweep_writes_json_csv_and_svg_with_monotone_ladders() {
     assert!(svg.contains("quant-delta") && svg.contains("<polyline"), "legend and curves");
     assert_eq!(svg.matches("<text").count(), svg.matches("</text>").count(), "text elements are closed");
     assert_eq!(svg.matches("<svg").count(), 1);
+}
+
+#[test]
+fn sweep_series_walk_ladders_on_their_own_base_parameters() {
+    let v = ok_json(&[
+        "sweep",
+        "synth:flag",
+        "-c",
+        "quant-delta",
+        "-p",
+        "block=8",
+        "--series",
+        "pca-aoi:mode=qaoi",
+        "--series",
+        "pca-aoi:mode=svd,block=10",
+        "--points",
+        "2",
+        "--no-sted",
+        "--no-hausdorff",
+        "--json",
+        "-",
+    ]);
+    let rows = v["rows"].as_array().unwrap();
+    let series: Vec<&str> = rows.iter().map(|r| r["series"].as_str().unwrap()).collect();
+    assert_eq!(
+        series,
+        [
+            "quant-delta[block=8]",
+            "quant-delta[block=8]",
+            "pca-aoi[mode=qaoi]",
+            "pca-aoi[mode=qaoi]",
+            "pca-aoi[mode=svd,block=10]",
+            "pca-aoi[mode=svd,block=10]"
+        ]
+    );
+    // Each curve keeps its base and walks its own ladder: qaoi walks the error band, svd walks k.
+    assert!(rows[..2].iter().all(|r| r["params"]["block"] == 8), "{v}");
+    assert!(rows[2..4].iter().all(|r| r["params"]["mode"] == "qaoi" && r["ladder_param"] == "eps_high"), "{v}");
+    assert!(rows[4..].iter().all(|r| r["params"]["block"] == 10 && r["ladder_param"] == "k"), "{v}");
+    let labels: Vec<&str> = v["monotone"].as_array().unwrap().iter().map(|m| m["series"].as_str().unwrap()).collect();
+    assert_eq!(labels.len(), 3, "one monotonicity verdict per curve: {labels:?}");
+
+    fails(&["sweep", "synth:flag", "-c", "quant-delta", "-p", "bits=8"], &["quant-delta", "bits", "walks"]);
+    fails(&["sweep", "synth:flag", "--series", "pca-aoi:mode=nope"], &["pca-aoi", "mode"]);
+    fails(&["sweep", "synth:flag", "--series", "pca-aoi", "--series", "pca-aoi"], &["pca-aoi", "twice"]);
+    fails(&["sweep", "synth:flag", "-p", "k=3", "--series", "pca-aoi"], &["-p", "--series"]);
 }
 
 #[test]
@@ -187,7 +233,7 @@ fn target_search_meets_the_target_and_the_next_smaller_point_does_not() {
     let registry = animcodec::registry();
     let codec = registry.by_name("quant-delta").unwrap();
     let animation = small();
-    let ladder = codec.rate_ladder();
+    let ladder = codec.rate_ladder(&codec.default_params());
     let eval = EvalOptions { compute_sted: false, compute_hausdorff: false, ..Default::default() };
     let kg: Vec<f64> = (0..ladder.steps.len())
         .map(|i| {
@@ -338,7 +384,7 @@ impl AnimationCodec for Wrapped {
     fn param_specs(&self) -> Vec<ParamSpec> {
         QuantDelta.param_specs()
     }
-    fn rate_ladder(&self) -> RateLadder {
+    fn rate_ladder(&self, _base: &ParamSet) -> RateLadder {
         RateLadder { param: "bits", steps: self.ladder.iter().map(|&b| ParamValue::Int(b)).collect() }
     }
     fn validate(&self, params: &ParamSet) -> codec_core::Result<()> {
@@ -400,7 +446,7 @@ fn non_monotone_ladders_fall_back_to_a_linear_scan() {
     let codec = registry.by_name("shuffled").unwrap();
     let animation = small();
     let eval = EvalOptions::default();
-    let ladder = codec.rate_ladder();
+    let ladder = codec.rate_ladder(&codec.default_params());
     let bytes_and_err: Vec<(u64, f64)> = (0..ladder.steps.len())
         .map(|i| {
             let p = ladder_params(codec, &codec.default_params(), &ladder, i).unwrap();
@@ -438,6 +484,6 @@ fn target_miss_names_the_best_point() {
     )
     .unwrap_err();
     let miss = e.downcast_ref::<TargetMiss>().unwrap();
-    assert_eq!(miss.best.as_ref().unwrap().ladder_index, codec.rate_ladder().steps.len() - 1);
+    assert_eq!(miss.best.as_ref().unwrap().ladder_index, codec.rate_ladder(&codec.default_params()).steps.len() - 1);
     let _ = harness::point_json(miss.best.as_ref().unwrap());
 }

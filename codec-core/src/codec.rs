@@ -160,8 +160,10 @@ pub trait AnimationCodec: Send + Sync {
         ParamSet::defaults(self.name(), &self.param_specs())
     }
 
-    /// The one rate knob, from small streams to large.
-    fn rate_ladder(&self) -> RateLadder;
+    /// The one rate knob walked on top of `base`, from small streams to large. The ladder may
+    /// depend on `base` (pca-aoi walks `k` in its fixed-rank modes but the error band in
+    /// `qaoi`); every step applied to `base` must validate.
+    fn rate_ladder(&self, base: &ParamSet) -> RateLadder;
 
     /// Checks a full parameter set, including constraints between parameters; errors state
     /// the allowed range.

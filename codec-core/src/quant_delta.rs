@@ -107,7 +107,7 @@ impl AnimationCodec for QuantDelta {
     fn param_specs(&self) -> Vec<ParamSpec> {
         QuantDeltaParams::specs()
     }
-    fn rate_ladder(&self) -> RateLadder {
+    fn rate_ladder(&self, _base: &ParamSet) -> RateLadder {
         RateLadder { param: "bits", steps: (4..=20).step_by(2).map(ParamValue::Int).collect() }
     }
     fn validate(&self, params: &ParamSet) -> Result<()> {

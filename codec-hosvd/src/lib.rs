@@ -255,7 +255,7 @@ impl AnimationCodec for Hosvd {
     fn param_specs(&self) -> Vec<ParamSpec> {
         HosvdParams::specs()
     }
-    fn rate_ladder(&self) -> RateLadder {
+    fn rate_ladder(&self, _base: &ParamSet) -> RateLadder {
         // Larger space saving = smaller stream: the ladder walks ss downwards.
         let steps = [0.995, 0.99, 0.98, 0.97, 0.95, 0.93, 0.9, 0.85, 0.8, 0.7, 0.5];
         RateLadder { param: "ss", steps: steps.iter().map(|&s| ParamValue::Float(s)).collect() }

@@ -282,7 +282,7 @@ fn parameters_validate_with_ranges_and_cross_checks() {
     set.set(&HosvdParams::specs(), "v", ParamValue::Int(3)).unwrap();
     assert!(Hosvd.validate(&set).is_err());
     // The ladder walks from small streams to large.
-    let ladder = Hosvd.rate_ladder();
+    let ladder = Hosvd.rate_ladder(&Hosvd.default_params());
     let ss: Vec<f64> = ladder.steps.iter().map(|v| if let ParamValue::Float(x) = v { *x } else { panic!() }).collect();
     assert!(ss.windows(2).all(|w| w[0] > w[1]));
     for s in &ladder.steps {
@@ -295,7 +295,7 @@ fn parameters_validate_with_ranges_and_cross_checks() {
 #[test]
 fn rate_ladder_ends_are_ordered_in_size_and_error() {
     let anim = flag(14, 10, 40, 1.0, 1.0);
-    let ladder = Hosvd.rate_ladder();
+    let ladder = Hosvd.rate_ladder(&Hosvd.default_params());
     let run = |v: &ParamValue| {
         let mut set = Hosvd.default_params();
         set.set(&HosvdParams::specs(), "ss", v.clone()).unwrap();

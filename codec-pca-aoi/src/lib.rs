@@ -249,9 +249,8 @@ impl PcaAoiParams {
     }
 }
 
-/// The rate ladder of `qaoi` streams: `eps_high` from large to small residuals (the trait's
-/// ladder is per codec, not per mode, so [`AnimationCodec::rate_ladder`] walks `k`). Every
-/// step stays above the default `eps_low`.
+/// The rate ladder of `qaoi` streams: `eps_high` from large to small residuals (`k` is only
+/// QAOI's starting rank). Every step stays above the default `eps_low`.
 pub fn qaoi_rate_ladder() -> RateLadder {
     RateLadder {
         param: "eps_high",
@@ -279,7 +278,11 @@ impl AnimationCodec for PcaAoi {
     fn param_specs(&self) -> Vec<ParamSpec> {
         PcaAoiParams::specs()
     }
-    fn rate_ladder(&self) -> RateLadder {
+    /// `k` for `svd` and `baoi`; the error band's upper edge for `qaoi`, whose rank follows it.
+    fn rate_ladder(&self, base: &ParamSet) -> RateLadder {
+        if base.choice("mode").is_ok_and(|m| m == "qaoi") {
+            return qaoi_rate_ladder();
+        }
         RateLadder {
             param: "k",
             steps: [1, 2, 3, 4, 6, 8, 12, 16, 24, 32, 48].into_iter().map(ParamValue::Int).collect(),

@@ -272,7 +272,9 @@ fn parameters_validate_with_ranges() {
     assert_eq!(PcaAoiParams::from_param_set(&p.to_param_set().unwrap()).unwrap(), p);
     let specs = PcaAoi.param_specs();
     let mut set = PcaAoi.default_params();
-    for ladder in [PcaAoi.rate_ladder(), qaoi_rate_ladder()] {
+    let qaoi = PcaAoiParams { mode: Mode::Qaoi, ..Default::default() }.to_param_set().unwrap();
+    assert_eq!(PcaAoi.rate_ladder(&qaoi), qaoi_rate_ladder());
+    for ladder in [PcaAoi.rate_ladder(&set), qaoi_rate_ladder()] {
         for step in ladder.steps {
             set.set(&specs, ladder.param, step).unwrap();
             PcaAoi.validate(&set).unwrap();

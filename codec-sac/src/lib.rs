@@ -162,7 +162,7 @@ impl AnimationCodec for Sac {
     fn param_specs(&self) -> Vec<ParamSpec> {
         SacParams::specs()
     }
-    fn rate_ladder(&self) -> RateLadder {
+    fn rate_ladder(&self, _base: &ParamSet) -> RateLadder {
         RateLadder {
             param: "bases",
             steps: [2, 4, 8, 16, 32, 64, 100, 160, 250].into_iter().map(ParamValue::Int).collect(),

@@ -218,7 +218,7 @@ fn parameters_are_validated_with_ranges() {
     let e = SacParams { bits: 31, ..Default::default() }.validate().unwrap_err().to_string();
     assert!(e.contains("bits") && e.contains("4..=30"), "{e}");
     assert_eq!(SacParams::from_param_set(&Sac.default_params()).unwrap(), SacParams::default());
-    for step in Sac.rate_ladder().steps {
+    for step in Sac.rate_ladder(&Sac.default_params()).steps {
         let mut p = Sac.default_params();
         p.set(&Sac.param_specs(), "bases", step).unwrap();
         Sac.validate(&p).unwrap();
@@ -244,7 +244,7 @@ fn rate_ladder_streams_grow_on_synthetic_data() {
         let n3 = anim.vertex_count() * 3;
         let anim = Animation::new(anim.topology().clone(), anim.positions()[..frames * n3].to_vec(), 30.0).unwrap();
         let mut last = 0usize;
-        for step in Sac.rate_ladder().steps {
+        for step in Sac.rate_ladder(&Sac.default_params()).steps {
             let mut p = Sac.default_params();
             p.set(&Sac.param_specs(), "bases", step.clone()).unwrap();
             let size = encode_animation_fed(&Sac, &p, &anim, false, frames).unwrap().bytes.len();

@@ -213,7 +213,7 @@ impl AnimationCodec for Stseg {
     fn param_specs(&self) -> Vec<ParamSpec> {
         StsegParams::specs()
     }
-    fn rate_ladder(&self) -> RateLadder {
+    fn rate_ladder(&self, _base: &ParamSet) -> RateLadder {
         RateLadder {
             param: "omega",
             steps: [0.9, 0.95, 0.98, 0.99, 0.995, 0.998, 0.999, 0.9995, 0.9998, 0.9999]

@@ -144,7 +144,7 @@ fn typed_validation_states_ranges_and_cross_constraints() {
     let ps = StsegParams::default().to_param_set().unwrap();
     assert_eq!(StsegParams::from_param_set(&ps).unwrap(), StsegParams::default());
     assert_eq!(Stseg.default_params(), ps);
-    let ladder = Stseg.rate_ladder();
+    let ladder = Stseg.rate_ladder(&Stseg.default_params());
     for step in &ladder.steps {
         let mut p = ps.clone();
         p.set(&Stseg.param_specs(), ladder.param, step.clone()).unwrap();
@@ -178,7 +178,7 @@ fn encode_with_segmentation_reproduces_the_codec_and_runs_fixed_blocks() {
 #[test]
 fn ladder_is_monotone_and_within_bound_on_small_synthetic_animations() {
     let reg = registry();
-    let ladder = Stseg.rate_ladder();
+    let ladder = Stseg.rate_ladder(&Stseg.default_params());
     for name in synth::NAMES {
         let anim = synth::by_name(name, synth::SynthSize::Small).unwrap();
         let mut last = 0usize;

@@ -124,7 +124,7 @@ pub fn params_with(codec: &dyn AnimationCodec, name: &str, value: ParamValue) ->
 /// Labels read like `default`, `bits=4 (ladder low)`.
 pub fn test_settings(codec: &dyn AnimationCodec) -> Result<Vec<(String, ParamSet)>, String> {
     let mut out = vec![("default".to_string(), codec.default_params())];
-    let ladder = codec.rate_ladder();
+    let ladder = codec.rate_ladder(&codec.default_params());
     let ends = [(ladder.steps.first(), "ladder low"), (ladder.steps.last(), "ladder high")];
     for (step, what) in ends {
         let step = step.ok_or_else(|| format!("rate ladder on '{}' has no steps", ladder.param))?;

@@ -404,7 +404,7 @@ pub fn defaults_and_ladder_steps_validate(registry: &CodecRegistry) -> Failures 
             if let Err(e) = codec.validate(&defaults) {
                 f.push(codec.name(), format!("defaults do not validate: {e}"));
             }
-            let ladder = codec.rate_ladder();
+            let ladder = codec.rate_ladder(&codec.default_params());
             if !codec.param_specs().iter().any(|s| s.name == ladder.param) {
                 f.push(codec.name(), format!("rate ladder walks '{}', which is not a parameter", ladder.param));
             }
@@ -440,7 +440,7 @@ pub fn rate_ladder_sizes_are_non_decreasing(registry: &CodecRegistry) -> Failure
     let mut failures = Failures::new();
     for codec in registry.iter() {
         failures.run(codec.name(), |f| {
-            let ladder = codec.rate_ladder();
+            let ladder = codec.rate_ladder(&codec.default_params());
             for (name, anim) in &anims {
                 let mut sizes = Vec::new();
                 for step in &ladder.steps {

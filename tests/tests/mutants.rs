@@ -86,8 +86,8 @@ impl AnimationCodec for Mutant {
         }
         specs
     }
-    fn rate_ladder(&self) -> RateLadder {
-        let mut l = QuantDelta.rate_ladder();
+    fn rate_ladder(&self, _base: &ParamSet) -> RateLadder {
+        let mut l = QuantDelta.rate_ladder(_base);
         if self.0 == Fault::ShrinkingLadder {
             l.steps.reverse();
         }

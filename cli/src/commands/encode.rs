@@ -224,7 +224,8 @@ fn run_target(args: &EncodeArgs, target: Target, limits: Limits) -> CmdResult {
         None
     } else {
         let codec = registry.by_name(&args.codec)?;
-        let ladder = codec.rate_ladder();
+        let params = parse_params(codec, &args.params)?;
+        let ladder = codec.rate_ladder(&params);
         if let Some(p) = args.params.iter().find(|p| p.split_once('=').is_some_and(|(k, _)| k.trim() == ladder.param)) {
             return Err(format!(
                 "{}: '-p {p}' sets the rate ladder's parameter, which --target {target} chooses; leave it out",
@@ -232,7 +233,7 @@ fn run_target(args: &EncodeArgs, target: Target, limits: Limits) -> CmdResult {
             )
             .into());
         }
-        Some((codec, parse_params(codec, &args.params)?))
+        Some((codec, params))
     };
     let eval = EvalOptions { sted: sted_params(&args.sted)?, ..EvalOptions::default() };
 

@@ -26,7 +26,7 @@ pub fn run(args: &ListArgs) -> CmdResult {
 
 /// One codec as JSON: `{name, fourcc, stream_version, summary, params, rate_ladder}`.
 pub fn codec_json(codec: &dyn AnimationCodec) -> Value {
-    let ladder = codec.rate_ladder();
+    let ladder = codec.rate_ladder(&codec.default_params());
     json!({
         "name": codec.name(),
         "fourcc": codec.fourcc().to_string(),
@@ -89,7 +89,7 @@ fn write_codec(out: &mut String, codec: &dyn AnimationCodec) {
             );
         }
     }
-    let ladder = codec.rate_ladder();
+    let ladder = codec.rate_ladder(&codec.default_params());
     let steps: Vec<String> = ladder.steps.iter().map(|v| v.to_string()).collect();
     let _ = writeln!(out, "  rate ladder: {} = {}", ladder.param, steps.join(", "));
 }

@@ -6,11 +6,12 @@ use std::io::IsTerminal;
 use std::time::Instant;
 
 use animcodec::formats::ReadOptions;
-use animcodec::harness::{self, monotone_report, Sweep, SweepOptions};
-use codec_core::{AnimationCodec, Limits};
+use animcodec::harness::{self, monotone_report, Sweep, SweepOptions, SweepSeries};
+use codec_core::{AnimationCodec, CodecRegistry, Limits};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use metrics::EvalOptions;
 
+use super::encode::parse_params;
 use super::eval::{load_any, sted_params};
 use super::{emit, emit_json, CmdResult};
 use crate::SweepArgs;
@@ -21,11 +22,7 @@ pub const DEFAULT_INPUT: &str = "synth:flag";
 /// Runs `sweep`.
 pub fn run(args: &SweepArgs, limits: Limits) -> CmdResult {
     let registry = animcodec::registry();
-    let codecs: Vec<&dyn AnimationCodec> = if args.codecs.is_empty() {
-        registry.iter().collect()
-    } else {
-        args.codecs.iter().map(|n| registry.by_name(n.trim())).collect::<Result<_, _>>()?
-    };
+    let series = sweep_series(&registry, args)?;
     let eval = EvalOptions {
         sted: sted_params(&args.sted)?,
         compute_sted: !args.no_sted,
@@ -37,7 +34,7 @@ pub fn run(args: &SweepArgs, limits: Limits) -> CmdResult {
 
     let options =
         SweepOptions { points: args.points.map(|n| n as usize), jobs: args.jobs.map(|n| n as usize), eval, limits };
-    let total = harness::sweep_jobs(&codecs, options.points).len() as u64;
+    let total = harness::sweep_jobs(&series, options.points).len() as u64;
     let bar = if std::io::stderr().is_terminal() {
         let bar = ProgressBar::with_draw_target(Some(total), ProgressDrawTarget::stderr());
         if let Ok(style) = ProgressStyle::with_template("{bar:30} {pos}/{len} {elapsed} sweeping {msg}") {
@@ -49,7 +46,7 @@ pub fn run(args: &SweepArgs, limits: Limits) -> CmdResult {
         ProgressBar::hidden()
     };
     let start = Instant::now();
-    let result = harness::sweep(&registry, &codecs, &animation, &options, &|| bar.inc(1))?;
+    let result = harness::sweep(&registry, &series, &animation, &options, &|| bar.inc(1))?;
     let seconds = start.elapsed().as_secs_f64();
     bar.finish_and_clear();
 
@@ -79,7 +76,7 @@ pub fn run(args: &SweepArgs, limits: Limits) -> CmdResult {
         Ok(())
     } else {
         let list: Vec<String> =
-            result.failures.iter().map(|f| format!("{} step {}: {}", f.codec, f.ladder_index, f.message)).collect();
+            result.failures.iter().map(|f| format!("{} step {}: {}", f.series, f.ladder_index, f.message)).collect();
         Err(format!("{} sweep points failed: {}", list.len(), list.join("; ")).into())
     }
 }
@@ -90,6 +87,7 @@ fn num(v: Option<f64>) -> String {
 
 fn table(input: &str, animation: &codec_core::Animation, sweep: &Sweep, seconds: f64) -> String {
     let mut out = String::new();
+    let width = sweep.points.iter().map(|p| p.series.chars().count()).max().unwrap_or(0).max(14);
     let _ = writeln!(
         out,
         "{input}: {} frames × {} vertices; {} points in {seconds:.2} s",
@@ -99,16 +97,26 @@ fn table(input: &str, animation: &codec_core::Animation, sweep: &Sweep, seconds:
     );
     let _ = writeln!(
         out,
-        "{:<14} {:<16} {:>10} {:>8} {:>11} {:>11} {:>11} {:>11} {:>8} {:>8}",
-        "codec", "knob", "bytes", "bpvf", "kg (%)", "sted", "hausdorff", "mse", "enc s", "dec s"
+        "{:<w$} {:<16} {:>10} {:>8} {:>11} {:>11} {:>11} {:>11} {:>8} {:>8}",
+        "codec",
+        "knob",
+        "bytes",
+        "bpvf",
+        "kg (%)",
+        "sted",
+        "hausdorff",
+        "mse",
+        "enc s",
+        "dec s",
+        w = width
     );
     for p in &sweep.points {
         let knob = format!("{}={}", p.ladder_param, p.ladder_value().map(|v| v.to_string()).unwrap_or_default());
         let r = &p.report;
         let _ = writeln!(
             out,
-            "{:<14} {:<16} {:>10} {:>8.4} {:>11} {:>11} {:>11} {:>11} {:>8.3} {:>8.3}",
-            p.codec,
+            "{:<w$} {:<16} {:>10} {:>8.4} {:>11} {:>11} {:>11} {:>11} {:>8.3} {:>8.3}",
+            p.series,
             knob,
             p.bytes,
             p.bpvf,
@@ -117,7 +125,8 @@ fn table(input: &str, animation: &codec_core::Animation, sweep: &Sweep, seconds:
             num(r.hausdorff),
             num(Some(r.mse)),
             p.encode_seconds,
-            p.decode_seconds
+            p.decode_seconds,
+            w = width
         );
     }
     for m in monotone_report(&sweep.points) {
@@ -125,7 +134,7 @@ fn table(input: &str, animation: &codec_core::Animation, sweep: &Sweep, seconds:
         let _ = writeln!(
             out,
             "{}: {}",
-            m.codec,
+            m.series,
             if ok {
                 "monotone (bpvf rises, KG and STED fall along the ladder)".to_string()
             } else {
@@ -137,7 +146,51 @@ fn table(input: &str, animation: &codec_core::Animation, sweep: &Sweep, seconds:
         );
     }
     for f in &sweep.failures {
-        let _ = writeln!(out, "{} step {}: FAILED: {}", f.codec, f.ladder_index, f.message);
+        let _ = writeln!(out, "{} step {}: FAILED: {}", f.series, f.ladder_index, f.message);
     }
     out
+}
+
+/// The curves to sweep: every codec of `-c` (default: all registered) on the `-p` parameters,
+/// then each `--series CODEC:KEY=VALUE,…`.
+fn sweep_series<'r>(registry: &'r CodecRegistry, args: &SweepArgs) -> CmdResult<Vec<SweepSeries<'r>>> {
+    let mut out = Vec::new();
+    let plain: Vec<&dyn AnimationCodec> = if !args.codecs.is_empty() {
+        args.codecs.iter().map(|n| registry.by_name(n.trim())).collect::<Result<_, _>>()?
+    } else if args.series.is_empty() {
+        registry.iter().collect()
+    } else {
+        Vec::new()
+    };
+    if plain.is_empty() && !args.params.is_empty() {
+        return Err("-p applies to the codecs of -c; with only --series, put the parameters in each series".into());
+    }
+    for codec in plain {
+        out.push(series_on(codec, &args.params)?);
+    }
+    for text in &args.series {
+        let (name, pairs) = text.split_once(':').unwrap_or((text.as_str(), ""));
+        let codec = registry.by_name(name.trim())?;
+        let pairs: Vec<String> =
+            pairs.split(',').map(str::trim).filter(|p| !p.is_empty()).map(str::to_string).collect();
+        out.push(series_on(codec, &pairs)?);
+    }
+    if let Some(dup) =
+        out.iter().enumerate().find_map(|(i, a)| out[..i].iter().any(|b| b.label == a.label).then_some(a))
+    {
+        return Err(format!("series '{}' is given twice", dup.label).into());
+    }
+    Ok(out)
+}
+
+/// `codec` on the parameters `pairs`, refusing to set the parameter its ladder walks.
+fn series_on<'r>(codec: &'r dyn AnimationCodec, pairs: &[String]) -> CmdResult<SweepSeries<'r>> {
+    let base = parse_params(codec, pairs)?;
+    let walked = codec.rate_ladder(&base).param;
+    if let Some(p) = pairs.iter().find(|p| p.split_once('=').is_some_and(|(k, _)| k.trim() == walked)) {
+        return Err(
+            format!("{}: '{p}' sets the parameter the sweep walks ({walked}); leave it out", codec.name()).into()
+        );
+    }
+    Ok(SweepSeries::with_base(codec, base)?)
 }
