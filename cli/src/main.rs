@@ -61,6 +61,48 @@ enum Command {
     Eval(EvalArgs),
     /// Walk every codec's rate ladder on one input: table, JSON, CSV and rate-distortion plot.
     Sweep(SweepArgs),
+    /// Show the stseg segmentation of an animation: temporal segments and per-vertex group
+    /// labels as JSON, and the groups as vertex colours in a PLY or OBJ mesh.
+    Inspect(InspectArgs),
+}
+
+/// Arguments of `animcodec inspect`.
+#[derive(Debug, Args)]
+pub struct InspectArgs {
+    /// Input animation: .pc2, .mdd, .gltf/.glb, an OBJ directory or pattern, or
+    /// `synth:NAME[:small|medium|large]`.
+    #[arg(value_name = "INPUT")]
+    pub input: String,
+
+    /// stseg parameter as key=value (repeatable; see `animcodec list`). Only the segmentation
+    /// parameters (omega_seg, w, gamma_init, gamma_max, lambda, cut_threshold, groups, rho)
+    /// change the result.
+    #[arg(short = 'p', long = "param", value_name = "KEY=VALUE")]
+    pub params: Vec<String>,
+
+    /// Write JSON to F (`-`: print it instead of the summary): {input, vertices, frames,
+    /// triangles, params, boundaries, detected_boundaries, segments: [{index, first_frame,
+    /// last_frame, frame_count, case, kind, detected_boundary, ends_at, window, group_count,
+    /// group_sizes, label_set}], label_sets: [[label per vertex], …]}. Segments sharing a
+    /// grouping share one label set.
+    #[arg(long, value_name = "F")]
+    pub json: Option<PathBuf>,
+
+    /// Write the mesh at `--frame` with each vertex coloured by its group label in the segment
+    /// containing that frame: `.ply` (ASCII, `red green blue` uchar vertex properties) or
+    /// `.obj` (`v x y z r g b`, colours 0..1). Colours: hue k·0.618… (golden-ratio steps) for
+    /// label k, so they are the same in every run.
+    #[arg(long, value_name = "F.ply|F.obj")]
+    pub mesh: Option<PathBuf>,
+
+    /// Frame shown by `--mesh` (0-based).
+    #[arg(long, value_name = "N", default_value_t = 0)]
+    pub frame: usize,
+
+    /// OBJ file giving the triangles of a .pc2/.mdd cache (default: the OBJ beside it with the
+    /// same stem).
+    #[arg(long, value_name = "OBJ")]
+    pub topology: Option<PathBuf>,
 }
 
 /// Arguments of `animcodec list`.
@@ -365,5 +407,6 @@ fn run(cli: Cli) -> commands::CmdResult {
         Command::Demo(a) => commands::demo::run(&a, limits),
         Command::Eval(a) => commands::eval::run(&a, limits),
         Command::Sweep(a) => commands::sweep::run(&a, limits),
+        Command::Inspect(a) => commands::inspect::run(&a),
     }
 }

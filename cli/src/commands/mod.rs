@@ -6,6 +6,7 @@ pub mod demo;
 pub mod encode;
 pub mod eval;
 pub mod info;
+pub mod inspect;
 pub mod list;
 pub mod sweep;
 pub mod synth;

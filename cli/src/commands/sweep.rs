@@ -192,5 +192,5 @@ fn series_on<'r>(codec: &'r dyn AnimationCodec, pairs: &[String]) -> CmdResult<S
             format!("{}: '{p}' sets the parameter the sweep walks ({walked}); leave it out", codec.name()).into()
         );
     }
-    Ok(SweepSeries::with_base(codec, base)?)
+    SweepSeries::with_base(codec, base)
 }
