@@ -1,9 +1,9 @@
 //! Release benchmark for `pca-aoi` (in the spirit of the paper's Table 1).
 //!
 //! ```text
-//! cargo build --release -p codec-pca-aoi --example bench
-//! target/release/examples/bench table [DATA_DIR] [REPEATS]      # chicken-crossing + samba
-//! target/release/examples/bench stream [FRAMES] [VERTICES] [BLOCK]  # peak RSS of a long stream
+//! cargo build --release -p codec-pca-aoi --example pca_bench
+//! target/release/examples/pca_bench table [DATA_DIR] [REPEATS]      # chicken-crossing + samba
+//! target/release/examples/pca_bench stream [FRAMES] [VERTICES] [BLOCK]  # peak RSS of a long stream
 //! ```
 //!
 //! `table`: for each dataset and each configuration (svd, baoi, baoi tmax=2, baoi z=2, qaoi,

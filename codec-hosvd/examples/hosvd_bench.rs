@@ -1,8 +1,8 @@
 //! Release benchmark of `hosvd` on real animations (read straight from PC2 + OBJ).
 //!
 //! ```text
-//! cargo build --release -p codec-hosvd --example bench
-//! target/release/examples/bench [DATA_DIR] [NAME ...]     # default ../shared/data samba horse-gallop
+//! cargo build --release -p codec-hosvd --example hosvd_bench
+//! target/release/examples/hosvd_bench [DATA_DIR] [NAME ...]     # default ../shared/data samba horse-gallop
 //! ```
 //!
 //! Per animation, all in one run:
