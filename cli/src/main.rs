@@ -185,6 +185,22 @@ pub struct StedArgs {
     pub sted_signed: bool,
 }
 
+/// The metric switches `eval` and `sweep` share.
+#[derive(Debug, Args)]
+pub struct MetricArgs {
+    /// STED options.
+    #[command(flatten)]
+    pub sted: StedArgs,
+
+    /// Skip STED.
+    #[arg(long)]
+    pub no_sted: bool,
+
+    /// Skip the Hausdorff distance.
+    #[arg(long)]
+    pub no_hausdorff: bool,
+}
+
 /// Arguments of `animcodec eval`.
 #[derive(Debug, Args)]
 pub struct EvalArgs {
@@ -201,17 +217,9 @@ pub struct EvalArgs {
     #[arg(long, value_name = "OBJ")]
     pub topology: Option<PathBuf>,
 
-    /// STED options.
+    /// Which metrics, and STED's options.
     #[command(flatten)]
-    pub sted: StedArgs,
-
-    /// Skip STED.
-    #[arg(long)]
-    pub no_sted: bool,
-
-    /// Skip the Hausdorff distance.
-    #[arg(long)]
-    pub no_hausdorff: bool,
+    pub metrics: MetricArgs,
 
     /// Print JSON with keys named after the metrics: kg, sted, sted_spatial, sted_temporal,
     /// hausdorff, hausdorff_mean, hausdorff_relative, mse, rmse, rmse_relative, max_error,
@@ -274,17 +282,9 @@ pub struct SweepArgs {
     #[arg(long, value_name = "OBJ")]
     pub topology: Option<PathBuf>,
 
-    /// STED options.
+    /// Which metrics, and STED's options.
     #[command(flatten)]
-    pub sted: StedArgs,
-
-    /// Skip STED.
-    #[arg(long)]
-    pub no_sted: bool,
-
-    /// Skip the Hausdorff distance.
-    #[arg(long)]
-    pub no_hausdorff: bool,
+    pub metrics: MetricArgs,
 }
 
 /// Arguments of `animcodec decode`.

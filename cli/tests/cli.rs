@@ -1,72 +1,10 @@
 //! End-to-end tests of the `animcodec` binary: output formats, round trips through files,
 //! and error messages (exit code, one line, no panic).
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::path::Path;
 
-use serde_json::Value;
-
-fn animcodec(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_animcodec")).args(args).output().expect("the animcodec binary runs")
-}
-
-fn stdout(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stdout).into_owned()
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
-
-/// Runs a command expected to succeed and returns its stdout.
-fn ok(args: &[&str]) -> String {
-    let o = animcodec(args);
-    assert!(o.status.success(), "animcodec {args:?} failed: {}", stderr(&o));
-    stdout(&o)
-}
-
-fn ok_json(args: &[&str]) -> Value {
-    let text = ok(args);
-    serde_json::from_str(&text).unwrap_or_else(|e| panic!("animcodec {args:?} printed invalid JSON ({e}): {text}"))
-}
-
-/// Runs a command expected to fail with exit code 1 and a single `error:` line containing
-/// every one of `needles`.
-fn fails(args: &[&str], needles: &[&str]) -> String {
-    let o = animcodec(args);
-    let err = stderr(&o);
-    assert_eq!(o.status.code(), Some(1), "animcodec {args:?}: expected exit 1, stderr: {err}");
-    assert!(!err.contains("panicked"), "animcodec {args:?} panicked: {err}");
-    let lines: Vec<&str> = err.lines().collect();
-    assert_eq!(lines.len(), 1, "animcodec {args:?}: expected one line of stderr, got: {err}");
-    assert!(lines[0].starts_with("error: "), "{err}");
-    for n in needles {
-        assert!(err.contains(n), "animcodec {args:?}: stderr does not mention '{n}': {err}");
-    }
-    err
-}
-
-/// A scratch directory unique to this test process and test, removed on drop.
-struct Scratch(PathBuf);
-
-impl Scratch {
-    fn new(test: &str) -> Self {
-        let dir = std::env::temp_dir().join(format!("animcodec-cli-{}-{test}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
-        Self(dir)
-    }
-
-    fn path(&self, name: &str) -> String {
-        self.0.join(name).to_str().unwrap().to_string()
-    }
-}
-
-impl Drop for Scratch {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
+mod common;
+use common::*;
 
 #[test]
 fn list_json_describes_quant_delta_and_its_params() {
@@ -109,8 +47,14 @@ fn list_text_shows_every_codec_and_ladder() {
 #[test]
 fn help_documents_every_subcommand_and_flag() {
     let top = ok(&["--help"]);
-    for sub in ["list", "encode", "decode", "info", "synth", "demo"] {
+    for sub in ["list", "encode", "decode", "info", "synth", "demo", "eval", "sweep", "inspect"] {
         assert!(top.contains(sub), "--help lacks {sub}: {top}");
+        let help = ok(&[sub, "--help"]);
+        assert!(help.contains("Usage: animcodec"), "{sub} --help: {help}");
+    }
+    let sweep = ok(&["sweep", "--help"]);
+    for flag in ["--codecs", "--param", "--series", "--points", "--jobs", "--json", "--csv", "--plot"] {
+        assert!(sweep.contains(flag), "sweep --help lacks {flag}: {sweep}");
     }
     let enc = ok(&["encode", "--help"]);
     for flag in ["--codec", "--param", "--output", "--topology", "--fps", "--json", "--max-memory"] {

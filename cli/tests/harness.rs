@@ -2,9 +2,6 @@
 //! `animcodec encode --target`, through the binary and through `animcodec::harness`.
 //! Everything runs on small synthetic animations so the suite stays fast.
 
-use std::path::PathBuf;
-use std::process::{Command, Output};
-
 use animcodec::harness::{
     self, ladder_params, measure_point, search_target, search_target_auto, Target, TargetMetric, TargetMiss,
     CSV_COLUMNS,
@@ -18,54 +15,8 @@ use codec_core::{
 use metrics::EvalOptions;
 use serde_json::Value;
 
-fn animcodec(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_animcodec")).args(args).output().expect("the animcodec binary runs")
-}
-
-fn ok(args: &[&str]) -> String {
-    let o = animcodec(args);
-    assert!(o.status.success(), "animcodec {args:?} failed: {}", String::from_utf8_lossy(&o.stderr));
-    String::from_utf8_lossy(&o.stdout).into_owned()
-}
-
-fn ok_json(args: &[&str]) -> Value {
-    let text = ok(args);
-    serde_json::from_str(&text).unwrap_or_else(|e| panic!("animcodec {args:?} printed invalid JSON ({e}): {text}"))
-}
-
-/// Expects exit code 1 and one `error:` line mentioning every needle.
-fn fails(args: &[&str], needles: &[&str]) -> String {
-    let o = animcodec(args);
-    let err = String::from_utf8_lossy(&o.stderr).into_owned();
-    assert_eq!(o.status.code(), Some(1), "animcodec {args:?}: expected exit 1, stderr: {err}");
-    assert!(!err.contains("panicked"), "{err}");
-    assert_eq!(err.lines().count(), 1, "{err}");
-    for n in needles {
-        assert!(err.contains(n), "animcodec {args:?}: stderr does not mention '{n}': {err}");
-    }
-    err
-}
-
-struct Scratch(PathBuf);
-
-impl Scratch {
-    fn new(test: &str) -> Self {
-        let dir = std::env::temp_dir().join(format!("animcodec-harness-{}-{test}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
-        Self(dir)
-    }
-
-    fn path(&self, name: &str) -> String {
-        self.0.join(name).to_str().unwrap().to_string()
-    }
-}
-
-impl Drop for Scratch {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
+mod common;
+use common::*;
 
 fn f(v: &Value) -> f64 {
     v.as_f64().unwrap_or_else(|| panic!("{v} is not a number"))

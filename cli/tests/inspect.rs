@@ -2,60 +2,10 @@
 //! PLY/OBJ meshes and the error messages. All on the small `synth:phases` (242 vertices ×
 //! 40 frames), so they run in well under a second each.
 
-use std::path::PathBuf;
-use std::process::{Command, Output};
-
 use serde_json::Value;
 
-fn animcodec(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_animcodec")).args(args).output().expect("the animcodec binary runs")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
-
-fn ok(args: &[&str]) -> String {
-    let o = animcodec(args);
-    assert!(o.status.success(), "animcodec {args:?} failed: {}", stderr(&o));
-    String::from_utf8_lossy(&o.stdout).into_owned()
-}
-
-/// Runs a command expected to fail with exit code 1 and one `error:` line containing every
-/// one of `needles`.
-fn fails(args: &[&str], needles: &[&str]) {
-    let o = animcodec(args);
-    let err = stderr(&o);
-    assert_eq!(o.status.code(), Some(1), "animcodec {args:?}: expected exit 1, stderr: {err}");
-    assert!(!err.contains("panicked"), "{err}");
-    assert_eq!(err.lines().count(), 1, "expected one line of stderr: {err}");
-    assert!(err.starts_with("error: "), "{err}");
-    for n in needles {
-        assert!(err.contains(n), "animcodec {args:?}: stderr does not mention '{n}': {err}");
-    }
-}
-
-/// A scratch directory unique to this test process and test, removed on drop.
-struct Scratch(PathBuf);
-
-impl Scratch {
-    fn new(test: &str) -> Self {
-        let dir = std::env::temp_dir().join(format!("animcodec-inspect-{}-{test}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
-        Self(dir)
-    }
-
-    fn path(&self, name: &str) -> String {
-        self.0.join(name).to_string_lossy().into_owned()
-    }
-}
-
-impl Drop for Scratch {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
+mod common;
+use common::*;
 
 const INPUT: &str = "synth:phases";
 

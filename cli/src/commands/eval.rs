@@ -11,7 +11,7 @@ use serde_json::Value;
 
 use super::decode::open;
 use super::{emit, emit_json, load_animation, CmdResult, WithContext};
-use crate::{EvalArgs, StedArgs};
+use crate::{EvalArgs, MetricArgs, StedArgs};
 
 /// STED parameters from the command line (defaults from [`StedParams::default`]), checked.
 pub fn sted_params(args: &StedArgs) -> CmdResult<StedParams> {
@@ -39,13 +39,18 @@ pub fn load_any(input: &str, options: &ReadOptions, limits: Limits) -> CmdResult
     load_animation(input, options)
 }
 
-/// Runs `eval`.
-pub fn run(args: &EvalArgs, limits: Limits) -> CmdResult {
-    let options = EvalOptions {
+/// The metrics and STED options `eval` and `sweep` were asked for.
+pub fn eval_options(args: &MetricArgs) -> CmdResult<EvalOptions> {
+    Ok(EvalOptions {
         sted: sted_params(&args.sted)?,
         compute_sted: !args.no_sted,
         compute_hausdorff: !args.no_hausdorff,
-    };
+    })
+}
+
+/// Runs `eval`.
+pub fn run(args: &EvalArgs, limits: Limits) -> CmdResult {
+    let options = eval_options(&args.metrics)?;
     let read = ReadOptions { topology: args.topology.clone(), frame_rate: None };
     let reference = load_any(&args.reference, &read, limits)?;
     let candidate = load_any(&args.candidate, &read, limits)?;

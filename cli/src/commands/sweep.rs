@@ -9,10 +9,9 @@ use animcodec::formats::ReadOptions;
 use animcodec::harness::{self, monotone_report, Sweep, SweepOptions, SweepSeries};
 use codec_core::{AnimationCodec, CodecRegistry, Limits};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
-use metrics::EvalOptions;
 
 use super::encode::parse_params;
-use super::eval::{load_any, sted_params};
+use super::eval::{eval_options, load_any};
 use super::{emit, emit_json, CmdResult};
 use crate::SweepArgs;
 
@@ -23,11 +22,7 @@ pub const DEFAULT_INPUT: &str = "synth:flag";
 pub fn run(args: &SweepArgs, limits: Limits) -> CmdResult {
     let registry = animcodec::registry();
     let series = sweep_series(&registry, args)?;
-    let eval = EvalOptions {
-        sted: sted_params(&args.sted)?,
-        compute_sted: !args.no_sted,
-        compute_hausdorff: !args.no_hausdorff,
-    };
+    let eval = eval_options(&args.metrics)?;
     let input = args.input.as_deref().unwrap_or(DEFAULT_INPUT);
     let read = ReadOptions { topology: args.topology.clone(), frame_rate: None };
     let animation = load_any(input, &read, limits)?;

@@ -1,0 +1,78 @@
+//! Helpers shared by the end-to-end tests of the `animcodec` binary (`cli.rs`, `harness.rs`,
+//! `inspect.rs`): run it, expect success or a one-line error, scratch directories.
+
+// Each test binary compiles this module and uses a different subset of it.
+#![allow(dead_code)]
+
+use std::path::PathBuf;
+use std::process::{Command, Output};
+
+use serde_json::Value;
+
+/// Runs the `animcodec` binary built for these tests.
+pub fn animcodec(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_animcodec")).args(args).output().expect("the animcodec binary runs")
+}
+
+/// The captured standard output, lossily decoded.
+pub fn stdout(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+/// The captured standard error, lossily decoded.
+pub fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// Runs a command expected to succeed and returns its stdout.
+pub fn ok(args: &[&str]) -> String {
+    let o = animcodec(args);
+    assert!(o.status.success(), "animcodec {args:?} failed: {}", stderr(&o));
+    stdout(&o)
+}
+
+/// Runs a command expected to succeed and print JSON, and parses it.
+pub fn ok_json(args: &[&str]) -> Value {
+    let text = ok(args);
+    serde_json::from_str(&text).unwrap_or_else(|e| panic!("animcodec {args:?} printed invalid JSON ({e}): {text}"))
+}
+
+/// Runs a command expected to fail with exit code 1 and a single `error:` line containing
+/// every one of `needles`; returns that line.
+pub fn fails(args: &[&str], needles: &[&str]) -> String {
+    let o = animcodec(args);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "animcodec {args:?}: expected exit 1, stderr: {err}");
+    assert!(!err.contains("panicked"), "animcodec {args:?} panicked: {err}");
+    let lines: Vec<&str> = err.lines().collect();
+    assert_eq!(lines.len(), 1, "animcodec {args:?}: expected one line of stderr, got: {err}");
+    assert!(lines[0].starts_with("error: "), "{err}");
+    for n in needles {
+        assert!(err.contains(n), "animcodec {args:?}: stderr does not mention '{n}': {err}");
+    }
+    err
+}
+
+/// A scratch directory unique to this test process and test, removed on drop.
+pub struct Scratch(pub PathBuf);
+
+impl Scratch {
+    /// Creates (emptied) `$TMP/animcodec-test-<pid>-<test>`.
+    pub fn new(test: &str) -> Self {
+        let dir = std::env::temp_dir().join(format!("animcodec-test-{}-{test}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        Self(dir)
+    }
+
+    /// A file path inside the directory, as a string for command lines.
+    pub fn path(&self, name: &str) -> String {
+        self.0.join(name).to_string_lossy().into_owned()
+    }
+}
+
+impl Drop for Scratch {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
