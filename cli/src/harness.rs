@@ -731,7 +731,15 @@ impl std::error::Error for TargetMiss {}
 /// A non-monotone stretch far below the answer that the binary search never touches can go
 /// unnoticed: only a full scan would find it, and a full scan costs the whole ladder.
 ///
+/// Ladders are coarse (hosvd's `ss` 0.9 → 0.85 can be the difference between just missing
+/// and meeting the target with room to spare), so with `refine > 0` and a monotone ladder the
+/// search then bisects the ladder parameter between the failing step `k − 1` and the passing
+/// step `k` for up to `refine` more points (integers stop when the bracket closes; choices
+/// cannot be refined). Refined points carry ladder index `k` and their exact value in
+/// `params`. Only measured points are ever chosen, so the answer always meets the target.
+///
 /// Errors: invalid parameters or codec failures as errors; no passing point as [`TargetMiss`].
+#[allow(clippy::too_many_arguments)]
 pub fn search_target(
     registry: &CodecRegistry,
     codec: &dyn AnimationCodec,
@@ -740,6 +748,7 @@ pub fn search_target(
     target: Target,
     eval: &EvalOptions,
     limits: Limits,
+    refine: usize,
 ) -> HResult<TargetHit> {
     let ladder = codec.rate_ladder(base);
     let n = ladder.steps.len();
@@ -791,10 +800,29 @@ pub fn search_target(
             measure(i, &mut measured)?;
         }
     }
-    let tried: Vec<(Point, Vec<u8>)> = measured.into_iter().flatten().collect();
+    let passes = |p: &Point| target.metric.value(&p.report).is_some_and(|v| v <= target.value);
+    let mut tried: Vec<(Point, Vec<u8>)> = measured.into_iter().flatten().collect();
+    if monotone && k >= 1 {
+        let (mut fail, mut pass) = (ladder.steps[k - 1].clone(), ladder.steps[k].clone());
+        let specs = codec.param_specs();
+        for _ in 0..refine {
+            let Some(mid) = midpoint(&fail, &pass) else { break };
+            let Ok(params) = base.clone().with(&specs, ladder.param, mid.clone()) else { break };
+            if codec.validate(&params).is_err() {
+                break;
+            }
+            let (point, bytes) = measure_point(registry, codec, &params, (ladder.param, k), animation, &eval, limits)?;
+            if passes(&point) {
+                pass = mid;
+            } else {
+                fail = mid;
+            }
+            tried.push((point, bytes));
+        }
+    }
     let best = tried
         .iter()
-        .filter(|(p, _)| target.metric.value(&p.report).is_some_and(|v| v <= target.value))
+        .filter(|(p, _)| passes(p))
         .min_by_key(|(p, _)| (p.bytes, p.ladder_index))
         .cloned()
         .expect("the top step passed");
@@ -804,6 +832,20 @@ pub fn search_target(
         tried: tried.into_iter().map(|(p, _)| p).collect(),
         linear_fallback: !monotone,
     })
+}
+
+/// The value halfway between two ladder values, or `None` when there is nothing in between
+/// (adjacent integers, equal values, choices, booleans).
+fn midpoint(a: &ParamValue, b: &ParamValue) -> Option<ParamValue> {
+    match (a, b) {
+        (ParamValue::Int(a), ParamValue::Int(b)) if a.abs_diff(*b) > 1 => Some(ParamValue::Int(a + (b - a) / 2)),
+        (ParamValue::Float(a), ParamValue::Float(b)) if a != b => {
+            let mid = a + (b - a) / 2.0;
+            // Stop once the bracket is as narrow as a float allows.
+            (mid != *a && mid != *b).then_some(ParamValue::Float(mid))
+        }
+        _ => None,
+    }
 }
 
 /// [`search_target`] for every codec in `codecs` (each at its default parameters), keeping
@@ -816,11 +858,12 @@ pub fn search_target_auto(
     target: Target,
     eval: &EvalOptions,
     limits: Limits,
+    refine: usize,
 ) -> HResult<(TargetHit, Vec<TargetHit>)> {
     let mut hits = Vec::new();
     let mut misses = Vec::new();
     for &codec in codecs {
-        match search_target(registry, codec, &codec.default_params(), animation, target, eval, limits) {
+        match search_target(registry, codec, &codec.default_params(), animation, target, eval, limits, refine) {
             Ok(hit) => hits.push(hit),
             Err(e) => match e.downcast::<TargetMiss>() {
                 Ok(miss) => misses.push(miss.to_string()),
@@ -896,6 +939,7 @@ mod tests {
             target,
             &EvalOptions::default(),
             Limits::default(),
+            0,
         )
         .unwrap_err();
         let miss = e.downcast_ref::<TargetMiss>().expect("a TargetMiss");

@@ -155,6 +155,12 @@ pub struct EncodeArgs {
     #[arg(long, value_name = "METRIC=VALUE", value_parser = parse_target)]
     pub target: Option<animcodec::harness::Target>,
 
+    /// With --target: extra points bisecting the ladder parameter between the last step that
+    /// misses and the first that meets the target (ladders are coarse; integers stop when the
+    /// bracket closes). 0 keeps to the ladder's own steps.
+    #[arg(long, value_name = "N", default_value_t = 4, value_parser = clap::value_parser!(u32).range(0..=32))]
+    pub refine: u32,
+
     /// STED options for `--target sted=…`.
     #[command(flatten)]
     pub sted: StedArgs,

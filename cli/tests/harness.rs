@@ -198,7 +198,7 @@ fn target_search_meets_the_target_and_the_next_smaller_point_does_not() {
     for want in [1, kg.len() / 2, kg.len() - 1] {
         let target = Target { metric: TargetMetric::Kg, value: (kg[want] + kg[want - 1]) / 2.0 };
         let hit =
-            search_target(&registry, codec, &codec.default_params(), &animation, target, &eval, Limits::default())
+            search_target(&registry, codec, &codec.default_params(), &animation, target, &eval, Limits::default(), 0)
                 .unwrap();
         assert_eq!(hit.point.ladder_index, want, "target {target}");
         assert!(hit.point.report.kg.unwrap() <= target.value);
@@ -211,8 +211,8 @@ fn target_search_meets_the_target_and_the_next_smaller_point_does_not() {
     }
     // Exactly on a ladder point's value counts as meeting it.
     let target = Target { metric: TargetMetric::Kg, value: kg[0] };
-    let hit =
-        search_target(&registry, codec, &codec.default_params(), &animation, target, &eval, Limits::default()).unwrap();
+    let hit = search_target(&registry, codec, &codec.default_params(), &animation, target, &eval, Limits::default(), 0)
+        .unwrap();
     assert_eq!(hit.point.ladder_index, 0);
 }
 
@@ -378,14 +378,14 @@ fn auto_search_keeps_the_smallest_stream_whatever_the_order() {
     let plain = registry.by_name("plain").unwrap();
     for order in [[padded, plain], [plain, padded]] {
         let (best, others) =
-            search_target_auto(&registry, &order, &animation, target, &eval, Limits::default()).unwrap();
+            search_target_auto(&registry, &order, &animation, target, &eval, Limits::default(), 0).unwrap();
         assert_eq!(best.point.codec, "plain");
         assert_eq!(others.len(), 1);
         assert!(others[0].point.bytes > best.point.bytes);
     }
     // Nothing reachable: the error lists each codec's best.
     let target = Target { metric: TargetMetric::MaxError, value: 0.0 };
-    let e = search_target_auto(&registry, &[padded, plain], &animation, target, &eval, Limits::default())
+    let e = search_target_auto(&registry, &[padded, plain], &animation, target, &eval, Limits::default(), 0)
         .unwrap_err()
         .to_string();
     assert!(e.contains("padded") && e.contains("plain") && e.contains("best reached"), "{e}");
@@ -410,8 +410,8 @@ fn non_monotone_ladders_fall_back_to_a_linear_scan() {
     // settles on step 5 (bits 14); the check of step 3 reveals the kink and the scan finds it.
     let target = Target { metric: TargetMetric::MaxError, value: (bytes_and_err[3].1 + bytes_and_err[4].1) / 2.0 };
     assert!(bytes_and_err[4].1 > target.value && bytes_and_err[3].1 <= target.value);
-    let hit =
-        search_target(&registry, codec, &codec.default_params(), &animation, target, &eval, Limits::default()).unwrap();
+    let hit = search_target(&registry, codec, &codec.default_params(), &animation, target, &eval, Limits::default(), 0)
+        .unwrap();
     // The smallest passing stream among all steps.
     let best = bytes_and_err.iter().filter(|(_, e)| *e <= target.value).map(|(b, _)| *b).min().unwrap();
     assert_eq!(hit.point.bytes, best);
@@ -432,9 +432,33 @@ fn target_miss_names_the_best_point() {
         target,
         &EvalOptions::default(),
         Limits::default(),
+        0,
     )
     .unwrap_err();
     let miss = e.downcast_ref::<TargetMiss>().unwrap();
     assert_eq!(miss.best.as_ref().unwrap().ladder_index, codec.rate_ladder(&codec.default_params()).steps.len() - 1);
     let _ = harness::point_json(miss.best.as_ref().unwrap());
+}
+
+#[test]
+fn refinement_between_ladder_steps_finds_a_smaller_stream_that_meets_the_target() {
+    let registry = animcodec::registry();
+    let codec = registry.by_name("quant-delta").unwrap();
+    let animation = small();
+    let eval = EvalOptions { compute_sted: false, compute_hausdorff: false, ..Default::default() };
+    let base = codec.default_params();
+    // quant-delta's ladder has even bit depths only; aim exactly at the KG of 7 bits.
+    let with_bits = base.clone().with(&codec.param_specs(), "bits", ParamValue::Int(7)).unwrap();
+    let (at7, _) =
+        measure_point(&registry, codec, &with_bits, ("bits", 0), &animation, &eval, Limits::default()).unwrap();
+    let target = Target { metric: TargetMetric::Kg, value: at7.report.kg.unwrap() };
+    let coarse = search_target(&registry, codec, &base, &animation, target, &eval, Limits::default(), 0).unwrap();
+    assert_eq!(coarse.point.params.int("bits").unwrap(), 8);
+    let fine = search_target(&registry, codec, &base, &animation, target, &eval, Limits::default(), 3).unwrap();
+    assert_eq!(fine.point.params.int("bits").unwrap(), 7, "the bisection between 6 (miss) and 8 finds 7");
+    assert!(fine.point.bytes < coarse.point.bytes);
+    assert!(fine.point.report.kg.unwrap() <= target.value);
+    // Between adjacent integers there is nothing left to try: one extra point, not three.
+    assert_eq!(fine.tried.len(), coarse.tried.len() + 1);
+    assert_eq!(fine.stream.len() as u64, fine.point.bytes);
 }

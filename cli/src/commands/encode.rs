@@ -253,12 +253,13 @@ fn run_target(args: &EncodeArgs, target: Target, limits: Limits) -> CmdResult {
 
     let start = Instant::now();
     let (hit, others) = match chosen {
-        Some((codec, params)) => {
-            (harness::search_target(&registry, codec, &params, &animation, target, &eval, limits)?, Vec::new())
-        }
+        Some((codec, params)) => (
+            harness::search_target(&registry, codec, &params, &animation, target, &eval, limits, args.refine as usize)?,
+            Vec::new(),
+        ),
         None => {
             let codecs: Vec<&dyn AnimationCodec> = registry.iter().collect();
-            harness::search_target_auto(&registry, &codecs, &animation, target, &eval, limits)?
+            harness::search_target_auto(&registry, &codecs, &animation, target, &eval, limits, args.refine as usize)?
         }
     };
     let search_seconds = start.elapsed().as_secs_f64();
