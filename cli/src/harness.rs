@@ -840,9 +840,12 @@ fn midpoint(a: &ParamValue, b: &ParamValue) -> Option<ParamValue> {
     match (a, b) {
         (ParamValue::Int(a), ParamValue::Int(b)) if a.abs_diff(*b) > 1 => Some(ParamValue::Int(a + (b - a) / 2)),
         (ParamValue::Float(a), ParamValue::Float(b)) if a != b => {
-            let mid = a + (b - a) / 2.0;
-            // Stop once the bracket is as narrow as a float allows.
-            (mid != *a && mid != *b).then_some(ParamValue::Float(mid))
+            // Rounded to two digits below the bracket's width, so values read like 0.8969
+            // rather than 0.8968750000000001; stop once rounding reaches an end.
+            let unit = 10f64.powf(((b - a).abs().log10() - 2.0).floor());
+            let mid = ((a + (b - a) / 2.0) / unit).round() * unit;
+            let mid = format!("{mid:.12}").parse::<f64>().unwrap_or(mid);
+            (mid.is_finite() && mid != *a && mid != *b).then_some(ParamValue::Float(mid))
         }
         _ => None,
     }
@@ -902,6 +905,19 @@ mod tests {
                 assert!(v.windows(2).all(|w| w[0] < w[1]));
             }
         }
+    }
+
+    #[test]
+    fn midpoints_are_rounded_and_stop_when_the_bracket_closes() {
+        let f = |x| ParamValue::Float(x);
+        assert_eq!(midpoint(&f(0.9), &f(0.85)), Some(f(0.875)));
+        assert_eq!(midpoint(&f(0.9), &f(0.875)), Some(f(0.8875)));
+        assert_eq!(midpoint(&f(0.8968), &f(0.8969)), Some(f(0.89685)));
+        assert_eq!(midpoint(&f(1.0), &f(1.0)), None);
+        assert_eq!(midpoint(&ParamValue::Int(6), &ParamValue::Int(8)), Some(ParamValue::Int(7)));
+        assert_eq!(midpoint(&ParamValue::Int(8), &ParamValue::Int(7)), None);
+        assert_eq!(midpoint(&ParamValue::Int(250), &ParamValue::Int(160)), Some(ParamValue::Int(205)));
+        assert_eq!(midpoint(&ParamValue::Bool(false), &ParamValue::Bool(true)), None);
     }
 
     #[test]
