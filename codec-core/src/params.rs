@@ -81,6 +81,31 @@ pub struct ParamSpec {
 }
 
 impl ParamSpec {
+    /// An integer parameter in `min ..= max`.
+    pub const fn int(name: &'static str, min: i64, max: i64, default: i64, doc: &'static str) -> Self {
+        Self { name, kind: ParamKind::Int { min, max }, default: ParamValue::Int(default), doc }
+    }
+
+    /// A real parameter in `min ..= max`.
+    pub const fn float(name: &'static str, min: f64, max: f64, default: f64, doc: &'static str) -> Self {
+        Self { name, kind: ParamKind::Float { min, max }, default: ParamValue::Float(default), doc }
+    }
+
+    /// A `true`/`false` parameter.
+    pub const fn boolean(name: &'static str, default: bool, doc: &'static str) -> Self {
+        Self { name, kind: ParamKind::Bool, default: ParamValue::Bool(default), doc }
+    }
+
+    /// A parameter naming one of `options`.
+    pub const fn choice(
+        name: &'static str,
+        options: &'static [&'static str],
+        default: &'static str,
+        doc: &'static str,
+    ) -> Self {
+        Self { name, kind: ParamKind::Choice(options), default: ParamValue::Choice(default), doc }
+    }
+
     /// Checks that `value` has this parameter's kind and lies in its range.
     pub fn check(&self, codec: &'static str, value: &ParamValue) -> Result<()> {
         let bad = |msg: String| Err(Error::parameter(codec, self.name, msg));
@@ -255,6 +280,15 @@ mod tests {
                 doc: "",
             },
         ]
+    }
+
+    #[test]
+    fn constructors_build_the_same_specs_as_literals() {
+        let s = specs();
+        assert_eq!(ParamSpec::int("bits", 1, 24, 12, ""), s[0]);
+        assert_eq!(ParamSpec::choice("mode", &["a", "b"], "a", ""), s[1]);
+        assert_eq!(ParamSpec::boolean("on", false, ""), s[2]);
+        assert_eq!(ParamSpec::float("eps", 0.0, 1.0, 0.5, ""), s[3]);
     }
 
     #[test]

@@ -14,7 +14,7 @@ use crate::codec::{
 use crate::container::Limits;
 use crate::entropy;
 use crate::error::{Error, Result};
-use crate::params::{ParamKind, ParamSet, ParamSpec, ParamValue, RateLadder};
+use crate::params::{ParamSet, ParamSpec, ParamValue, RateLadder};
 use crate::quant::Quantizer;
 
 const NAME: &str = "quant-delta";
@@ -41,24 +41,15 @@ impl QuantDeltaParams {
     pub fn specs() -> Vec<ParamSpec> {
         let d = Self::default();
         vec![
-            ParamSpec {
-                name: "bits",
-                kind: ParamKind::Int { min: 1, max: 24 },
-                default: ParamValue::Int(d.bits as i64),
-                doc: "bits per coordinate; max error is half a step of the packet's range",
-            },
-            ParamSpec {
-                name: "block",
-                kind: ParamKind::Int { min: 1, max: 65536 },
-                default: ParamValue::Int(d.block as i64),
-                doc: "frames per packet (random-access granularity)",
-            },
-            ParamSpec {
-                name: "level",
-                kind: ParamKind::Int { min: 1, max: 22 },
-                default: ParamValue::Int(d.level as i64),
-                doc: "zstd compression level",
-            },
+            ParamSpec::int(
+                "bits",
+                1,
+                24,
+                d.bits as i64,
+                "bits per coordinate; max error is half a step of the packet's range",
+            ),
+            ParamSpec::int("block", 1, 65536, d.block as i64, "frames per packet (random-access granularity)"),
+            ParamSpec::int("level", 1, 22, d.level as i64, "zstd compression level"),
         ]
     }
 

@@ -22,8 +22,7 @@ use std::time::Instant;
 use codec_core::bytes::{zigzag_decode, zigzag_encode, ByteReader, ByteWriter};
 use codec_core::{
     entropy, Animation, AnimationCodec, EncodedPacket, EncoderSetup, Error, ErrorBound, FourCc, FrameDecoder,
-    FrameEncoder, Limits, Packet, ParamKind, ParamSet, ParamSpec, ParamValue, Quantizer, RateLadder, Result,
-    StreamInfo,
+    FrameEncoder, Limits, Packet, ParamSet, ParamSpec, ParamValue, Quantizer, RateLadder, Result, StreamInfo,
 };
 use faer::Mat;
 
@@ -92,78 +91,67 @@ impl HosvdParams {
     pub fn specs() -> Vec<ParamSpec> {
         let d = Self::default();
         vec![
-            ParamSpec {
-                name: "ss",
-                kind: ParamKind::Float { min: 0.0, max: 0.9999 },
-                default: ParamValue::Float(d.ss),
-                doc: "space saving 1 - CR of the paper's size model (Eq. 12-13), e.g. 0.95 keeps 5%",
-            },
-            ParamSpec {
-                name: "strategy",
-                kind: ParamKind::Choice(Strategy::NAMES),
-                default: ParamValue::Choice(d.strategy.name()),
-                doc: "choice of (v, f) for ss: diagonal (v = f), iterative (Alg. 4), exhaustive",
-            },
-            ParamSpec {
-                name: "v",
-                kind: ParamKind::Int { min: 0, max: MAX_RANK },
-                default: ParamValue::Int(d.v as i64),
-                doc: "explicit mode-1 (vertex) rank, 0 = from ss; clamped to min(K, 3F)",
-            },
-            ParamSpec {
-                name: "f",
-                kind: ParamKind::Int { min: 0, max: MAX_RANK },
-                default: ParamValue::Int(d.f as i64),
-                doc: "explicit mode-3 (frame) rank, 0 = from ss; clamped to min(F, 3K)",
-            },
-            ParamSpec {
-                name: "rigid",
-                kind: ParamKind::Bool,
-                default: ParamValue::Bool(d.rigid),
-                doc: "remove the per-frame least-squares affine motion to frame 0 first (12 numbers/frame)",
-            },
-            ParamSpec {
-                name: "affine",
-                kind: ParamKind::Bool,
-                default: ParamValue::Bool(d.affine),
-                doc: "with rigid: least-squares affine map (true) or rotation + translation only (false)",
-            },
-            ParamSpec {
-                name: "hooi_iters",
-                kind: ParamKind::Int { min: 0, max: 50 },
-                default: ParamValue::Int(d.hooi_iters as i64),
-                doc: "HOOI refinement sweeps after the HO-SVD (beyond the paper)",
-            },
-            ParamSpec {
-                name: "quant",
-                kind: ParamKind::Float { min: 0.01, max: 10.0 },
-                default: ParamValue::Float(d.quant),
-                doc: "quantization RMS error target relative to the truncation error",
-            },
-            ParamSpec {
-                name: "block",
-                kind: ParamKind::Int { min: 0, max: 1 << 20 },
-                default: ParamValue::Int(d.block as i64),
-                doc: "frames per independently decomposed packet, 0 = whole sequence (bounds memory)",
-            },
-            ParamSpec {
-                name: "samples",
-                kind: ParamKind::Int { min: 3, max: 64 },
-                default: ParamValue::Int(d.samples as i64),
-                doc: "iterative strategy: samples per level (s in Alg. 4)",
-            },
-            ParamSpec {
-                name: "depth",
-                kind: ParamKind::Int { min: 1, max: 32 },
-                default: ParamValue::Int(d.depth as i64),
-                doc: "iterative strategy: recursion limit (I in Alg. 4)",
-            },
-            ParamSpec {
-                name: "level",
-                kind: ParamKind::Int { min: 1, max: 22 },
-                default: ParamValue::Int(d.level as i64),
-                doc: "zstd compression level",
-            },
+            ParamSpec::float(
+                "ss",
+                0.0,
+                0.9999,
+                d.ss,
+                "space saving 1 - CR of the paper's size model (Eq. 12-13), e.g. 0.95 keeps 5%",
+            ),
+            ParamSpec::choice(
+                "strategy",
+                Strategy::NAMES,
+                d.strategy.name(),
+                "choice of (v, f) for ss: diagonal (v = f), iterative (Alg. 4), exhaustive",
+            ),
+            ParamSpec::int(
+                "v",
+                0,
+                MAX_RANK,
+                d.v as i64,
+                "explicit mode-1 (vertex) rank, 0 = from ss; clamped to min(K, 3F)",
+            ),
+            ParamSpec::int(
+                "f",
+                0,
+                MAX_RANK,
+                d.f as i64,
+                "explicit mode-3 (frame) rank, 0 = from ss; clamped to min(F, 3K)",
+            ),
+            ParamSpec::boolean(
+                "rigid",
+                d.rigid,
+                "remove the per-frame least-squares affine motion to frame 0 first (12 numbers/frame)",
+            ),
+            ParamSpec::boolean(
+                "affine",
+                d.affine,
+                "with rigid: least-squares affine map (true) or rotation + translation only (false)",
+            ),
+            ParamSpec::int(
+                "hooi_iters",
+                0,
+                50,
+                d.hooi_iters as i64,
+                "HOOI refinement sweeps after the HO-SVD (beyond the paper)",
+            ),
+            ParamSpec::float(
+                "quant",
+                0.01,
+                10.0,
+                d.quant,
+                "quantization RMS error target relative to the truncation error",
+            ),
+            ParamSpec::int(
+                "block",
+                0,
+                1 << 20,
+                d.block as i64,
+                "frames per independently decomposed packet, 0 = whole sequence (bounds memory)",
+            ),
+            ParamSpec::int("samples", 3, 64, d.samples as i64, "iterative strategy: samples per level (s in Alg. 4)"),
+            ParamSpec::int("depth", 1, 32, d.depth as i64, "iterative strategy: recursion limit (I in Alg. 4)"),
+            ParamSpec::int("level", 1, 22, d.level as i64, "zstd compression level"),
         ]
     }
 

@@ -18,8 +18,7 @@ use std::time::Duration;
 use codec_core::bytes::{zigzag_decode, zigzag_encode, ByteReader, ByteWriter};
 use codec_core::{
     entropy, Animation, AnimationCodec, EncodedPacket, EncoderSetup, Error, ErrorBound, FourCc, FrameDecoder,
-    FrameEncoder, Limits, Packet, ParamKind, ParamSet, ParamSpec, ParamValue, Quantizer, RateLadder, Result,
-    StreamInfo, Topology,
+    FrameEncoder, Limits, Packet, ParamSet, ParamSpec, ParamValue, Quantizer, RateLadder, Result, StreamInfo, Topology,
 };
 use faer::Mat;
 use rayon::prelude::*;
@@ -116,48 +115,60 @@ impl PcaAoiParams {
     /// Parameter descriptions, with the defaults of [`PcaAoiParams::default`].
     pub fn specs() -> Vec<ParamSpec> {
         let d = Self::default();
-        let int = |name, min, max, v: i64, doc| ParamSpec {
-            name,
-            kind: ParamKind::Int { min, max },
-            default: ParamValue::Int(v),
-            doc,
-        };
-        let float = |name, min, max, v: f64, doc| ParamSpec {
-            name,
-            kind: ParamKind::Float { min, max },
-            default: ParamValue::Float(v),
-            doc,
-        };
         vec![
-            ParamSpec {
-                name: "mode",
-                kind: ParamKind::Choice(MODES),
-                default: ParamValue::Choice(mode_name(d.mode)),
-                doc: "dictionary estimation: svd (direct, per block), baoi (Alg. 1), qaoi (Alg. 2)",
-            },
-            int("k", 1, 512, d.k as i64, "subspace size (svd, baoi); qaoi sizes its first block from the SVD spectrum"),
-            int("block", 1, 4096, d.block as i64, "frames per block; one self-contained packet per block"),
-            int("z", 1, 16, d.z as i64, "power of A_i applied per orthogonal iteration"),
-            int("tmax", 1, 64, d.tmax as i64, "orthogonal iterations per block (baoi)"),
-            float("eps_low", 1e-6, 1.0, d.eps_low, "qaoi: drop components while the relative residual is below this"),
-            float("eps_high", 1e-6, 1.0, d.eps_high, "qaoi: add components while the relative residual is above this"),
-            ParamSpec {
-                name: "domain",
-                kind: ParamKind::Choice(DOMAINS),
-                default: ParamValue::Choice(domain_name(d.domain)),
-                doc: "temporal (3d x 3d autocorrelation), spatial (n x n), or auto: the smaller (Eq. 2)",
-            },
-            int("clusters", 1, 65536, d.clusters as i64, "spatial clusters along connectivity, coded independently"),
-            int("dict_bits", 4, 24, d.dict_bits as i64, "bits per dictionary coefficient"),
-            int("feat_bits", 4, 24, d.feat_bits as i64, "bits per feature-vector coefficient"),
-            float(
+            ParamSpec::choice(
+                "mode",
+                MODES,
+                mode_name(d.mode),
+                "dictionary estimation: svd (direct, per block), baoi (Alg. 1), qaoi (Alg. 2)",
+            ),
+            ParamSpec::int(
+                "k",
+                1,
+                512,
+                d.k as i64,
+                "subspace size (svd, baoi); qaoi sizes its first block from the SVD spectrum",
+            ),
+            ParamSpec::int("block", 1, 4096, d.block as i64, "frames per block; one self-contained packet per block"),
+            ParamSpec::int("z", 1, 16, d.z as i64, "power of A_i applied per orthogonal iteration"),
+            ParamSpec::int("tmax", 1, 64, d.tmax as i64, "orthogonal iterations per block (baoi)"),
+            ParamSpec::float(
+                "eps_low",
+                1e-6,
+                1.0,
+                d.eps_low,
+                "qaoi: drop components while the relative residual is below this",
+            ),
+            ParamSpec::float(
+                "eps_high",
+                1e-6,
+                1.0,
+                d.eps_high,
+                "qaoi: add components while the relative residual is above this",
+            ),
+            ParamSpec::choice(
+                "domain",
+                DOMAINS,
+                domain_name(d.domain),
+                "temporal (3d x 3d autocorrelation), spatial (n x n), or auto: the smaller (Eq. 2)",
+            ),
+            ParamSpec::int(
+                "clusters",
+                1,
+                65536,
+                d.clusters as i64,
+                "spatial clusters along connectivity, coded independently",
+            ),
+            ParamSpec::int("dict_bits", 4, 24, d.dict_bits as i64, "bits per dictionary coefficient"),
+            ParamSpec::int("feat_bits", 4, 24, d.feat_bits as i64, "bits per feature-vector coefficient"),
+            ParamSpec::float(
                 "drift",
                 0.0,
                 1e6,
                 d.drift,
                 "re-run SVD when an AOI block's residual exceeds drift x the last SVD block's (0 = off)",
             ),
-            int("level", 1, 22, d.level as i64, "zstd compression level"),
+            ParamSpec::int("level", 1, 22, d.level as i64, "zstd compression level"),
         ]
     }
 

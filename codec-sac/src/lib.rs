@@ -17,7 +17,7 @@ use codec_core::bytes::{ByteReader, ByteWriter};
 use codec_core::entropy;
 use codec_core::{
     Animation, AnimationCodec, EncodedPacket, EncoderSetup, Error, ErrorBound, FourCc, FrameDecoder, FrameEncoder,
-    Limits, Packet, ParamKind, ParamSet, ParamSpec, ParamValue, Quantizer, RateLadder, Result, StreamInfo, Topology,
+    Limits, Packet, ParamSet, ParamSpec, ParamValue, Quantizer, RateLadder, Result, StreamInfo, Topology,
 };
 use faer::Mat;
 
@@ -61,48 +61,41 @@ impl SacParams {
     pub fn specs() -> Vec<ParamSpec> {
         let d = Self::default();
         vec![
-            ParamSpec {
-                name: "bases",
-                kind: ParamKind::Int { min: 1, max: 1000 },
-                default: ParamValue::Int(d.bases as i64),
-                doc: "manifold harmonic bases kept (clamped to the vertex count)",
-            },
-            ParamSpec {
-                name: "bits",
-                kind: ParamKind::Int { min: 4, max: 30 },
-                default: ParamValue::Int(d.bits as i64),
-                doc: "quantization bits of the spectral descriptors",
-            },
-            ParamSpec {
-                name: "polar",
-                kind: ParamKind::Bool,
-                default: ParamValue::Bool(d.polar),
-                doc: "split gradients into rotation (log map) and stretch; false codes J - I",
-            },
-            ParamSpec {
-                name: "keyframe_interval",
-                kind: ParamKind::Int { min: 0, max: 1_000_000 },
-                default: ParamValue::Int(d.keyframe_interval as i64),
-                doc: "frames between I-frames (each recomputes the bases); 0 = only frame 0",
-            },
-            ParamSpec {
-                name: "iframe_bits",
-                kind: ParamKind::Int { min: 8, max: 30 },
-                default: ParamValue::Int(d.iframe_bits as i64),
-                doc: "bits per coordinate of I-frames and refresh frames",
-            },
-            ParamSpec {
-                name: "max_error",
-                kind: ParamKind::Float { min: 1e-6, max: 1.0 },
-                default: ParamValue::Float(d.max_error),
-                doc: "per-frame RMS error guard relative to the frame's bounding-box diagonal",
-            },
-            ParamSpec {
-                name: "level",
-                kind: ParamKind::Int { min: 1, max: 22 },
-                default: ParamValue::Int(d.level as i64),
-                doc: "zstd level of I-frame positions",
-            },
+            ParamSpec::int(
+                "bases",
+                1,
+                1000,
+                d.bases as i64,
+                "manifold harmonic bases kept (clamped to the vertex count)",
+            ),
+            ParamSpec::int("bits", 4, 30, d.bits as i64, "quantization bits of the spectral descriptors"),
+            ParamSpec::boolean(
+                "polar",
+                d.polar,
+                "split gradients into rotation (log map) and stretch; false codes J - I",
+            ),
+            ParamSpec::int(
+                "keyframe_interval",
+                0,
+                1_000_000,
+                d.keyframe_interval as i64,
+                "frames between I-frames (each recomputes the bases); 0 = only frame 0",
+            ),
+            ParamSpec::int(
+                "iframe_bits",
+                8,
+                30,
+                d.iframe_bits as i64,
+                "bits per coordinate of I-frames and refresh frames",
+            ),
+            ParamSpec::float(
+                "max_error",
+                1e-6,
+                1.0,
+                d.max_error,
+                "per-frame RMS error guard relative to the frame's bounding-box diagonal",
+            ),
+            ParamSpec::int("level", 1, 22, d.level as i64, "zstd level of I-frame positions"),
         ]
     }
 

@@ -16,8 +16,7 @@ mod segment;
 use codec_core::bytes::{zigzag_decode, zigzag_encode, ByteReader, ByteWriter};
 use codec_core::{
     entropy, Animation, AnimationCodec, EncodedPacket, EncoderSetup, Error, ErrorBound, FourCc, FrameDecoder,
-    FrameEncoder, Limits, Packet, ParamKind, ParamSet, ParamSpec, ParamValue, Quantizer, RateLadder, Result,
-    StreamInfo,
+    FrameEncoder, Limits, Packet, ParamSet, ParamSpec, ParamValue, Quantizer, RateLadder, Result, StreamInfo,
 };
 use faer::Mat;
 use rayon::prelude::*;
@@ -85,31 +84,42 @@ impl Default for StsegParams {
     }
 }
 
-fn int_spec(name: &'static str, min: i64, max: i64, default: i64, doc: &'static str) -> ParamSpec {
-    ParamSpec { name, kind: ParamKind::Int { min, max }, default: ParamValue::Int(default), doc }
-}
-fn float_spec(name: &'static str, min: f64, max: f64, default: f64, doc: &'static str) -> ParamSpec {
-    ParamSpec { name, kind: ParamKind::Float { min, max }, default: ParamValue::Float(default), doc }
-}
-
 impl StsegParams {
     /// Parameter descriptions, with the defaults of [`StsegParams::default`].
     pub fn specs() -> Vec<ParamSpec> {
         let d = Self::default();
         vec![
-            float_spec("omega", 0.5, 0.999999, d.omega, "PCA information persistence rate ω (rate knob)"),
-            float_spec("omega_seg", 0.5, 0.999999, d.omega_seg, "persistence rate of the segmentation (Alg. 1, 2)"),
-            int_spec("w", 2, 32, d.w as i64, "initial-cut smoothing window w (frames)"),
-            int_spec("gamma_init", 8, 128, d.gamma_init as i64, "initial-cut range γ_init (frames), ≥ w + 4"),
-            int_spec("gamma_max", 8, 1024, d.gamma_max as i64, "maximal segment length γ_max (frames), ≥ gamma_init"),
-            float_spec("lambda", 0.01, 100.0, d.lambda, "kernel parameter λ (Eq. 3), in units of the median distance"),
-            float_spec("cut_threshold", 0.0, 2.0, d.cut_threshold, "smallest MMD that counts as an initial cut"),
-            int_spec("groups", 1, MAX_GROUPS as i64, d.groups as i64, "maximal number of vertex groups N_g"),
-            float_spec("rho", 0.01, 0.99, d.rho, "share ρ of edges taken as rigid"),
-            int_spec("eta", 0, 8, d.eta as i64, "η-ring overlap of vertex groups for boundary consistency"),
-            int_spec("bits", 6, 20, d.bits as i64, "bits of mean shapes and PCA bases"),
-            int_spec("coef_bits", 6, 20, d.coef_bits as i64, "bits of PCA coefficients"),
-            int_spec("level", 1, 22, d.level as i64, "zstd compression level"),
+            ParamSpec::float("omega", 0.5, 0.999999, d.omega, "PCA information persistence rate ω (rate knob)"),
+            ParamSpec::float(
+                "omega_seg",
+                0.5,
+                0.999999,
+                d.omega_seg,
+                "persistence rate of the segmentation (Alg. 1, 2)",
+            ),
+            ParamSpec::int("w", 2, 32, d.w as i64, "initial-cut smoothing window w (frames)"),
+            ParamSpec::int("gamma_init", 8, 128, d.gamma_init as i64, "initial-cut range γ_init (frames), ≥ w + 4"),
+            ParamSpec::int(
+                "gamma_max",
+                8,
+                1024,
+                d.gamma_max as i64,
+                "maximal segment length γ_max (frames), ≥ gamma_init",
+            ),
+            ParamSpec::float(
+                "lambda",
+                0.01,
+                100.0,
+                d.lambda,
+                "kernel parameter λ (Eq. 3), in units of the median distance",
+            ),
+            ParamSpec::float("cut_threshold", 0.0, 2.0, d.cut_threshold, "smallest MMD that counts as an initial cut"),
+            ParamSpec::int("groups", 1, MAX_GROUPS as i64, d.groups as i64, "maximal number of vertex groups N_g"),
+            ParamSpec::float("rho", 0.01, 0.99, d.rho, "share ρ of edges taken as rigid"),
+            ParamSpec::int("eta", 0, 8, d.eta as i64, "η-ring overlap of vertex groups for boundary consistency"),
+            ParamSpec::int("bits", 6, 20, d.bits as i64, "bits of mean shapes and PCA bases"),
+            ParamSpec::int("coef_bits", 6, 20, d.coef_bits as i64, "bits of PCA coefficients"),
+            ParamSpec::int("level", 1, 22, d.level as i64, "zstd compression level"),
         ]
     }
 
