@@ -17,6 +17,11 @@
 //! - **No such animation**: a single frame with the node's `weights`, else the mesh's default
 //!   `weights`, else the base mesh.
 //! - Images are never loaded (only buffers), so textures in unsupported formats do not matter.
+//! - **Buffers** are loaded here, not by `gltf::import_buffers`: the crate's `import` feature
+//!   also compiles an image decoder this reader never uses, and its loader panics on a
+//!   malformed percent-encoded URI. Supported: the GLB `BIN` chunk, `data:` URIs in base64, and
+//!   relative or `file:` paths (only with a `base` directory). Each buffer must hold at least its
+//!   declared `byteLength`; the declared length is checked against [`Limits`] before reading.
 //!
 //! Every accessor is checked (type, component type, count, range) before the `gltf` reader is
 //! used, because the reader panics on some invalid combinations; as a last line of defence the
@@ -29,6 +34,7 @@ use ::gltf::accessor::{DataType, Dimensions};
 use ::gltf::animation::{Interpolation, Property};
 use ::gltf::mesh::Mode;
 use ::gltf::{Accessor, Semantic};
+use base64::Engine as _;
 use codec_core::{Animation, Error, Limits, Result};
 
 use super::{in_file, name, read_file};
@@ -117,7 +123,74 @@ struct MorphMesh {
     triangles: Vec<[u32; 3]>,
 }
 
-fn load_mesh(file: &str, mesh: &::gltf::Mesh, buffers: &[::gltf::buffer::Data]) -> Result<MorphMesh> {
+/// The bytes of one glTF buffer.
+struct BufferData(Vec<u8>);
+
+/// Loads every buffer of `document` (see the module docs for the sources accepted).
+fn load_buffers(
+    file: &str,
+    document: &::gltf::Document,
+    base: Option<&Path>,
+    mut blob: Option<Vec<u8>>,
+) -> Result<Vec<BufferData>> {
+    let limits = Limits::default();
+    let mut buffers = Vec::with_capacity(document.buffers().len());
+    for buffer in document.buffers() {
+        let index = buffer.index();
+        let declared = buffer.length();
+        limits.check_alloc("gltf", "buffers", declared as u64)?;
+        let data = match buffer.source() {
+            ::gltf::buffer::Source::Bin => blob.take().ok_or_else(|| {
+                bad(file, "buffers", format!("buffer {index} refers to a GLB BIN chunk the file lacks"))
+            })?,
+            ::gltf::buffer::Source::Uri(uri) => read_uri(file, index, uri, base, declared)?,
+        };
+        if data.len() < declared {
+            return Err(bad(
+                file,
+                "buffers",
+                format!("buffer {index} holds {} bytes but declares byteLength {declared}", data.len()),
+            ));
+        }
+        buffers.push(BufferData(data));
+    }
+    Ok(buffers)
+}
+
+/// Reads a buffer URI: `data:[type];base64,...`, `file:PATH`, or a percent-encoded relative path.
+fn read_uri(file: &str, index: usize, uri: &str, base: Option<&Path>, declared: usize) -> Result<Vec<u8>> {
+    let fail = |detail: String| bad(file, "buffers", format!("buffer {index}: {detail}"));
+    if let Some(rest) = uri.strip_prefix("data:") {
+        let payload = rest
+            .split_once(";base64,")
+            .map(|(_, data)| data)
+            .ok_or_else(|| fail("a data URI that is not base64".into()))?;
+        // Decoded size is at most 3/4 of the text; refuse before decoding a huge string.
+        Limits::default().check_alloc("gltf", "buffers", (payload.len() / 4 * 3) as u64)?;
+        return base64::engine::general_purpose::STANDARD
+            .decode(payload)
+            .map_err(|e| fail(format!("invalid base64 in data URI ({e})")));
+    }
+    let path = match uri.strip_prefix("file://").or_else(|| uri.strip_prefix("file:")) {
+        Some(path) => path.to_owned(),
+        None if uri.contains(':') => return Err(fail(format!("unsupported URI scheme in '{uri}'"))),
+        None => percent_encoding::percent_decode_str(uri)
+            .decode_utf8()
+            .map_err(|_| fail(format!("URI '{uri}' is not valid percent-encoded UTF-8")))?
+            .into_owned(),
+    };
+    let base = base.ok_or_else(|| fail(format!("external file '{path}' but no directory to resolve it in")))?;
+    let full = base.join(&path);
+    // Only the declared length is used (already checked against the limits), so a longer file
+    // is read no further than that.
+    let opened = std::fs::File::open(&full).map_err(|e| fail(format!("cannot open '{}': {e}", full.display())))?;
+    let mut data = Vec::with_capacity(declared);
+    std::io::Read::read_to_end(&mut std::io::Read::take(opened, declared as u64), &mut data)
+        .map_err(|e| fail(format!("cannot read '{}': {e}", full.display())))?;
+    Ok(data)
+}
+
+fn load_mesh(file: &str, mesh: &::gltf::Mesh, buffers: &[BufferData]) -> Result<MorphMesh> {
     let limits = Limits::default();
     let target_count = mesh.primitives().next().map(|p| p.morph_targets().len()).unwrap_or(0);
     let mut base: Vec<f32> = Vec::new();
@@ -281,7 +354,7 @@ impl WeightTrack {
 fn load_track(
     file: &str,
     channel: &::gltf::animation::Channel,
-    buffers: &[::gltf::buffer::Data],
+    buffers: &[BufferData],
     targets: usize,
 ) -> Result<WeightTrack> {
     let sampler = channel.sampler();
@@ -340,7 +413,7 @@ fn blend(mesh: &MorphMesh, weights: &[f32], out: &mut Vec<f32>) {
 fn parse_checked(bytes: &[u8], base: Option<&Path>, file: &str, frame_rate: f32) -> Result<Animation> {
     let gltf = ::gltf::Gltf::from_slice(bytes).map_err(|e| bad(file, "gltf", e.to_string()))?;
     let ::gltf::Gltf { document, blob } = gltf;
-    let buffers = ::gltf::import_buffers(&document, base, blob).map_err(|e| bad(file, "buffers", e.to_string()))?;
+    let buffers = load_buffers(file, &document, base, blob)?;
     let mesh = document
         .meshes()
         .find(|m| m.primitives().any(|p| p.morph_targets().len() > 0))
@@ -537,6 +610,54 @@ mod tests {
         let path = write_gltf(&dir, &b, &doc);
         let a = read_animation(&path, &opts).unwrap();
         assert_eq!(offsets(&a), vec![(0., 0.), (0., 0.), (1., 0.), (1., 0.), (0., 1.)]);
+    }
+
+    #[test]
+    fn buffers_load_from_data_uris_and_percent_encoded_paths_or_fail_by_name() {
+        let dir = TempDir::new("gltf-buffers");
+        let opts = ReadOptions { frame_rate: Some(2.0), ..Default::default() };
+        let (b, doc) = morph_triangle("LINEAR", None);
+        let expected = offsets(&read_animation(&write_gltf(&dir, &b, &doc), &opts).unwrap());
+        let parse =
+            |doc: &Value| parse_gltf(&serde_json::to_vec(doc).unwrap(), Some(dir.path("").as_path()), "t.gltf", 2.0);
+
+        // The same buffer as a base64 data URI.
+        let mut inline = doc.clone();
+        let encoded = base64::engine::general_purpose::STANDARD.encode(&b.bin);
+        inline["buffers"][0]["uri"] = json!(format!("data:application/octet-stream;base64,{encoded}"));
+        assert_eq!(offsets(&parse(&inline).unwrap()), expected);
+        // A percent-encoded relative path.
+        std::fs::write(dir.path("my buf.bin"), &b.bin).unwrap();
+        let mut spaced = doc.clone();
+        spaced["buffers"][0]["uri"] = json!("my%20buf.bin");
+        assert_eq!(offsets(&parse(&spaced).unwrap()), expected);
+
+        let fails = |doc: &Value, expected: &str| {
+            let e = parse(doc).unwrap_err().to_string();
+            assert!(
+                e.contains("t.gltf") && e.contains("buffer 0") && e.contains(expected),
+                "{e} (expected '{expected}')"
+            );
+        };
+        let mut bad = inline.clone();
+        bad["buffers"][0]["uri"] = json!("data:application/octet-stream;base64,@@@@");
+        fails(&bad, "invalid base64");
+        bad["buffers"][0]["uri"] = json!("data:text/plain,hello");
+        fails(&bad, "not base64");
+        bad["buffers"][0]["uri"] = json!("https://example.invalid/buf.bin");
+        fails(&bad, "unsupported URI scheme");
+        bad["buffers"][0]["uri"] = json!("bad%FF%FE.bin");
+        fails(&bad, "percent-encoded");
+        let mut short = doc.clone();
+        short["buffers"][0]["byteLength"] = json!(b.bin.len() + 8);
+        fails(&short, "declares byteLength");
+        let mut absurd = doc.clone();
+        absurd["buffers"][0]["byteLength"] = json!(1u64 << 40);
+        let e = parse(&absurd).unwrap_err().to_string();
+        assert!(e.contains("buffers"), "{e}");
+        // Without a directory an external file cannot be resolved.
+        let e = parse_gltf(&serde_json::to_vec(&doc).unwrap(), None, "t.gltf", 2.0).unwrap_err().to_string();
+        assert!(e.contains("no directory"), "{e}");
     }
 
     #[test]
