@@ -813,135 +813,146 @@ fn base_streams(f: &mut Failures, codec: &dyn AnimationCodec, anim: &Animation) 
     out
 }
 
-/// Suite item 5, codec level: bytes flipped inside packet payloads with the packet CRC
-/// recomputed, so the codec's parser sees them. Err or a finite animation of the right size;
-/// never a panic or a large allocation.
-pub fn payload_flips_with_valid_crc_never_panic(registry: &CodecRegistry) -> Failures {
+/// The small animation's decode limits and shape, against which suite item 5 judges the decode
+/// of a corrupted stream (see [`judge_corrupt_decode`]).
+struct CorruptionJudge<'a> {
+    registry: &'a CodecRegistry,
+    limits: Limits,
+    frames: usize,
+    verts: usize,
+}
+
+impl CorruptionJudge<'_> {
+    /// A failure message for decoding `bytes` (described by `at`), or `None` if it behaved.
+    fn judge(&self, at: &str, bytes: &[u8]) -> Option<String> {
+        judge_corrupt_decode(at, bytes, self.registry, self.limits, self.frames, self.verts)
+    }
+}
+
+/// Runs `body` on every base stream (see [`base_streams`]) of every registered codec, with a
+/// per-codec random source seeded by `seed`; failures are collected per codec.
+fn for_each_base_stream(
+    registry: &CodecRegistry,
+    seed: u64,
+    mut body: impl FnMut(&mut Failures, &dyn AnimationCodec, &mut Rng, &CorruptionJudge, &str, &[u8], &Parts),
+) -> Failures {
     let anim = small_animation();
-    let limits = tight_limits(&anim);
-    let (frames, verts) = (anim.frame_count(), anim.vertex_count());
+    let judge = CorruptionJudge {
+        registry,
+        limits: tight_limits(&anim),
+        frames: anim.frame_count(),
+        verts: anim.vertex_count(),
+    };
     let mut failures = Failures::new();
     for codec in registry.iter() {
         failures.run(codec.name(), |f| {
-            let mut rng = Rng::for_codec(codec.name(), 17);
+            let mut rng = Rng::for_codec(codec.name(), seed);
             for (label, bytes) in base_streams(f, codec, &anim) {
                 let parts = split(&bytes).expect("valid container");
-                // Streams with many packets: the first, second, middle and last packets.
-                let payloads: Vec<(usize, IndexEntry)> =
-                    sample_packets(parts.index.len()).into_iter().map(|i| (i, parts.index[i])).collect();
-                let mut cases: Vec<(usize, Vec<(usize, u8)>)> = Vec::new();
-                for &(i, e) in &payloads {
-                    let len = e.payload_bytes as usize;
-                    // Codec payload headers (sizes, ranges, counts) sit at the start: flip
-                    // each of the first 48 bytes three ways.
-                    for off in 0..len.min(48) {
-                        for mask in [0x01, 0x80, 0xFF] {
-                            cases.push((i, vec![(off, mask)]));
-                        }
-                    }
-                    if len > 0 {
-                        for _ in 0..120 {
-                            cases.push((i, vec![(rng.below(len), rng.nonzero_byte())]));
-                        }
-                        for _ in 0..30 {
-                            cases.push((i, (0..3).map(|_| (rng.below(len), rng.nonzero_byte())).collect()));
-                        }
-                    }
-                }
-                let per = decode_time(&bytes, registry, limits);
-                let cases = thin(cases, per, PAYLOAD_BUDGET, 200, &format!("{} payload flips, {label}", codec.name()));
-                for (i, flips) in cases {
-                    let e = parts.index[i];
-                    let mut b = bytes.clone();
-                    let start = payload_range(&e).start;
-                    for &(off, mask) in &flips {
-                        b[start + off] ^= mask;
-                    }
-                    patch_packet_crc(&mut b, &e);
-                    let at = format!("{label}: packet {i} payload {flips:?} (offset, xor)");
-                    f.count(1);
-                    if let Some(msg) = judge_corrupt_decode(&at, &b, registry, limits, frames, verts) {
-                        f.push(codec.name(), msg);
-                    }
-                }
+                body(f, codec, &mut rng, &judge, &label, &bytes, &parts);
             }
         });
     }
     failures
 }
 
+/// Suite item 5, codec level: bytes flipped inside packet payloads with the packet CRC
+/// recomputed, so the codec's parser sees them. Err or a finite animation of the right size;
+/// never a panic or a large allocation.
+pub fn payload_flips_with_valid_crc_never_panic(registry: &CodecRegistry) -> Failures {
+    for_each_base_stream(registry, 17, |f, codec, rng, judge, label, bytes, parts| {
+        // Streams with many packets: the first, second, middle and last packets.
+        let payloads: Vec<(usize, IndexEntry)> =
+            sample_packets(parts.index.len()).into_iter().map(|i| (i, parts.index[i])).collect();
+        let mut cases: Vec<(usize, Vec<(usize, u8)>)> = Vec::new();
+        for &(i, e) in &payloads {
+            let len = e.payload_bytes as usize;
+            // Codec payload headers (sizes, ranges, counts) sit at the start: flip
+            // each of the first 48 bytes three ways.
+            for off in 0..len.min(48) {
+                for mask in [0x01, 0x80, 0xFF] {
+                    cases.push((i, vec![(off, mask)]));
+                }
+            }
+            if len > 0 {
+                for _ in 0..120 {
+                    cases.push((i, vec![(rng.below(len), rng.nonzero_byte())]));
+                }
+                for _ in 0..30 {
+                    cases.push((i, (0..3).map(|_| (rng.below(len), rng.nonzero_byte())).collect()));
+                }
+            }
+        }
+        let per = decode_time(bytes, registry, judge.limits);
+        let cases = thin(cases, per, PAYLOAD_BUDGET, 200, &format!("{} payload flips, {label}", codec.name()));
+        for (i, flips) in cases {
+            let e = parts.index[i];
+            let mut b = bytes.to_vec();
+            let start = payload_range(&e).start;
+            for &(off, mask) in &flips {
+                b[start + off] ^= mask;
+            }
+            patch_packet_crc(&mut b, &e);
+            let at = format!("{label}: packet {i} payload {flips:?} (offset, xor)");
+            f.count(1);
+            if let Some(msg) = judge.judge(&at, &b) {
+                f.push(codec.name(), msg);
+            }
+        }
+    })
+}
+
 /// Suite item 5, codec level: the codec configuration in the header corrupted (each byte
 /// flipped, truncated, extended, emptied) with the header CRC valid, and unsupported stream
 /// versions. The configuration reaches `new_decoder` as untrusted bytes.
 pub fn corrupt_config_and_version_never_panic(registry: &CodecRegistry) -> Failures {
-    let anim = small_animation();
-    let limits = tight_limits(&anim);
-    let (frames, verts) = (anim.frame_count(), anim.vertex_count());
-    let mut failures = Failures::new();
-    for codec in registry.iter() {
-        failures.run(codec.name(), |f| {
-            let mut rng = Rng::for_codec(codec.name(), 23);
-            for (label, bytes) in base_streams(f, codec, &anim) {
-                let parts = split(&bytes).expect("valid container");
-                let h = &parts.header;
-                let cfg = config_range(h);
-                for pos in cfg.clone() {
-                    for mask in [0x01, 0x80, 0xFF, rng.nonzero_byte()] {
-                        let mut b = bytes.clone();
-                        b[pos] ^= mask;
-                        patch_header_crc(&mut b, h);
-                        let at = format!("{label}: config byte {} ^= {mask:#04x}", pos - cfg.start);
-                        f.count(1);
-                        if let Some(m) = judge_corrupt_decode(&at, &b, registry, limits, frames, verts) {
-                            f.push(codec.name(), m);
-                        }
-                    }
+    for_each_base_stream(registry, 23, |f, codec, rng, judge, label, bytes, parts| {
+        let h = &parts.header;
+        let cfg = config_range(h);
+        for pos in cfg.clone() {
+            for mask in [0x01, 0x80, 0xFF, rng.nonzero_byte()] {
+                let mut b = bytes.to_vec();
+                b[pos] ^= mask;
+                patch_header_crc(&mut b, h);
+                let at = format!("{label}: config byte {} ^= {mask:#04x}", pos - cfg.start);
+                f.count(1);
+                if let Some(m) = judge.judge(&at, &b) {
+                    f.push(codec.name(), m);
                 }
-                let mut configs: Vec<(String, Vec<u8>)> = (0..h.config.len())
-                    .map(|n| (format!("config truncated to {n} bytes"), h.config[..n].to_vec()))
-                    .collect();
-                for extra in [vec![0u8], vec![0xFF; 8], (0..64).map(|_| rng.nonzero_byte()).collect()] {
-                    configs.push((format!("config + {} junk bytes", extra.len()), [h.config.clone(), extra].concat()));
-                }
-                configs.push(("config of 4096 0xFF bytes".into(), vec![0xFF; 4096]));
-                let version = h.info.codec_version;
-                for (what, config) in configs {
-                    match rebuild(h, &config, version, None, None, &parts.packets) {
-                        Err(e) => f.push(codec.name(), format!("{label}: {what}: rebuild failed: {e}")),
-                        Ok(b) => {
-                            if let Some(m) =
-                                judge_corrupt_decode(&format!("{label}: {what}"), &b, registry, limits, frames, verts)
-                            {
-                                f.push(codec.name(), m);
-                            }
-                        }
-                    }
-                }
-                for v in [0, codec.stream_version() + 1, u16::MAX] {
-                    let b = rebuild(h, &h.config, v, None, None, &parts.packets).expect("rebuild");
-                    match decode_guarded(&b, registry, limits) {
-                        Ok(out) if out.result.is_err() => {}
-                        Ok(_) => f.push(codec.name(), format!("{label}: stream version {v} accepted")),
-                        Err(p) => f.push(codec.name(), format!("{label}: stream version {v}: {p}")),
-                    }
-                }
-                for v in 1..codec.stream_version() {
-                    let b = rebuild(h, &h.config, v, None, None, &parts.packets).expect("rebuild");
-                    if let Some(m) = judge_corrupt_decode(
-                        &format!("{label}: older version {v}"),
-                        &b,
-                        registry,
-                        limits,
-                        frames,
-                        verts,
-                    ) {
+            }
+        }
+        let mut configs: Vec<(String, Vec<u8>)> =
+            (0..h.config.len()).map(|n| (format!("config truncated to {n} bytes"), h.config[..n].to_vec())).collect();
+        for extra in [vec![0u8], vec![0xFF; 8], (0..64).map(|_| rng.nonzero_byte()).collect()] {
+            configs.push((format!("config + {} junk bytes", extra.len()), [h.config.clone(), extra].concat()));
+        }
+        configs.push(("config of 4096 0xFF bytes".into(), vec![0xFF; 4096]));
+        let version = h.info.codec_version;
+        for (what, config) in configs {
+            match rebuild(h, &config, version, None, None, &parts.packets) {
+                Err(e) => f.push(codec.name(), format!("{label}: {what}: rebuild failed: {e}")),
+                Ok(b) => {
+                    if let Some(m) = judge.judge(&format!("{label}: {what}"), &b) {
                         f.push(codec.name(), m);
                     }
                 }
             }
-        });
-    }
-    failures
+        }
+        for v in [0, codec.stream_version() + 1, u16::MAX] {
+            let b = rebuild(h, &h.config, v, None, None, &parts.packets).expect("rebuild");
+            match decode_guarded(&b, registry, judge.limits) {
+                Ok(out) if out.result.is_err() => {}
+                Ok(_) => f.push(codec.name(), format!("{label}: stream version {v} accepted")),
+                Err(p) => f.push(codec.name(), format!("{label}: stream version {v}: {p}")),
+            }
+        }
+        for v in 1..codec.stream_version() {
+            let b = rebuild(h, &h.config, v, None, None, &parts.packets).expect("rebuild");
+            if let Some(m) = judge.judge(&format!("{label}: older version {v}"), &b) {
+                f.push(codec.name(), m);
+            }
+        }
+    })
 }
 
 /// One structural mutation of a stream: a name, the rebuilt bytes, and the shape a decoder
