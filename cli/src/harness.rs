@@ -750,6 +750,23 @@ pub fn search_target(
     limits: Limits,
     refine: usize,
 ) -> HResult<TargetHit> {
+    search_target_with_progress(registry, codec, base, animation, target, eval, limits, refine, &|_| {})
+}
+
+/// [`search_target`] that calls `progress` with every point as soon as it is measured (a
+/// search on real data runs for minutes; the CLI shows the latest point).
+#[allow(clippy::too_many_arguments)]
+pub fn search_target_with_progress(
+    registry: &CodecRegistry,
+    codec: &dyn AnimationCodec,
+    base: &ParamSet,
+    animation: &Animation,
+    target: Target,
+    eval: &EvalOptions,
+    limits: Limits,
+    refine: usize,
+    progress: &dyn Fn(&Point),
+) -> HResult<TargetHit> {
     let ladder = codec.rate_ladder(base);
     let n = ladder.steps.len();
     let eval = target.metric.eval_options(eval);
@@ -757,7 +774,9 @@ pub fn search_target(
     let measure = |i: usize, measured: &mut Vec<Option<(Point, Vec<u8>)>>| -> HResult<bool> {
         if measured[i].is_none() {
             let params = ladder_params(codec, base, &ladder, i)?;
-            measured[i] = Some(measure_point(registry, codec, &params, (ladder.param, i), animation, &eval, limits)?);
+            let (point, bytes) = measure_point(registry, codec, &params, (ladder.param, i), animation, &eval, limits)?;
+            progress(&point);
+            measured[i] = Some((point, bytes));
         }
         let p = &measured[i].as_ref().expect("measured above").0;
         Ok(target.metric.value(&p.report).is_some_and(|v| v <= target.value))
@@ -812,6 +831,7 @@ pub fn search_target(
                 break;
             }
             let (point, bytes) = measure_point(registry, codec, &params, (ladder.param, k), animation, &eval, limits)?;
+            progress(&point);
             if passes(&point) {
                 pass = mid;
             } else {
@@ -863,10 +883,26 @@ pub fn search_target_auto(
     limits: Limits,
     refine: usize,
 ) -> HResult<(TargetHit, Vec<TargetHit>)> {
+    search_target_auto_with_progress(registry, codecs, animation, target, eval, limits, refine, &|_| {})
+}
+
+/// [`search_target_auto`] that calls `progress` with every point as soon as it is measured.
+#[allow(clippy::too_many_arguments)]
+pub fn search_target_auto_with_progress(
+    registry: &CodecRegistry,
+    codecs: &[&dyn AnimationCodec],
+    animation: &Animation,
+    target: Target,
+    eval: &EvalOptions,
+    limits: Limits,
+    refine: usize,
+    progress: &dyn Fn(&Point),
+) -> HResult<(TargetHit, Vec<TargetHit>)> {
     let mut hits = Vec::new();
     let mut misses = Vec::new();
     for &codec in codecs {
-        match search_target(registry, codec, &codec.default_params(), animation, target, eval, limits, refine) {
+        let base = codec.default_params();
+        match search_target_with_progress(registry, codec, &base, animation, target, eval, limits, refine, progress) {
             Ok(hit) => hits.push(hit),
             Err(e) => match e.downcast::<TargetMiss>() {
                 Ok(miss) => misses.push(miss.to_string()),

@@ -462,3 +462,56 @@ fn refinement_between_ladder_steps_finds_a_smaller_stream_that_meets_the_target(
     assert_eq!(fine.tried.len(), coarse.tried.len() + 1);
     assert_eq!(fine.stream.len() as u64, fine.point.bytes);
 }
+
+#[test]
+fn progress_sees_every_point_the_target_search_measures() {
+    let registry = animcodec::registry();
+    let animation = small();
+    let eval = EvalOptions { compute_sted: false, compute_hausdorff: false, ..Default::default() };
+    let target = Target { metric: TargetMetric::Kg, value: 1.0 };
+    let seen = std::cell::RefCell::new(Vec::new());
+    let record = |p: &harness::Point| seen.borrow_mut().push((p.codec, p.bytes));
+
+    let codec = registry.by_name("quant-delta").unwrap();
+    let base = codec.default_params();
+    let hit = harness::search_target_with_progress(
+        &registry,
+        codec,
+        &base,
+        &animation,
+        target,
+        &eval,
+        Limits::default(),
+        2,
+        &record,
+    )
+    .unwrap();
+    // `tried` lists ladder steps in ladder order, then refinements; progress sees them as measured.
+    let mut tried: Vec<_> = hit.tried.iter().map(|p| (p.codec, p.bytes)).collect();
+    let mut calls = seen.borrow().clone();
+    tried.sort();
+    calls.sort();
+    assert_eq!(calls, tried, "one call per measured point");
+    // The progress-free entry point gives the same answer.
+    let plain = search_target(&registry, codec, &base, &animation, target, &eval, Limits::default(), 2).unwrap();
+    assert_eq!((plain.point.bytes, plain.tried.len()), (hit.point.bytes, hit.tried.len()));
+
+    seen.borrow_mut().clear();
+    let codecs = [registry.by_name("quant-delta").unwrap(), registry.by_name("pca-aoi").unwrap()];
+    let (best, others) = harness::search_target_auto_with_progress(
+        &registry,
+        &codecs,
+        &animation,
+        target,
+        &eval,
+        Limits::default(),
+        0,
+        &record,
+    )
+    .unwrap();
+    let all: usize = best.tried.len() + others.iter().map(|h| h.tried.len()).sum::<usize>();
+    assert_eq!(seen.borrow().len(), all);
+    assert!(
+        seen.borrow().iter().any(|(c, _)| *c == "quant-delta") && seen.borrow().iter().any(|(c, _)| *c == "pca-aoi")
+    );
+}

@@ -1,15 +1,16 @@
 //! `animcodec encode`: animation file → `.anim` container, streamed to disk.
 
 use std::fs::File;
-use std::io::{BufWriter, Write};
+use std::io::{BufWriter, IsTerminal, Write};
 use std::path::Path;
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use animcodec::formats::ReadOptions;
 use animcodec::harness::{self, Target, TargetHit};
 use codec_core::params::find_spec;
 use codec_core::synth;
 use codec_core::{Animation, AnimationCodec, Limits, ParamSet, StreamEncoder, Topology};
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use metrics::EvalOptions;
 use serde_json::{json, Map, Value};
 
@@ -252,16 +253,40 @@ fn run_target(args: &EncodeArgs, target: Target, limits: Limits) -> CmdResult {
     let read_seconds = read_start.elapsed().as_secs_f64();
 
     let start = Instant::now();
-    let (hit, others) = match chosen {
-        Some((codec, params)) => (
-            harness::search_target(&registry, codec, &params, &animation, target, &eval, limits, args.refine as usize)?,
-            Vec::new(),
-        ),
+    // Each point is a full encode + decode + evaluation (minutes in all on real data): on a
+    // terminal, a spinner shows the latest point.
+    let bar = if std::io::stderr().is_terminal() {
+        let bar = ProgressBar::with_draw_target(None, ProgressDrawTarget::stderr());
+        if let Ok(style) = ProgressStyle::with_template("{spinner} {elapsed} {pos} points; {msg}") {
+            bar.set_style(style);
+        }
+        bar.set_message(format!("searching for {target}"));
+        bar.enable_steady_tick(Duration::from_millis(200));
+        bar
+    } else {
+        ProgressBar::hidden()
+    };
+    let progress = |p: &harness::Point| {
+        bar.inc(1);
+        let value = target.metric.value(&p.report).map_or_else(|| "n/a".to_owned(), |v| format!("{v:.4}"));
+        let knob = p.ladder_value().map_or_else(String::new, |v| format!("{}={v} ", p.ladder_param));
+        bar.set_message(format!("last: {} {knob}→ {}={value} at {:.3} bpvf", p.codec, target.metric.name(), p.bpvf));
+    };
+    let refine = args.refine as usize;
+    let found = match chosen {
+        Some((codec, params)) => harness::search_target_with_progress(
+            &registry, codec, &params, &animation, target, &eval, limits, refine, &progress,
+        )
+        .map(|hit| (hit, Vec::new())),
         None => {
             let codecs: Vec<&dyn AnimationCodec> = registry.iter().collect();
-            harness::search_target_auto(&registry, &codecs, &animation, target, &eval, limits, args.refine as usize)?
+            harness::search_target_auto_with_progress(
+                &registry, &codecs, &animation, target, &eval, limits, refine, &progress,
+            )
         }
     };
+    bar.finish_and_clear();
+    let (hit, others) = found?;
     let search_seconds = start.elapsed().as_secs_f64();
     let write = File::create(&args.output)
         .and_then(|mut f| f.write_all(&hit.stream).and_then(|()| f.flush()))
