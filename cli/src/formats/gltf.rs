@@ -143,7 +143,7 @@ fn load_buffers(
             ::gltf::buffer::Source::Bin => blob.take().ok_or_else(|| {
                 bad(file, "buffers", format!("buffer {index} refers to a GLB BIN chunk the file lacks"))
             })?,
-            ::gltf::buffer::Source::Uri(uri) => read_uri(file, index, uri, base, declared)?,
+            ::gltf::buffer::Source::Uri(uri) => read_uri(file, index, uri, base, declared, &limits)?,
         };
         if data.len() < declared {
             return Err(bad(
@@ -158,7 +158,14 @@ fn load_buffers(
 }
 
 /// Reads a buffer URI: `data:[type];base64,...`, `file:PATH`, or a percent-encoded relative path.
-fn read_uri(file: &str, index: usize, uri: &str, base: Option<&Path>, declared: usize) -> Result<Vec<u8>> {
+fn read_uri(
+    file: &str,
+    index: usize,
+    uri: &str,
+    base: Option<&Path>,
+    declared: usize,
+    limits: &Limits,
+) -> Result<Vec<u8>> {
     let fail = |detail: String| bad(file, "buffers", format!("buffer {index}: {detail}"));
     if let Some(rest) = uri.strip_prefix("data:") {
         let payload = rest
@@ -166,7 +173,7 @@ fn read_uri(file: &str, index: usize, uri: &str, base: Option<&Path>, declared: 
             .map(|(_, data)| data)
             .ok_or_else(|| fail("a data URI that is not base64".into()))?;
         // Decoded size is at most 3/4 of the text; refuse before decoding a huge string.
-        Limits::default().check_alloc("gltf", "buffers", (payload.len() / 4 * 3) as u64)?;
+        limits.check_alloc("gltf", "buffers", (payload.len() / 4 * 3) as u64)?;
         return base64::engine::general_purpose::STANDARD
             .decode(payload)
             .map_err(|e| fail(format!("invalid base64 in data URI ({e})")));
