@@ -161,7 +161,13 @@ pub struct EncodeArgs {
     #[arg(long, value_name = "N", default_value_t = 4, value_parser = clap::value_parser!(u32).range(0..=32))]
     pub refine: u32,
 
-    /// STED options for `--target sted=…`.
+    /// After encoding, decode the written stream and measure it against the input: KG, STED,
+    /// Hausdorff, RMSE and max error are printed (and added to --json as `kg`, `sted` and the
+    /// full report under `metrics`).
+    #[arg(long)]
+    pub eval: bool,
+
+    /// STED options for `--eval` and `--target sted=…`.
     #[command(flatten)]
     pub sted: StedArgs,
 
@@ -174,21 +180,29 @@ fn parse_target(text: &str) -> Result<animcodec::harness::Target, String> {
     text.parse()
 }
 
-/// STED parameters (defaults: the metrics crate's `StedParams::default()`).
+/// STED parameters (defaults: the metrics crate's `StedParams::default()`, which are the
+/// metric author's tool's).
 #[derive(Debug, Args)]
 pub struct StedArgs {
-    /// STED neighbourhood radius in edge hops (1..=16; default 3).
+    /// STED neighbourhood width in rings: the edges touching every vertex within R edge hops
+    /// (1..=16; default 1).
     #[arg(long, value_name = "R")]
     pub sted_radius: Option<u32>,
-    /// STED temporal step as a fraction of the bounding-box diagonal (> 0; default 0.3).
+    /// STED time extent of one frame step, in units of the diameter of reference frame 0
+    /// (> 0; default 0.0003).
     #[arg(long, value_name = "DT")]
     pub sted_dt: Option<f64>,
-    /// STED weight of the temporal part (≥ 0; default 0.5).
+    /// STED speed-averaging window: the reference speed at frame f is the mean over temporal
+    /// edges f−K+1 … f+K (1..=1000; default 5).
+    #[arg(long, value_name = "K")]
+    pub sted_window: Option<u32>,
+    /// STED weight of the temporal part (≥ 0; default 9.144e-5).
     #[arg(long, value_name = "C")]
     pub sted_c: Option<f64>,
-    /// Use signed relative edge differences in STED's spatial part (default absolute).
+    /// Use absolute relative edge differences in STED's spatial part (default signed, as the
+    /// metric author's tool).
     #[arg(long)]
-    pub sted_signed: bool,
+    pub sted_absolute: bool,
 }
 
 /// The metric switches `eval` and `sweep` share.

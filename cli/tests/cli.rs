@@ -213,5 +213,12 @@ fn demo_runs_quant_delta_on_every_synthetic_animation() {
         assert!(r["bpvf"].as_f64().unwrap() > 0.0 && r["bpvf"].as_f64().unwrap() < 96.0, "{r}");
         let rel = r["max_error_relative"].as_f64().unwrap();
         assert!(rel > 0.0 && rel < 1e-2, "{r}");
+        // KG and STED of the decoded animation: positive, and small at quant-delta's defaults.
+        for key in ["kg", "sted"] {
+            let x = r[key].as_f64().unwrap_or_else(|| panic!("{key} missing: {r}"));
+            assert!(x > 0.0 && x < 1.0, "{key}: {r}");
+        }
     }
+    let header = text.lines().find(|l| l.starts_with("animation")).unwrap();
+    assert!(header.contains("KG %") && header.contains("STED"), "{header}");
 }

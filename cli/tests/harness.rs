@@ -43,12 +43,20 @@ fn eval_identical_files_gives_zeros_and_anim_candidates_are_decoded() {
     // A .anim candidate is decoded; its metrics match the library on the same pair.
     let anim = s.path("flag.anim");
     ok(&["encode", &pc2, "-c", "quant-delta", "-p", "bits=6", "-o", &anim]);
-    let v = ok_json(&["eval", &pc2, &anim, "--json", "--sted-radius", "1"]);
-    assert_eq!(v["sted_params"]["ring_radius"], 1);
+    let v = ok_json(&["eval", &pc2, &anim, "--json", "--sted-radius", "2", "--sted-window", "3", "--sted-absolute"]);
+    assert_eq!(v["sted_params"]["ring_radius"], 2);
+    assert_eq!(v["sted_params"]["speed_window"], 3);
+    assert_eq!(v["sted_params"]["spatial_difference"], "absolute");
     let registry = animcodec::registry();
     let reference = animcodec::formats::read_animation(pc2.as_ref(), &Default::default()).unwrap();
     let decoded = codec_core::decode_animation(&std::fs::read(&anim).unwrap(), &registry, Limits::default()).unwrap();
-    let opts = EvalOptions { sted: metrics::StedParams { ring_radius: 1, ..Default::default() }, ..Default::default() };
+    let sted = metrics::StedParams {
+        ring_radius: 2,
+        speed_window: 3,
+        spatial_difference: metrics::EdgeDifference::Absolute,
+        ..Default::default()
+    };
+    let opts = EvalOptions { sted, ..Default::default() };
     let expected = metrics::evaluate(&reference, &decoded, &opts).unwrap();
     assert!(expected.kg.unwrap() > 0.0);
     assert_eq!(f(&v["kg"]), expected.kg.unwrap());
@@ -60,6 +68,51 @@ fn eval_identical_files_gives_zeros_and_anim_candidates_are_decoded() {
     ok(&["synth", "tumble", "-o", &other]);
     fails(&["eval", &pc2, &other], &["triangles"]);
     fails(&["eval", &pc2, &pc2, "--sted-dt", "0"], &["dt"]);
+    fails(&["eval", &pc2, &pc2, "--sted-window", "0"], &["speed_window"]);
+}
+
+/// `encode --eval` decodes what it wrote and reports the same metrics `eval` gives on the
+/// written file; without --json the text names KG and STED.
+#[test]
+fn encode_eval_reports_the_metrics_of_the_written_stream() {
+    let s = Scratch::new("encode-eval");
+    let (pc2, anim) = (s.path("flag.pc2"), s.path("flag.anim"));
+    ok(&["synth", "flag", "-o", &pc2]);
+    let v = ok_json(&["encode", &pc2, "-c", "quant-delta", "-p", "bits=7", "-o", &anim, "--eval", "--json"]);
+    let e = ok_json(&["eval", &pc2, &anim, "--json"]);
+    for key in ["kg", "sted"] {
+        assert!(f(&v[key]) > 0.0, "{key}: {v}");
+        assert_eq!(f(&v[key]), f(&e[key]), "{key}");
+        assert_eq!(f(&v["metrics"][key]), f(&e[key]), "{key}");
+    }
+    assert_eq!(f(&v["metrics"]["hausdorff"]), f(&e["hausdorff"]));
+    let text = ok(&["encode", &pc2, "-c", "quant-delta", "-p", "bits=7", "-o", &anim, "--eval"]);
+    assert!(text.contains("KG") && text.contains("STED"), "{text}");
+    // Without --eval nothing is measured.
+    let v = ok_json(&["encode", &pc2, "-c", "quant-delta", "-o", &anim, "--json"]);
+    assert!(v.get("kg").is_none() && v.get("metrics").is_none(), "{v}");
+    // A streamed synthetic flag is never held in memory: --eval says why it cannot measure it.
+    fails(&["encode", "synth:flag:8x8x10", "-c", "quant-delta", "-o", &anim, "--eval"], &["--eval", "in memory"]);
+}
+
+/// `animcodec eval` prints the STED of the metric author's tool within 1% on every pair of
+/// `../shared/sted-oracle` (skipped with a message when it is absent).
+#[test]
+fn eval_reproduces_the_sted_oracle() {
+    let root = std::path::PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared"));
+    let oracle = root.join("sted-oracle/sted-oracle.json");
+    if !oracle.exists() {
+        println!("SKIP: {} not found", oracle.display());
+        return;
+    }
+    let pairs: serde_json::Value = serde_json::from_slice(&std::fs::read(&oracle).unwrap()).unwrap();
+    for pair in pairs.as_array().unwrap() {
+        let path = |key: &str| root.join(pair[key].as_str().unwrap()).to_string_lossy().into_owned();
+        let (reference, candidate, topology) = (path("reference"), path("candidate"), path("topology"));
+        let v = ok_json(&["eval", &reference, &candidate, "--topology", &topology, "--json", "--no-hausdorff"]);
+        let (ours, tool) = (f(&v["sted"]), pair["sted"].as_f64().unwrap());
+        assert!((ours / tool - 1.0).abs() < 0.01, "{candidate}: tool {tool}, animcodec eval {ours}");
+    }
 }
 
 #[test]

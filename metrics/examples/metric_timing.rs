@@ -20,6 +20,8 @@ use metrics::{
     sted_with_fields, vertex_to_surface_distances, EvalOptions, StedParams,
 };
 
+#[path = "support/legacy_sted.rs"]
+mod legacy_sted;
 #[path = "support/readers.rs"]
 mod readers;
 
@@ -106,6 +108,7 @@ fn main() -> Res<()> {
     let (kg, t_kg) = time(repeat, || kg_error(r, c));
     let (disp, t_disp) = time(repeat, || displacement_stats(r, c));
     let (_, t_pv) = time(repeat, || per_vertex_displacement(r, c));
+    let (legacy, t_legacy) = time(repeat, || legacy_sted::legacy_sted(r, c));
     let (st, t_sted) = time(repeat, || sted(r, c, &params));
     let (stf, t_stedf) = time(repeat, || sted_with_fields(r, c, &params));
     let (h, t_h) = time(repeat, || hausdorff(r, c));
@@ -124,7 +127,8 @@ fn main() -> Res<()> {
         ("kg_error", t_kg),
         ("displacement_stats (mse/rmse/max)", t_disp),
         ("per_vertex_displacement", t_pv),
-        ("sted", t_sted),
+        ("sted (the author's tool's definition)", t_sted),
+        ("baseline: STED as defined before issue 12", t_legacy),
         ("sted_with_fields", t_stedf),
         ("hausdorff (all frames, both directions)", t_h),
         ("evaluate (everything)", t_eval),
@@ -139,6 +143,8 @@ fn main() -> Res<()> {
         "sted = {:.6e}  spatial = {:.6e}  temporal = {:.6e}  params = {:?}",
         st.sted, st.spatial, st.temporal, st.params
     );
+    println!("sted / old sted time: {:.2}x", t_sted / t_legacy);
+    println!("old definition: sted = {:.6e}  spatial = {:.6e}  temporal = {:.6e}", legacy.0, legacy.1, legacy.2);
     println!("hausdorff max = {:.6e}  mean = {:.6e}  ({:?})", h.max, h.mean, h.mode);
 
     if let Some(dir) = dump {

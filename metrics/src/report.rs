@@ -36,7 +36,7 @@ pub struct MetricReport {
     pub sted: Option<f64>,
     /// STED spatial part.
     pub sted_spatial: Option<f64>,
-    /// STED temporal part.
+    /// STED temporal part (`None` with a note when undefined: one frame, or a point-sized frame 0).
     pub sted_temporal: Option<f64>,
     /// Largest per-frame symmetric Hausdorff distance.
     pub hausdorff: Option<f64>,
@@ -88,13 +88,20 @@ pub fn evaluate(reference: &Animation, candidate: &Animation, options: &EvalOpti
         None
     };
     if let Some(s) = &st {
-        if reference.frame_count() < 2 {
-            notes.push("sted_temporal is 0: a single frame has no temporal edges".to_string());
+        if !s.temporal_defined {
+            notes.push(if reference.frame_count() < 2 {
+                "sted is the spatial part alone: a single frame has no temporal edges (the author's tool prints NaN)"
+                    .to_string()
+            } else {
+                "sted is the spatial part alone: reference frame 0 is a single point (diameter 0), the temporal \
+                 part's unit"
+                    .to_string()
+            });
         }
-        if s.skipped_vertex_frames > 0 {
+        if s.empty_vertex_frames > 0 {
             notes.push(format!(
-                "sted_spatial: {} vertex-frames without a positive-length edge in their neighbourhood were left out",
-                s.skipped_vertex_frames
+                "sted_spatial: {} vertex-frames without a positive-length edge in their neighbourhood count as 0",
+                s.empty_vertex_frames
             ));
         }
     }
@@ -112,7 +119,7 @@ pub fn evaluate(reference: &Animation, candidate: &Animation, options: &EvalOpti
         kg,
         sted: st.as_ref().map(|s| s.sted),
         sted_spatial: st.as_ref().map(|s| s.spatial),
-        sted_temporal: st.as_ref().map(|s| s.temporal),
+        sted_temporal: st.as_ref().filter(|s| s.temporal_defined).map(|s| s.temporal),
         hausdorff: h.as_ref().map(|h| h.max),
         hausdorff_mean: h.as_ref().map(|h| h.mean),
         hausdorff_relative: h.as_ref().and_then(|h| h.max_relative),

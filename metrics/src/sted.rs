@@ -1,71 +1,76 @@
 //! STED, the spatio-temporal edge difference of Váša & Skala, "A perception correlated
-//! comparison method for dynamic meshes", IEEE TVCG 17(2), 2011.
+//! comparison method for dynamic meshes", IEEE TVCG 17(2), 2011 — computed as the STED tool
+//! published by the metric's first author computes it (`../shared/sted-oracle/ALGORITHM.md`),
+//! with the tool's defaults. `metrics/README.md` states the equations and the evidence; the
+//! oracle test (`tests/sted_oracle.rs`) reproduces every reference value of the tool within 1%.
 //!
-//! Reading used here (see `metrics/README.md` for the discussion and what could not be
-//! checked against the paper's text):
-//!
-//! * **Spatial part.** For every mesh edge `e = (i, j)` and frame `t`, the reference length
-//!   `l = ‖a_ti − a_tj‖`, the candidate length `l' = ‖â_ti − â_tj‖` and the relative edge
-//!   difference `ed = |l' − l| / l` (or `(l' − l) / l` with [`EdgeDifference::Signed`]).
-//!   For every vertex `v`, its neighbourhood `N_r(v)` is the set of edges whose two ends lie
-//!   within `r` edge hops of `v` (`r = ring_radius`). The local deviation is the standard
-//!   deviation of `ed` over `N_r(v)` weighted by the reference edge lengths:
-//!   `μ = Σ l·ed / Σ l`, `σ_v,t = sqrt(Σ l·(ed − μ)² / Σ l)`. `STED_s` is the mean of
-//!   `σ_v,t` over vertices and frames.
-//! * **Temporal part.** The temporal edge of vertex `v` between frames `t` and `t+1` has the
-//!   space-time length `m = sqrt(‖a_{t+1,v} − a_tv‖² + (dt·D)²)` where `D` is the reference's
-//!   bounding-box diagonal over all frames (so `dt` is a fraction of the model size and the
-//!   metric is scale invariant), likewise `m'` for the candidate with the same `dt·D`.
-//!   `STED_t` is the mean over vertices and frame pairs of `|m' − m| / m`.
-//! * **Combination.** `STED = sqrt(STED_s² + c²·STED_t²)`.
-//!
-//! Zero-length reference edges have zero weight and are skipped (their relative difference is
-//! undefined); a vertex-frame whose neighbourhood has no edge of positive length is left out of
-//! the mean and counted in [`StedResult::skipped_vertex_frames`].
+//! * **Spatial part `S`.** For frame `f` and mesh edge `e = {a, b}`: `L = ‖P_a − P_b‖`
+//!   (reference), `L' = ‖Q_a − Q_b‖` (candidate), `d_e = (L − L')/L` (0 when `L = 0`). `R(v)` is
+//!   `v` and every vertex within `w` edge hops; `N(v)` every edge with *at least one* endpoint
+//!   in `R(v)` (w = 1: spokes, rim edges and the edges leaving the rim). The local deviation
+//!   is the length-weighted population standard deviation of `d` over `N(v)`:
+//!   `W = Σ L`, `μ = Σ L·d / W`, `σ_v = sqrt(Σ L·(d − μ)² / W)`; a vertex with `W = 0`
+//!   contributes 0 but still counts. `S = Σ_f Σ_v σ_v^f / (V·F)`.
+//! * **Temporal part `T`.** Positions divided by `D`, the diameter of reference frame 0.
+//!   The temporal edge of vertex `i` ending at frame `g` has length
+//!   `ℓ_i^g = sqrt(‖P̂_i^g − P̂_i^{g−1}‖² + dt²)` (`ℓ'` likewise from the candidate, same `D`).
+//!   The reference speed `s̄_i^f` is the mean of `ℓ_i^g` over `g = max(1, f−k+1) … min(F−1, f+k)`.
+//!   `T = Σ_{f=1}^{F−1} Σ_i |ℓ'_i^f − ℓ_i^f| / s̄_i^f / (V·(F−1))`.
+//! * **Combination.** `STED = sqrt(S² + c²·T²)`. One frame has no temporal edges: the tool
+//!   prints NaN, we report `T = 0` (so `STED = S`) and [`StedResult::temporal_defined`] false.
 
 use codec_core::{Animation, Error, Result};
 use rayon::prelude::*;
 use serde::Serialize;
 
-use crate::common::{check_compatible, point, sub, unique_edges, vertex_dist2, CTX};
+use crate::common::{check_compatible, norm2, point, sub, unique_edges, vertex_dist2, CTX};
 
 /// How a relative edge difference is formed in the spatial part.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum EdgeDifference {
-    /// `|l' − l| / l` (default).
-    Absolute,
-    /// `(l' − l) / l`: a neighbourhood that is uniformly stretched scores 0 either way, but a
-    /// neighbourhood with mixed stretching and shrinking scores higher than with `Absolute`.
+    /// `(L − L')/L`, the tool's (default). A uniformly stretched neighbourhood scores 0.
     Signed,
+    /// `|L − L'|/L`: not the tool's; a neighbourhood with mixed stretching and shrinking scores
+    /// lower than with `Signed`. Kept for comparison with results computed that way.
+    Absolute,
 }
 
-/// Parameters of [`sted`]; all are reported with the result.
+/// Parameters of [`sted`]; all are reported with the result. The defaults are the author's
+/// tool's, read from its compiled code and confirmed by reproducing its output on eight
+/// reference pairs (`../shared/sted-oracle/`) to better than 1e-6 relative.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct StedParams {
-    /// Radius of the topological neighbourhood in edge hops (1 = the one-ring), 1..=16.
-    /// Default 3.
+    /// Width `w` of the spatial neighbourhood in topological rings, 1..=16: `R(v)` is every
+    /// vertex within `w` edge hops of `v`, the neighbourhood every edge touching `R(v)`.
+    /// Default 1 (the tool's).
     pub ring_radius: u32,
-    /// Time step of the space-time edges as a fraction of the reference bounding-box
-    /// diagonal, finite and > 0. Default 0.3.
+    /// Time extent `dt` of one frame step in the temporal edges, in units of the diameter `D`
+    /// of reference frame 0; finite and > 0. Default 0.0003 (the tool's).
     pub dt: f64,
-    /// Weight of the temporal part, finite and ≥ 0. Default 0.5.
+    /// Half-width `k` of the window over which the reference speed is averaged (temporal edges
+    /// `f−k+1 … f+k`), 1..=1000. Default 5 (the tool's).
+    pub speed_window: u32,
+    /// Weight `c` of the temporal part; finite and ≥ 0. Default 9.144e-5 (the tool's): the
+    /// temporal term then matters only when the spatial error is tiny.
     pub c: f64,
-    /// Signed or absolute relative edge differences in the spatial part. Default absolute.
+    /// Signed (the tool's, default) or absolute relative edge differences.
     pub spatial_difference: EdgeDifference,
 }
 
 impl Default for StedParams {
     fn default() -> Self {
-        Self { ring_radius: 3, dt: 0.3, c: 0.5, spatial_difference: EdgeDifference::Absolute }
+        Self { ring_radius: 1, dt: 0.0003, speed_window: 5, c: 9.144e-5, spatial_difference: EdgeDifference::Signed }
     }
 }
 
 impl StedParams {
-    /// Largest accepted `ring_radius` (the neighbourhood cost grows with its square).
+    /// Largest accepted `ring_radius` (the neighbourhood size grows with its square).
     pub const MAX_RING_RADIUS: u32 = 16;
+    /// Largest accepted `speed_window`.
+    pub const MAX_SPEED_WINDOW: u32 = 1000;
 
-    /// Checks every field, naming the offending one.
+    /// Checks every field, naming the offending one and its allowed range.
     pub fn validate(&self) -> Result<()> {
         if !(1..=Self::MAX_RING_RADIUS).contains(&self.ring_radius) {
             return Err(Error::parameter(
@@ -76,6 +81,13 @@ impl StedParams {
         }
         if !(self.dt.is_finite() && self.dt > 0.0) {
             return Err(Error::parameter("sted", "dt", format!("{} is not a finite positive number", self.dt)));
+        }
+        if !(1..=Self::MAX_SPEED_WINDOW).contains(&self.speed_window) {
+            return Err(Error::parameter(
+                "sted",
+                "speed_window",
+                format!("{} is outside 1..={}", self.speed_window, Self::MAX_SPEED_WINDOW),
+            ));
         }
         if !(self.c.is_finite() && self.c >= 0.0) {
             return Err(Error::parameter("sted", "c", format!("{} is not a finite non-negative number", self.c)));
@@ -89,19 +101,24 @@ impl StedParams {
 pub struct StedResult {
     /// `sqrt(spatial² + c²·temporal²)`.
     pub sted: f64,
-    /// `STED_s`, mean local deviation of relative edge differences.
+    /// `S`, mean local deviation of relative edge differences.
     pub spatial: f64,
-    /// `STED_t`, mean relative difference of space-time edge lengths (0 for one frame).
+    /// `T`, mean relative change of temporal edge lengths (0 when not defined).
     pub temporal: f64,
+    /// False when the temporal part is undefined — one frame, or reference frame 0 collapsed
+    /// to a point (`D = 0`) — and `sted` is the spatial part alone.
+    pub temporal_defined: bool,
+    /// `D`, the diameter of reference frame 0 (the temporal part's unit of length).
+    pub diameter: f64,
     /// Parameters used.
     pub params: StedParams,
     /// Number of mesh edges.
     pub edge_count: usize,
-    /// Vertex-frames left out of the spatial mean (no edge of positive length around them,
-    /// e.g. vertices in no triangle).
-    pub skipped_vertex_frames: usize,
-    /// Per vertex: mean over frames of its local deviation `σ_v,t` (0 where it was never
-    /// defined). Empty unless requested with [`sted_with_fields`].
+    /// Vertex-frames whose neighbourhood has no edge of positive length (e.g. vertices in no
+    /// triangle): they contribute 0 to `S` but count in its mean, as in the tool.
+    pub empty_vertex_frames: usize,
+    /// Per vertex: mean over frames of its local deviation `σ_v^f`. Empty unless requested
+    /// with [`sted_with_fields`].
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub spatial_per_vertex: Vec<f64>,
 }
@@ -133,68 +150,106 @@ fn run(reference: &Animation, candidate: &Animation, params: &StedParams, fields
 
     // Spatial part, batches of frames in parallel, reduced in frame order.
     let mut sum = 0.0;
-    let mut counted = 0usize;
+    let mut empty = 0usize;
     let mut pv_sum = vec![0.0; if fields { n } else { 0 }];
-    let mut pv_count = vec![0u32; if fields { n } else { 0 }];
     for batch in (0..frames).collect::<Vec<_>>().chunks(FRAME_BATCH) {
-        let results: Vec<Vec<f64>> = batch
+        let results: Vec<(Vec<f64>, usize)> = batch
             .par_iter()
             .map(|&t| local_deviations(reference.frame(t), candidate.frame(t), &edges, &hood, params))
             .collect();
-        for sigma in results {
-            for (v, &s) in sigma.iter().enumerate() {
-                if s >= 0.0 {
-                    sum += s;
-                    counted += 1;
-                    if fields {
-                        pv_sum[v] += s;
-                        pv_count[v] += 1;
-                    }
-                }
+        for (sigma, empty_here) in results {
+            sum += sigma.iter().sum::<f64>();
+            empty += empty_here;
+            if fields {
+                pv_sum.iter_mut().zip(&sigma).for_each(|(acc, s)| *acc += s);
             }
         }
     }
-    let spatial = if counted > 0 { sum / counted as f64 } else { 0.0 };
+    let spatial = sum / (n * frames) as f64;
 
-    // Temporal part.
-    let step = params.dt * reference.bounding_box_diagonal();
-    let step2 = step * step;
-    let temporal = if frames < 2 || step2 == 0.0 {
-        0.0
-    } else {
-        let per_pair: Vec<f64> = (0..frames - 1)
-            .into_par_iter()
-            .map(|t| {
-                let (a0, a1, b0, b1) =
-                    (reference.frame(t), reference.frame(t + 1), candidate.frame(t), candidate.frame(t + 1));
-                (0..n)
-                    .map(|v| {
-                        let m = (vertex_dist2(a1, a0, v) + step2).sqrt();
-                        let mc = (vertex_dist2(b1, b0, v) + step2).sqrt();
-                        (mc - m).abs() / m
-                    })
-                    .sum::<f64>()
-            })
-            .collect();
-        per_pair.iter().sum::<f64>() / ((frames - 1) * n) as f64
-    };
+    let diameter = diameter(reference.frame(0));
+    let temporal_defined = frames >= 2 && diameter > 0.0;
+    let temporal = if temporal_defined { temporal_part(reference, candidate, diameter, params) } else { 0.0 };
 
-    let spatial_per_vertex =
-        pv_sum.iter().zip(&pv_count).map(|(&s, &c)| if c > 0 { s / c as f64 } else { 0.0 }).collect();
+    let spatial_per_vertex = pv_sum.iter().map(|&s| s / frames as f64).collect();
     Ok(StedResult {
         sted: (spatial * spatial + params.c * params.c * temporal * temporal).sqrt(),
         spatial,
         temporal,
+        temporal_defined,
+        diameter,
         params: *params,
         edge_count: edges.len(),
-        skipped_vertex_frames: frames * n - counted,
+        empty_vertex_frames: empty,
         spatial_per_vertex,
     })
 }
 
-/// Per vertex of one frame: the weighted standard deviation of relative edge differences over
-/// its neighbourhood, or −1 where no neighbourhood edge has positive reference length.
-fn local_deviations(a: &[f32], b: &[f32], edges: &[[u32; 2]], hood: &Neighbourhoods, p: &StedParams) -> Vec<f64> {
+/// Vertices per parallel chunk of the temporal part; fixed, so that partial sums are added in
+/// the same order whatever the thread count.
+const TEMPORAL_CHUNK: usize = 4096;
+
+/// `T` (module docs). Frames are walked in order with the reference's temporal edge lengths
+/// of the current window `max(1, f−k+1) … min(F−1, f+k)` kept as `2k` arrays of `V` lengths
+/// (memory `O(k·V)`, not `O(F·V)`); each frame's vertices run in parallel in fixed chunks.
+fn temporal_part(reference: &Animation, candidate: &Animation, diameter: f64, p: &StedParams) -> f64 {
+    let (n, frames) = (reference.vertex_count(), reference.frame_count());
+    let inv_d2 = 1.0 / (diameter * diameter);
+    let dt2 = p.dt * p.dt;
+    let k = p.speed_window as usize;
+    // Lengths of the temporal edges of every vertex ending at frame `g ≥ 1`, in units of `D`.
+    let edge_lengths = |anim: &Animation, g: usize| -> Vec<f64> {
+        let (a, b) = (anim.frame(g), anim.frame(g - 1));
+        let mut out = vec![0.0; n];
+        out.par_chunks_mut(TEMPORAL_CHUNK).enumerate().for_each(|(c, chunk)| {
+            for (i, l) in chunk.iter_mut().enumerate() {
+                *l = (vertex_dist2(a, b, c * TEMPORAL_CHUNK + i) * inv_d2 + dt2).sqrt();
+            }
+        });
+        out
+    };
+    // window[j] holds the reference lengths of temporal edge `first + j`.
+    let mut window: std::collections::VecDeque<Vec<f64>> = std::collections::VecDeque::new();
+    let mut first = 1;
+    let mut total = 0.0;
+    for f in 1..frames {
+        let (lo, hi) = ((f + 1).saturating_sub(k).max(1), (f + k).min(frames - 1));
+        while first < lo {
+            window.pop_front();
+            first += 1;
+        }
+        while first + window.len() <= hi {
+            window.push_back(edge_lengths(reference, first + window.len()));
+        }
+        let current = &window[f - first];
+        let cand = edge_lengths(candidate, f);
+        let count = window.len() as f64;
+        let chunk_sums: Vec<f64> = (0..n.div_ceil(TEMPORAL_CHUNK))
+            .into_par_iter()
+            .map(|c| {
+                (c * TEMPORAL_CHUNK..((c + 1) * TEMPORAL_CHUNK).min(n))
+                    .map(|v| {
+                        let mean_speed = window.iter().map(|w| w[v]).sum::<f64>() / count;
+                        (cand[v] - current[v]).abs() / mean_speed
+                    })
+                    .sum::<f64>()
+            })
+            .collect();
+        total += chunk_sums.iter().sum::<f64>();
+    }
+    total / (n * (frames - 1)) as f64
+}
+
+/// Per vertex of one frame: the length-weighted population standard deviation of relative
+/// edge differences over its neighbourhood (0 where no neighbourhood edge has positive
+/// reference length), and how many vertices had such an empty neighbourhood.
+fn local_deviations(
+    a: &[f32],
+    b: &[f32],
+    edges: &[[u32; 2]],
+    hood: &Neighbourhoods,
+    p: &StedParams,
+) -> (Vec<f64>, usize) {
     // (weight = reference length, relative difference) per edge.
     let per_edge: Vec<(f64, f64)> = edges
         .iter()
@@ -203,14 +258,15 @@ fn local_deviations(a: &[f32], b: &[f32], edges: &[[u32; 2]], hood: &Neighbourho
             let l = norm(sub(point(a, i), point(a, j)));
             if l > 0.0 {
                 let lc = norm(sub(point(b, i), point(b, j)));
-                let d = (lc - l) / l;
+                let d = (l - lc) / l;
                 (l, if p.spatial_difference == EdgeDifference::Absolute { d.abs() } else { d })
             } else {
                 (0.0, 0.0)
             }
         })
         .collect();
-    (0..hood.len())
+    let mut empty = 0;
+    let sigma = (0..hood.len())
         .map(|v| {
             let list = hood.of(v);
             let (mut w, mut wd) = (0.0, 0.0);
@@ -220,7 +276,8 @@ fn local_deviations(a: &[f32], b: &[f32], edges: &[[u32; 2]], hood: &Neighbourho
                 wd += l * d;
             }
             if w <= 0.0 {
-                return -1.0;
+                empty += 1;
+                return 0.0;
             }
             let mu = wd / w;
             let var = list
@@ -233,11 +290,90 @@ fn local_deviations(a: &[f32], b: &[f32], edges: &[[u32; 2]], hood: &Neighbourho
                 / w;
             var.max(0.0).sqrt()
         })
-        .collect()
+        .collect();
+    (sigma, empty)
 }
 
 fn norm(x: [f64; 3]) -> f64 {
-    (x[0] * x[0] + x[1] * x[1] + x[2] * x[2]).sqrt()
+    norm2(x).sqrt()
+}
+
+/// Largest cells-per-axis of the grid in [`diameter`] (at most 1000 cells, 500 500 pairs).
+const DIAMETER_GRID_MAX: usize = 10;
+
+/// The exact diameter of a frame: the largest distance between two of its vertices.
+///
+/// The author's tool uses an octant-based search that equals the exact diameter on real meshes
+/// (ALGORITHM.md). Here: vertices are bucketed into a grid of at most 10³ cells; cell pairs
+/// are visited by decreasing upper bound (the largest distance between their bounding boxes)
+/// and compared point by point until the bound falls below the best distance found, so only
+/// the few cell pairs near opposite ends of the shape are searched exhaustively.
+pub fn diameter(frame: &[f32]) -> f64 {
+    let n = frame.len() / 3;
+    if n < 2 {
+        return 0.0;
+    }
+    let pts: Vec<[f64; 3]> = (0..n).map(|v| point(frame, v)).collect();
+    let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+    for q in &pts {
+        for a in 0..3 {
+            lo[a] = lo[a].min(q[a]);
+            hi[a] = hi[a].max(q[a]);
+        }
+    }
+    // About 32 points per cell, at most DIAMETER_GRID_MAX per axis.
+    let g = ((n as f64 / 32.0).cbrt().round() as usize).clamp(1, DIAMETER_GRID_MAX);
+    let cell_of = |q: &[f64; 3]| {
+        let mut c = 0;
+        for a in 0..3 {
+            let span = hi[a] - lo[a];
+            let i = if span > 0.0 { (((q[a] - lo[a]) / span) * g as f64) as usize } else { 0 };
+            c = c * g + i.min(g - 1);
+        }
+        c
+    };
+    let mut members: Vec<Vec<u32>> = vec![Vec::new(); g * g * g];
+    for (v, q) in pts.iter().enumerate() {
+        members[cell_of(q)].push(v as u32);
+    }
+    // Occupied cells with their tight boxes.
+    let cells: Vec<(&[u32], [f64; 3], [f64; 3])> = members
+        .iter()
+        .filter(|m| !m.is_empty())
+        .map(|m| {
+            let (mut clo, mut chi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+            for &v in m {
+                for a in 0..3 {
+                    clo[a] = clo[a].min(pts[v as usize][a]);
+                    chi[a] = chi[a].max(pts[v as usize][a]);
+                }
+            }
+            (m.as_slice(), clo, chi)
+        })
+        .collect();
+    let mut pairs: Vec<(f64, u32, u32)> = Vec::with_capacity(cells.len() * (cells.len() + 1) / 2);
+    for (i, (_, alo, ahi)) in cells.iter().enumerate() {
+        for (j, (_, blo, bhi)) in cells.iter().enumerate().skip(i) {
+            let bound2: f64 = (0..3).map(|a| (ahi[a] - blo[a]).abs().max((bhi[a] - alo[a]).abs()).powi(2)).sum();
+            pairs.push((bound2, i as u32, j as u32));
+        }
+    }
+    pairs.sort_unstable_by(|x, y| y.0.total_cmp(&x.0));
+    let mut best2 = 0.0f64;
+    for &(bound2, i, j) in &pairs {
+        if bound2 <= best2 {
+            break;
+        }
+        let (a, b) = (cells[i as usize].0, cells[j as usize].0);
+        for (ia, &u) in a.iter().enumerate() {
+            let rest = if i == j { &b[ia + 1..] } else { b };
+            let pu = pts[u as usize];
+            for &w in rest {
+                best2 = best2.max(norm2(sub(pu, pts[w as usize])));
+            }
+        }
+    }
+    best2.sqrt()
 }
 
 /// Vertices whose neighbourhoods are gathered per parallel batch.
@@ -246,7 +382,8 @@ const HOOD_BLOCK: usize = 1 << 16;
 /// on a large mesh grows as `V · radius²`.
 const MAX_HOOD_ENTRIES: usize = 1 << 28;
 
-/// For every vertex, the edges with both ends within `radius` hops (CSR).
+/// For every vertex `v`, the edges with at least one endpoint within `radius` hops of `v`,
+/// each once (CSR).
 pub(crate) struct Neighbourhoods {
     start: Vec<usize>,
     edges: Vec<u32>,
@@ -281,7 +418,7 @@ impl Neighbourhoods {
                 .map_init(
                     || (vec![u32::MAX; n], Vec::<u32>::new()),
                     |(stamp, queue), v| {
-                        // Breadth-first search to `radius` hops; `stamp[w] == v` marks visited.
+                        // Breadth-first search to `radius` hops; `stamp[w] == v` marks R(v).
                         queue.clear();
                         queue.push(v as u32);
                         stamp[v] = v as u32;
@@ -300,10 +437,12 @@ impl Neighbourhoods {
                             level_end = queue.len();
                             level += 1;
                         }
+                        // Every edge touching R(v), once: an edge with both ends inside is
+                        // taken from its lower end.
                         let mut out = Vec::new();
                         for &u in queue.iter() {
                             for &(w, e) in adj_of(u as usize) {
-                                if u < w && stamp[w as usize] == v as u32 {
+                                if stamp[w as usize] != v as u32 || u < w {
                                     out.push(e);
                                 }
                             }
@@ -348,147 +487,179 @@ mod tests {
         (a - b).abs() <= tol
     }
 
-    /// A strip of two triangles (0,1,2),(1,3,2):
+    /// A ladder of four triangles (0,2,1), (1,2,3), (2,4,3), (3,4,5) in the plane z = 0:
     /// ```text
-    ///  2 ---- 3        0=(0,0,0) 1=(1,0,0) 2=(0,1,0) 3=(1,1,0)
-    ///  | \    |        edges: 0-1, 0-2, 1-2, 1-3, 2-3
-    ///  |   \  |
-    ///  0 ---- 1
+    ///  1 ---- 3 ---- 5      0=(0,0) 1=(0,1) 2=(1,0) 3=(1,1) 4=(2,0) 5=(2,1)
+    ///  |  \   |  \   |      edges: 0-1 0-2 1-2 1-3 2-3 2-4 3-4 3-5 4-5
+    ///  0 ---- 2 ---- 4
     /// ```
-    fn strip(frames: &[[f32; 12]]) -> Animation {
-        Animation::from_parts(4, vec![[0, 1, 2], [1, 3, 2]], frames.concat(), 30.0).unwrap()
+    fn ladder(frames: &[[f32; 18]]) -> Animation {
+        Animation::from_parts(6, vec![[0, 2, 1], [1, 2, 3], [2, 4, 3], [3, 4, 5]], frames.concat(), 30.0).unwrap()
     }
 
-    const BASE: [f32; 12] = [0., 0., 0., 1., 0., 0., 0., 1., 0., 1., 1., 0.];
+    const LADDER: [f32; 18] = [0., 0., 0., 0., 1., 0., 1., 0., 0., 1., 1., 0., 2., 0., 0., 2., 1., 0.];
 
     #[test]
     fn neighbourhoods_by_hand() {
-        let edges = unique_edges(&[[0, 1, 2], [1, 3, 2]]);
-        assert_eq!(edges, vec![[0, 1], [0, 2], [1, 2], [1, 3], [2, 3]]);
-        let h = Neighbourhoods::new(4, &edges, 1).unwrap();
-        let sorted = |v: usize| {
+        let edges = unique_edges(&[[0, 2, 1], [1, 2, 3], [2, 4, 3], [3, 4, 5]]);
+        assert_eq!(edges, vec![[0, 1], [0, 2], [1, 2], [1, 3], [2, 3], [2, 4], [3, 4], [3, 5], [4, 5]]);
+        let sorted = |h: &Neighbourhoods, v: usize| {
             let mut l = h.of(v).to_vec();
             l.sort();
             l
         };
-        // One-ring of 0 is {0,1,2}: edges 0-1, 0-2, 1-2 → ids 0,1,2.
-        assert_eq!(sorted(0), vec![0, 1, 2]);
-        // One-ring of 1 is everything: all five edges.
-        assert_eq!(sorted(1), vec![0, 1, 2, 3, 4]);
-        // One-ring of 3 is {1,2,3}: edges 1-2, 1-3, 2-3 → ids 2,3,4.
-        assert_eq!(sorted(3), vec![2, 3, 4]);
-        assert_eq!(sorted(0), {
-            let mut l = Neighbourhoods::new(4, &edges, 2).unwrap().of(3).to_vec();
-            l.retain(|&e| [0, 1, 2].contains(&e));
-            l.sort();
-            l
-        });
+        let one = Neighbourhoods::new(6, &edges, 1).unwrap();
+        // R(0) = {0, 1, 2}: every edge touching it — 0-1, 0-2, 1-2, and the edges leaving the
+        // ring 1-3, 2-3, 2-4 (ids 0..=5); not 3-4, 3-5, 4-5.
+        assert_eq!(sorted(&one, 0), vec![0, 1, 2, 3, 4, 5]);
+        // R(5) = {3, 4, 5}: 1-3, 2-3, 2-4, 3-4, 3-5, 4-5.
+        assert_eq!(sorted(&one, 5), vec![3, 4, 5, 6, 7, 8]);
+        // R(2) = {0, 1, 2, 3, 4} touches every edge.
+        assert_eq!(sorted(&one, 2), (0..9).collect::<Vec<_>>());
+        // Two rings from 0: R = {0..=4}, every edge.
+        assert_eq!(sorted(&Neighbourhoods::new(6, &edges, 2).unwrap(), 0), (0..9).collect::<Vec<_>>());
     }
 
-    /// One frame; candidate moves vertex 3 from (1,1,0) to (1,1.5,0), ring radius 1.
-    /// Reference lengths: 0-1: 1, 0-2: 1, 1-2: √2, 1-3: 1, 2-3: 1.
-    /// Candidate: 1-3 becomes 1.5 (ed = 0.5); 2-3 becomes sqrt(1 + 0.25) = 1.1180340 (ed =
-    /// 0.1180340); the others are unchanged (ed = 0).
-    /// Vertex 0, edges {0-1, 0-2, 1-2}: all ed = 0 → σ = 0.
-    /// Vertex 3, edges {1-2, 1-3, 2-3} with weights (√2, 1, 1), ed (0, 0.5, 0.1180340):
-    ///   W = 3.4142136, μ = (0.5 + 0.1180340)/W = 0.1810180,
-    ///   σ² = (√2·μ² + (0.5 − μ)² + (0.1180340 − μ)²)/W
-    ///      = (0.0463402 + 0.1017495 + 0.0039670)/3.4142136 = 0.0445364, σ = 0.2110365.
-    /// Vertices 1 and 2, all five edges, weights (1, 1, √2, 1, 1), W = 5.4142136:
-    ///   μ = 0.6180340/W = 0.1141503,
-    ///   σ² = ((2 + √2)·μ² + (0.5 − μ)² + (0.1180340 − μ)²)/W
-    ///      = (0.0444882 + 0.1488800 + 0.0000151)/5.4142136 = 0.0357177, σ = 0.1889913.
-    /// STED_s = (0 + 2·0.1889913 + 0.2110365)/4 = 0.1472548. One frame → STED_t = 0.
+    /// One frame; the candidate moves vertex 4 from (2,0) to (2.5,0), w = 1. Relative
+    /// differences d = (L − L')/L: 2-4: (1 − 1.5)/1 = −0.5; 3-4: (√2 − √3.25)/√2 = −0.2747549;
+    /// 4-5: (1 − √1.25)/1 = −0.1180340; every other edge 0.
+    /// Vertex 0 pins the neighbourhood rule: N(0) = {0-1, 0-2, 1-2, 1-3, 2-3, 2-4} (edges
+    /// touching R(0) = {0,1,2}), W = 5 + √2 = 6.4142136, only 2-4 moved:
+    /// μ = −0.5/W = −0.0779519, σ² = ((W − 1)·μ² + (−0.5 − μ)²)/W, σ_0 = 0.1813820. (Had the
+    /// neighbourhood been the edges with both ends in R(0), σ_0 would be 0.)
+    /// The others, computed the same way: σ_1 = 0.1740124 (N: 8 edges, all but 4-5),
+    /// σ_2 = σ_3 = 0.1650062 (all 9), σ_4 = 0.1702597 (all but 0-1), σ_5 = 0.1821112
+    /// (1-3, 2-3, 2-4, 3-4, 3-5, 4-5). S = mean = 0.1729629. One frame: T undefined.
     #[test]
     fn spatial_by_hand_one_ring() {
-        let mut moved = BASE;
-        moved[10] = 1.5;
-        let r = strip(&[BASE]);
-        let c = strip(&[moved]);
-        let p = StedParams { ring_radius: 1, ..StedParams::default() };
-        let res = sted_with_fields(&r, &c, &p).unwrap();
-        let e23 = 1.25f64.sqrt() - 1.0;
+        let mut moved = LADDER;
+        moved[12] = 2.5;
+        let res = sted_with_fields(&ladder(&[LADDER]), &ladder(&[moved]), &StedParams::default()).unwrap();
         let s2 = 2f64.sqrt();
-        // Vertex 3.
-        let w3 = s2 + 2.0;
-        let mu3 = (0.5 + e23) / w3;
-        let sig3 = ((s2 * mu3 * mu3 + (0.5 - mu3).powi(2) + (e23 - mu3).powi(2)) / w3).sqrt();
-        assert!(close(sig3, 0.2110365, 1e-6), "{sig3}");
-        // Vertices 1 and 2: two unit edges and the diagonal with ed = 0, plus 1-3 and 2-3.
-        let w1 = s2 + 4.0;
-        let mu1 = (0.5 + e23) / w1;
-        let sig1 = (((2.0 + s2) * mu1 * mu1 + (0.5 - mu1).powi(2) + (e23 - mu1).powi(2)) / w1).sqrt();
-        assert!(close(sig1, 0.1889913, 1e-6), "{sig1}");
-        let expect = [0.0, sig1, sig1, sig3];
+        let w0 = 5.0 + s2;
+        let mu0 = -0.5 / w0;
+        let sig0 = (((w0 - 1.0) * mu0 * mu0 + (-0.5 - mu0).powi(2)) / w0).sqrt();
+        assert!(close(sig0, 0.1813820, 1e-7), "{sig0}");
+        let expect = [sig0, 0.1740124, 0.1650062, 0.1650062, 0.1702597, 0.1821112];
         for (v, (&got, &want)) in res.spatial_per_vertex.iter().zip(&expect).enumerate() {
             assert!(close(got, want, 1e-7), "vertex {v}: {:?}", res.spatial_per_vertex);
         }
-        let mean = expect.iter().sum::<f64>() / 4.0;
-        assert!(close(mean, 0.1472548, 1e-6));
-        assert!(close(res.spatial, mean, 1e-7) && res.temporal == 0.0 && close(res.sted, mean, 1e-7));
-        assert_eq!(res.edge_count, 5);
-        assert_eq!(res.skipped_vertex_frames, 0);
+        assert!(close(res.spatial, 0.1729629, 1e-7), "{}", res.spatial);
+        assert!(!res.temporal_defined && res.temporal == 0.0 && res.sted == res.spatial);
+        assert_eq!((res.edge_count, res.empty_vertex_frames), (9, 0));
+        // Absolute differences: the same edges moved, all by shrinking, so |d| = −d and σ is
+        // unchanged.
+        let abs = StedParams { spatial_difference: EdgeDifference::Absolute, ..Default::default() };
+        let res_abs = sted(&ladder(&[LADDER]), &ladder(&[moved]), &abs).unwrap();
+        assert!(close(res_abs.spatial, res.spatial, 1e-12));
     }
 
-    /// Two frames of the same shape; the reference translates by (0,0,0.3) between them, the
-    /// candidate by (0,0,0.4). Bounding box of the reference: [0,1]×[0,1]×[0,0.3], diagonal
-    /// D = sqrt(2.09). With dt = 0.5: step = 0.5·D, step² = 0.5225.
-    /// Reference temporal length m = sqrt(0.09 + 0.5225) = sqrt(0.6125) = 0.7826238;
-    /// candidate m' = sqrt(0.16 + 0.5225) = sqrt(0.6825) = 0.8261356.
-    /// Every vertex: |m' − m|/m = 0.0555975. STED_t = 0.0555975; STED_s = 0 (shape is exact);
-    /// STED = c·STED_t = 2·0.0555975 with c = 2.
+    /// Three frames of the same ladder translated along z: the reference by 0.3 then 0.2, the
+    /// candidate by 0.4 then 0.1. D = diameter of reference frame 0 = |(0,0)−(2,1)| = √5;
+    /// dt = 0.1. Temporal edge lengths (every vertex alike), ℓ^g = sqrt((Δz/D)² + dt²):
+    /// reference ℓ¹ = √0.028 = 0.1673320, ℓ² = √0.018 = 0.1341641; candidate ℓ'¹ = √0.042 =
+    /// 0.2049390, ℓ'² = √0.012 = 0.1095445.
+    /// k = 1: windows g ∈ {1, 2} for f = 1 and {2} for f = 2:
+    ///   T = (|ℓ'¹ − ℓ¹| / ((ℓ¹ + ℓ²)/2) + |ℓ'² − ℓ²| / ℓ²) / 2 = 0.216486365.
+    /// k = 5 (default): both windows {1, 2}: T = (|ℓ'¹ − ℓ¹| + |ℓ'² − ℓ²|) / (ℓ¹ + ℓ²) = 0.206392655.
+    /// The shapes are exact, so S = 0 and STED = c·T.
     #[test]
     fn temporal_by_hand() {
         let up = |dz: f32| {
-            let mut f = BASE;
-            for v in 0..4 {
+            let mut f = LADDER;
+            for v in 0..6 {
                 f[3 * v + 2] += dz;
             }
             f
         };
-        let r = strip(&[BASE, up(0.3)]);
-        let c = strip(&[BASE, up(0.4)]);
-        let p = StedParams { dt: 0.5, c: 2.0, ..StedParams::default() };
-        let res = sted(&r, &c, &p).unwrap();
-        let m = (0.09f64 + 0.5225).sqrt();
-        let mc = (0.16f64 + 0.5225).sqrt();
-        // f32 positions: 0.3 and 0.4 are not exact in f32, so allow 1e-7.
-        assert!(close(res.temporal, (mc - m) / m, 1e-7), "{}", res.temporal);
-        assert!(close(res.temporal, 0.0555975, 1e-6));
-        assert!(res.spatial.abs() < 1e-7);
-        assert!(close(res.sted, 2.0 * res.temporal, 1e-7));
-        assert_eq!(res.params, p);
+        let r = ladder(&[LADDER, up(0.3), up(0.5)]);
+        let c = ladder(&[LADDER, up(0.4), up(0.5)]);
+        for (k, want) in [(1, 0.216486365), (5, 0.206392655)] {
+            let p = StedParams { dt: 0.1, speed_window: k, c: 2.0, ..StedParams::default() };
+            let res = sted(&r, &c, &p).unwrap();
+            assert!(close(res.diameter, 5f64.sqrt(), 1e-12), "{}", res.diameter);
+            // f32 positions: 0.3 and 0.4 are not exact in f32, so allow 1e-6.
+            assert!(close(res.temporal, want, 1e-6), "k = {k}: {}", res.temporal);
+            assert!(res.temporal_defined && res.spatial.abs() < 1e-7);
+            assert!(close(res.sted, 2.0 * res.temporal, 1e-7));
+            assert_eq!(res.params, p);
+        }
+    }
+
+    #[test]
+    fn defaults_are_the_tools() {
+        let p = StedParams::default();
+        assert_eq!((p.ring_radius, p.dt, p.speed_window, p.c), (1, 0.0003, 5, 9.144e-5));
+        assert_eq!(p.spatial_difference, EdgeDifference::Signed);
     }
 
     #[test]
     fn rejects_bad_params_and_point_clouds() {
-        let r = strip(&[BASE]);
-        for p in [
-            StedParams { ring_radius: 0, ..Default::default() },
-            StedParams { ring_radius: 17, ..Default::default() },
-            StedParams { dt: 0.0, ..Default::default() },
-            StedParams { dt: f64::NAN, ..Default::default() },
-            StedParams { c: -1.0, ..Default::default() },
-            StedParams { c: f64::INFINITY, ..Default::default() },
+        let r = ladder(&[LADDER]);
+        for (p, field) in [
+            (StedParams { ring_radius: 0, ..Default::default() }, "ring_radius"),
+            (StedParams { ring_radius: 17, ..Default::default() }, "ring_radius"),
+            (StedParams { dt: 0.0, ..Default::default() }, "dt"),
+            (StedParams { dt: f64::NAN, ..Default::default() }, "dt"),
+            (StedParams { speed_window: 0, ..Default::default() }, "speed_window"),
+            (StedParams { speed_window: 1001, ..Default::default() }, "speed_window"),
+            (StedParams { c: -1.0, ..Default::default() }, "c"),
+            (StedParams { c: f64::INFINITY, ..Default::default() }, "c"),
         ] {
             let e = sted(&r, &r, &p).unwrap_err().to_string();
-            assert!(e.contains("sted: parameter"), "{e}");
+            assert!(e.contains("sted: parameter") && e.contains(field), "{e}");
         }
-        let cloud = Animation::from_parts(4, vec![], BASE.to_vec(), 30.0).unwrap();
+        let cloud = Animation::from_parts(6, vec![], LADDER.to_vec(), 30.0).unwrap();
         let e = sted(&cloud, &cloud, &StedParams::default()).unwrap_err().to_string();
         assert!(e.contains("no triangles"), "{e}");
     }
 
     #[test]
-    fn degenerate_edges_are_skipped_not_nan() {
-        // Vertices 2 and 3 coincide in the reference: edge 2-3 has length 0 and is skipped;
-        // no NaN anywhere.
-        let mut f = BASE;
-        f[9..12].copy_from_slice(&[0., 1., 0.]);
-        let r = strip(&[f]);
+    fn degenerate_edges_count_as_empty_not_nan() {
+        // Vertices 4 and 5 coincide with 2 and 3 in the reference: edges 2-4, 3-5 have length
+        // 0 and weight 0; no NaN anywhere. A frame collapsed to one point has D = 0: the
+        // temporal part is undefined, and every neighbourhood is empty (counted, contributing 0).
+        let mut f = LADDER;
+        f[12..18].copy_from_slice(&[1., 0., 0., 1., 1., 0.]);
         let mut g = f;
         g[0] = 0.1;
-        let res = sted(&r, &strip(&[g]), &StedParams { ring_radius: 1, ..Default::default() }).unwrap();
-        assert!(res.spatial.is_finite() && res.spatial > 0.0);
+        let res = sted(&ladder(&[f, f]), &ladder(&[g, g]), &StedParams::default()).unwrap();
+        assert!(res.spatial.is_finite() && res.spatial > 0.0 && res.temporal.is_finite());
+        let point = [0.5f32; 18];
+        let res = sted(&ladder(&[point, point]), &ladder(&[LADDER, LADDER]), &StedParams::default()).unwrap();
+        assert_eq!((res.spatial, res.diameter, res.temporal_defined, res.empty_vertex_frames), (0.0, 0.0, false, 12));
+    }
+
+    /// The grid search returns the brute-force diameter, including on a sphere-like cloud where
+    /// many pairs are near the maximum, and on flat and tiny inputs.
+    #[test]
+    fn diameter_matches_brute_force() {
+        let brute = |f: &[f32]| {
+            let n = f.len() / 3;
+            let mut best = 0.0f64;
+            for i in 0..n {
+                for j in i + 1..n {
+                    best = best.max(norm2(sub(point(f, i), point(f, j))));
+                }
+            }
+            best.sqrt()
+        };
+        let mut sphere = Vec::new();
+        let mut seed = 12345u64;
+        let mut rnd = || {
+            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        for _ in 0..3000 {
+            let (u, t) = (2.0 * rnd() - 1.0, std::f64::consts::TAU * rnd());
+            let r = (1.0 - u * u).sqrt();
+            sphere.extend([(r * t.cos()) as f32, (r * t.sin()) as f32, u as f32]);
+        }
+        let flat: Vec<f32> = (0..500).flat_map(|i| [(i % 25) as f32, (i / 25) as f32 * 0.5, 0.0]).collect();
+        for (name, f) in [("sphere", &sphere[..]), ("flat", &flat[..]), ("ladder", &LADDER[..]), ("two", &LADDER[..6])]
+        {
+            assert_eq!(diameter(f), brute(f), "{name}");
+        }
+        assert_eq!(diameter(&LADDER[..3]), 0.0);
     }
 }

@@ -3,12 +3,12 @@
 
 Usage:
     target/release/examples/metric_timing PREFIX --dump DIR
-    python3 metrics/tools/check_metrics.py DIR [--hausdorff-frames N] [--ring 3 --dt 0.3 --c 0.5]
+    python3 metrics/tools/check_metrics.py DIR [--hausdorff-frames N]
 
 Reads DIR/reference.f32, DIR/candidate.f32, DIR/triangles.u32 and DIR/results.json (written
 by the example), recomputes every metric here with numpy in float64, written from the formulas
 in metrics/README.md rather than from the Rust code (different loop structure: STED per vertex
-vectorised over frames, point-triangle distance by plane projection + barycentric test +
+vectorised over frames and the reference speed window from cumulative sums, point-triangle distance by plane projection + barycentric test +
 edge fallback instead of Voronoi regions), and prints the differences.
 """
 import argparse
@@ -95,7 +95,8 @@ def neighbourhood_edges(V, edges, radius):
                 if w not in dist:
                     dist[w] = dist[u] + 1
                     q.append(w)
-        hoods.append(np.array(sorted({e for u in dist for w, e in adj[u] if w in dist}), dtype=np.int64))
+        # Every edge with at least one endpoint in the ring set R(v).
+        hoods.append(np.array(sorted({e for u in dist for w, e in adj[u]}), dtype=np.int64))
     return hoods
 
 
@@ -140,10 +141,11 @@ def main():
     la = np.linalg.norm(A[:, edges[:, 0]] - A[:, edges[:, 1]], axis=2)  # (F, E)
     lb = np.linalg.norm(B[:, edges[:, 0]] - B[:, edges[:, 1]], axis=2)
     with np.errstate(divide="ignore", invalid="ignore"):
-        ed = np.where(la > 0, (lb - la) / la, 0.0)
+        ed = np.where(la > 0, (la - lb) / la, 0.0)
     if sp["spatial_difference"] == "absolute":
         ed = np.abs(ed)
-    sig = np.full((F, V), np.nan)
+    # Vertices whose neighbourhood has no positive length count as 0.
+    sig = np.zeros((F, V))
     for v in range(V):
         h = hoods[v]
         if len(h) == 0:
@@ -154,18 +156,32 @@ def main():
         mu = (w * d).sum(axis=1) / np.where(good, W, 1)
         var = (w * (d - mu[:, None]) ** 2).sum(axis=1) / np.where(good, W, 1)
         sig[good, v] = np.sqrt(np.maximum(var[good], 0))
-    sted_s = np.nanmean(sig)
-    step = sp["dt"] * diag
-    m = np.sqrt(((A[1:] - A[:-1]) ** 2).sum(axis=2) + step**2)
-    mc = np.sqrt(((B[1:] - B[:-1]) ** 2).sum(axis=2) + step**2)
-    sted_t = (np.abs(mc - m) / m).mean() if F > 1 else 0.0
+    sted_s = sig.mean()
+    # Temporal: unit D = diameter of reference frame 0 (brute force over all pairs, chunked).
+    P0 = A[0]
+    D = 0.0
+    for s0 in range(0, V, 1024):
+        D = max(D, float(((P0[s0 : s0 + 1024, None, :] - P0[None, :, :]) ** 2).sum(-1).max()))
+    D = np.sqrt(D)
+    if F > 1 and D > 0:
+        k = sp["speed_window"]
+        ell = np.sqrt(((A[1:] - A[:-1]) ** 2).sum(axis=2) / D**2 + sp["dt"] ** 2)  # row g-1 = edge g
+        ellc = np.sqrt(((B[1:] - B[:-1]) ** 2).sum(axis=2) / D**2 + sp["dt"] ** 2)
+        csum = np.vstack([np.zeros((1, V)), np.cumsum(ell, axis=0)])  # csum[g] = sum of edges 1..g
+        tot = 0.0
+        for f in range(1, F):
+            lo, hi = max(1, f - k + 1), min(F - 1, f + k)
+            mean_speed = (csum[hi] - csum[lo - 1]) / (hi - lo + 1)
+            tot += (np.abs(ellc[f - 1] - ell[f - 1]) / mean_speed).sum()
+        sted_t = tot / (V * (F - 1))
+    else:
+        sted_t = 0.0
     rows += [
         ("sted_spatial", sted_s, rep["sted_spatial"]),
         ("sted_temporal", sted_t, rep["sted_temporal"]),
         ("sted", np.sqrt(sted_s**2 + sp["c"] ** 2 * sted_t**2), rep["sted"]),
     ]
-    pv = np.where(np.isnan(sig).all(axis=0), 0.0, np.nanmean(np.where(np.isnan(sig), np.nan, sig), axis=0))
-    vec_rows.append(("sted_spatial_per_vertex[]", pv, res["sted_spatial_per_vertex"]))
+    vec_rows.append(("sted_spatial_per_vertex[]", sig.mean(axis=0), res["sted_spatial_per_vertex"]))
 
     # Hausdorff: brute force over every triangle for the first N frames.
     ab0 = vertex_to_surface(A[0], B[0], tris)

@@ -56,6 +56,10 @@ struct Run {
     diagonal: f64,
     bytes: u64,
     stats: ErrorStats,
+    /// KG error in percent (None when undefined, e.g. every frame a single point).
+    kg: Option<f64>,
+    /// STED with the metric author's defaults (None for a mesh without triangles).
+    sted: Option<f64>,
     encode_seconds: f64,
     decode_seconds: f64,
     failure: Option<String>,
@@ -138,6 +142,8 @@ fn run_one(
         diagonal: animation.bounding_box_diagonal(),
         bytes: 0,
         stats: ErrorStats::default(),
+        kg: None,
+        sted: None,
         encode_seconds: f64::NAN,
         decode_seconds: f64::NAN,
         failure: None,
@@ -169,6 +175,8 @@ fn measure(
         .map_err(|e| format!("decoding failed: {e}"))?;
     run.decode_seconds = start.elapsed().as_secs_f64();
     run.stats = error_stats(animation.positions(), decoded.positions());
+    run.kg = metrics::kg_error(animation, &decoded).ok();
+    run.sted = metrics::sted(animation, &decoded, &metrics::StedParams::default()).ok().map(|s| s.sted);
 
     let reconstruction = encoded.reconstruction.ok_or("the encoder returned no reconstruction")?;
     if decoded.topology() != animation.topology() || decoded.frame_count() != animation.frame_count() {
@@ -212,6 +220,8 @@ fn run_json(r: &Run) -> Value {
         "frames": r.frames,
         "bytes": r.bytes,
         "bpvf": bpvf(r.bytes, r.vertices, r.frames),
+        "kg": r.kg,
+        "sted": r.sted,
         "max_error": r.stats.max_vertex_error,
         "max_error_relative": r.stats.max_vertex_error / r.diagonal,
         "rmse": r.stats.rmse,
@@ -230,8 +240,8 @@ fn table(size: SynthSize, animations: &[(&str, usize, usize, f64)], runs: &[Run]
     }
     let _ = writeln!(
         out,
-        "\n{:<9} {:<12} {:>10} {:>8} {:>10} {:>9} {:>10} {:>7} {:>7}  status",
-        "animation", "codec", "bytes", "bpvf", "max err", "max/diag", "rmse", "enc s", "dec s"
+        "\n{:<9} {:<12} {:>10} {:>8} {:>9} {:>9} {:>10} {:>9} {:>10} {:>7} {:>7}  status",
+        "animation", "codec", "bytes", "bpvf", "KG %", "STED", "max err", "max/diag", "rmse", "enc s", "dec s"
     );
     for r in runs {
         let status = match &r.failure {
@@ -239,13 +249,16 @@ fn table(size: SynthSize, animations: &[(&str, usize, usize, f64)], runs: &[Run]
             Some(f) => format!("FAILED: {f}"),
         };
         let secs = |x: f64| if x.is_finite() { format!("{x:.3}") } else { "-".into() };
+        let metric = |x: Option<f64>| x.map_or_else(|| "-".to_string(), |x| format!("{x:.3e}"));
         let _ = writeln!(
             out,
-            "{:<9} {:<12} {:>10} {:>8.3} {:>10.3e} {:>9.2e} {:>10.3e} {:>7} {:>7}  {status}",
+            "{:<9} {:<12} {:>10} {:>8.3} {:>9} {:>9} {:>10.3e} {:>9.2e} {:>10.3e} {:>7} {:>7}  {status}",
             r.animation,
             r.codec,
             r.bytes,
             bpvf(r.bytes, r.vertices, r.frames),
+            r.kg.map_or_else(|| "-".to_string(), |x| if x >= 0.01 { format!("{x:.4}") } else { format!("{x:.2e}") }),
+            metric(r.sted),
             r.stats.max_vertex_error,
             r.stats.max_vertex_error / r.diagonal,
             r.stats.rmse,
@@ -255,8 +268,10 @@ fn table(size: SynthSize, animations: &[(&str, usize, usize, f64)], runs: &[Run]
     }
     let _ = writeln!(
         out,
-        "\nbpvf = container bits / (vertices × frames); raw f32 is 96. Errors are Euclidean per vertex;\n\
-         max/diag is relative to the animation's bounding-box diagonal; rmse is over all vertices and frames."
+        "\nbpvf = container bits / (vertices × frames); raw f32 is 96. KG is Karni & Gotsman's error (%),\n\
+         STED Váša & Skala's as the metric author's tool computes it (its defaults). Other errors are\n\
+         Euclidean per vertex; max/diag is relative to the animation's bounding-box diagonal; rmse is\n\
+         over all vertices and frames."
     );
     out
 }

@@ -11,11 +11,11 @@ use codec_core::params::find_spec;
 use codec_core::synth;
 use codec_core::{Animation, AnimationCodec, Limits, ParamSet, StreamEncoder, Topology};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
-use metrics::EvalOptions;
+use metrics::{EvalOptions, MetricReport};
 use serde_json::{json, Map, Value};
 
-use super::eval::sted_params;
-use super::{bpvf, emit, emit_json, load_animation, param_json, raw_bytes, CmdResult};
+use super::eval::{load_any, sted_params};
+use super::{bpvf, emit, emit_json, load_animation, param_json, raw_bytes, CmdResult, WithContext};
 use crate::EncodeArgs;
 
 /// Builds the parameter set of `codec` from `key=value` strings (defaults for the rest).
@@ -73,12 +73,13 @@ pub fn run(args: &EncodeArgs, limits: Limits) -> CmdResult {
     let (v, f, t) = (topology.vertex_count(), frame_count, topology.triangle_count());
     let rate = bpvf(bytes, v, f);
     let ratio = raw_bytes(v, f) as f64 / bytes as f64;
+    let evaluation = if args.eval { Some(evaluate_written(args, &source, limits)?) } else { None };
     if args.json {
         let mut p = Map::new();
         for (name, value) in params.iter() {
             p.insert(name.into(), param_json(value));
         }
-        return emit_json(&json!({
+        let mut out = json!({
             "codec": codec.name(),
             "params": Value::Object(p),
             "input": args.input,
@@ -92,9 +93,16 @@ pub fn run(args: &EncodeArgs, limits: Limits) -> CmdResult {
             "frame_rate": frame_rate,
             "read_seconds": read_seconds,
             "encode_seconds": encode_seconds,
-        }));
+        });
+        if let (Some((report, seconds)), Value::Object(map)) = (&evaluation, &mut out) {
+            map.insert("kg".into(), report.kg.into());
+            map.insert("sted".into(), report.sted.into());
+            map.insert("metrics".into(), harness::report_json(report));
+            map.insert("eval_seconds".into(), (*seconds).into());
+        }
+        return emit_json(&out);
     }
-    emit(&format!(
+    let mut text = format!(
         "{input}: {f} frames × {v} vertices, {t} triangles, {fps} fps (read in {read_seconds:.2} s)\n\
          {codec} [{params}] → {out}\n\
          {bytes} bytes, {rate:.3} bits/vertex/frame, {ratio:.1}:1 vs raw f32, encoded in {encode_seconds:.2} s\n",
@@ -102,7 +110,41 @@ pub fn run(args: &EncodeArgs, limits: Limits) -> CmdResult {
         fps = frame_rate,
         codec = codec.name(),
         out = args.output.display(),
-    ))
+    );
+    if let Some((r, seconds)) = &evaluation {
+        let num = |x: Option<f64>| x.map_or_else(|| "n/a".to_string(), |x| format!("{x:.4e}"));
+        text.push_str(&format!(
+            "decoded vs input: KG {} %, STED {} (spatial {}, temporal {}), Hausdorff {}, RMSE {:.4e}, \
+             max error {:.4e} (measured in {seconds:.2} s)\n",
+            num(r.kg),
+            num(r.sted),
+            num(r.sted_spatial),
+            num(r.sted_temporal),
+            num(r.hausdorff),
+            r.rmse,
+            r.max_error,
+        ));
+        for n in &r.notes {
+            text.push_str(&format!("note: {n}\n"));
+        }
+    }
+    emit(&text)
+}
+
+/// `--eval`: decodes the stream just written (from the file, as any user would) and measures
+/// it against the input; returns the report and the seconds it took.
+fn evaluate_written(args: &EncodeArgs, source: &Source, limits: Limits) -> CmdResult<(MetricReport, f64)> {
+    let Source::Whole(input) = source else {
+        return Err("--eval needs the input in memory, but synth:flag:COLSxROWSxFRAMES is generated frame by frame; \
+                    write it to a file first (animcodec synth) or drop --eval"
+            .into());
+    };
+    let start = Instant::now();
+    let decoded = load_any(&args.output.to_string_lossy(), &ReadOptions::default(), limits)?;
+    let options = EvalOptions { sted: sted_params(&args.sted)?, ..EvalOptions::default() };
+    let report = metrics::evaluate(input, &decoded, &options)
+        .context(|| format!("comparing {} with its decoded stream {}", args.input, args.output.display()))?;
+    Ok((report, start.elapsed().as_secs_f64()))
 }
 
 /// Where the frames come from: a loaded animation, or a synthetic flag generated one frame

@@ -19,8 +19,9 @@ pub fn sted_params(args: &StedArgs) -> CmdResult<StedParams> {
     let p = StedParams {
         ring_radius: args.sted_radius.unwrap_or(d.ring_radius),
         dt: args.sted_dt.unwrap_or(d.dt),
+        speed_window: args.sted_window.unwrap_or(d.speed_window),
         c: args.sted_c.unwrap_or(d.c),
-        spatial_difference: if args.sted_signed { EdgeDifference::Signed } else { d.spatial_difference },
+        spatial_difference: if args.sted_absolute { EdgeDifference::Absolute } else { d.spatial_difference },
     };
     p.validate()?;
     Ok(p)
@@ -97,8 +98,15 @@ fn text(args: &EvalArgs, r: &MetricReport, seconds: f64) -> String {
         out.push_str(&format!("  {k:<20} {v}\n"));
     }
     out.push_str(&format!(
-        "  STED: ring radius {}, dt {}, c {}, {:?} differences; computed in {seconds:.2} s\n",
-        p.ring_radius, p.dt, p.c, p.spatial_difference
+        "  STED: ring radius {}, dt {}, speed window {}, c {}, {} differences; computed in {seconds:.2} s\n",
+        p.ring_radius,
+        p.dt,
+        p.speed_window,
+        p.c,
+        match p.spatial_difference {
+            EdgeDifference::Signed => "signed",
+            EdgeDifference::Absolute => "absolute",
+        }
     ));
     for n in &r.notes {
         out.push_str(&format!("  note: {n}\n"));
