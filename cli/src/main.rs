@@ -64,6 +64,48 @@ enum Command {
     /// Show the stseg segmentation of an animation: temporal segments and per-vertex group
     /// labels as JSON, and the groups as vertex colours in a PLY or OBJ mesh.
     Inspect(InspectArgs),
+    /// Write one self-contained HTML page that plays the reference and candidates side by side
+    /// with a shared camera and per-vertex error heat maps.
+    View(ViewArgs),
+}
+
+/// Arguments of `animcodec view`.
+#[derive(Debug, Args)]
+pub struct ViewArgs {
+    /// Reference animation (any input format, or an `.anim` container, which is decoded).
+    #[arg(value_name = "REFERENCE")]
+    pub reference: String,
+
+    /// Candidates: animation files or `.anim` streams (decoded), or CODEC[:key=value,…] to
+    /// encode the reference with that codec on the spot (e.g. `hosvd:ss=0.9`).
+    #[arg(value_name = "CANDIDATE")]
+    pub candidates: Vec<String>,
+
+    /// Output HTML page (self-contained: opens without a network).
+    #[arg(short, long, value_name = "OUT.html")]
+    pub output: PathBuf,
+
+    /// Per-vertex error shown as the heat map: euclidean (distance in model units) or sted
+    /// (STED's local deviation of relative edge lengths).
+    #[arg(long, value_name = "METRIC", default_value = "euclidean", value_parser = commands::view::parse_heat)]
+    pub heat: animcodec::viewer::HeatMetric,
+
+    /// Top of the colour bar (default: the 99.5th percentile of every candidate's per-vertex,
+    /// per-frame errors; larger errors get the top colour).
+    #[arg(long, value_name = "X")]
+    pub heat_max: Option<f64>,
+
+    /// Page title (default: the reference's name and size).
+    #[arg(long)]
+    pub title: Option<String>,
+
+    /// OBJ file giving the triangles of .pc2/.mdd inputs (default: the OBJ beside each).
+    #[arg(long, value_name = "OBJ")]
+    pub topology: Option<PathBuf>,
+
+    /// STED options (header values and `--heat sted`).
+    #[command(flatten)]
+    pub sted: StedArgs,
 }
 
 /// Arguments of `animcodec inspect`.
@@ -302,6 +344,17 @@ pub struct SweepArgs {
     #[arg(long, value_name = "OBJ")]
     pub topology: Option<PathBuf>,
 
+    /// Write an HTML report: the interactive rate-distortion plot (hover a point for its
+    /// parameters, bytes and every metric), the table, and a viewer per `--view-points` point.
+    #[arg(long, value_name = "F.html")]
+    pub html: Option<PathBuf>,
+
+    /// With --html: points whose decoded animation is embedded as a viewer against the input,
+    /// as SERIES:LADDER_INDEX (e.g. `hosvd:3`, index 0 = the smallest stream; repeatable or
+    /// comma-separated).
+    #[arg(long, value_name = "SERIES:INDEX", value_delimiter = ',', requires = "html")]
+    pub view_points: Vec<String>,
+
     /// Which metrics, and STED's options.
     #[command(flatten)]
     pub metrics: MetricArgs,
@@ -428,5 +481,6 @@ fn run(cli: Cli) -> commands::CmdResult {
         Command::Eval(a) => commands::eval::run(&a, limits),
         Command::Sweep(a) => commands::sweep::run(&a, limits),
         Command::Inspect(a) => commands::inspect::run(&a),
+        Command::View(a) => commands::view::run(&a, limits),
     }
 }

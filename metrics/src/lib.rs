@@ -24,4 +24,4 @@ pub use common::check_compatible;
 pub use displacement::{displacement_stats, kg_error, per_vertex_displacement, DisplacementStats, VertexDisplacement};
 pub use hausdorff::{hausdorff, point_triangle_distance, vertex_to_surface_distances, HausdorffMode, HausdorffStats};
 pub use report::{evaluate, EvalOptions, MetricReport};
-pub use sted::{diameter, sted, sted_with_fields, EdgeDifference, StedParams, StedResult};
+pub use sted::{diameter, sted, sted_local_deviations, sted_with_fields, EdgeDifference, StedParams, StedResult};

@@ -134,6 +134,26 @@ pub fn sted_with_fields(reference: &Animation, candidate: &Animation, params: &S
     run(reference, candidate, params, true)
 }
 
+/// STED's local deviation `σ_v^f` of every vertex in every frame (frame-major, `F × V`, as
+/// `f32` to halve the memory of long sequences): the per-vertex, per-frame field whose mean is
+/// the spatial part `S`. For heat maps of where and when a candidate distorts the surface.
+pub fn sted_local_deviations(reference: &Animation, candidate: &Animation, params: &StedParams) -> Result<Vec<f32>> {
+    check_compatible(reference, candidate)?;
+    params.validate()?;
+    let n = reference.vertex_count();
+    let edges = unique_edges(reference.triangles());
+    if edges.is_empty() {
+        return Err(Error::InvalidAnimation(format!("{CTX}: STED needs mesh edges, but the mesh has no triangles")));
+    }
+    let hood = Neighbourhoods::new(n, &edges, params.ring_radius)?;
+    let mut out = vec![0.0f32; n * reference.frame_count()];
+    out.par_chunks_mut(n.max(1)).enumerate().for_each(|(t, frame)| {
+        let (sigma, _) = local_deviations(reference.frame(t), candidate.frame(t), &edges, &hood, params);
+        frame.iter_mut().zip(sigma).for_each(|(o, s)| *o = s as f32);
+    });
+    Ok(out)
+}
+
 /// Frames processed per parallel batch (bounds the memory of per-vertex fields).
 const FRAME_BATCH: usize = 32;
 
@@ -583,6 +603,24 @@ mod tests {
             assert!(res.temporal_defined && res.spatial.abs() < 1e-7);
             assert!(close(res.sted, 2.0 * res.temporal, 1e-7));
             assert_eq!(res.params, p);
+        }
+    }
+
+    /// The per-frame field averages to the spatial part, frame by frame and vertex by vertex.
+    #[test]
+    fn local_deviations_field_averages_to_the_spatial_part() {
+        let mut moved = LADDER;
+        moved[12] = 2.5;
+        let (r, c) = (ladder(&[LADDER, LADDER]), ladder(&[LADDER, moved]));
+        let field = sted_local_deviations(&r, &c, &StedParams::default()).unwrap();
+        let res = sted_with_fields(&r, &c, &StedParams::default()).unwrap();
+        assert_eq!(field.len(), 12);
+        assert!(field[..6].iter().all(|&x| x == 0.0), "frame 0 is exact: {field:?}");
+        assert!(close(field[6] as f64, 0.1813820, 1e-6), "{field:?}");
+        let mean = field.iter().map(|&x| x as f64).sum::<f64>() / 12.0;
+        assert!(close(mean, res.spatial, 1e-7));
+        for v in 0..6 {
+            assert!(close(field[6 + v] as f64 / 2.0, res.spatial_per_vertex[v], 1e-7));
         }
     }
 

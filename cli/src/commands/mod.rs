@@ -10,6 +10,7 @@ pub mod inspect;
 pub mod list;
 pub mod sweep;
 pub mod synth;
+pub mod view;
 
 use std::error::Error as StdError;
 use std::io::Write;

@@ -7,6 +7,7 @@ use std::time::Instant;
 
 use animcodec::formats::ReadOptions;
 use animcodec::harness::{self, monotone_report, Sweep, SweepOptions, SweepSeries};
+use animcodec::viewer;
 use codec_core::{AnimationCodec, CodecRegistry, Limits};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
@@ -22,6 +23,8 @@ pub const DEFAULT_INPUT: &str = "synth:flag";
 pub fn run(args: &SweepArgs, limits: Limits) -> CmdResult {
     let registry = animcodec::registry();
     let series = sweep_series(&registry, args)?;
+    // Checked before the (long) sweep: a typo should not cost it.
+    let view_points = args.view_points.iter().map(|t| parse_view_point(t, &series)).collect::<CmdResult<Vec<_>>>()?;
     let eval = eval_options(&args.metrics)?;
     let input = args.input.as_deref().unwrap_or(DEFAULT_INPUT);
     let read = ReadOptions { topology: args.topology.clone(), frame_rate: None };
@@ -59,6 +62,10 @@ pub fn run(args: &SweepArgs, limits: Limits) -> CmdResult {
         let title = format!("{input}: {} frames × {} vertices", animation.frame_count(), animation.vertex_count());
         harness::plot_svg(path, &title, &result.points)?;
     }
+    if let Some(path) = &args.html {
+        let page = html_report(&registry, input, &animation, &eval, &result, &view_points, limits)?;
+        harness::write_text(path, &page)?;
+    }
     if to_stdout {
         let mut value = harness::sweep_json(input, &animation, &eval, &result);
         value["total_seconds"] = seconds.into();
@@ -74,6 +81,67 @@ pub fn run(args: &SweepArgs, limits: Limits) -> CmdResult {
             result.failures.iter().map(|f| format!("{} step {}: {}", f.series, f.ladder_index, f.message)).collect();
         Err(format!("{} sweep points failed: {}", list.len(), list.join("; ")).into())
     }
+}
+
+/// `SERIES:INDEX` of `--view-points`, checked against the series being swept.
+fn parse_view_point(text: &str, series: &[SweepSeries<'_>]) -> CmdResult<(String, usize)> {
+    let bad = || format!("--view-points '{text}' is not SERIES:LADDER_INDEX (e.g. hosvd:3)");
+    let (name, index) = text.trim().rsplit_once(':').ok_or_else(bad)?;
+    let index: usize = index.trim().parse().map_err(|_| bad())?;
+    if !series.iter().any(|s| s.label == name) {
+        let names: Vec<&str> = series.iter().map(|s| s.label.as_str()).collect();
+        return Err(format!("--view-points '{text}': '{name}' is not a swept series ({})", names.join(", ")).into());
+    }
+    Ok((name.to_string(), index))
+}
+
+/// The `--html` report: every row, the interactive plot, and a viewer per chosen point (its
+/// stream re-encoded from the same parameters, which gives the same bytes, and decoded).
+fn html_report(
+    registry: &CodecRegistry,
+    input: &str,
+    animation: &codec_core::Animation,
+    eval: &metrics::EvalOptions,
+    sweep: &Sweep,
+    view_points: &[(String, usize)],
+    limits: Limits,
+) -> CmdResult<String> {
+    let mut viewers = Vec::new();
+    for (name, index) in view_points {
+        let point = sweep.points.iter().find(|p| &p.series == name && p.ladder_index == *index).ok_or_else(|| {
+            let measured: Vec<String> =
+                sweep.points.iter().filter(|p| &p.series == name).map(|p| p.ladder_index.to_string()).collect();
+            format!(
+                "--view-points '{name}:{index}': the sweep measured no such point; ladder indices measured for \
+                 {name}: {}",
+                measured.join(", ")
+            )
+        })?;
+        let codec = registry.by_name(point.codec)?;
+        let bytes = codec_core::encode_animation(codec, &point.params, animation)?;
+        let decoded = codec_core::StreamDecoder::new(bytes.as_slice(), registry, limits)?.decode_all()?;
+        let candidate = viewer::Candidate {
+            label: format!("{name}:{index}"),
+            animation: &decoded,
+            info: serde_json::json!({
+                "codec": point.codec,
+                "params": harness::params_json(&point.params),
+                "bytes": point.bytes,
+                "bpvf": point.bpvf,
+            }),
+            report: Some(point.report.clone()),
+        };
+        let options = viewer::ViewerOptions {
+            sted: eval.sted,
+            title: format!("{name}:{index} against {input}"),
+            ..Default::default()
+        };
+        viewers.push(viewer::viewer_data(animation, &[candidate], &options)?);
+    }
+    let mut value = harness::sweep_json(input, animation, eval, sweep);
+    value["title"] = format!("Rate-distortion report: {input}").into();
+    value["viewers"] = viewers.into();
+    Ok(viewer::report_page(&format!("animcodec sweep: {input}"), &value))
 }
 
 fn num(v: Option<f64>) -> String {

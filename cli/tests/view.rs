@@ -1,0 +1,217 @@
+//! `animcodec view` and `sweep --html`: the pages' contents, their errors, and — where Debian's
+//! Chromium and playwright-core are installed (`cli/tests/browser/install.sh`) — the pages in a
+//! real headless browser: no console error, the frame slider changes the image, and the heat
+//! map's colours match a candidate whose error is on one half of the mesh only.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use codec_core::{synth, Animation};
+use serde_json::Value;
+
+mod common;
+use common::*;
+
+/// The synthetic flag and a candidate moved by 5% of its size on the vertices right of the
+/// middle only (exact elsewhere); also returns the triangles wholly in each half.
+fn half_error_case(s: &Scratch) -> (String, String, Vec<[u32; 3]>, Vec<[u32; 3]>) {
+    let a = synth::waving_flag(24, 12, 8);
+    let n = a.vertex_count();
+    let (lo, hi) = a.bounding_box();
+    let mid = 0.5 * (lo[0] + hi[0]);
+    let shift = 0.05 * a.bounding_box_diagonal() as f32;
+    let moved = |p: &[f32]| p[0] > mid;
+    let p: Vec<f32> = a
+        .positions()
+        .chunks(3)
+        .flat_map(|c| if moved(c) { [c[0], c[1], c[2] + shift] } else { [c[0], c[1], c[2]] })
+        .collect();
+    let b = Animation::from_parts(n, a.triangles().to_vec(), p, a.frame_rate()).unwrap();
+    let (ra, rb) = (s.path("ref.pc2"), s.path("half.pc2"));
+    animcodec::formats::write_animation(Path::new(&ra), &a).unwrap();
+    animcodec::formats::write_animation(Path::new(&rb), &b).unwrap();
+    let f0 = a.frame(0);
+    let side = |t: &[u32; 3]| t.map(|i| moved(&f0[3 * i as usize..3 * i as usize + 3]));
+    let left = a.triangles().iter().filter(|t| side(t) == [false; 3]).copied().collect();
+    let right = a.triangles().iter().filter(|t| side(t) == [true; 3]).copied().collect();
+    (ra, rb, left, right)
+}
+
+/// The JSON embedded in a page.
+fn page_data(html: &str) -> Value {
+    let start = html.find(r#"id="animcodec-data">"#).unwrap() + r#"id="animcodec-data">"#.len();
+    let end = start + html[start..].find("</script>").unwrap();
+    serde_json::from_str(&html[start..end]).unwrap()
+}
+
+#[test]
+fn view_writes_a_self_contained_page_with_headers_and_heat_maps() {
+    let s = Scratch::new("view");
+    let (reference, half, _, _) = half_error_case(&s);
+    let page = s.path("v.html");
+    let text = ok(&["view", &reference, &half, "quant-delta:bits=6", "-o", &page]);
+    assert!(text.contains("2 candidate(s)") && text.contains("heat euclidean"), "{text}");
+    let html = std::fs::read_to_string(&page).unwrap();
+    // No network at view time: nothing is fetched from elsewhere.
+    for external in ["src=\"http", "href=\"http", "import('http", "import(\"http"] {
+        assert!(!html.contains(external), "external resource: {external}");
+    }
+    assert!(html.contains("Copyright © 2010-") && html.contains("three.js authors"), "three.js licence embedded");
+    let data = page_data(&html);
+    let anims = data["animations"].as_array().unwrap();
+    assert_eq!(anims.len(), 3);
+    assert_eq!(anims[2]["info"]["codec"], "quant-delta");
+    assert_eq!(anims[2]["info"]["params"]["bits"], 6);
+    assert!(anims[2]["info"]["bpvf"].as_f64().unwrap() > 0.0);
+    for key in ["kg", "sted", "hausdorff"] {
+        assert!(anims[1]["metrics"][key].as_f64().unwrap() > 0.0, "{key}");
+    }
+    // The half-moved candidate has the largest error: the colour bar tops at its shift.
+    let diag = data["diagonal"].as_f64().unwrap();
+    assert!((data["heat_max"].as_f64().unwrap() - 0.05 * diag).abs() < 1e-4 * diag);
+
+    // The colour bar's top: the 99.5th percentile by default, or as given.
+    assert_eq!(data["heat_max_rule"], "99.5th percentile");
+    ok(&["view", &reference, &half, "-o", &page, "--heat-max", "0.125"]);
+    let data = page_data(&std::fs::read_to_string(&page).unwrap());
+    assert_eq!((data["heat_max"].as_f64(), data["heat_max_rule"].as_str()), (Some(0.125), Some("given")));
+
+    let sted_page = s.path("s.html");
+    ok(&["view", &reference, &half, "-o", &sted_page, "--heat", "sted"]);
+    let data = page_data(&std::fs::read_to_string(&sted_page).unwrap());
+    assert_eq!(data["heat_metric"], "sted");
+
+    // A bad --heat is a usage error (clap's, exit code 2) naming the valid metrics.
+    let o = animcodec(&["view", &reference, &half, "-o", &page, "--heat", "loud"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("'loud' is not a heat metric; valid: euclidean, sted"), "{}", stderr(&o));
+    let other = s.path("tumble.pc2");
+    ok(&["synth", "tumble", "-o", &other]);
+    fails(&["view", &reference, &other, "-o", &page], &["tumble.pc2"]);
+    fails(&["view", &reference, "hosvd:ss=7", "-o", &page], &["ss"]);
+}
+
+#[test]
+fn sweep_html_report_holds_every_row_and_the_chosen_viewers() {
+    let s = Scratch::new("sweep-html");
+    let report = s.path("r.html");
+    ok(&[
+        "sweep",
+        "synth:flag",
+        "-c",
+        "quant-delta,hosvd",
+        "--points",
+        "3",
+        "--html",
+        &report,
+        "--view-points",
+        "hosvd:0",
+    ]);
+    let data = page_data(&std::fs::read_to_string(&report).unwrap());
+    let rows = data["rows"].as_array().unwrap();
+    assert_eq!(rows.len(), 6);
+    assert!(rows.iter().all(|r| r["kg"].is_number() && r["sted"].is_number() && r["bytes"].is_number()));
+    let viewers = data["viewers"].as_array().unwrap();
+    assert_eq!(viewers.len(), 1);
+    assert_eq!(viewers[0]["animations"][1]["info"]["codec"], "hosvd");
+    fails(
+        &["sweep", "synth:flag", "-c", "hosvd", "--points", "2", "--html", &report, "--view-points", "sac:0"],
+        &["sac:0"],
+    );
+    fails(
+        &["sweep", "synth:flag", "-c", "hosvd", "--points", "2", "--html", &report, "--view-points", "hosvd:9"],
+        &["hosvd:9"],
+    );
+}
+
+/// Node, Chromium and playwright-core, or the reason the browser test skips.
+fn browser() -> Result<PathBuf, String> {
+    let dir = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/browser"));
+    let chromium = std::env::var("CHROMIUM").unwrap_or_else(|_| "/usr/bin/chromium".into());
+    if !Path::new(&chromium).exists() {
+        return Err(format!("{chromium} not found (bash cli/tests/browser/install.sh installs it)"));
+    }
+    if !dir.join("node_modules/playwright-core").exists() {
+        return Err("playwright-core not installed (bash cli/tests/browser/install.sh)".into());
+    }
+    if Command::new("node").arg("--version").output().is_err() {
+        return Err("node not found".into());
+    }
+    Ok(dir.join("check_page.mjs"))
+}
+
+fn run_browser(script: &Path, page: &str, shot: &Path, samples: Option<&Path>) -> Value {
+    let mut cmd = Command::new("node");
+    cmd.arg(script).arg(page).arg(shot);
+    if let Some(s) = samples {
+        cmd.arg(s);
+    }
+    let out = cmd.output().unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    let v: Value = serde_json::from_str(text.trim())
+        .unwrap_or_else(|e| panic!("{e}: {text} {}", String::from_utf8_lossy(&out.stderr)));
+    assert!(v.get("failure").is_none(), "{v}");
+    assert_eq!(v["consoleErrors"], serde_json::json!([]), "{v}");
+    assert!(shot.exists() && std::fs::metadata(shot).unwrap().len() > 10_000, "screenshot {}", shot.display());
+    v
+}
+
+#[test]
+fn pages_work_in_headless_chromium() {
+    let script = match browser() {
+        Ok(s) => s,
+        Err(why) => {
+            println!("SKIP: browser test: {why}");
+            return;
+        }
+    };
+    let s = Scratch::new("browser");
+    let (reference, half, left, right) = half_error_case(&s);
+    let page = s.path("v.html");
+    ok(&["view", &reference, &half, "-o", &page]);
+    let samples = s.path("samples.json");
+    let picked: Vec<[u32; 3]> = left.iter().step_by(7).chain(right.iter().step_by(7)).copied().collect();
+    let n_left = left.iter().step_by(7).count();
+    std::fs::write(&samples, serde_json::json!({"panel": 1, "triangles": picked}).to_string()).unwrap();
+    let shot = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("view-half-error.png");
+    let v = run_browser(&script, &page, &shot, Some(Path::new(&samples)));
+    println!("viewer: {v}\nscreenshot: {}", shot.display());
+    assert_eq!(v["kind"], "viewer");
+    assert_eq!(v["frameChangesImage"], true, "{v}");
+    assert!(v["nonBackgroundPixels"].as_u64().unwrap() > 10_000, "{v}");
+    // Zero error is the colour bar's blue end, the shifted half its red end (lighting scales
+    // the channels, the dominant one stays).
+    let colours = v["samples"].as_array().unwrap();
+    assert_eq!(colours.len(), picked.len());
+    for (i, c) in colours.iter().enumerate() {
+        let (r, b) = (c[0].as_i64().unwrap(), c[2].as_i64().unwrap());
+        if i < n_left {
+            assert!(b > r + 60, "exact triangle {:?} drawn {c}", picked[i]);
+        } else {
+            assert!(r > b + 60, "moved triangle {:?} drawn {c}", picked[i]);
+        }
+    }
+
+    let report = s.path("r.html");
+    ok(&[
+        "sweep",
+        "synth:flag",
+        "-c",
+        "quant-delta,hosvd",
+        "--points",
+        "3",
+        "--html",
+        &report,
+        "--view-points",
+        "hosvd:0",
+    ]);
+    let shot = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("sweep-report.png");
+    let v = run_browser(&script, &report, &shot, None);
+    println!("report: {v}");
+    assert_eq!(v["kind"], "report");
+    assert_eq!((v["reportPoints"].as_u64(), v["reportViewers"].as_u64()), (Some(6), Some(1)), "{v}");
+    assert_eq!(v["plotPoints"].as_u64(), Some(12), "6 points in each of the KG and STED plots: {v}");
+    let tip = v["tooltip"].as_str().unwrap();
+    assert!(tip.contains("bytes") && tip.contains("KG") && tip.contains("STED"), "{tip}");
+    assert_eq!(v["frameChangesImage"], true, "{v}");
+}
