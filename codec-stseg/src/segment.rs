@@ -8,7 +8,7 @@ use faer::Mat;
 use rayon::prelude::*;
 
 use crate::linalg::{double_center, gram, pcs_for_persistence, sym_eig_desc, sym_eigvals_desc};
-use crate::StsegParams;
+use crate::{Centering, StsegParams};
 
 /// Most principal components a vertex group keeps while grouping rigid clusters (Alg. 1).
 /// The paper does not say; a small cap keeps Eq. 4 a subspace fit rather than a copy.
@@ -276,7 +276,7 @@ impl Segmenter {
                 }
             }
         };
-        let change = temporal_segmentation(frames, &grouping, p.omega_seg, scale)?;
+        let change = temporal_segmentation(frames, &grouping, p.omega_seg, p.seg_centering, scale)?;
         let (frame_count, detected) = match change {
             Some(b) => (b, true),
             None => (need, false),
@@ -617,7 +617,13 @@ pub(crate) fn cluster_vertices(graph: &MeshGraph, frames: &[f32], p: &StsegParam
 /// `None` when the count never changes within `frames` (`gamma_max` reached). Groups are
 /// independent and run in parallel; the earliest change wins, so the result does not depend
 /// on scheduling.
-fn temporal_segmentation(frames: &[f32], g: &Grouping, omega: f64, scale: f64) -> Result<Option<usize>> {
+fn temporal_segmentation(
+    frames: &[f32],
+    g: &Grouping,
+    omega: f64,
+    centering: Centering,
+    scale: f64,
+) -> Result<Option<usize>> {
     let v = g.labels.len();
     let n3 = v * 3;
     let n = frames.len() / n3;
@@ -632,17 +638,52 @@ fn temporal_segmentation(frames: &[f32], g: &Grouping, omega: f64, scale: f64) -
             if verts.is_empty() {
                 return Ok(None);
             }
-            // Rows: the group's coordinates, relative to frame 0 (centring is shift-invariant;
-            // this keeps the Gram entries small). One Gram matrix serves every window.
-            let x = Mat::from_fn(verts.len() * 3, n, |r, t| {
+            // Rows: the group's coordinates. Row centring is invariant to a per-row shift and
+            // frame centring to a global one: the shifts keep the Gram entries small. One Gram
+            // matrix serves every window.
+            let nr = verts.len() * 3;
+            let c0 = verts.iter().flat_map(|&i| (0..3).map(move |c| frames[i * 3 + c] as f64)).sum::<f64>() / nr as f64;
+            let x = Mat::from_fn(nr, n, |r, t| {
                 let i = verts[r / 3] * 3 + r % 3;
-                frames[t * n3 + i] as f64 - frames[i] as f64
+                let x = frames[t * n3 + i] as f64;
+                match centering {
+                    Centering::Vertex => x - frames[i] as f64,
+                    Centering::Frame => x - c0,
+                    Centering::FrameAxis => x - frames[verts[0] * 3 + r % 3] as f64,
+                    Centering::None => x,
+                }
             });
             let full = gram(x.as_ref());
+            let col_sum: Vec<f64> = (0..n).map(|t| (0..nr).map(|r| x[(r, t)]).sum()).collect();
+            // Per axis: axis_sum[t·3 + c].
+            let axis_sum: Vec<f64> =
+                (0..n * 3).map(|tc| (0..verts.len()).map(|i| x[(i * 3 + tc % 3, tc / 3)]).sum()).collect();
             let negligible = (NEGLIGIBLE_AMPLITUDE * scale).powi(2) * (verts.len() * 3 * win) as f64;
             let count = |start: usize| -> Result<usize> {
                 let mut w = full.submatrix(start, start, win, win).to_owned();
-                double_center(&mut w);
+                match centering {
+                    Centering::Vertex => double_center(&mut w),
+                    // X̂ᵀX̂ = XᵀX − s·sᵀ/rows with s the column sums (per-frame mean removed).
+                    Centering::Frame => {
+                        for a in 0..win {
+                            for b in 0..win {
+                                w[(a, b)] -= col_sum[start + a] * col_sum[start + b] / nr as f64;
+                            }
+                        }
+                    }
+                    Centering::FrameAxis => {
+                        let nv = verts.len() as f64;
+                        for a in 0..win {
+                            for b in 0..win {
+                                w[(a, b)] -= (0..3)
+                                    .map(|c| axis_sum[(start + a) * 3 + c] * axis_sum[(start + b) * 3 + c])
+                                    .sum::<f64>()
+                                    / nv;
+                            }
+                        }
+                    }
+                    Centering::None => {}
+                }
                 Ok(pcs_for_persistence(&sym_eigvals_desc(w.as_ref(), "window PCA")?, omega, negligible))
             };
             let reference = count(0)?;
