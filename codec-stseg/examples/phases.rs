@@ -21,12 +21,10 @@ fn main() {
         let truth = synth::phase_boundaries(anim.frame_count()).to_vec();
         let s = segment_animation(&anim, &p).unwrap();
         let lens: Vec<usize> = s.segments.iter().map(|x| x.frame_count).collect();
-        let miss: Vec<(usize, usize)> = truth
-            .iter()
-            .map(|&t| (t, s.boundaries().iter().map(|&d| d.abs_diff(t)).min().unwrap_or(usize::MAX)))
-            .collect();
+        let miss: Vec<(usize, Option<usize>)> =
+            truth.iter().map(|&t| (t, s.boundaries().iter().map(|&d| d.abs_diff(t)).min())).collect();
         println!(
-            "{size:?} V={} F={}: truth {truth:?} boundaries {:?} (detected {:?}) lengths {lens:?}; distance to nearest boundary {miss:?}",
+            "{size:?} V={} F={}: truth {truth:?} boundaries {:?} (detected {:?}) lengths {lens:?}; distance to the nearest boundary (None: no boundary) {miss:?}",
             anim.vertex_count(),
             anim.frame_count(),
             s.boundaries(),

@@ -310,7 +310,7 @@ impl AnimationCodec for Stseg {
     fn rate_ladder(&self, _base: &ParamSet) -> RateLadder {
         RateLadder {
             param: "omega",
-            steps: [0.9, 0.95, 0.98, 0.99, 0.995, 0.998, 0.999, 0.9995, 0.9998, 0.9999, 0.99995, 0.99999]
+            steps: [0.9, 0.95, 0.98, 0.99, 0.995, 0.998, 0.999, 0.9995, 0.9998, 0.9999, 0.99995, 0.99999, 0.999999]
                 .into_iter()
                 .map(ParamValue::Float)
                 .collect(),
