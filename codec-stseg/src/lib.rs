@@ -82,6 +82,39 @@ impl Centering {
     }
 }
 
+/// Which change detector ends a segment besides Alg. 2's PC counts.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Detector {
+    /// The paper's: the initial cut (§4.1) runs only at the start of a block with no reused
+    /// grouping, on its first γ_init frames, and sets the reference of Alg. 2; no cut → case (I).
+    Paper,
+    /// Beyond the paper: the §4.1 cut scans the whole block (ranges of γ_init frames, half
+    /// overlapping, one kernel scale per block, central splits only) and the first cut ends the
+    /// segment; with no cut the block is grouped on its first γ_init frames and runs to γ_max
+    /// unless Alg. 2's counts change.
+    Scan,
+}
+
+impl Detector {
+    /// Parameter names.
+    pub const NAMES: &'static [&'static str] = &["paper", "scan"];
+    /// The parameter name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Paper => "paper",
+            Self::Scan => "scan",
+        }
+    }
+    /// From a parameter name.
+    pub fn from_name(n: &str) -> Option<Self> {
+        match n {
+            "paper" => Some(Self::Paper),
+            "scan" => Some(Self::Scan),
+            _ => None,
+        }
+    }
+}
+
 /// Typed parameters of `stseg` (names follow the paper's notation).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct StsegParams {
@@ -103,6 +136,8 @@ pub struct StsegParams {
     /// counts rarely change, segments run to γ_max, and that measured best on real data
     /// (README); [`Centering::Vertex`] with `omega_seg = 0.99` reacts to motion changes.
     pub seg_centering: Centering,
+    /// Change detector: [`Detector::Paper`] (default) or [`Detector::Scan`].
+    pub detector: Detector,
     /// Smoothing window `w` of the initial cut (§4.1). Default 5.
     pub w: u32,
     /// Range γ_init of the initial cut. Default 20.
@@ -134,6 +169,7 @@ impl Default for StsegParams {
             omega_seg: 0.9,
             centering: Centering::FrameAxis,
             seg_centering: Centering::FrameAxis,
+            detector: Detector::Paper,
             w: 5,
             gamma_init: 20,
             gamma_max: 50,
@@ -173,6 +209,12 @@ impl StsegParams {
                 Centering::NAMES,
                 d.seg_centering.name(),
                 "what the PCA of Alg. 2's PC counts subtracts (same choices as centering)",
+            ),
+            ParamSpec::choice(
+                "detector",
+                Detector::NAMES,
+                d.detector.name(),
+                "paper (initial cut at block starts) or scan (the cut scans the whole block)",
             ),
             ParamSpec::int("w", 2, 32, d.w as i64, "initial-cut smoothing window w (frames)"),
             ParamSpec::int("gamma_init", 8, 128, d.gamma_init as i64, "initial-cut range γ_init (frames), ≥ w + 4"),
@@ -241,6 +283,8 @@ impl StsegParams {
                 .ok_or_else(|| Error::parameter(NAME, "centering", "unknown centering"))?,
             seg_centering: Centering::from_name(p.choice("seg_centering")?)
                 .ok_or_else(|| Error::parameter(NAME, "seg_centering", "unknown centering"))?,
+            detector: Detector::from_name(p.choice("detector")?)
+                .ok_or_else(|| Error::parameter(NAME, "detector", "unknown detector"))?,
             w: p.int("w")? as u32,
             gamma_init: p.int("gamma_init")? as u32,
             gamma_max: p.int("gamma_max")? as u32,
@@ -265,6 +309,7 @@ impl StsegParams {
             .with(&specs, "omega_seg", ParamValue::Float(self.omega_seg))?
             .with(&specs, "centering", ParamValue::Choice(self.centering.name()))?
             .with(&specs, "seg_centering", ParamValue::Choice(self.seg_centering.name()))?
+            .with(&specs, "detector", ParamValue::Choice(self.detector.name()))?
             .with(&specs, "w", ParamValue::Int(self.w as i64))?
             .with(&specs, "gamma_init", ParamValue::Int(self.gamma_init as i64))?
             .with(&specs, "gamma_max", ParamValue::Int(self.gamma_max as i64))?

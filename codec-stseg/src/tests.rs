@@ -277,3 +277,28 @@ fn frame_centring_keeps_fewer_components_and_eq8_counts_them() {
         assert!(est.compressed_bytes > 0 && est.bpvf > 0.0 && est.bpvf < est.bpvf_uncompressed * 1.1);
     }
 }
+
+/// Issue 13 point 3: with the scanning detector (`detector = scan`, beyond the paper), every
+/// change of `synth:phases` has a detected boundary within `w` frames at every size, and no
+/// segment but the last is shorter than `w`.
+#[test]
+fn scanning_detector_finds_every_phase_change_at_every_size() {
+    use codec_core::synth::SynthSize;
+    let p = StsegParams { detector: Detector::Scan, ..Default::default() };
+    let w = p.w as usize;
+    for size in [SynthSize::Small, SynthSize::Medium, SynthSize::Large] {
+        let anim = synth::by_name("phases", size).unwrap();
+        let truth = synth::phase_boundaries(anim.frame_count());
+        let s = segment_animation(&anim, &p).unwrap();
+        let detected = s.detected_boundaries();
+        for &b in &truth {
+            let nearest = detected.iter().map(|&d| d.abs_diff(b)).min();
+            assert!(nearest.is_some_and(|d| d <= w), "{size:?}: truth {b}, detected {detected:?}");
+        }
+        let n = s.segments.len();
+        for seg in &s.segments[..n - 1] {
+            assert!(seg.frame_count >= w, "{size:?}: segment {seg:?} shorter than w");
+        }
+        assert_eq!(s.segments.iter().map(|x| x.frame_count).sum::<usize>(), anim.frame_count());
+    }
+}
