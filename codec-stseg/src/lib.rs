@@ -30,6 +30,91 @@ pub(crate) const NAME: &str = "stseg";
 /// Most vertex groups a stream may declare (labels are stored as bytes).
 pub const MAX_GROUPS: usize = 16;
 
+/// What the PCA of a vertex group subtracts before its decomposition, and so what the
+/// persistence rate ω is a share of (§4.4, Eq. 5 and Eq. 8).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Centering {
+    /// The paper's reading: `X` (3|V| coordinate rows × |τ| frame columns) is centred by its
+    /// per-frame mean `X̄` (one value per frame, the `+|τ_i|` term of Eq. 8), as a PCA whose
+    /// observations are the coordinate rows does. The energy is then dominated by the shape
+    /// itself, so ω = 0.99 keeps very few components (Table 1's KG ≈ 5 %).
+    Frame,
+    /// Per-coordinate temporal mean (the mean shape, 3|V| values per group) subtracted: ω is a
+    /// share of the motion energy only, and ω = 0.99 keeps many more components.
+    Vertex,
+    /// Nothing subtracted (an SVD of `X`); the first component carries the shape.
+    None,
+    /// Per-frame mean of each axis subtracted (the centroid trajectory, `3|τ_i|` values per
+    /// group): like `Frame`, but a translation is removed exactly instead of entering the PCs.
+    FrameAxis,
+}
+
+impl Centering {
+    /// Parameter names, in stream-code order (code = index).
+    pub const NAMES: &'static [&'static str] = &["none", "vertex", "frame", "frame-axis"];
+
+    /// The parameter / stream name.
+    pub fn name(self) -> &'static str {
+        Self::NAMES[self.code() as usize]
+    }
+    /// Stream code (config byte).
+    pub fn code(self) -> u8 {
+        match self {
+            Self::None => 0,
+            Self::Vertex => 1,
+            Self::Frame => 2,
+            Self::FrameAxis => 3,
+        }
+    }
+    /// From a stream code.
+    pub fn from_code(c: u8) -> Option<Self> {
+        Some(match c {
+            0 => Self::None,
+            1 => Self::Vertex,
+            2 => Self::Frame,
+            3 => Self::FrameAxis,
+            _ => return None,
+        })
+    }
+    /// From a parameter name.
+    pub fn from_name(n: &str) -> Option<Self> {
+        Self::NAMES.iter().position(|&x| x == n).and_then(|i| Self::from_code(i as u8))
+    }
+}
+
+/// Which change detector ends a segment besides Alg. 2's PC counts.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Detector {
+    /// The paper's: the initial cut (§4.1) runs only at the start of a block with no reused
+    /// grouping, on its first γ_init frames, and sets the reference of Alg. 2; no cut → case (I).
+    Paper,
+    /// Beyond the paper: the §4.1 cut scans the whole block (ranges of γ_init frames, half
+    /// overlapping, one kernel scale per block, central splits only) and the first cut ends the
+    /// segment; with no cut the block is grouped on its first γ_init frames and runs to γ_max
+    /// unless Alg. 2's counts change.
+    Scan,
+}
+
+impl Detector {
+    /// Parameter names.
+    pub const NAMES: &'static [&'static str] = &["paper", "scan"];
+    /// The parameter name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Paper => "paper",
+            Self::Scan => "scan",
+        }
+    }
+    /// From a parameter name.
+    pub fn from_name(n: &str) -> Option<Self> {
+        match n {
+            "paper" => Some(Self::Paper),
+            "scan" => Some(Self::Scan),
+            _ => None,
+        }
+    }
+}
+
 /// Typed parameters of `stseg` (names follow the paper's notation).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct StsegParams {
@@ -38,8 +123,21 @@ pub struct StsegParams {
     pub omega: f64,
     /// Persistence rate used by the segmentation (Alg. 1 group models, Alg. 2 PC counts). The
     /// paper uses one ω for both; keeping them apart makes the segmentation, and so the packet
-    /// structure, the same at every rung of the rate ladder. Default 0.99 (the paper's ω).
+    /// structure, the same at every rung of the rate ladder. Default 0.9 (the paper's is ω =
+    /// 0.99): with frame-axis counts it rarely ends a segment early, which measured best on
+    /// samba and horse-gallop (README, issue 13).
     pub omega_seg: f64,
+    /// What each group's PCA (coding and Alg. 2 counts) subtracts first, i.e. what ω is a
+    /// share of. Default [`Centering::FrameAxis`], the reading of §4.4 / Eq. 8 that lands
+    /// nearest Table 1's KG at ω = 0.99 (measured, see README).
+    pub centering: Centering,
+    /// What the PCA of Alg. 2's PC counts subtracts. The paper uses one PCA for both (set it
+    /// equal to `centering`). Default [`Centering::FrameAxis`]: with `omega_seg = 0.9` the
+    /// counts rarely change, segments run to γ_max, and that measured best on real data
+    /// (README); [`Centering::Vertex`] with `omega_seg = 0.99` reacts to motion changes.
+    pub seg_centering: Centering,
+    /// Change detector: [`Detector::Paper`] (default) or [`Detector::Scan`].
+    pub detector: Detector,
     /// Smoothing window `w` of the initial cut (§4.1). Default 5.
     pub w: u32,
     /// Range γ_init of the initial cut. Default 20.
@@ -68,7 +166,10 @@ impl Default for StsegParams {
     fn default() -> Self {
         Self {
             omega: 0.99,
-            omega_seg: 0.99,
+            omega_seg: 0.9,
+            centering: Centering::FrameAxis,
+            seg_centering: Centering::FrameAxis,
+            detector: Detector::Paper,
             w: 5,
             gamma_init: 20,
             gamma_max: 50,
@@ -96,6 +197,24 @@ impl StsegParams {
                 0.999999,
                 d.omega_seg,
                 "persistence rate of the segmentation (Alg. 1, 2)",
+            ),
+            ParamSpec::choice(
+                "centering",
+                Centering::NAMES,
+                d.centering.name(),
+                "what the PCA subtracts: frame (paper: per-frame mean), vertex (mean shape) or none",
+            ),
+            ParamSpec::choice(
+                "seg_centering",
+                Centering::NAMES,
+                d.seg_centering.name(),
+                "what the PCA of Alg. 2's PC counts subtracts (same choices as centering)",
+            ),
+            ParamSpec::choice(
+                "detector",
+                Detector::NAMES,
+                d.detector.name(),
+                "paper (initial cut at block starts) or scan (the cut scans the whole block)",
             ),
             ParamSpec::int("w", 2, 32, d.w as i64, "initial-cut smoothing window w (frames)"),
             ParamSpec::int("gamma_init", 8, 128, d.gamma_init as i64, "initial-cut range γ_init (frames), ≥ w + 4"),
@@ -160,6 +279,12 @@ impl StsegParams {
         let s = Self {
             omega: p.float("omega")?,
             omega_seg: p.float("omega_seg")?,
+            centering: Centering::from_name(p.choice("centering")?)
+                .ok_or_else(|| Error::parameter(NAME, "centering", "unknown centering"))?,
+            seg_centering: Centering::from_name(p.choice("seg_centering")?)
+                .ok_or_else(|| Error::parameter(NAME, "seg_centering", "unknown centering"))?,
+            detector: Detector::from_name(p.choice("detector")?)
+                .ok_or_else(|| Error::parameter(NAME, "detector", "unknown detector"))?,
             w: p.int("w")? as u32,
             gamma_init: p.int("gamma_init")? as u32,
             gamma_max: p.int("gamma_max")? as u32,
@@ -182,6 +307,9 @@ impl StsegParams {
         let p = ParamSet::defaults(NAME, &specs)
             .with(&specs, "omega", ParamValue::Float(self.omega))?
             .with(&specs, "omega_seg", ParamValue::Float(self.omega_seg))?
+            .with(&specs, "centering", ParamValue::Choice(self.centering.name()))?
+            .with(&specs, "seg_centering", ParamValue::Choice(self.seg_centering.name()))?
+            .with(&specs, "detector", ParamValue::Choice(self.detector.name()))?
             .with(&specs, "w", ParamValue::Int(self.w as i64))?
             .with(&specs, "gamma_init", ParamValue::Int(self.gamma_init as i64))?
             .with(&specs, "gamma_max", ParamValue::Int(self.gamma_max as i64))?
@@ -215,7 +343,8 @@ impl AnimationCodec for Stseg {
         FourCc::new(b"STSG")
     }
     fn stream_version(&self) -> u16 {
-        1
+        // 2: config carries the centering; the mean is per frame for `centering = frame`.
+        2
     }
     fn summary(&self) -> &'static str {
         "spatio-temporal segmentation (initial cut, vertex groups, PC-count boundaries) + per-segment PCA"
@@ -226,7 +355,7 @@ impl AnimationCodec for Stseg {
     fn rate_ladder(&self, _base: &ParamSet) -> RateLadder {
         RateLadder {
             param: "omega",
-            steps: [0.9, 0.95, 0.98, 0.99, 0.995, 0.998, 0.999, 0.9995, 0.9998, 0.9999]
+            steps: [0.9, 0.95, 0.98, 0.99, 0.995, 0.998, 0.999, 0.9995, 0.9998, 0.9999, 0.99995, 0.99999, 0.999999]
                 .into_iter()
                 .map(ParamValue::Float)
                 .collect(),
@@ -256,13 +385,16 @@ impl AnimationCodec for Stseg {
         let mut r = ByteReader::new(config, NAME);
         let bits = r.u8("config.bits")?;
         let coef_bits = r.u8("config.coef_bits")?;
+        let centering_code = r.u8("config.centering")?;
         r.expect_end("config")?;
+        let centering = Centering::from_code(centering_code)
+            .ok_or_else(|| r.malformed("config.centering", format!("{centering_code} is not 0..=3")))?;
         for (field, b) in [("config.bits", bits), ("config.coef_bits", coef_bits)] {
             if !(6..=20).contains(&b) {
                 return Err(r.malformed(field, format!("{b} is outside 6..=20")));
             }
         }
-        Ok(Box::new(StsegDecoder { bits, coef_bits, vertex_count: info.vertex_count(), limits: *limits }))
+        Ok(Box::new(StsegDecoder { bits, coef_bits, centering, vertex_count: info.vertex_count(), limits: *limits }))
     }
 }
 
@@ -287,12 +419,25 @@ fn relative_rms_bound(p: &StsegParams, animation: &Animation) -> Option<f64> {
     let qa = ((1u64 << p.bits) - 1) as f64;
     let trunc = ((1.0 - p.omega) * p.groups as f64 / 3.0).sqrt();
     let basis = t.sqrt() * (1.0 + delta) / ((1.0 - delta) * qa);
-    let mean = 0.5 / qa;
     let diag = animation.bounding_box_diagonal();
     let (lo, hi) = animation.bounding_box();
     let mag = lo.iter().chain(&hi).fold(0.0f64, |m, &x| m.max((x as f64).abs()));
-    let rounding = if diag > 0.0 { 4.0 * mag * f32::EPSILON as f64 / diag } else { 0.0 };
-    Some(trunc + delta + basis + mean + rounding + 1e-12)
+    if diag <= 0.0 {
+        return Some(1e-12);
+    }
+    // Range of all coordinate values, every axis together: a frame-centred entry is within it.
+    let all_range =
+        (0..3).map(|c| hi[c] as f64).fold(f64::MIN, f64::max) - (0..3).map(|c| lo[c] as f64).fold(f64::MAX, f64::min);
+    // `s`: bound on a vertex's centred 3-vector, relative to D; `mean`: mean quantization.
+    let (s, mean) = match p.centering {
+        Centering::Vertex => (1.0, 0.5 / qa),
+        Centering::Frame => (3f64.sqrt() * all_range / diag, 0.5 * all_range / (qa * diag)),
+        // A centroid-centred vertex is within D of the centroid.
+        Centering::FrameAxis => (1.0, 0.5 / qa),
+        Centering::None => (3f64.sqrt() * mag / diag, 0.0),
+    };
+    let rounding = 4.0 * mag * f32::EPSILON as f64 / diag;
+    Some(s * (trunc + delta + basis) + mean + rounding + 1e-12)
 }
 
 /// Fixed-size temporal blocks with a single vertex group: the segmentation of the paper's
@@ -346,8 +491,13 @@ pub fn encode_with_segmentation(
         }
         let block = &animation.positions()[next * n3..(next + seg.frame_count) * n3];
         let data = encode_segment(params, &graph, seg, block)?;
-        let dec =
-            StsegDecoder { bits: params.bits, coef_bits: params.coef_bits, vertex_count: v, limits: Limits::default() };
+        let dec = StsegDecoder {
+            bits: params.bits,
+            coef_bits: params.coef_bits,
+            centering: params.centering,
+            vertex_count: v,
+            limits: Limits::default(),
+        };
         rec.extend_from_slice(&dec.decode(&data, seg.frame_count)?);
         packets.push(Packet { first_frame: next as u32, frame_count: seg.frame_count as u32, keyframe: true, data });
         next += seg.frame_count;
@@ -384,6 +534,7 @@ impl StsegEncoder {
                 let dec = StsegDecoder {
                     bits: self.params.bits,
                     coef_bits: self.params.coef_bits,
+                    centering: self.params.centering,
                     vertex_count: self.vertex_count,
                     limits: Limits::default(),
                 };
@@ -406,7 +557,7 @@ impl StsegEncoder {
 
 impl FrameEncoder for StsegEncoder {
     fn config(&self) -> Vec<u8> {
-        vec![self.params.bits, self.params.coef_bits]
+        vec![self.params.bits, self.params.coef_bits, self.params.centering.code()]
     }
 
     fn push_frames(&mut self, frames: &[f32]) -> Result<Vec<EncodedPacket>> {
@@ -440,32 +591,82 @@ fn push_run(out: &mut Vec<u32>, codes: impl Iterator<Item = u32>) {
     }
 }
 
-/// One group's coded PCA (§4.4, Eq. 5): `X ≈ mean·1ᵀ + A·B`.
+/// One group's coded PCA (§4.4, Eq. 5): `X ≈ mean + A·B`, the mean as [`Centering`] says.
 struct GroupCode {
-    mean_q: [Quantizer; 3],
+    /// Quantizers of the mean: 3 (per axis, [`Centering::Vertex`]), 1 (over frames,
+    /// [`Centering::Frame`]) or none.
+    mean_q: Vec<Quantizer>,
     a_q: Vec<Quantizer>,
     b_q: Vec<Quantizer>,
-    /// mean codes (axis-major), A codes (column, axis, vertex), B codes (row, frame).
+    /// mean codes, A codes (column, axis, vertex), B codes (row, frame).
     values: Vec<u32>,
+}
+
+/// Number of mean quantizers and mean values of one group of `n` vertices over `frames`.
+fn mean_layout(centering: Centering, n: usize, frames: usize) -> (usize, usize) {
+    match centering {
+        Centering::Vertex => (3, 3 * n),
+        Centering::Frame => (1, frames),
+        Centering::FrameAxis => (3, 3 * frames),
+        Centering::None => (0, 0),
+    }
+}
+
+/// The centred data matrix of a group (rows: vertex-major coordinates of `rows`, columns:
+/// frames) and the mean that was subtracted (per row for [`Centering::Vertex`], per frame for
+/// [`Centering::Frame`], empty for [`Centering::None`]).
+fn centred_block(centering: Centering, rows: &[u32], block: &[f32], n3: usize, frames: usize) -> (Mat<f64>, Vec<f64>) {
+    let x_at = |r: usize, t: usize| block[t * n3 + rows[r / 3] as usize * 3 + r % 3] as f64;
+    let nr = rows.len() * 3;
+    match centering {
+        Centering::Vertex => {
+            let mean: Vec<f64> =
+                (0..nr).map(|r| (0..frames).map(|t| x_at(r, t)).sum::<f64>() / frames as f64).collect();
+            (Mat::from_fn(nr, frames, |r, t| x_at(r, t) - mean[r]), mean)
+        }
+        Centering::Frame => {
+            let mean: Vec<f64> =
+                (0..frames).map(|t| (0..nr).map(|r| x_at(r, t)).sum::<f64>() / nr.max(1) as f64).collect();
+            (Mat::from_fn(nr, frames, |r, t| x_at(r, t) - mean[t]), mean)
+        }
+        Centering::FrameAxis => {
+            // mean[t·3 + c]
+            let n = rows.len().max(1) as f64;
+            let mean: Vec<f64> = (0..frames * 3)
+                .map(|tc| (0..rows.len()).map(|i| x_at(i * 3 + tc % 3, tc / 3)).sum::<f64>() / n)
+                .collect();
+            (Mat::from_fn(nr, frames, |r, t| x_at(r, t) - mean[t * 3 + r % 3]), mean)
+        }
+        Centering::None => (Mat::from_fn(nr, frames, x_at), Vec::new()),
+    }
+}
+
+/// The ω-persistence PCA of one group of one segment (§4.4): the number of components `k`
+/// and the leading eigenvectors of the Gram matrix of the η-extended, centred block.
+fn group_pca(
+    p: &StsegParams,
+    graph: &MeshGraph,
+    own: &[u32],
+    block: &[f32],
+    frames: usize,
+) -> Result<(usize, Mat<f64>)> {
+    let n3 = graph.vertex_count() * 3;
+    let ext = graph.grow_rings(own, p.eta as usize);
+    let (xe, _) = centred_block(p.centering, &ext, block, n3, frames);
+    let scale = frame_diagonal(&block[..n3]);
+    let negligible = (NEGLIGIBLE_AMPLITUDE * scale).powi(2) * (ext.len() * 3 * frames) as f64;
+    let (vals, vecs) = sym_eig_desc(gram(xe.as_ref()).as_ref(), "segment PCA")?;
+    Ok((pcs_for_persistence(&vals, p.omega, negligible).min(frames), vecs))
 }
 
 /// PCA of one group in one segment with η-ring overlap, quantized.
 fn code_group(p: &StsegParams, graph: &MeshGraph, own: &[u32], block: &[f32], frames: usize) -> Result<GroupCode> {
     let n3 = graph.vertex_count() * 3;
-    let ext = graph.grow_rings(own, p.eta as usize);
-    let x_at = |v: u32, c: usize, t: usize| block[t * n3 + v as usize * 3 + c] as f64;
-    let row_mean = |v: u32, c: usize| (0..frames).map(|t| x_at(v, c, t)).sum::<f64>() / frames as f64;
-    // Centred extended block (rows: vertex-major coordinates, columns: frames).
-    let ext_means: Vec<f64> =
-        ext.iter().flat_map(|&v| (0..3).map(move |c| (v, c))).map(|(v, c)| row_mean(v, c)).collect();
-    let xe = Mat::from_fn(ext.len() * 3, frames, |r, t| x_at(ext[r / 3], r % 3, t) - ext_means[r]);
-    let scale = frame_diagonal(&block[..n3]);
-    let negligible = (NEGLIGIBLE_AMPLITUDE * scale).powi(2) * (ext.len() * 3 * frames) as f64;
-    let (vals, vecs) = sym_eig_desc(gram(xe.as_ref()).as_ref(), "segment PCA")?;
-    let k = pcs_for_persistence(&vals, p.omega, negligible).min(frames);
+    let (k, vecs) = group_pca(p, graph, own, block, frames)?;
 
     // Coefficients B = W_kᵀ (orthonormal rows), quantized first; the basis is then fitted to
-    // the quantized coefficients by least squares so it absorbs their error.
+    // the quantized coefficients (and the quantized mean) by least squares so it absorbs
+    // their error.
     let mut b_q = Vec::with_capacity(k);
     let mut b_codes = Vec::with_capacity(k * frames);
     let mut bh = Mat::<f64>::zeros(k, frames);
@@ -479,11 +680,63 @@ fn code_group(p: &StsegParams, graph: &MeshGraph, own: &[u32], block: &[f32], fr
         }
         b_q.push(q);
     }
-    let own_means: Vec<f64> =
-        own.iter().flat_map(|&v| (0..3).map(move |c| (v, c))).map(|(v, c)| row_mean(v, c)).collect();
-    let mut a = Mat::<f64>::zeros(own.len() * 3, k);
+    let n = own.len();
+    let x_at = |r: usize, t: usize| block[t * n3 + own[r / 3] as usize * 3 + r % 3] as f64;
+    let mut values = Vec::new();
+    let mut mean_q = Vec::new();
+    // The mean of the own rows (Vertex) or of the extended rows' PCA (Frame), quantized.
+    let mean_hat: Vec<f64> = match p.centering {
+        Centering::Vertex => {
+            let (_, mean) = centred_block(Centering::Vertex, own, block, n3, frames);
+            let mut hat = vec![0.0; 3 * n];
+            for c in 0..3 {
+                let axis: Vec<f32> = (0..n).map(|i| mean[i * 3 + c] as f32).collect();
+                let q = Quantizer::covering(&axis, p.bits)?;
+                push_run(&mut values, axis.iter().map(|&x| q.quantize(x)));
+                for i in 0..n {
+                    hat[i * 3 + c] = q.dequantize(q.quantize(axis[i])) as f64;
+                }
+                mean_q.push(q);
+            }
+            hat
+        }
+        Centering::Frame => {
+            let ext = graph.grow_rings(own, p.eta as usize);
+            let (_, mean) = centred_block(Centering::Frame, &ext, block, n3, frames);
+            let m: Vec<f32> = mean.iter().map(|&x| x as f32).collect();
+            let q = Quantizer::covering(&m, p.bits)?;
+            push_run(&mut values, m.iter().map(|&x| q.quantize(x)));
+            mean_q.push(q);
+            m.iter().map(|&x| q.dequantize(q.quantize(x)) as f64).collect()
+        }
+        Centering::FrameAxis => {
+            let ext = graph.grow_rings(own, p.eta as usize);
+            let (_, mean) = centred_block(Centering::FrameAxis, &ext, block, n3, frames);
+            let mut hat = vec![0.0; 3 * frames];
+            for c in 0..3 {
+                let axis: Vec<f32> = (0..frames).map(|t| mean[t * 3 + c] as f32).collect();
+                let q = Quantizer::covering(&axis, p.bits)?;
+                push_run(&mut values, axis.iter().map(|&x| q.quantize(x)));
+                for t in 0..frames {
+                    hat[t * 3 + c] = q.dequantize(q.quantize(axis[t])) as f64;
+                }
+                mean_q.push(q);
+            }
+            hat
+        }
+        Centering::None => Vec::new(),
+    };
+    let centred = |r: usize, t: usize| -> f64 {
+        match p.centering {
+            Centering::Vertex => x_at(r, t) - mean_hat[r],
+            Centering::Frame => x_at(r, t) - mean_hat[t],
+            Centering::FrameAxis => x_at(r, t) - mean_hat[t * 3 + r % 3],
+            Centering::None => x_at(r, t),
+        }
+    };
+    let mut a = Mat::<f64>::zeros(n * 3, k);
     if k > 0 {
-        let xo = Mat::from_fn(own.len() * 3, frames, |r, t| x_at(own[r / 3], r % 3, t) - own_means[r]);
+        let xo = Mat::from_fn(n * 3, frames, centred);
         // A = X̂·B̂ᵀ·(B̂·B̂ᵀ)⁻¹, the inverse through the eigen-decomposition of the small SPD matrix.
         let m = mul(bh.as_ref(), bh.transpose());
         let (mv, mu) = sym_eig_desc(m.as_ref(), "coefficient Gram")?;
@@ -492,23 +745,12 @@ fn code_group(p: &StsegParams, graph: &MeshGraph, own: &[u32], block: &[f32], fr
         });
         a = mul(mul(xo.as_ref(), bh.transpose()).as_ref(), inv.as_ref());
     }
-    let mut values = Vec::with_capacity(own.len() * 3 * (k + 1) + k * frames);
-    let mean_q: [Quantizer; 3] = {
-        let mut qs = Vec::with_capacity(3);
-        for c in 0..3 {
-            let axis: Vec<f32> = (0..own.len()).map(|i| own_means[i * 3 + c] as f32).collect();
-            let q = Quantizer::covering(&axis, p.bits)?;
-            push_run(&mut values, axis.iter().map(|&x| q.quantize(x)));
-            qs.push(q);
-        }
-        [qs[0], qs[1], qs[2]]
-    };
     let mut a_q = Vec::with_capacity(k);
     for j in 0..k {
-        let col: Vec<f32> = (0..own.len() * 3).map(|r| a[(r, j)] as f32).collect();
+        let col: Vec<f32> = (0..n * 3).map(|r| a[(r, j)] as f32).collect();
         let q = Quantizer::covering(&col, p.bits)?;
         for c in 0..3 {
-            push_run(&mut values, (0..own.len()).map(|i| q.quantize(col[i * 3 + c])));
+            push_run(&mut values, (0..n).map(|i| q.quantize(col[i * 3 + c])));
         }
         a_q.push(q);
     }
@@ -516,6 +758,109 @@ fn code_group(p: &StsegParams, graph: &MeshGraph, own: &[u32], block: &[f32], fr
         push_run(&mut values, b_codes[j * frames..(j + 1) * frames].iter().copied());
     }
     Ok(GroupCode { mean_q, a_q, b_q, values })
+}
+
+/// The per-group component counts `k_j^i` of one segment (groups in label order), as the
+/// encoder chooses them (§4.4): the inputs of the paper's rate estimate (Eq. 8).
+pub fn segment_components(animation: &Animation, params: &StsegParams, segment: &Segment) -> Result<Vec<usize>> {
+    params.validate()?;
+    let graph = MeshGraph::new(animation.topology());
+    let v = animation.vertex_count();
+    let n3 = v * 3;
+    if segment.labels.len() != v || segment.first_frame + segment.frame_count > animation.frame_count() {
+        return Err(Error::parameter(NAME, "segment", "does not fit the animation"));
+    }
+    let block = &animation.positions()[segment.first_frame * n3..(segment.first_frame + segment.frame_count) * n3];
+    (0..segment.group_count)
+        .map(|g| {
+            let own: Vec<u32> = (0..v as u32).filter(|&i| segment.labels[i as usize] as usize == g).collect();
+            if own.is_empty() {
+                return Ok(0);
+            }
+            Ok(group_pca(params, &graph, &own, block, segment.frame_count)?.0)
+        })
+        .collect()
+}
+
+/// The paper's rate estimate (§5.1, Eq. 8–9) for a segmentation: every value of the PCA
+/// decomposition counted as a 32-bit float, times the ratio of a lossless compressor on those
+/// floats.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PaperRate {
+    /// `Q` of Eq. 8 in bits: `32·Σ_{i,j}(3|V_j|·k_j^i + k_j^i·|τ_i| + m)` with `m` the mean's
+    /// size (`|τ_i|` for [`Centering::Frame`], the paper's; `3|V_j|` for `Vertex`; 0 for `None`).
+    pub q_bits: f64,
+    /// `|XC_bs|`: bytes of the concatenated f32 components.
+    pub raw_bytes: usize,
+    /// `|X_bs|`: those bytes after the lossless stage (zstd at level 6 here, zlib in the paper).
+    pub compressed_bytes: usize,
+    /// Eq. 9: `|X_bs|/|XC_bs| · Q/(V·F)`.
+    pub bpvf: f64,
+    /// Eq. 8 alone: `Q/(V·F)` (no lossless stage).
+    pub bpvf_uncompressed: f64,
+}
+
+/// Eq. 8–9 for `segmentation` of `animation` at `params`: the unquantized PCA components of
+/// every group and segment (own rows only), as f32, compressed per segment.
+pub fn paper_rate_estimate(
+    animation: &Animation,
+    params: &StsegParams,
+    segmentation: &Segmentation,
+) -> Result<PaperRate> {
+    params.validate()?;
+    let graph = MeshGraph::new(animation.topology());
+    let v = animation.vertex_count();
+    let n3 = v * 3;
+    let (mut q_bits, mut raw_bytes, mut compressed_bytes) = (0.0, 0usize, 0usize);
+    for seg in &segmentation.segments {
+        if seg.labels.len() != v || seg.first_frame + seg.frame_count > animation.frame_count() {
+            return Err(Error::parameter(NAME, "segmentation", "does not fit the animation"));
+        }
+        let frames = seg.frame_count;
+        let block = &animation.positions()[seg.first_frame * n3..(seg.first_frame + frames) * n3];
+        let mut raw: Vec<u8> = Vec::new();
+        for g in 0..seg.group_count {
+            let own: Vec<u32> = (0..v as u32).filter(|&i| seg.labels[i as usize] as usize == g).collect();
+            if own.is_empty() {
+                continue;
+            }
+            let (k, vecs) = group_pca(params, &graph, &own, block, frames)?;
+            let (xo, mean) = match params.centering {
+                c @ (Centering::Frame | Centering::FrameAxis) => {
+                    let ext = graph.grow_rings(&own, params.eta as usize);
+                    let (_, m) = centred_block(c, &ext, block, n3, frames);
+                    let x = Mat::from_fn(own.len() * 3, frames, |r, t| {
+                        let i = if c == Centering::Frame { t } else { t * 3 + r % 3 };
+                        block[t * n3 + own[r / 3] as usize * 3 + r % 3] as f64 - m[i]
+                    });
+                    (x, m)
+                }
+                c => centred_block(c, &own, block, n3, frames),
+            };
+            let w = vecs.subcols(0, k);
+            let a = mul(xo.as_ref(), w);
+            q_bits += 32.0 * (3 * own.len() * k + k * frames + mean.len()) as f64;
+            raw.extend(mean.iter().flat_map(|&x| (x as f32).to_le_bytes()));
+            for j in 0..k {
+                raw.extend((0..own.len() * 3).flat_map(|r| (a[(r, j)] as f32).to_le_bytes()));
+                raw.extend((0..frames).flat_map(|t| (w[(t, j)] as f32).to_le_bytes()));
+            }
+        }
+        raw_bytes += raw.len();
+        compressed_bytes += zstd_len(&raw);
+    }
+    let vf = (v * animation.frame_count()).max(1) as f64;
+    let ratio = if raw_bytes > 0 { compressed_bytes as f64 / raw_bytes as f64 } else { 0.0 };
+    Ok(PaperRate { q_bits, raw_bytes, compressed_bytes, bpvf: ratio * q_bits / vf, bpvf_uncompressed: q_bits / vf })
+}
+
+/// Bytes of `raw` after the lossless stage at level 6 (the estimate's stand-in for zlib).
+fn zstd_len(raw: &[u8]) -> usize {
+    if raw.is_empty() {
+        0
+    } else {
+        entropy::compress(raw, 6).len()
+    }
 }
 
 /// Packet payload of one segment (layout in README.md).
@@ -551,6 +896,7 @@ fn encode_segment(p: &StsegParams, graph: &MeshGraph, seg: &Segment, block: &[f3
 struct StsegDecoder {
     bits: u8,
     coef_bits: u8,
+    centering: Centering,
     vertex_count: usize,
     limits: Limits,
 }
@@ -570,6 +916,7 @@ impl StsegDecoder {
             );
         }
         let max_k = frames.min(3 * v) as u64;
+        let n_mean = mean_layout(self.centering, 0, 0).0;
         let mut ks = Vec::with_capacity(group_count);
         let mut quants = Vec::with_capacity(group_count);
         for _ in 0..group_count {
@@ -579,13 +926,13 @@ impl StsegDecoder {
             }
             let k = k as usize;
             // Each quantizer takes 9 bytes: a k beyond the remaining bytes is caught before allocating.
-            if r.remaining() < (3 + 2 * k) * 9 {
+            if r.remaining() < (n_mean + 2 * k) * 9 {
                 return Err(r.truncated("quantizers"));
             }
-            let mut qs = Vec::with_capacity(3 + 2 * k);
-            for i in 0..3 + 2 * k {
+            let mut qs = Vec::with_capacity(n_mean + 2 * k);
+            for i in 0..n_mean + 2 * k {
                 let q = Quantizer::read(&mut r, "quantizer")?;
-                let want = if i < 3 + k { self.bits } else { self.coef_bits };
+                let want = if i < n_mean + k { self.bits } else { self.coef_bits };
                 if q.bits() != want {
                     return Err(r.malformed("quantizer", format!("{} bits, stream config says {want}", q.bits())));
                 }
@@ -597,8 +944,9 @@ impl StsegDecoder {
         let planes = plane_count(self.bits.max(self.coef_bits));
         let sum_k: usize = ks.iter().sum();
         let max_k_used = ks.iter().copied().max().unwrap_or(0);
-        let bound =
-            (v as u64) + planes as u64 * (3 * v as u64 * (1 + max_k_used as u64) + sum_k as u64 * frames as u64);
+        let bound = (v as u64)
+            + planes as u64
+                * (3 * v as u64 * (1 + max_k_used as u64) + (sum_k + 3 * group_count) as u64 * frames as u64);
         self.limits.check_alloc(NAME, "values", bound.saturating_mul(8))?;
         let raw = entropy::decompress(r.take(r.remaining(), "values")?, NAME, "values", bound as usize)?;
         if raw.len() < v {
@@ -612,7 +960,11 @@ impl StsegDecoder {
             }
             members[l as usize].push(i);
         }
-        let count: usize = members.iter().zip(&ks).map(|(m, &k)| 3 * m.len() * (1 + k) + k * frames).sum();
+        let count: usize = members
+            .iter()
+            .zip(&ks)
+            .map(|(m, &k)| mean_layout(self.centering, m.len(), frames).1 + 3 * m.len() * k + k * frames)
+            .sum();
         if raw.len() != v + planes * count {
             return Err(Error::malformed(
                 NAME,
@@ -640,21 +992,37 @@ impl StsegDecoder {
         let mut out = vec![0f32; frames * n3];
         for ((own, &k), qs) in members.iter().zip(&ks).zip(&quants) {
             let n = own.len();
-            let mean: Vec<Vec<f64>> =
-                (0..3).map(|c| next_run(n).into_iter().map(|q| qs[c].dequantize(q) as f64).collect()).collect();
+            // Vertex: mean[c][i]; Frame: mean[0][t]; None: no mean.
+            let mean: Vec<Vec<f64>> = match self.centering {
+                Centering::Vertex => {
+                    (0..3).map(|c| next_run(n).into_iter().map(|q| qs[c].dequantize(q) as f64).collect()).collect()
+                }
+                Centering::Frame => vec![next_run(frames).into_iter().map(|q| qs[0].dequantize(q) as f64).collect()],
+                Centering::FrameAxis => {
+                    (0..3).map(|c| next_run(frames).into_iter().map(|q| qs[c].dequantize(q) as f64).collect()).collect()
+                }
+                Centering::None => Vec::new(),
+            };
             // a[j][c][i]
             let a: Vec<Vec<Vec<f64>>> = (0..k)
                 .map(|j| {
-                    (0..3).map(|_| next_run(n).into_iter().map(|q| qs[3 + j].dequantize(q) as f64).collect()).collect()
+                    (0..3)
+                        .map(|_| next_run(n).into_iter().map(|q| qs[n_mean + j].dequantize(q) as f64).collect())
+                        .collect()
                 })
                 .collect();
             let b: Vec<Vec<f64>> = (0..k)
-                .map(|j| next_run(frames).into_iter().map(|q| qs[3 + k + j].dequantize(q) as f64).collect())
+                .map(|j| next_run(frames).into_iter().map(|q| qs[n_mean + k + j].dequantize(q) as f64).collect())
                 .collect();
             for t in 0..frames {
                 for c in 0..3 {
                     for (i, &vi) in own.iter().enumerate() {
-                        let mut x = mean[c][i];
+                        let mut x = match self.centering {
+                            Centering::Vertex => mean[c][i],
+                            Centering::Frame => mean[0][t],
+                            Centering::FrameAxis => mean[c][t],
+                            Centering::None => 0.0,
+                        };
                         for j in 0..k {
                             x += a[j][c][i] * b[j][t];
                         }

@@ -8,7 +8,7 @@ use faer::Mat;
 use rayon::prelude::*;
 
 use crate::linalg::{double_center, gram, pcs_for_persistence, sym_eig_desc, sym_eigvals_desc};
-use crate::StsegParams;
+use crate::{Centering, Detector, StsegParams};
 
 /// Most principal components a vertex group keeps while grouping rigid clusters (Alg. 1).
 /// The paper does not say; a small cap keeps Eq. 4 a subspace fit rather than a copy.
@@ -252,8 +252,19 @@ impl Segmenter {
         }
         let frames = &buf[..need * n3];
         let scale = frame_diagonal(&frames[..n3]).max(f64::MIN_POSITIVE);
+        // Beyond the paper: a cut anywhere in the block ends the segment (`Detector::Scan`).
+        let cut = match p.detector {
+            Detector::Scan => scan_cuts(frames, v, &p),
+            Detector::Paper => None,
+        };
         let (grouping, fresh) = match self.grouping.take() {
             Some(g) => (g, false),
+            None if p.detector == Detector::Scan => {
+                // Group on the segment's first γ_init frames (or up to the cut).
+                let len = cut.unwrap_or(need).min(p.gamma_init as usize).max(1);
+                let (labels, group_count) = cluster_vertices(&self.graph, &frames[..len * n3], &p)?;
+                (Grouping { labels, group_count, window: len }, true)
+            }
             None => {
                 let n_cut = (p.gamma_init as usize).min(need);
                 match initial_cut(&frames[..n_cut * n3], v, p.w as usize, p.lambda, p.cut_threshold) {
@@ -276,10 +287,11 @@ impl Segmenter {
                 }
             }
         };
-        let change = temporal_segmentation(frames, &grouping, p.omega_seg, scale)?;
-        let (frame_count, detected) = match change {
-            Some(b) => (b, true),
-            None => (need, false),
+        let change = temporal_segmentation(frames, &grouping, p.omega_seg, p.seg_centering, scale)?;
+        let (frame_count, detected) = match (cut, change) {
+            (Some(a), Some(b)) => (a.min(b), true),
+            (Some(b), None) | (None, Some(b)) => (b, true),
+            (None, None) => (need, false),
         };
         let kind = match (fresh, detected) {
             (false, _) => BlockKind::Reused,
@@ -314,12 +326,22 @@ impl Segmenter {
 /// `H1 − 2·H2 + H3` with within-side averages over distinct pairs; the best split must exceed
 /// `threshold` to count as a cut.
 pub(crate) fn initial_cut(frames: &[f32], v: usize, w: usize, lambda: f64, threshold: f64) -> Option<usize> {
-    let n3 = v * 3;
-    let n = frames.len() / n3;
+    let n = frames.len() / (v * 3);
     if n < w + 4 {
         return None;
     }
-    let nw = n - w + 1;
+    let (nw, d2) = window_distances(frames, v, w);
+    let s = median_scale(&d2, nw, 0, nw)?;
+    let (b, mmd) = best_split(&d2, nw, 0, nw, s, lambda, 2, nw - 2)?;
+    (mmd > threshold).then_some(b + w)
+}
+
+/// Squared distances between the motion windows (Eq. 2's `v^{b_i → b_i+w}`, relative to
+/// their first frame) of every window start in `frames`: `(nw, d2)` with `d2` row-major `nw×nw`.
+fn window_distances(frames: &[f32], v: usize, w: usize) -> (usize, Vec<f64>) {
+    let n3 = v * 3;
+    let n = frames.len() / n3;
+    let nw = (n + 1).saturating_sub(w);
     let x = |t: usize, i: usize| frames[t * n3 + i] as f64;
     let mut d2 = vec![0.0f64; nw * nw];
     for i in 0..nw {
@@ -336,44 +358,97 @@ pub(crate) fn initial_cut(frames: &[f32], v: usize, w: usize, lambda: f64, thres
             d2[j * nw + i] = s;
         }
     }
-    let mut off: Vec<f64> =
-        (0..nw).flat_map(|i| (i + 1..nw).map(move |j| (i, j))).map(|(i, j)| d2[i * nw + j]).collect();
+    (nw, d2)
+}
+
+/// Median pairwise squared distance of windows `lo..hi` (the kernel scale `s`); the mean of the
+/// positive ones when the median is 0; `None` when all are 0 (no motion change at all).
+fn median_scale(d2: &[f64], nw: usize, lo: usize, hi: usize) -> Option<f64> {
+    let mut off: Vec<f64> = (lo..hi).flat_map(|i| (i + 1..hi).map(move |j| d2[i * nw + j])).collect();
     off.sort_by(f64::total_cmp);
-    let max = *off.last()?;
-    if max <= 0.0 {
+    if *off.last()? <= 0.0 {
         return None;
     }
-    let mut s = off[off.len() / 2];
-    if s <= 0.0 {
-        let pos: Vec<f64> = off.iter().copied().filter(|&d| d > 0.0).collect();
-        s = pos.iter().sum::<f64>() / pos.len() as f64;
+    let s = off[off.len() / 2];
+    if s > 0.0 {
+        return Some(s);
     }
-    let k: Vec<f64> = d2.iter().map(|&d| (-lambda * d / s).exp()).collect();
+    let pos: Vec<f64> = off.iter().copied().filter(|&d| d > 0.0).collect();
+    Some(pos.iter().sum::<f64>() / pos.len() as f64)
+}
+
+/// The split of windows `lo..hi` into `lo..lo+b` and `lo+b..hi` with the largest MMD
+/// `H1 − 2·H2 + H3` (kernel `exp(−λ·d²/s)`), `b` within `b_min..=b_max`: `(b, mmd)`.
+#[allow(clippy::too_many_arguments)]
+fn best_split(
+    d2: &[f64],
+    nw: usize,
+    lo: usize,
+    hi: usize,
+    s: f64,
+    lambda: f64,
+    b_min: usize,
+    b_max: usize,
+) -> Option<(usize, f64)> {
+    let m = hi - lo;
+    let k = |i: usize, j: usize| (-lambda * d2[(lo + i) * nw + lo + j] / s).exp();
     let mut best: Option<(usize, f64)> = None;
-    for b in 2..=nw - 2 {
-        let (n1, n2) = (b as f64, (nw - b) as f64);
+    for b in b_min.max(2)..=b_max.min(m.saturating_sub(2)) {
+        let (n1, n2) = (b as f64, (m - b) as f64);
         let (mut h1, mut h2, mut h3) = (0.0, 0.0, 0.0);
-        for i in 0..nw {
-            for j in 0..nw {
+        for i in 0..m {
+            for j in 0..m {
                 if i == j {
                     continue;
                 }
-                let kv = k[i * nw + j];
                 match (i < b, j < b) {
-                    (true, true) => h1 += kv,
-                    (false, false) => h3 += kv,
-                    (true, false) => h2 += kv,
+                    (true, true) => h1 += k(i, j),
+                    (false, false) => h3 += k(i, j),
+                    (true, false) => h2 += k(i, j),
                     (false, true) => {}
                 }
             }
         }
         let mmd = h1 / (n1 * (n1 - 1.0)) - 2.0 * h2 / (n1 * n2) + h3 / (n2 * (n2 - 1.0));
-        if best.is_none_or(|(_, m)| mmd > m) {
+        if best.is_none_or(|(_, bm)| mmd > bm) {
             best = Some((b, mmd));
         }
     }
-    let (b, mmd) = best?;
-    (mmd > threshold).then_some(b + w)
+    best
+}
+
+/// Beyond the paper ([`crate::Detector::Scan`]): the bi-directional cut of §4.1 run over the
+/// whole block, in ranges of `gamma_init` frames stepping by half that, with one kernel scale
+/// for the whole block (the median window distance of all `frames`, so a range in the middle
+/// of steady motion does not look distinct just because its own distances are small). A cut
+/// counts only with its split in the middle half of its range (an edge maximum is a trend,
+/// and a change near an edge is central in the next range) and an MMD above `threshold`.
+/// Returns the first cut's frame — the first window of the second side plus `w/2`, the middle
+/// of the windows that straddle the change — if it is at least `w` frames in.
+pub(crate) fn scan_cuts(frames: &[f32], v: usize, p: &StsegParams) -> Option<usize> {
+    let n = frames.len() / (v * 3);
+    let (w, gi) = (p.w as usize, p.gamma_init as usize);
+    if n < w + 4 {
+        return None;
+    }
+    let (nw, d2) = window_distances(frames, v, w);
+    let s = median_scale(&d2, nw, 0, nw)?;
+    let range = (gi + 1).saturating_sub(w).min(nw);
+    let step = (gi / 2).max(1);
+    let mut lo = 0;
+    while lo + range <= nw {
+        if let Some((b, mmd)) = best_split(&d2, nw, lo, lo + range, s, p.lambda, range / 4, range - range / 4) {
+            let at = lo + b + w / 2;
+            if mmd > p.cut_threshold && at >= w && at < n {
+                return Some(at);
+            }
+        }
+        if lo + range == nw {
+            break;
+        }
+        lo = (lo + step).min(nw - range);
+    }
+    None
 }
 
 /// Per-vertex trajectories over `frames`, each minus its temporal mean (`V × 3n`, row-major).
@@ -617,7 +692,13 @@ pub(crate) fn cluster_vertices(graph: &MeshGraph, frames: &[f32], p: &StsegParam
 /// `None` when the count never changes within `frames` (`gamma_max` reached). Groups are
 /// independent and run in parallel; the earliest change wins, so the result does not depend
 /// on scheduling.
-fn temporal_segmentation(frames: &[f32], g: &Grouping, omega: f64, scale: f64) -> Result<Option<usize>> {
+fn temporal_segmentation(
+    frames: &[f32],
+    g: &Grouping,
+    omega: f64,
+    centering: Centering,
+    scale: f64,
+) -> Result<Option<usize>> {
     let v = g.labels.len();
     let n3 = v * 3;
     let n = frames.len() / n3;
@@ -632,17 +713,52 @@ fn temporal_segmentation(frames: &[f32], g: &Grouping, omega: f64, scale: f64) -
             if verts.is_empty() {
                 return Ok(None);
             }
-            // Rows: the group's coordinates, relative to frame 0 (centring is shift-invariant;
-            // this keeps the Gram entries small). One Gram matrix serves every window.
-            let x = Mat::from_fn(verts.len() * 3, n, |r, t| {
+            // Rows: the group's coordinates. Row centring is invariant to a per-row shift and
+            // frame centring to a global one: the shifts keep the Gram entries small. One Gram
+            // matrix serves every window.
+            let nr = verts.len() * 3;
+            let c0 = verts.iter().flat_map(|&i| (0..3).map(move |c| frames[i * 3 + c] as f64)).sum::<f64>() / nr as f64;
+            let x = Mat::from_fn(nr, n, |r, t| {
                 let i = verts[r / 3] * 3 + r % 3;
-                frames[t * n3 + i] as f64 - frames[i] as f64
+                let x = frames[t * n3 + i] as f64;
+                match centering {
+                    Centering::Vertex => x - frames[i] as f64,
+                    Centering::Frame => x - c0,
+                    Centering::FrameAxis => x - frames[verts[0] * 3 + r % 3] as f64,
+                    Centering::None => x,
+                }
             });
             let full = gram(x.as_ref());
+            let col_sum: Vec<f64> = (0..n).map(|t| (0..nr).map(|r| x[(r, t)]).sum()).collect();
+            // Per axis: axis_sum[t·3 + c].
+            let axis_sum: Vec<f64> =
+                (0..n * 3).map(|tc| (0..verts.len()).map(|i| x[(i * 3 + tc % 3, tc / 3)]).sum()).collect();
             let negligible = (NEGLIGIBLE_AMPLITUDE * scale).powi(2) * (verts.len() * 3 * win) as f64;
             let count = |start: usize| -> Result<usize> {
                 let mut w = full.submatrix(start, start, win, win).to_owned();
-                double_center(&mut w);
+                match centering {
+                    Centering::Vertex => double_center(&mut w),
+                    // X̂ᵀX̂ = XᵀX − s·sᵀ/rows with s the column sums (per-frame mean removed).
+                    Centering::Frame => {
+                        for a in 0..win {
+                            for b in 0..win {
+                                w[(a, b)] -= col_sum[start + a] * col_sum[start + b] / nr as f64;
+                            }
+                        }
+                    }
+                    Centering::FrameAxis => {
+                        let nv = verts.len() as f64;
+                        for a in 0..win {
+                            for b in 0..win {
+                                w[(a, b)] -= (0..3)
+                                    .map(|c| axis_sum[(start + a) * 3 + c] * axis_sum[(start + b) * 3 + c])
+                                    .sum::<f64>()
+                                    / nv;
+                            }
+                        }
+                    }
+                    Centering::None => {}
+                }
                 Ok(pcs_for_persistence(&sym_eigvals_desc(w.as_ref(), "window PCA")?, omega, negligible))
             };
             let reference = count(0)?;

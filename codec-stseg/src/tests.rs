@@ -15,7 +15,8 @@ fn rel_rms(a: &Animation, b: &Animation) -> f64 {
 /// tile the animation. Extra boundaries inside the oscillating phases are allowed (see README).
 #[test]
 fn detected_boundaries_land_within_w_of_the_truth() {
-    let p = StsegParams::default();
+    // Motion-sensitive Alg. 2 counts (the defaults favour long segments instead; README).
+    let p = StsegParams { seg_centering: Centering::Vertex, omega_seg: 0.99, ..Default::default() };
     for frames in [200usize, 400] {
         let (anim, truth) = synth::phased_motion(frames);
         let s = segment_animation(&anim, &p).unwrap();
@@ -125,8 +126,13 @@ fn corrupt_and_truncated_streams_error_without_panicking() {
         let _ = decode_animation(&b, &reg, Limits::default());
     }
     // The decoder itself, without the container's checksum, on garbage payloads.
-    let mut dec =
-        StsegDecoder { bits: 12, coef_bits: 12, vertex_count: anim.vertex_count(), limits: Limits::default() };
+    let mut dec = StsegDecoder {
+        bits: 12,
+        coef_bits: 12,
+        centering: Centering::Frame,
+        vertex_count: anim.vertex_count(),
+        limits: Limits::default(),
+    };
     for payload in [vec![], vec![2u8], vec![2, 200, 1], vec![9, 1, 0], vec![1, 1, 0xff, 0xff, 0xff, 0xff, 0x0f]] {
         let p = Packet { first_frame: 0, frame_count: 10, keyframe: true, data: payload };
         assert!(dec.decode_packet(&p).is_err());
@@ -208,4 +214,91 @@ fn bytes_do_not_depend_on_the_thread_count() {
         pool.install(|| encode_animation_fed(&Stseg, &ps, &anim, false, 17).unwrap().bytes)
     };
     assert_eq!(run(1), run(4));
+}
+
+/// Every centering (§4.4 readings) round-trips: decoder output = encoder reconstruction, error
+/// within the declared bound, a config with an unknown centering code is rejected.
+#[test]
+fn every_centering_round_trips_within_bound() {
+    let (anim, _) = synth::phased_motion_sized(6, 6, 70);
+    let reg = registry();
+    for name in Centering::NAMES {
+        let c = Centering::from_name(name).unwrap();
+        assert_eq!(Centering::from_code(c.code()), Some(c));
+        let p = StsegParams { centering: c, ..Default::default() };
+        let ps = p.to_param_set().unwrap();
+        let enc = encode_animation_fed(&Stseg, &ps, &anim, true, 9).unwrap();
+        let dec = decode_animation(&enc.bytes, &reg, Limits::default()).unwrap();
+        assert_eq!(Some(&dec), enc.reconstruction.as_ref(), "{name}");
+        let bound = Stseg.error_bound(&ps, &anim).unwrap().relative_rms_error.unwrap();
+        let err = rel_rms(&anim, &dec);
+        assert!(err <= bound, "{name}: error {err} > bound {bound}");
+    }
+    let info = codec_core::StreamInfo {
+        fourcc: Stseg.fourcc(),
+        codec_version: Stseg.stream_version(),
+        topology: anim.topology().clone(),
+        frame_count: 70,
+        frame_rate: 30.0,
+    };
+    assert!(Stseg.new_decoder(&info, &[12, 12, 4], &Limits::default()).is_err());
+    assert!(Stseg.new_decoder(&info, &[12, 12], &Limits::default()).is_err());
+}
+
+/// Issue 13 (b): with the shape left in the PCA (per-frame centring, the paper's Eq. 5/8
+/// reading) ω is a share of a much larger energy, so fewer components are kept than with the
+/// mean shape removed; and Eq. 8's Q is exactly 32·Σ(3|V_j|k + k|τ| + mean size).
+#[test]
+fn frame_centring_keeps_fewer_components_and_eq8_counts_them() {
+    let (anim, _) = synth::phased_motion_sized(8, 8, 90);
+    let vertex = StsegParams { centering: Centering::Vertex, ..Default::default() };
+    let seg = segment_animation(&anim, &vertex).unwrap();
+    let total = |c: Centering| -> usize {
+        let p = StsegParams { centering: c, ..vertex };
+        seg.segments.iter().map(|s| segment_components(&anim, &p, s).unwrap().iter().sum::<usize>()).sum()
+    };
+    let (kv, kf, ka) = (total(Centering::Vertex), total(Centering::Frame), total(Centering::FrameAxis));
+    assert!(kf < kv && ka < kv, "components: frame {kf}, frame-axis {ka}, vertex {kv}");
+    for c in [Centering::Frame, Centering::FrameAxis, Centering::Vertex, Centering::None] {
+        let p = StsegParams { centering: c, ..vertex };
+        let est = paper_rate_estimate(&anim, &p, &seg).unwrap();
+        let mut q = 0.0;
+        for s in &seg.segments {
+            let ks = segment_components(&anim, &p, s).unwrap();
+            for (g, &k) in ks.iter().enumerate() {
+                let n = s.labels.iter().filter(|&&l| l as usize == g).count();
+                let mean = mean_layout(c, n, s.frame_count).1;
+                q += 32.0 * (3 * n * k + k * s.frame_count + mean) as f64;
+            }
+        }
+        assert_eq!(est.q_bits, q, "{c:?}");
+        let vf = (anim.vertex_count() * anim.frame_count()) as f64;
+        assert!((est.bpvf_uncompressed - q / vf).abs() < 1e-9);
+        assert!(est.compressed_bytes > 0 && est.bpvf > 0.0 && est.bpvf < est.bpvf_uncompressed * 1.1);
+    }
+}
+
+/// Issue 13 point 3: with the scanning detector (`detector = scan`, beyond the paper), every
+/// change of `synth:phases` has a detected boundary within `w` frames at every size, and no
+/// segment but the last is shorter than `w`.
+#[test]
+fn scanning_detector_finds_every_phase_change_at_every_size() {
+    use codec_core::synth::SynthSize;
+    let p = StsegParams { detector: Detector::Scan, ..Default::default() };
+    let w = p.w as usize;
+    for size in [SynthSize::Small, SynthSize::Medium, SynthSize::Large] {
+        let anim = synth::by_name("phases", size).unwrap();
+        let truth = synth::phase_boundaries(anim.frame_count());
+        let s = segment_animation(&anim, &p).unwrap();
+        let detected = s.detected_boundaries();
+        for &b in &truth {
+            let nearest = detected.iter().map(|&d| d.abs_diff(b)).min();
+            assert!(nearest.is_some_and(|d| d <= w), "{size:?}: truth {b}, detected {detected:?}");
+        }
+        let n = s.segments.len();
+        for seg in &s.segments[..n - 1] {
+            assert!(seg.frame_count >= w, "{size:?}: segment {seg:?} shorter than w");
+        }
+        assert_eq!(s.segments.iter().map(|x| x.frame_count).sum::<usize>(), anim.frame_count());
+    }
 }
