@@ -451,7 +451,12 @@ pub fn monotone_report(points: &[Point]) -> Vec<Monotonicity> {
 
 /// Writes `text` to `path`, naming the file in the error.
 pub fn write_text(path: &Path, text: &str) -> HResult<()> {
-    std::fs::write(path, text).map_err(|e| codec_core::Error::io(format!("writing {}", path.display()), e).into())
+    write_bytes(path, text.as_bytes())
+}
+
+/// Writes `bytes` to `path`, naming the file in the error.
+pub fn write_bytes(path: &Path, bytes: &[u8]) -> HResult<()> {
+    std::fs::write(path, bytes).map_err(|e| codec_core::Error::io(format!("writing {}", path.display()), e).into())
 }
 
 /// Writes the sweep as JSON: `{input, vertices, frames, eval_options, rows: [point_json…],

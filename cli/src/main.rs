@@ -67,6 +67,51 @@ enum Command {
     /// Write one self-contained HTML page that plays the reference and candidates side by side
     /// with a shared camera and per-vertex error heat maps.
     View(ViewArgs),
+    /// Write any input (or a decoded `.anim` stream) as a glTF/GLB morph-target animation that
+    /// every glTF engine plays, and report its error as played back.
+    Export(ExportArgs),
+}
+
+/// Arguments of `animcodec export`.
+#[derive(Debug, Args)]
+pub struct ExportArgs {
+    /// Input animation (any input format, or an `.anim` container, which is decoded).
+    #[arg(value_name = "INPUT")]
+    pub input: String,
+
+    /// Output `.glb` (binary) or `.gltf` (JSON with the buffer embedded as a data URI).
+    #[arg(short, long, value_name = "OUT.glb")]
+    pub output: PathBuf,
+
+    /// basis: the mean shape plus the fewest principal components (morph targets, LINEAR
+    /// weights) meeting --target-kg, or --targets of them; frames: frame 0 plus one morph target
+    /// per frame with STEP weights (exact, large).
+    #[arg(long, value_name = "LAYOUT", default_value = "basis")]
+    pub layout: String,
+
+    /// basis: the number of morph targets (default: the fewest meeting --target-kg).
+    #[arg(long, value_name = "K")]
+    pub targets: Option<usize>,
+
+    /// basis: the KG error (%) the written animation must meet against the input (> 0).
+    #[arg(long, value_name = "KG", default_value_t = 0.05)]
+    pub target_kg: f64,
+
+    /// OBJ file giving the triangles of a .pc2/.mdd input (default: the OBJ beside it).
+    #[arg(long, value_name = "OBJ")]
+    pub topology: Option<PathBuf>,
+
+    /// Frame rate of the input when it stores none (keys are written at frame / fps seconds).
+    #[arg(long, value_name = "F", value_parser = commands::parse_fps, allow_negative_numbers = true)]
+    pub fps: Option<f32>,
+
+    /// STED options for the played-back report.
+    #[command(flatten)]
+    pub sted: StedArgs,
+
+    /// Print JSON: {output, layout, targets, bytes, bpvf, kg, sted, metrics, …}.
+    #[arg(long)]
+    pub json: bool,
 }
 
 /// Arguments of `animcodec view`.
@@ -482,5 +527,6 @@ fn run(cli: Cli) -> commands::CmdResult {
         Command::Sweep(a) => commands::sweep::run(&a, limits),
         Command::Inspect(a) => commands::inspect::run(&a),
         Command::View(a) => commands::view::run(&a, limits),
+        Command::Export(a) => commands::export::run(&a, limits),
     }
 }

@@ -568,3 +568,39 @@ fn progress_sees_every_point_the_target_search_measures() {
         seen.borrow().iter().any(|(c, _)| *c == "quant-delta") && seen.borrow().iter().any(|(c, _)| *c == "pca-aoi")
     );
 }
+
+/// `export` writes glTF/GLB morph-target animations that our reader plays back at the error it
+/// reports; `decode -o X.glb` writes the same default layout.
+#[test]
+fn export_writes_gltf_that_plays_back_at_the_reported_error() {
+    let s = Scratch::new("export");
+    let pc2 = s.path("flag.pc2");
+    ok(&["synth", "flag", "-o", &pc2]);
+    let glb = s.path("flag.glb");
+    let v = ok_json(&["export", &pc2, "-o", &glb, "--json"]);
+    assert_eq!(v["layout"], "basis");
+    let k = v["targets"].as_u64().unwrap();
+    assert!((1..40).contains(&k), "{v}");
+    assert!(f(&v["kg"]) <= 0.05 * 1.05, "{v}");
+    // `eval` reads the GLB with the same reader and gets the same KG.
+    let e = ok_json(&["eval", &pc2, &glb, "--json", "--no-hausdorff"]);
+    assert_eq!(f(&e["kg"]), f(&v["kg"]));
+    let loose = ok_json(&["export", &pc2, "-o", &glb, "--json", "--target-kg", "1"]);
+    assert!(loose["targets"].as_u64().unwrap() < k && f(&loose["kg"]) <= 1.05, "{loose}");
+    let gltf = s.path("flag.gltf");
+    let exact = ok_json(&["export", &pc2, "-o", &gltf, "--json", "--layout", "frames"]);
+    assert_eq!(exact["targets"].as_u64(), Some(39));
+    assert!(f(&exact["kg"]) < 1e-4, "{exact}");
+    let text = std::fs::read_to_string(&gltf).unwrap();
+    assert!(text.contains("\"STEP\"") && text.contains("data:application/octet-stream;base64,"));
+    // decode writes glTF too.
+    let anim = s.path("flag.anim");
+    ok(&["encode", &pc2, "-c", "hosvd", "-o", &anim]);
+    let out = s.path("decoded.glb");
+    ok(&["decode", &anim, "-o", &out]);
+    let e = ok_json(&["eval", &anim, &out, "--json", "--no-hausdorff"]);
+    assert!(f(&e["kg"]) <= 0.05 * 1.05, "{e}");
+    fails(&["export", &pc2, "-o", &glb, "--layout", "rows"], &["rows", "basis or frames"]);
+    fails(&["export", &pc2, "-o", &s.path("flag.fbx")], &[".glb or .gltf"]);
+    fails(&["export", &pc2, "-o", &glb, "--target-kg", "0"], &["target_kg"]);
+}

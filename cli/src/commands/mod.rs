@@ -5,6 +5,7 @@ pub mod decode;
 pub mod demo;
 pub mod encode;
 pub mod eval;
+pub mod export;
 pub mod info;
 pub mod inspect;
 pub mod list;

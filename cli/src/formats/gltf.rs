@@ -326,8 +326,11 @@ impl WeightTrack {
         let cubic = self.interpolation == Interpolation::CubicSpline;
         // Value of target i at key k (the middle element of the triple for cubic splines).
         let value = |k: usize, i: usize| if cubic { self.values[(3 * k + 1) * n + i] } else { self.values[k * n + i] };
-        // Last key with time <= t (the first key if t precedes it).
-        let k = self.times.partition_point(|&x| x as f64 <= t).saturating_sub(1);
+        // Last key with time <= t (the first key if t precedes it). Key times are f32: a key
+        // written at frame k's time (k / fps rounded to f32) may lie a rounding error after
+        // the f64 sample time, and must still count as reached (else STEP shows frame k − 1).
+        let reached = t + 1e-6 * t.abs().max(1.0);
+        let k = self.times.partition_point(|&x| x as f64 <= reached).saturating_sub(1);
         if k + 1 >= keys || t <= self.times[0] as f64 {
             for (i, w) in out.iter_mut().enumerate() {
                 *w = value(k, i);
@@ -451,8 +454,10 @@ fn parse_checked(bytes: &[u8], base: Option<&Path>, file: &str, frame_rate: f32)
             let track = load_track(file, &channel, &buffers, target_count)?;
             let (t0, t1) = (track.times[0] as f64, track.times[track.times.len() - 1] as f64);
             let fps = frame_rate as f64;
-            // The small epsilon keeps a key that falls on a frame boundary (1.5 s × 30 fps) in.
-            let frames_f = ((t1 - t0) * fps + 1e-6).floor() + 1.0;
+            // The small epsilon keeps a key that falls on a frame boundary (1.5 s × 30 fps) in,
+            // also when the f32 key time lies a rounding error short of it (39 / 30 s as f32 is
+            // 38.9999986 frames; f32 time errors are ≈ 6e-8 relative, far below 1e-4 frames).
+            let frames_f = ((t1 - t0) * fps + 1e-4).floor() + 1.0;
             let limits = Limits::default();
             if frames_f > limits.max_frames as f64 {
                 return Err(Error::LimitExceeded {

@@ -14,6 +14,7 @@
 //! allocating, and name the file (and frame / vertex / line) in every error.
 
 pub mod gltf;
+pub mod gltf_out;
 pub mod mdd;
 pub mod obj;
 pub mod pc2;
@@ -32,7 +33,8 @@ pub const SUPPORTED_INPUTS: &str =
 
 /// Output formats, for messages: what [`write_animation`] accepts.
 pub const SUPPORTED_OUTPUTS: &str =
-    ".pc2, .mdd, .obj (an OBJ sequence stem_0000.obj, …) or a directory (frame_0000.obj, …)";
+    ".pc2, .mdd, .glb, .gltf (morph targets + weights animation), .obj (an OBJ sequence stem_0000.obj, …) or a \
+     directory (frame_0000.obj, …)";
 
 /// Options for [`read_animation`].
 #[derive(Debug, Clone, Default)]
@@ -87,7 +89,9 @@ pub fn read_animation(path: &Path, options: &ReadOptions) -> Result<Animation> {
 /// Writes an animation, choosing the format from the output path: `.pc2`, `.mdd` (each also
 /// writes `STEM.obj` with frame 0 and the faces beside it), or an OBJ sequence: a directory
 /// (existing, or a path ending in `/`) receives `frame_0000.obj`, …; a path ending in `.obj`
-/// receives `stem_0000.obj`, … beside it, or exactly that file for a one-frame animation.
+/// receives `stem_0000.obj`, … beside it, or exactly that file for a one-frame animation;
+/// `.glb`/`.gltf` receive a morph-target animation ([`gltf_out`], default options: mean shape +
+/// principal components meeting KG 0.05 %).
 pub fn write_animation(path: &Path, animation: &Animation) -> Result<()> {
     if obj::is_directory_target(path) {
         return obj::write_obj_sequence(path, animation).map(|_| ());
@@ -96,6 +100,10 @@ pub fn write_animation(path: &Path, animation: &Animation) -> Result<()> {
         Some("pc2") => pc2::write_pc2(path, animation),
         Some("mdd") => mdd::write_mdd(path, animation),
         Some("obj") => obj::write_obj_sequence(path, animation).map(|_| ()),
+        Some(ext @ ("glb" | "gltf")) => {
+            let (bytes, _) = gltf_out::encode_gltf(animation, &gltf_out::GltfOptions::default(), ext == "glb")?;
+            write_file(path, &bytes)
+        }
         _ => Err(Error::Unsupported {
             context: "formats".into(),
             detail: format!("cannot write {}: unknown format; supported outputs: {SUPPORTED_OUTPUTS}", path.display()),
