@@ -91,9 +91,9 @@ fn view_writes_a_self_contained_page_with_headers_and_heat_maps() {
     fails(&["view", &reference, "hosvd:ss=7", "-o", &page], &["ss"]);
 }
 
-#[test]
-fn sweep_html_report_holds_every_row_and_the_chosen_viewers() {
-    let s = Scratch::new("sweep-html");
+/// `sweep --html` of quant-delta and hosvd on the flag, 3 ladder points each, with a player of
+/// hosvd's first point; returns the report's path.
+fn sweep_report(s: &Scratch) -> String {
     let report = s.path("r.html");
     ok(&[
         "sweep",
@@ -107,6 +107,13 @@ fn sweep_html_report_holds_every_row_and_the_chosen_viewers() {
         "--view-points",
         "hosvd:0",
     ]);
+    report
+}
+
+#[test]
+fn sweep_html_report_holds_every_row_and_the_chosen_viewers() {
+    let s = Scratch::new("sweep-html");
+    let report = sweep_report(&s);
     let data = page_data(&std::fs::read_to_string(&report).unwrap());
     let rows = data["rows"].as_array().unwrap();
     assert_eq!(rows.len(), 6);
@@ -192,19 +199,7 @@ fn pages_work_in_headless_chromium() {
         }
     }
 
-    let report = s.path("r.html");
-    ok(&[
-        "sweep",
-        "synth:flag",
-        "-c",
-        "quant-delta,hosvd",
-        "--points",
-        "3",
-        "--html",
-        &report,
-        "--view-points",
-        "hosvd:0",
-    ]);
+    let report = sweep_report(&s);
     let shot = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("sweep-report.png");
     let v = run_browser(&script, &report, &shot, None);
     println!("report: {v}");

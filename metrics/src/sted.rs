@@ -138,14 +138,8 @@ pub fn sted_with_fields(reference: &Animation, candidate: &Animation, params: &S
 /// `f32` to halve the memory of long sequences): the per-vertex, per-frame field whose mean is
 /// the spatial part `S`. For heat maps of where and when a candidate distorts the surface.
 pub fn sted_local_deviations(reference: &Animation, candidate: &Animation, params: &StedParams) -> Result<Vec<f32>> {
-    check_compatible(reference, candidate)?;
-    params.validate()?;
+    let (edges, hood) = prepare(reference, candidate, params)?;
     let n = reference.vertex_count();
-    let edges = unique_edges(reference.triangles());
-    if edges.is_empty() {
-        return Err(Error::InvalidAnimation(format!("{CTX}: STED needs mesh edges, but the mesh has no triangles")));
-    }
-    let hood = Neighbourhoods::new(n, &edges, params.ring_radius)?;
     let mut out = vec![0.0f32; n * reference.frame_count()];
     out.par_chunks_mut(n.max(1)).enumerate().for_each(|(t, frame)| {
         let (sigma, _) = local_deviations(reference.frame(t), candidate.frame(t), &edges, &hood, params);
@@ -157,15 +151,25 @@ pub fn sted_local_deviations(reference: &Animation, candidate: &Animation, param
 /// Frames processed per parallel batch (bounds the memory of per-vertex fields).
 const FRAME_BATCH: usize = 32;
 
-fn run(reference: &Animation, candidate: &Animation, params: &StedParams, fields: bool) -> Result<StedResult> {
+/// Checks the inputs and builds the mesh edges and every vertex's neighbourhood.
+fn prepare(
+    reference: &Animation,
+    candidate: &Animation,
+    params: &StedParams,
+) -> Result<(Vec<[u32; 2]>, Neighbourhoods)> {
     check_compatible(reference, candidate)?;
     params.validate()?;
-    let n = reference.vertex_count();
     let edges = unique_edges(reference.triangles());
     if edges.is_empty() {
         return Err(Error::InvalidAnimation(format!("{CTX}: STED needs mesh edges, but the mesh has no triangles")));
     }
-    let hood = Neighbourhoods::new(n, &edges, params.ring_radius)?;
+    let hood = Neighbourhoods::new(reference.vertex_count(), &edges, params.ring_radius)?;
+    Ok((edges, hood))
+}
+
+fn run(reference: &Animation, candidate: &Animation, params: &StedParams, fields: bool) -> Result<StedResult> {
+    let (edges, hood) = prepare(reference, candidate, params)?;
+    let n = reference.vertex_count();
     let frames = reference.frame_count();
 
     // Spatial part, batches of frames in parallel, reduced in frame order.
