@@ -234,7 +234,7 @@ fn encode_target_through_the_binary() {
             assert!(f(&t["value"]) > 0.5, "{t}");
         }
     }
-    let text = ok(&["encode", "synth:flag", "-c", "quant-delta", "--target", "max_error=0.01", "-o", &out]);
+    let text = ok(&["encode", "synth:flag", "-c", "quant-delta", "--target", "max_error=0.01", "-f", "-o", &out]);
     assert!(text.contains("reaches max_error="), "{text}");
 
     // Unreachable targets say what was reached; the ladder knob cannot be fixed; -p with auto.
@@ -251,7 +251,8 @@ fn encode_target_through_the_binary() {
 fn encode_target_auto_keeps_the_smallest_stream() {
     let s = Scratch::new("auto");
     let out = s.path("auto.anim");
-    let v = ok_json(&["encode", "synth:tumble", "-c", "auto", "--target", "max_error=0.05", "-o", &out, "--json"]);
+    let v =
+        ok_json(&["encode", "synth:tumble", "-c", "auto", "--target", "max_error=0.05", "-f", "-o", &out, "--json"]);
     assert!(f(&v["reached"]) <= 0.05);
     for o in v["other_codecs"].as_array().unwrap() {
         assert!(o["bytes"].as_u64() >= v["bytes"].as_u64(), "{o} is smaller than the chosen {v}");

@@ -266,7 +266,7 @@ fn malformed_streams_give_errors_not_panics() {
     assert!(Hosvd.new_decoder(&info, &[1, 2], &Limits::default()).is_err());
     let tiny = Limits { max_alloc_bytes: 64, ..Limits::default() };
     let mut small = Hosvd.new_decoder(&info, &12u32.to_le_bytes(), &tiny).unwrap();
-    assert!(matches!(small.decode_packet(&packet(block.payload)), Err(Error::LimitExceeded { .. })));
+    assert!(matches!(small.decode_packet(&packet(block.payload)), Err(Error::AllocLimit { .. })));
 }
 
 #[test]
