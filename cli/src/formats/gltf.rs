@@ -899,7 +899,8 @@ mod tests {
         let (b, doc) = morph_triangle("LINEAR", None);
         let mut d = doc.clone();
         d["buffers"][0].as_object_mut().unwrap().remove("uri");
-        let cases: Vec<(&str, Box<dyn Fn(&mut Value)>, &str)> = vec![
+        type Mutation = Box<dyn Fn(&mut Value)>;
+        let cases: Vec<(&str, Mutation, &str)> = vec![
             (
                 "position",
                 Box::new(|d| d["meshes"][0]["primitives"][0]["attributes"]["POSITION"] = json!(99999)),
