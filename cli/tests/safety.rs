@@ -332,3 +332,24 @@ fn no_failure_path_prints_panic_text() {
     }
     assert!(!Path::new(&out).exists());
 }
+
+/// hosvd on a 1-frame input (a single OBJ, a PC2 of one frame, a GLB without animation) used to
+/// exit 0 with KG above 60 %: now it is refused with what would work.
+#[test]
+fn hosvd_refuses_a_one_frame_animation_with_advice() {
+    let s = Scratch::new("hosvd-one-frame");
+    let anim = s.path("f.anim");
+    ok(&["encode", "synth:flag", "-c", "quant-delta", "-p", "bits=20", "-o", &anim]);
+    ok(&["decode", &anim, "-o", &s.path("seq/")]);
+    let one = s.0.join("seq").join("frame_0000.obj");
+    let out = s.path("h.anim");
+    fails(
+        &["encode", one.to_str().unwrap(), "-c", "hosvd", "-o", &out],
+        &["hosvd", "1 frame", "ss=0.9", "quant-delta"],
+    );
+    assert!(!Path::new(&out).exists());
+    // Every other codec codes it.
+    for codec in ["quant-delta", "pca-aoi", "sac", "stseg"] {
+        ok(&["encode", one.to_str().unwrap(), "-c", codec, "-f", "-o", &out]);
+    }
+}
