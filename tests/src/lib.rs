@@ -18,6 +18,7 @@ use codec_core::{
     Animation, AnimationCodec, CodecRegistry, Error, ErrorBound, Limits, Packet, ParamSet, ParamValue, Topology,
 };
 
+pub mod fuzz;
 pub mod suite;
 
 /// The registry under test (the one list in the `animcodec` crate).
