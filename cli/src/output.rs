@@ -93,6 +93,10 @@ impl OutputPolicy {
         if path.is_dir() {
             return Err(refused(path, "it is a directory".into()));
         }
+        if is_special(path) {
+            // A device or a pipe (`-o /dev/null`, `-o >(…)`): written in place, never replaced.
+            return Ok(());
+        }
         if !self.overwrite && std::fs::symlink_metadata(path).is_ok() {
             return Err(refused(path, "it already exists (use -f/--force to replace it)".into()));
         }
@@ -119,6 +123,12 @@ pub fn refused(path: &Path, why: String) -> Error {
         format!("refusing to write {}", path.display()),
         std::io::Error::new(std::io::ErrorKind::AlreadyExists, why),
     )
+}
+
+/// True when `path` exists and is neither a regular file nor a directory (a device such as
+/// `/dev/null`, a named pipe): such outputs are written in place, not through a temporary file.
+pub fn is_special(path: &Path) -> bool {
+    std::fs::metadata(path).is_ok_and(|m| !m.is_file() && !m.is_dir())
 }
 
 /// True when both paths name the same existing file (or directory).
@@ -176,6 +186,13 @@ impl PendingFile {
                 std::io::Error::new(std::io::ErrorKind::InvalidInput, "no file name"),
             )
         })?;
+        if is_special(target) {
+            let file = File::options()
+                .write(true)
+                .open(target)
+                .map_err(|e| Error::io(format!("cannot open {}", target.display()), e))?;
+            return Ok(Self { target: target.to_path_buf(), temp: PathBuf::new(), file: Some(BufWriter::new(file)) });
+        }
         let mut list = pending();
         let n = COUNTER.fetch_add(1, Ordering::Relaxed);
         let temp = dir.join(format!(".{file_name}.{}-{n}.tmp", std::process::id()));
@@ -206,6 +223,9 @@ impl PendingFile {
     fn finish_writing(&mut self) -> Result<()> {
         let Some(file) = self.file.take() else { return Ok(()) };
         let file = file.into_inner().map_err(|e| self.error(e.into_error()))?;
+        if self.temp.as_os_str().is_empty() {
+            return Ok(()); // a device or pipe written in place: nothing to sync or rename
+        }
         file.sync_all().map_err(|e| self.error(e))
     }
 }
@@ -220,7 +240,7 @@ pub fn commit_all(mut files: Vec<PendingFile>, stale: &[PathBuf]) -> Result<()> 
     for s in stale {
         std::fs::remove_file(s).map_err(|e| Error::io(format!("removing stale {}", s.display()), e))?;
     }
-    for f in &mut files {
+    for f in files.iter_mut().filter(|f| !f.temp.as_os_str().is_empty()) {
         std::fs::rename(&f.temp, &f.target).map_err(|e| Error::io(format!("writing {}", f.target.display()), e))?;
         list.retain(|p| p != &f.temp);
         f.temp = PathBuf::new();
@@ -302,6 +322,9 @@ mod tests {
         // The companion OBJ of a cache is an input as well.
         std::fs::write(dir.path("in.obj"), b"v 0 0 0\n").unwrap();
         assert!(force.check(&dir.path("in.obj")).is_err());
+        // Devices are written in place, without --force and without a temporary file.
+        keep.write(Path::new("/dev/null"), b"discarded").unwrap();
+        assert!(is_special(Path::new("/dev/null")) && !is_special(&input));
         // So is anything inside an input folder.
         let frames = OutputPolicy::new(true).with_input(&dir.0);
         assert!(frames.check(&dir.path("new.obj")).unwrap_err().to_string().contains("inside the input folder"));
