@@ -422,6 +422,19 @@ fn blend(mesh: &MorphMesh, weights: &[f32], out: &mut Vec<f32>) {
 /// arrays unchecked in places: a `POSITION` accessor index out of range panics there).
 fn parse_document(bytes: &[u8], file: &str) -> Result<(::gltf::Document, Option<Vec<u8>>)> {
     let (json, blob) = if bytes.starts_with(b"glTF") {
+        // The crate computes `length - 12` unchecked (an overflow panic, found by fuzzing).
+        let declared = bytes.get(8..12).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]));
+        match declared {
+            None => return Err(bad(file, "glb", "the 12-byte GLB header is truncated")),
+            Some(n) if n < 12 => {
+                return Err(bad(
+                    file,
+                    "glb",
+                    format!("the header declares a total length of {n} bytes, less than itself"),
+                ))
+            }
+            Some(_) => {}
+        }
         let glb = ::gltf::Glb::from_slice(bytes).map_err(|e| bad(file, "glb", e.to_string()))?;
         (glb.json.into_owned(), glb.bin.map(|b| b.into_owned()))
     } else {
@@ -930,6 +943,21 @@ mod tests {
                 assert!(!e.contains("reader failed"), "{what}: the gltf crate panicked: {e}");
             }
         }
+    }
+
+    /// Fuzzing finding (read_gltf): a GLB header declaring a total length below 12 bytes made
+    /// the `gltf` crate subtract with overflow.
+    #[test]
+    fn glb_lengths_below_the_header_are_errors() {
+        for n in [0u32, 11] {
+            let mut b = b"glTF\x02\0\0\0".to_vec();
+            b.extend_from_slice(&n.to_le_bytes());
+            b.extend_from_slice(b"JSON{}");
+            let e = parse_gltf(&b, None, "short.glb", 30.0).unwrap_err().to_string();
+            assert!(e.contains("short.glb") && e.contains("less than itself"), "{e}");
+        }
+        let e = parse_gltf(b"glTF\x02\0", None, "cut.glb", 30.0).unwrap_err().to_string();
+        assert!(e.contains("truncated"), "{e}");
     }
 
     #[test]
