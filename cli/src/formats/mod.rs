@@ -293,7 +293,7 @@ fn is_pattern(path: &Path) -> bool {
 /// Expands a file-name pattern (wildcards only in the last component: `*` any run, `?` one
 /// character), in natural order. No match is an error naming the pattern.
 fn expand_pattern(pattern: &Path) -> Result<Vec<PathBuf>> {
-    // Placeholders: `{}` is any frame number, each `#` one digit (a longer number may follow).
+    // Placeholders: `{}` is any frame number, each `#` one character (one digit of the number).
     let file_pattern =
         pattern.file_name().map(|f| f.to_string_lossy().replace("{}", "*").replace('#', "?")).unwrap_or_default();
     let dir = match pattern.parent() {
