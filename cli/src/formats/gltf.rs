@@ -541,6 +541,15 @@ fn check_indices(file: &str, root: &::gltf::json::Root) -> Result<()> {
             let at = || format!("animation {i} channel {c}");
             check(file, at, channel.sampler.value(), animation.samplers.len(), "sampler")?;
             check(file, at, channel.target.node.value(), nodes, "node")?;
+            // The crate's validation skips channels: an unknown `path` would panic in
+            // `Target::property` (found by fuzzing).
+            if !matches!(channel.target.path, ::gltf::json::validation::Checked::Valid(_)) {
+                return Err(bad(
+                    file,
+                    "gltf",
+                    format!("{}: the target path is not one of translation, rotation, scale, weights", at()),
+                ));
+            }
         }
         for (k, sampler) in animation.samplers.iter().enumerate() {
             let at = || format!("animation {i} sampler {k}");
@@ -933,6 +942,12 @@ mod tests {
             ("mesh", Box::new(|d| d["nodes"][0]["mesh"] = json!(3)), "mesh 3"),
             ("child", Box::new(|d| d["nodes"][0]["children"] = json!([0, 77])), "node 77"),
             ("scene", Box::new(|d| d["scene"] = json!(4)), "scene 4"),
+            // Fuzzing finding (read_gltf): an unknown channel path panicked in the gltf crate.
+            (
+                "path",
+                Box::new(|d| d["animations"][0]["channels"][0]["target"]["path"] = json!("weyghts")),
+                "target path",
+            ),
         ];
         for (what, mutate, expected) in cases {
             let mut bad = d.clone();
