@@ -449,14 +449,11 @@ pub fn monotone_report(points: &[Point]) -> Vec<Monotonicity> {
     out
 }
 
-/// Writes `text` to `path`, naming the file in the error.
+/// Writes `text` to `path` (replacing it) through a temporary file renamed into place when
+/// complete, naming the file in the error. Callers check first whether `path` may be replaced
+/// ([`OutputPolicy::check`](crate::output::OutputPolicy::check)).
 pub fn write_text(path: &Path, text: &str) -> HResult<()> {
-    write_bytes(path, text.as_bytes())
-}
-
-/// Writes `bytes` to `path`, naming the file in the error.
-pub fn write_bytes(path: &Path, bytes: &[u8]) -> HResult<()> {
-    std::fs::write(path, bytes).map_err(|e| codec_core::Error::io(format!("writing {}", path.display()), e).into())
+    Ok(crate::output::OutputPolicy::new(true).write(path, text.as_bytes())?)
 }
 
 /// Writes the sweep as JSON: `{input, vertices, frames, eval_options, rows: [point_json…],

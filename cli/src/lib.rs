@@ -3,6 +3,7 @@
 
 pub mod formats;
 pub mod harness;
+pub mod output;
 pub mod viewer;
 
 use codec_core::{quant_delta::QuantDelta, CodecRegistry};

@@ -51,7 +51,8 @@ enum Command {
     Encode(EncodeArgs),
     /// Decode an `.anim` container and write the animation to a file.
     Decode(DecodeArgs),
-    /// Show the header and packets of an `.anim` container, and its bits per vertex per frame.
+    /// Show the header and packets of an `.anim` container and its bits per vertex per frame,
+    /// after verifying every checksum (header, index, each packet).
     Info(InfoArgs),
     /// Write a built-in synthetic animation to a file.
     Synth(SynthArgs),
@@ -112,6 +113,10 @@ pub struct ExportArgs {
     /// Print JSON: {output, layout, targets, bytes, bpvf, kg, sted, metrics, …}.
     #[arg(long)]
     pub json: bool,
+    /// Replace existing output files (without it, an existing output is an error). An output
+    /// that is also an input is refused even with it.
+    #[arg(short, long)]
+    pub force: bool,
 }
 
 /// Arguments of `animcodec view`.
@@ -151,6 +156,10 @@ pub struct ViewArgs {
     /// STED options (header values and `--heat sted`).
     #[command(flatten)]
     pub sted: StedArgs,
+    /// Replace existing output files (without it, an existing output is an error). An output
+    /// that is also an input is refused even with it.
+    #[arg(short, long)]
+    pub force: bool,
 }
 
 /// Arguments of `animcodec inspect`.
@@ -181,6 +190,11 @@ pub struct InspectArgs {
     /// label k, so they are the same in every run.
     #[arg(long, value_name = "F.ply|F.obj")]
     pub mesh: Option<PathBuf>,
+
+    /// Replace existing output files (without it, an existing output is an error). An output
+    /// that is also an input is refused even with it.
+    #[arg(short, long)]
+    pub force: bool,
 
     /// Frame shown by `--mesh` (0-based).
     #[arg(long, value_name = "N", default_value_t = 0)]
@@ -217,9 +231,15 @@ pub struct EncodeArgs {
     #[arg(short = 'p', long = "param", value_name = "KEY=VALUE")]
     pub params: Vec<String>,
 
-    /// Output `.anim` file (replaced if it exists; removed again if encoding fails).
+    /// Output `.anim` file, written under a temporary name and renamed into place when
+    /// complete (an interrupted or failed encode leaves no file and changes nothing).
     #[arg(short, long, value_name = "OUT")]
     pub output: PathBuf,
+
+    /// Replace existing output files (without it, an existing output is an error). An output
+    /// that is also an input is refused even with it.
+    #[arg(short, long)]
+    pub force: bool,
 
     /// OBJ file giving the triangles of a .pc2/.mdd cache (default: the OBJ beside it with the
     /// same stem).
@@ -385,6 +405,11 @@ pub struct SweepArgs {
     #[arg(long, value_name = "F.svg")]
     pub plot: Option<PathBuf>,
 
+    /// Replace existing output files (without it, an existing output is an error). An output
+    /// that is also an input is refused even with it.
+    #[arg(short, long)]
+    pub force: bool,
+
     /// OBJ file giving the triangles of a .pc2/.mdd input.
     #[arg(long, value_name = "OBJ")]
     pub topology: Option<PathBuf>,
@@ -412,10 +437,22 @@ pub struct DecodeArgs {
     #[arg(value_name = "IN.anim")]
     pub input: PathBuf,
 
-    /// Output animation: .pc2, .mdd, or an OBJ sequence (a path ending in .obj containing `{}`
-    /// or `#` for the frame number, or a directory).
+    /// Output animation: .pc2, .mdd, or an OBJ sequence: a directory (`DIR/frame_0000.obj`, …),
+    /// a path ending in .obj with `{}` (frame number, 4+ digits) or `###` (frame number padded
+    /// to the run) in the file name, or a plain `NAME.obj` (`NAME_0000.obj`, …). Other frame
+    /// files of the same sequence already there are an error without --force, removed with it.
     #[arg(short, long, value_name = "OUT")]
     pub output: PathBuf,
+
+    /// Replace existing output files (without it, an existing output is an error). An output
+    /// that is also an input is refused even with it.
+    #[arg(short, long)]
+    pub force: bool,
+
+    /// With a .pc2/.mdd output: also write `STEM.obj` beside it (frame 0 and the triangles), so
+    /// the cache can be read back without --topology.
+    #[arg(long)]
+    pub topology_obj: bool,
 
     /// Print JSON: {codec, frames, vertices, triangles, decode_seconds, …}.
     #[arg(long)]
@@ -472,9 +509,15 @@ pub struct SynthArgs {
     #[arg(long, value_enum, default_value_t = SizeArg::Small)]
     pub size: SizeArg,
 
-    /// Output file: .pc2, .mdd, or an OBJ sequence.
+    /// Output file: .pc2 or .mdd (with `STEM.obj` beside it holding the triangles), or an OBJ
+    /// sequence (as for `decode -o`).
     #[arg(short, long, value_name = "OUT")]
     pub output: PathBuf,
+
+    /// Replace existing output files (without it, an existing output is an error). An output
+    /// that is also an input is refused even with it.
+    #[arg(short, long)]
+    pub force: bool,
 }
 
 /// Arguments of `animcodec demo`.
@@ -498,6 +541,7 @@ pub struct DemoArgs {
 }
 
 fn main() -> ExitCode {
+    animcodec::output::install_signal_cleanup();
     let cli = Cli::parse();
     match run(cli) {
         Ok(()) => ExitCode::SUCCESS,

@@ -164,7 +164,7 @@ fn synth_encode_info_decode_round_trip_through_pc2() {
     assert_eq!(i["bytes"], e["bytes"]);
     assert_eq!(i["frames"], e["frames"]);
     let dst = s.path("decoded.pc2");
-    let d = ok_json(&["decode", &anim, "-o", &dst, "--json"]);
+    let d = ok_json(&["decode", &anim, "-o", &dst, "--topology-obj", "--json"]);
     assert_eq!(d["frames"], e["frames"]);
 
     let opts = animcodec::formats::ReadOptions::default();

@@ -86,13 +86,13 @@ fn encode_eval_reports_the_metrics_of_the_written_stream() {
         assert_eq!(f(&v["metrics"][key]), f(&e[key]), "{key}");
     }
     assert_eq!(f(&v["metrics"]["hausdorff"]), f(&e["hausdorff"]));
-    let text = ok(&["encode", &pc2, "-c", "quant-delta", "-p", "bits=7", "-o", &anim, "--eval"]);
+    let text = ok(&["encode", &pc2, "-c", "quant-delta", "-p", "bits=7", "-o", &anim, "-f", "--eval"]);
     assert!(text.contains("KG") && text.contains("STED"), "{text}");
     // Without --eval nothing is measured.
-    let v = ok_json(&["encode", &pc2, "-c", "quant-delta", "-o", &anim, "--json"]);
+    let v = ok_json(&["encode", &pc2, "-c", "quant-delta", "-o", &anim, "-f", "--json"]);
     assert!(v.get("kg").is_none() && v.get("metrics").is_none(), "{v}");
     // A streamed synthetic flag is never held in memory: --eval says why it cannot measure it.
-    fails(&["encode", "synth:flag:8x8x10", "-c", "quant-delta", "-o", &anim, "--eval"], &["--eval", "in memory"]);
+    fails(&["encode", "synth:flag:8x8x10", "-c", "quant-delta", "-o", &anim, "-f", "--eval"], &["--eval", "in memory"]);
 }
 
 /// `animcodec eval` prints the STED of the metric author's tool within 1% on every pair of
@@ -287,7 +287,7 @@ fn encode_target_through_the_binary() {
             assert!(f(&t["value"]) > 0.5, "{t}");
         }
     }
-    let text = ok(&["encode", "synth:flag", "-c", "quant-delta", "--target", "max_error=0.01", "-o", &out]);
+    let text = ok(&["encode", "synth:flag", "-c", "quant-delta", "--target", "max_error=0.01", "-f", "-o", &out]);
     assert!(text.contains("reaches max_error="), "{text}");
 
     // Unreachable targets say what was reached; the ladder knob cannot be fixed; -p with auto.
@@ -304,7 +304,8 @@ fn encode_target_through_the_binary() {
 fn encode_target_auto_keeps_the_smallest_stream() {
     let s = Scratch::new("auto");
     let out = s.path("auto.anim");
-    let v = ok_json(&["encode", "synth:tumble", "-c", "auto", "--target", "max_error=0.05", "-o", &out, "--json"]);
+    let v =
+        ok_json(&["encode", "synth:tumble", "-c", "auto", "--target", "max_error=0.05", "-f", "-o", &out, "--json"]);
     assert!(f(&v["reached"]) <= 0.05);
     for o in v["other_codecs"].as_array().unwrap() {
         assert!(o["bytes"].as_u64() >= v["bytes"].as_u64(), "{o} is smaller than the chosen {v}");
@@ -585,7 +586,7 @@ fn export_writes_gltf_that_plays_back_at_the_reported_error() {
     // `eval` reads the GLB with the same reader and gets the same KG.
     let e = ok_json(&["eval", &pc2, &glb, "--json", "--no-hausdorff"]);
     assert_eq!(f(&e["kg"]), f(&v["kg"]));
-    let loose = ok_json(&["export", &pc2, "-o", &glb, "--json", "--target-kg", "1"]);
+    let loose = ok_json(&["export", &pc2, "-o", &glb, "-f", "--json", "--target-kg", "1"]);
     assert!(loose["targets"].as_u64().unwrap() < k && f(&loose["kg"]) <= 1.05, "{loose}");
     let gltf = s.path("flag.gltf");
     let exact = ok_json(&["export", &pc2, "-o", &gltf, "--json", "--layout", "frames"]);
@@ -600,7 +601,9 @@ fn export_writes_gltf_that_plays_back_at_the_reported_error() {
     ok(&["decode", &anim, "-o", &out]);
     let e = ok_json(&["eval", &anim, &out, "--json", "--no-hausdorff"]);
     assert!(f(&e["kg"]) <= 0.05 * 1.05, "{e}");
-    fails(&["export", &pc2, "-o", &glb, "--layout", "rows"], &["rows", "basis or frames"]);
+    fails(&["export", &pc2, "-o", &glb, "-f", "--layout", "rows"], &["rows", "basis or frames"]);
+    fails(&["export", &pc2, "-o", &glb], &["already exists", "--force"]);
+    fails(&["export", &glb, "-o", &glb, "-f"], &["also an input"]);
     fails(&["export", &pc2, "-o", &s.path("flag.fbx")], &[".glb or .gltf"]);
-    fails(&["export", &pc2, "-o", &glb, "--target-kg", "0"], &["target_kg"]);
+    fails(&["export", &pc2, "-o", &glb, "-f", "--target-kg", "0"], &["target_kg"]);
 }

@@ -72,7 +72,7 @@ fn view_writes_a_self_contained_page_with_headers_and_heat_maps() {
 
     // The colour bar's top: the 99.5th percentile by default, or as given.
     assert_eq!(data["heat_max_rule"], "99.5th percentile");
-    ok(&["view", &reference, &half, "-o", &page, "--heat-max", "0.125"]);
+    ok(&["view", &reference, &half, "-o", &page, "-f", "--heat-max", "0.125"]);
     let data = page_data(&std::fs::read_to_string(&page).unwrap());
     assert_eq!((data["heat_max"].as_f64(), data["heat_max_rule"].as_str()), (Some(0.125), Some("given")));
 
@@ -87,8 +87,10 @@ fn view_writes_a_self_contained_page_with_headers_and_heat_maps() {
     assert!(stderr(&o).contains("'loud' is not a heat metric; valid: euclidean, sted"), "{}", stderr(&o));
     let other = s.path("tumble.pc2");
     ok(&["synth", "tumble", "-o", &other]);
-    fails(&["view", &reference, &other, "-o", &page], &["tumble.pc2"]);
-    fails(&["view", &reference, "hosvd:ss=7", "-o", &page], &["ss"]);
+    fails(&["view", &reference, &other, "-o", &page, "-f"], &["tumble.pc2"]);
+    fails(&["view", &reference, "hosvd:ss=7", "-o", &page, "-f"], &["ss"]);
+    fails(&["view", &reference, &half, "-o", &page], &["already exists", "--force"]);
+    fails(&["view", &reference, &half, "-o", &half, "-f"], &["also an input"]);
 }
 
 /// `sweep --html` of quant-delta and hosvd on the flag, 3 ladder points each, with a player of
@@ -122,11 +124,11 @@ fn sweep_html_report_holds_every_row_and_the_chosen_viewers() {
     assert_eq!(viewers.len(), 1);
     assert_eq!(viewers[0]["animations"][1]["info"]["codec"], "hosvd");
     fails(
-        &["sweep", "synth:flag", "-c", "hosvd", "--points", "2", "--html", &report, "--view-points", "sac:0"],
+        &["sweep", "synth:flag", "-c", "hosvd", "--points", "2", "--html", &report, "-f", "--view-points", "sac:0"],
         &["sac:0"],
     );
     fails(
-        &["sweep", "synth:flag", "-c", "hosvd", "--points", "2", "--html", &report, "--view-points", "hosvd:9"],
+        &["sweep", "synth:flag", "-c", "hosvd", "--points", "2", "--html", &report, "-f", "--view-points", "hosvd:9"],
         &["hosvd:9"],
     );
 }

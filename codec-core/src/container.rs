@@ -61,13 +61,14 @@ impl Default for Limits {
 }
 
 impl Limits {
-    /// Fails with [`Error::LimitExceeded`] if `bytes` exceeds `max_alloc_bytes`.
+    /// Fails with [`Error::AllocLimit`] if `bytes` exceeds `max_alloc_bytes`; `field` says in
+    /// words what would be allocated.
     pub fn check_alloc(&self, context: &'static str, field: &'static str, bytes: u64) -> Result<()> {
         if bytes > self.max_alloc_bytes as u64 {
-            return Err(Error::LimitExceeded {
+            return Err(Error::AllocLimit {
                 context: context.into(),
-                field: field.into(),
-                value: bytes,
+                what: field.into(),
+                bytes,
                 limit: self.max_alloc_bytes as u64,
             });
         }
@@ -285,7 +286,7 @@ fn read_exact_or_truncated<R: Read>(src: &mut R, buf: &mut [u8], field: &'static
 /// lying length on a short stream never allocates more than the stream holds (plus one chunk).
 fn read_vec<R: Read>(src: &mut R, len: u64, max: u64, field: &'static str) -> Result<Vec<u8>> {
     if len > max {
-        return Err(Error::LimitExceeded { context: CTX.into(), field: field.into(), value: len, limit: max });
+        return Err(Error::AllocLimit { context: CTX.into(), what: field.into(), bytes: len, limit: max });
     }
     let mut out = Vec::new();
     let mut left = len as usize;
@@ -739,6 +740,8 @@ mod tests {
         let bytes = write(&topo, &packets);
         let tight = Limits { max_vertices: 3, ..Limits::default() };
         assert!(matches!(ContainerReader::new(&bytes[..], tight), Err(Error::LimitExceeded { .. })));
+        let e = ContainerReader::new(&bytes[..], Limits { max_alloc_bytes: 4, ..Limits::default() }).unwrap_err();
+        assert!(matches!(e, Error::AllocLimit { .. }) && e.to_string().contains("bytes"), "{e}");
         // A header claiming 4 G frames and a huge config on a short stream.
         let mut b = bytes.clone();
         b[20..24].copy_from_slice(&u32::MAX.to_le_bytes());

@@ -33,7 +33,7 @@ pub fn decompress(
     let mut r = ByteReader::new(block, context.clone());
     let raw_len = r.varint(field)?;
     if raw_len > max_len as u64 {
-        return Err(Error::LimitExceeded { context, field: field.into(), value: raw_len, limit: max_len as u64 });
+        return Err(Error::AllocLimit { context, what: field.into(), bytes: raw_len, limit: max_len as u64 });
     }
     let frame = r.take(r.remaining(), field)?;
     // A zstd block decodes to at most 128 KiB and takes at least 4 bytes (an RLE block), so
@@ -69,7 +69,7 @@ mod tests {
         let block = compress(&raw, 5);
         assert!(block.len() < raw.len() / 10);
         assert_eq!(decompress(&block, "t", "b", raw.len()).unwrap(), raw);
-        assert!(matches!(decompress(&block, "t", "b", 100), Err(Error::LimitExceeded { .. })));
+        assert!(matches!(decompress(&block, "t", "b", 100), Err(Error::AllocLimit { .. })));
         for cut in 0..block.len() {
             assert!(decompress(&block[..cut], "t", "b", raw.len()).is_err(), "cut {cut} of {}", block.len());
         }

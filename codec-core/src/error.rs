@@ -62,6 +62,23 @@ pub enum Error {
         limit: u64,
     },
 
+    /// An allocation a size read from the stream asks for exceeds
+    /// [`Limits::max_alloc_bytes`](crate::Limits::max_alloc_bytes).
+    #[error(
+        "{context}: {what} would need {bytes} bytes, more than the limit of {limit} bytes per allocation \
+         (Limits::max_alloc_bytes; --max-memory on the command line)"
+    )]
+    AllocLimit {
+        /// Codec name or `container`.
+        context: Cow<'static, str>,
+        /// What would be allocated (a field or a decoded block), in words.
+        what: Cow<'static, str>,
+        /// Bytes needed.
+        bytes: u64,
+        /// Limit in force.
+        limit: u64,
+    },
+
     /// A checksum does not match: the stream is corrupt.
     #[error("{context}: checksum mismatch in {field} (stored {stored:#010x}, computed {computed:#010x})")]
     Checksum {
@@ -105,7 +122,7 @@ pub enum Error {
     },
 
     /// An I/O error, with the path or stream concerned.
-    #[error("{context}: {source}")]
+    #[error("{context}: {}", io_reason(source))]
     Io {
         /// Path or description of the stream.
         context: String,
@@ -113,6 +130,65 @@ pub enum Error {
         #[source]
         source: std::io::Error,
     },
+}
+
+/// The reason of an I/O error in plain words: "no such file or directory", "permission denied",
+/// or the error's own text without the OS error number.
+pub fn io_reason(e: &std::io::Error) -> String {
+    if e.get_ref().is_some() {
+        return e.to_string();
+    }
+    match e.kind() {
+        std::io::ErrorKind::NotFound => "no such file or directory".into(),
+        std::io::ErrorKind::PermissionDenied => "permission denied".into(),
+        _ => {
+            let text = e.to_string();
+            match text.find(" (os error") {
+                Some(at) => text[..at].to_owned(),
+                None => text,
+            }
+        }
+    }
+}
+
+/// A `Debug` rendering of a third-party error (a linear-algebra solver's enum, say) turned into
+/// words for a message: `NonPositivePivot { index: 42 }` → `non positive pivot (index 42)`,
+/// `NoConvergence` → `no convergence`. Messages never show raw `Debug` values.
+pub fn debug_in_words(value: &dyn std::fmt::Debug) -> String {
+    let debug = format!("{value:?}");
+    let mut out = String::with_capacity(debug.len() + 8);
+    let mut prev_lower = false;
+    for c in debug.chars() {
+        match c {
+            '{' | '(' => {
+                let trimmed = out.trim_end().len();
+                out.truncate(trimmed);
+                out.push_str(" (");
+                prev_lower = false;
+            }
+            '}' | ')' => {
+                let trimmed = out.trim_end().len();
+                out.truncate(trimmed);
+                out.push(')');
+                prev_lower = false;
+            }
+            ':' => prev_lower = false,
+            c if c.is_ascii_uppercase() => {
+                if prev_lower {
+                    out.push(' ');
+                }
+                out.push(c.to_ascii_lowercase());
+                prev_lower = false;
+            }
+            c => {
+                if !(c == ' ' && out.ends_with(['(', ' '])) {
+                    out.push(c);
+                }
+                prev_lower = c.is_ascii_lowercase() || c.is_ascii_digit();
+            }
+        }
+    }
+    out.replace("( ", "(")
 }
 
 impl Error {
@@ -137,5 +213,40 @@ impl Error {
     /// Shorthand for [`Error::Io`].
     pub fn io(context: impl Into<String>, source: std::io::Error) -> Self {
         Error::Io { context: context.into(), source }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[derive(Debug)]
+    #[allow(dead_code)]
+    enum Solver {
+        NoConvergence,
+        NonPositivePivot { index: usize },
+        Frontend(Inner),
+    }
+
+    #[derive(Debug)]
+    enum Inner {
+        InvalidData,
+    }
+
+    #[test]
+    fn debug_values_become_words() {
+        assert_eq!(debug_in_words(&Solver::NoConvergence), "no convergence");
+        assert_eq!(debug_in_words(&Solver::NonPositivePivot { index: 42 }), "non positive pivot (index 42)");
+        assert_eq!(debug_in_words(&Solver::Frontend(Inner::InvalidData)), "frontend (invalid data)");
+    }
+
+    #[test]
+    fn io_errors_read_as_words() {
+        let e = Error::io("x.pc2", std::io::Error::from(std::io::ErrorKind::PermissionDenied));
+        assert_eq!(e.to_string(), "x.pc2: permission denied");
+        let e = Error::io("x.pc2", std::io::Error::from(std::io::ErrorKind::NotFound));
+        assert_eq!(e.to_string(), "x.pc2: no such file or directory");
+        let e = Error::io("x", std::io::Error::other("disk on fire"));
+        assert_eq!(e.to_string(), "x: disk on fire");
     }
 }

@@ -261,7 +261,7 @@ impl<R: Read> StreamDecoder<R> {
     fn decode(&mut self, packet: &Packet) -> Result<DecodedPacket> {
         let header = self.reader.header();
         let limits = *self.reader.limits();
-        limits.check_alloc(self.codec, "packet_frame_count", packet_alloc(header, packet.frame_count as u64))?;
+        limits.check_alloc(self.codec, "the decoded packet", packet_alloc(header, packet.frame_count as u64))?;
         let positions = self.decoder.decode_packet(packet)?;
         check_decoded(self.codec, self.reader.header(), packet, &positions)?;
         Ok(DecodedPacket {
@@ -276,7 +276,7 @@ impl<R: Read> StreamDecoder<R> {
         let header = self.reader.header();
         self.reader.limits().check_alloc(
             self.codec,
-            "frame_count",
+            "the decoded animation",
             packet_alloc(header, header.info.frame_count as u64),
         )?;
         let mut positions = Vec::new();
@@ -311,7 +311,7 @@ pub fn decode_frame<R: Read + Seek>(
     let v3 = header.info.vertex_count() * 3;
     for entry in &index[start..=target] {
         let packet = container::read_packet_at(src, entry, &header, limits)?;
-        limits.check_alloc(codec.name(), "packet_frame_count", packet_alloc(&header, packet.frame_count as u64))?;
+        limits.check_alloc(codec.name(), "the decoded packet", packet_alloc(&header, packet.frame_count as u64))?;
         let positions = decoder.decode_packet(&packet)?;
         check_decoded(codec.name(), &header, &packet, &positions)?;
         if entry.first_frame as usize + entry.frame_count as usize > t {

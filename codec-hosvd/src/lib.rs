@@ -260,8 +260,10 @@ impl AnimationCodec for Hosvd {
         let k = animation.vertex_count();
         let per_block = if p.block == 0 { animation.frame_count() } else { p.block as usize };
         let mut total2 = 0.0;
+        let whole = per_block >= animation.frame_count();
         for chunk in animation.positions().chunks(per_block * k * 3) {
-            let b = encode_block(chunk, k, &p, false)?;
+            let bp = block_params(&p, k, chunk.len() / (3 * k).max(1), whole)?;
+            let b = encode_block(chunk, k, &bp, false)?;
             total2 += b.stats.error_bound.powi(2);
         }
         let frob = total2.sqrt();
@@ -673,13 +675,57 @@ pub struct HosvdEncoder {
     pending: Vec<f32>,
     next_frame: u32,
     stats: Vec<BlockStats>,
+    /// Frames in the whole animation.
+    frame_count: usize,
+}
+
+/// The parameters for one block of `frames` frames (`whole`: the block is the whole
+/// animation). A block of 1 or 2 frames has no frame mode to reduce: when `ss` cannot be met
+/// there (the size model's smallest core, `(1, 1)`, is over budget), the `(1, 1)` fallback
+/// would keep almost nothing of the motion (KG above 60 % on a 1-frame mesh). Such a block is
+/// coded at full rank instead when it ends a longer animation (it is small next to the rest),
+/// and an animation that short is refused with the `ss` it would need.
+fn block_params(p: &HosvdParams, k: usize, frames: usize, whole: bool) -> Result<HosvdParams> {
+    let dims = Dims { k, f: frames, rigid: p.rigid };
+    if frames >= 3 || p.v != 0 || !strategy::diagonal(dims, p.ss).over_budget {
+        return Ok(*p);
+    }
+    if whole {
+        let reachable = 1.0 - dims.cr(1, 1);
+        let advice = if reachable > 0.01 {
+            format!("use -p ss={:.2} or lower, explicit ranks (-p v=N -p f=N)", reachable - 0.005)
+        } else {
+            "no ss can be met: use explicit ranks (-p v=N -p f=N)".to_owned()
+        };
+        return Err(Error::Unsupported {
+            context: NAME.into(),
+            detail: format!(
+                "an animation of {frames} frame{} cannot be coded at ss={}: with so few frames the frame mode \
+                 cannot be reduced, and even the smallest Tucker core keeps {:.0}% of the raw size (the paper's \
+                 size model); {advice}, or a codec that does not rely on many frames (quant-delta)",
+                if frames == 1 { "" } else { "s" },
+                p.ss,
+                (1.0 - reachable) * 100.0,
+            ),
+        });
+    }
+    Ok(HosvdParams { v: dims.max_v() as u32, f: dims.max_f() as u32, ..*p })
 }
 
 impl HosvdEncoder {
     /// An encoder for `frame_count` frames of `k` vertices.
     pub fn new(params: HosvdParams, k: usize, frame_count: usize, want_reconstruction: bool) -> Self {
         let block = if params.block == 0 { frame_count.max(1) } else { params.block as usize };
-        Self { params, k, block, want_reconstruction, pending: Vec::new(), next_frame: 0, stats: Vec::new() }
+        Self {
+            params,
+            k,
+            block,
+            want_reconstruction,
+            pending: Vec::new(),
+            next_frame: 0,
+            stats: Vec::new(),
+            frame_count,
+        }
     }
 
     /// Statistics of every packet coded so far.
@@ -689,8 +735,10 @@ impl HosvdEncoder {
 
     fn code(&mut self, frames: usize) -> Result<EncodedPacket> {
         let n = frames * self.k * 3;
+        let whole = self.next_frame == 0 && frames >= self.frame_count;
+        let params = block_params(&self.params, self.k, frames, whole)?;
         let block: Vec<f32> = self.pending.drain(..n).collect();
-        let b = encode_block(&block, self.k, &self.params, self.want_reconstruction)?;
+        let b = encode_block(&block, self.k, &params, self.want_reconstruction)?;
         self.stats.push(b.stats);
         let packet =
             Packet { first_frame: self.next_frame, frame_count: frames as u32, keyframe: true, data: b.payload };

@@ -201,7 +201,11 @@ fn gram_evd(g: MatRef<'_, f64>) -> Result<(Vec<f64>, Mat<f64>)> {
     let mut mem =
         MemBuffer::new(evd::self_adjoint_evd_scratch::<f64>(n, ComputeEigenvectors::Yes, par, Default::default()));
     evd::self_adjoint_evd(g, s.as_mut(), Some(u.as_mut()), par, MemStack::new(&mut mem), Default::default()).map_err(
-        |e| Error::Numerical { context: CTX.into(), step: "Gram eigensolver".into(), detail: format!("{e:?}") },
+        |e| Error::Numerical {
+            context: CTX.into(),
+            step: "Gram eigensolver".into(),
+            detail: codec_core::error::debug_in_words(&e),
+        },
     )?;
     // faer sorts ascending; the HO-SVD wants leading (largest) first.
     let vals: Vec<f64> = (0..n).rev().map(|i| s.column_vector()[i].max(0.0)).collect();
@@ -223,8 +227,9 @@ fn thin_left(b: MatRef<'_, f64>) -> Result<Mat<f64>> {
         par,
         Default::default(),
     ));
-    svd::svd(b, s.as_mut(), Some(u.as_mut()), None, par, MemStack::new(&mut mem), Default::default())
-        .map_err(|e| Error::Numerical { context: CTX.into(), step: "thin SVD".into(), detail: format!("{e:?}") })?;
+    svd::svd(b, s.as_mut(), Some(u.as_mut()), None, par, MemStack::new(&mut mem), Default::default()).map_err(|e| {
+        Error::Numerical { context: CTX.into(), step: "thin SVD".into(), detail: codec_core::error::debug_in_words(&e) }
+    })?;
     Ok(u)
 }
 

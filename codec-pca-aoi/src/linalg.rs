@@ -86,8 +86,9 @@ pub(crate) fn svd_symmetric(a: MatRef<'_, f64>) -> Result<(Mat<f64>, Vec<f64>)> 
         Par::Seq,
         Default::default(),
     ));
-    svd(a, s.as_mut(), Some(u.as_mut()), None, Par::Seq, MemStack::new(&mut buf), Default::default())
-        .map_err(|e| Error::Numerical { context: NAME.into(), step: "svd".into(), detail: format!("{e:?}") })?;
+    svd(a, s.as_mut(), Some(u.as_mut()), None, Par::Seq, MemStack::new(&mut buf), Default::default()).map_err(|e| {
+        Error::Numerical { context: NAME.into(), step: "svd".into(), detail: codec_core::error::debug_in_words(&e) }
+    })?;
     let values = (0..n).map(|i| s.column_vector()[i]).collect();
     Ok((u, values))
 }

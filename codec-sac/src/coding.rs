@@ -144,6 +144,10 @@ fn encode_bits(enc: &mut DefaultRangeEncoder, mut value: u64, mut n: usize) {
     }
 }
 
+/// What a range-decoding failure means (the coder's own error is an internal enum).
+const RANGE_CODE_INVALID: &str =
+    "the range-coded data is corrupt (the decoder ran out of data or hit an impossible code)";
+
 fn malformed(detail: impl Into<String>) -> Error {
     Error::malformed(NAME, "descriptors", detail)
 }
@@ -160,7 +164,8 @@ pub fn decode(bytes: &[u8], sizes: &[usize], bases: usize, ctx: &mut Contexts) -
         let models: Vec<_> = (0..BANDS).map(|b| ctx.model(g * BANDS + b)).collect();
         let mut group = Vec::with_capacity(size);
         for i in 0..size {
-            let class: usize = dec.decode_symbol(&models[band(i % bases)]).map_err(|e| malformed(format!("{e:?}")))?;
+            let class: usize =
+                dec.decode_symbol(&models[band(i % bases)]).map_err(|_| malformed(RANGE_CODE_INVALID))?;
             if class >= ctx.classes {
                 return Err(malformed(format!("class {class} exceeds {}", ctx.classes - 1)));
             }
@@ -168,7 +173,7 @@ pub fn decode(bytes: &[u8], sizes: &[usize], bases: usize, ctx: &mut Contexts) -
                 0
             } else {
                 let sign: usize =
-                    dec.decode_symbol(DefaultUniformModel::new(2)).map_err(|e| malformed(format!("{e:?}")))?;
+                    dec.decode_symbol(DefaultUniformModel::new(2)).map_err(|_| malformed(RANGE_CODE_INVALID))?;
                 let mut rest = 0u64;
                 let mut n = class - 1;
                 let mut shift = 0;
@@ -176,7 +181,7 @@ pub fn decode(bytes: &[u8], sizes: &[usize], bases: usize, ctx: &mut Contexts) -
                     let chunk = n.min(16);
                     let bits: usize = dec
                         .decode_symbol(DefaultUniformModel::new(1 << chunk))
-                        .map_err(|e| malformed(format!("{e:?}")))?;
+                        .map_err(|_| malformed(RANGE_CODE_INVALID))?;
                     rest |= (bits as u64) << shift;
                     shift += chunk;
                     n -= chunk;

@@ -375,14 +375,14 @@ impl PoissonSystem {
             SymbolicSparseColMat::try_new_from_indices(unknowns, unknowns, &pairs).map_err(|e| Error::Numerical {
                 context: NAME.into(),
                 step: "poisson pattern".into(),
-                detail: format!("{e:?}"),
+                detail: codec_core::error::debug_in_words(&e),
             })?;
         let cholesky =
             factorize_symbolic_cholesky(symbolic.as_ref(), Side::Upper, SymmetricOrdering::Amd, Default::default())
                 .map_err(|e| Error::Numerical {
                     context: NAME.into(),
                     step: "poisson symbolic factorization".into(),
-                    detail: format!("{e:?}"),
+                    detail: codec_core::error::debug_in_words(&e),
                 })?;
         Ok(Self { tris: tris.to_vec(), pins: pins.to_vec(), unknown, unknowns, symbolic, argsort, cholesky })
     }
@@ -459,7 +459,11 @@ impl PoissonSystem {
             });
         }
         let a = SparseColMat::new_from_argsort(self.symbolic.clone(), &self.argsort, &values).map_err(|e| {
-            Error::Numerical { context: NAME.into(), step: "poisson assembly".into(), detail: format!("{e:?}") }
+            Error::Numerical {
+                context: NAME.into(),
+                step: "poisson assembly".into(),
+                detail: codec_core::error::debug_in_words(&e),
+            }
         })?;
         let mut l_values = vec![0.0f64; self.cholesky.len_val()];
         let req = self
@@ -480,7 +484,10 @@ impl PoissonSystem {
             .map_err(|e| Error::Numerical {
                 context: NAME.into(),
                 step: "poisson numeric factorization".into(),
-                detail: format!("{e:?} (a vertex is only in degenerate triangles?)"),
+                detail: format!(
+                    "{} (a vertex is only in degenerate triangles?)",
+                    codec_core::error::debug_in_words(&e)
+                ),
             })?;
         let llt = LltRef::new(&self.cholesky, &l_values);
         llt.solve_in_place_with_conj(Conj::No, rhs.as_mut(), Par::Seq, MemStack::new(&mut buf));

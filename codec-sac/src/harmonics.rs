@@ -131,7 +131,7 @@ fn dense_eigen(
         MemStack::new(&mut buf),
         Default::default(),
     )
-    .map_err(|e| numerical("manifold harmonics (dense)", format!("{e:?}")))?;
+    .map_err(|e| numerical("manifold harmonics (dense)", codec_core::error::debug_in_words(&e)))?;
     let mut order: Vec<usize> = (0..n).collect();
     order.sort_by(|&i, &j| s[i].total_cmp(&s[j]));
     let vecs = Mat::<f64>::from_fn(n, count, |i, k| u[(i, order[k])]);
@@ -149,7 +149,7 @@ fn krylov_eigen(
 ) -> Result<(Mat<f64>, Vec<f64>)> {
     let n = sqrt_mass.len();
     let cholesky = factorize_symbolic_cholesky(a.symbolic(), Side::Upper, SymmetricOrdering::Amd, Default::default())
-        .map_err(|e| numerical("laplacian symbolic factorization", format!("{e:?}")))?;
+        .map_err(|e| numerical("laplacian symbolic factorization", codec_core::error::debug_in_words(&e)))?;
     let mut values = vec![0.0; cholesky.len_val()];
     {
         let mut buf = MemBuffer::new(cholesky.factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default()));
@@ -163,7 +163,7 @@ fn krylov_eigen(
                 MemStack::new(&mut buf),
                 Default::default(),
             )
-            .map_err(|e| numerical("laplacian factorization", format!("{e:?}")))?;
+            .map_err(|e| numerical("laplacian factorization", codec_core::error::debug_in_words(&e)))?;
     }
     let op = ShiftInvert { cholesky, values, sqrt_mass: sqrt_mass.to_vec() };
     // A few more pairs than needed: Krylov–Schur can return a "ghost" copy of a converged
@@ -215,7 +215,7 @@ fn rayleigh_ritz(op: &ShiftInvert, y: MatRef<'_, f64>, count: usize, sigma: f64)
         Default::default(),
     ));
     svd(y, s.as_mut().as_diagonal_mut(), Some(u.as_mut()), None, Par::Seq, MemStack::new(&mut buf), Default::default())
-        .map_err(|e| numerical("rayleigh-ritz svd", format!("{e:?}")))?;
+        .map_err(|e| numerical("rayleigh-ritz svd", codec_core::error::debug_in_words(&e)))?;
     let smax = (0..k).map(|i| s[i]).fold(0.0, f64::max);
     let r = (0..k).filter(|&i| s[i] > 1e-8 * smax).count();
     if r < count {
@@ -244,7 +244,7 @@ fn rayleigh_ritz(op: &ShiftInvert, y: MatRef<'_, f64>, count: usize, sigma: f64)
         MemStack::new(&mut buf),
         Default::default(),
     )
-    .map_err(|e| numerical("rayleigh-ritz eigen", format!("{e:?}")))?;
+    .map_err(|e| numerical("rayleigh-ritz eigen", codec_core::error::debug_in_words(&e)))?;
     // μ = 1/(λ + σ): λ ascending is μ descending; the sort is stable.
     let mut order: Vec<usize> = (0..r).collect();
     order.sort_by(|&i, &j| mu[j].total_cmp(&mu[i]));
@@ -290,7 +290,7 @@ pub fn harmonics(pos: &[V3], tris: &[[usize; 3]], count: usize) -> Result<Harmon
         trip.push(Triplet::new(i, i, sigma * m));
     }
     let a = SparseColMat::<usize, f64>::try_new_from_triplets(n, n, &trip)
-        .map_err(|e| numerical("laplacian assembly", format!("{e:?}")))?;
+        .map_err(|e| numerical("laplacian assembly", codec_core::error::debug_in_words(&e)))?;
     let sqrt_mass: Vec<f64> = mass.iter().map(|m| m.sqrt()).collect();
     // Krylov–Schur needs a projection space smaller than n; faer panics otherwise, so small
     // meshes (where a dense problem is cheap anyway) take the dense path.
@@ -392,7 +392,7 @@ impl Transfer {
             MemStack::new(&mut buf),
             Default::default(),
         )
-        .map_err(|e| numerical("spectral analysis svd", format!("{e:?}")))?;
+        .map_err(|e| numerical("spectral analysis svd", codec_core::error::debug_in_words(&e)))?;
         let smax = (0..k).map(|i| s[i].abs()).fold(0.0, f64::max);
         let mut out = Mat::<f64>::zeros(l, m);
         for i in 0..k {

@@ -1042,7 +1042,7 @@ impl StsegDecoder {
 impl FrameDecoder for StsegDecoder {
     fn decode_packet(&mut self, packet: &Packet) -> Result<Vec<f32>> {
         let frames = packet.frame_count as usize;
-        self.limits.check_alloc(NAME, "frame_count", (frames as u64) * self.vertex_count as u64 * 12)?;
+        self.limits.check_alloc(NAME, "the decoded packet", (frames as u64) * self.vertex_count as u64 * 12)?;
         self.decode(&packet.data, frames)
     }
 }

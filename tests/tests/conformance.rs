@@ -22,6 +22,14 @@ fn edge_case_animations_round_trip_or_error() {
         .assert_none("edge_case_animations_round_trip_or_error");
 }
 
+/// Issue 16: 1-frame and 2-frame inputs and a single triangle: refused with a message, or
+/// within the declared bound and the bound declared on the long animation they were cut from.
+#[test]
+fn short_animations_meet_the_long_animations_bound() {
+    suite::short_animations_meet_the_long_animations_bound(&registry())
+        .assert_none("short_animations_meet_the_long_animations_bound");
+}
+
 /// Suite item 2: the bytes do not depend on how frames are fed (1 at a time, odd blocks, all
 /// at once) nor on whether the reconstruction was requested.
 #[test]

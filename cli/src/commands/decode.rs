@@ -5,7 +5,8 @@ use std::io::BufReader;
 use std::path::Path;
 use std::time::Instant;
 
-use animcodec::formats;
+use animcodec::formats::{self, WriteOptions};
+use animcodec::output::OutputPolicy;
 use codec_core::{Limits, StreamDecoder};
 use serde_json::json;
 
@@ -23,6 +24,12 @@ pub fn open(path: &Path) -> CmdResult<BufReader<File>> {
 
 /// Runs `decode`.
 pub fn run(args: &DecodeArgs, limits: Limits) -> CmdResult {
+    let options =
+        WriteOptions { policy: OutputPolicy::new(args.force).with_input(&args.input), topology_obj: args.topology_obj };
+    // Refuse a forbidden output before decoding (the sequence checks run when writing).
+    if !formats::obj::is_directory_target(&args.output) {
+        options.policy.check(&args.output)?;
+    }
     let registry = animcodec::registry();
     let start = Instant::now();
     let name = || args.input.display().to_string();
@@ -32,7 +39,7 @@ pub fn run(args: &DecodeArgs, limits: Limits) -> CmdResult {
     let decode_seconds = start.elapsed().as_secs_f64();
 
     let write_start = Instant::now();
-    formats::write_animation(&args.output, &animation)?;
+    let written = formats::write_animation_with(&args.output, &animation, &options)?;
     let write_seconds = write_start.elapsed().as_secs_f64();
 
     let (v, f, t) = (animation.vertex_count(), animation.frame_count(), animation.triangles().len());
@@ -41,6 +48,7 @@ pub fn run(args: &DecodeArgs, limits: Limits) -> CmdResult {
             "codec": codec,
             "input": args.input.display().to_string(),
             "output": args.output.display().to_string(),
+            "files": written.iter().map(|f| f.display().to_string()).collect::<Vec<_>>(),
             "frames": f,
             "vertices": v,
             "triangles": t,
@@ -51,9 +59,10 @@ pub fn run(args: &DecodeArgs, limits: Limits) -> CmdResult {
     }
     emit(&format!(
         "{input}: {codec}, {f} frames × {v} vertices, {t} triangles, {fps} fps, decoded in {decode_seconds:.2} s\n\
-         → {out} (written in {write_seconds:.2} s)\n",
+         → {out} ({files}, written in {write_seconds:.2} s)\n",
         input = args.input.display(),
         fps = animation.frame_rate(),
         out = args.output.display(),
+        files = if written.len() == 1 { "1 file".to_owned() } else { format!("{} files", written.len()) },
     ))
 }

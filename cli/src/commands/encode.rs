@@ -1,12 +1,11 @@
 //! `animcodec encode`: animation file → `.anim` container, streamed to disk.
 
-use std::fs::File;
-use std::io::{BufWriter, IsTerminal, Write};
-use std::path::Path;
+use std::io::{IsTerminal, Write};
 use std::time::{Duration, Instant};
 
 use animcodec::formats::ReadOptions;
 use animcodec::harness::{self, Target, TargetHit};
+use animcodec::output::{OutputPolicy, PendingFile};
 use codec_core::params::find_spec;
 use codec_core::synth;
 use codec_core::{Animation, AnimationCodec, Limits, ParamSet, StreamEncoder, Topology};
@@ -23,11 +22,21 @@ use crate::EncodeArgs;
 pub fn parse_params(codec: &dyn AnimationCodec, pairs: &[String]) -> CmdResult<ParamSet> {
     let specs = codec.param_specs();
     let mut params = codec.default_params();
+    let mut seen: Vec<&str> = Vec::new();
     for pair in pairs {
         let (key, value) = pair
             .split_once('=')
             .ok_or_else(|| format!("{}: parameter '{pair}' is not of the form key=value", codec.name()))?;
         let spec = find_spec(codec.name(), &specs, key.trim())?;
+        if seen.contains(&spec.name) {
+            return Err(format!(
+                "{}: parameter '{}' is given more than once (-p {pair}); give each parameter once",
+                codec.name(),
+                spec.name
+            )
+            .into());
+        }
+        seen.push(spec.name);
         let value = spec.parse(codec.name(), value)?;
         params.set(&specs, spec.name, value)?;
     }
@@ -37,13 +46,22 @@ pub fn parse_params(codec: &dyn AnimationCodec, pairs: &[String]) -> CmdResult<P
 
 /// Runs `encode`.
 pub fn run(args: &EncodeArgs, limits: Limits) -> CmdResult {
-    if let Some(target) = args.target {
-        return run_target(args, target, limits);
+    if args.codec == "auto" && args.target.is_none() {
+        return Err("-c auto needs --target METRIC=VALUE (for example --target kg=0.5): it searches every \
+                    codec for the smallest stream meeting that error target; without a target, name a codec \
+                    (see `animcodec list`)"
+            .into());
     }
-    // Codec and parameters first: a typo should not cost a long read.
+    // Mistyped arguments first, then the output, all before anything long happens.
+    parse_streamed_flag(&args.input)?;
+    let policy = output_policy(args);
+    if let Some(target) = args.target {
+        return run_target(args, target, limits, &policy);
+    }
     let registry = animcodec::registry();
     let codec = registry.by_name(&args.codec)?;
     let params = parse_params(codec, &args.params)?;
+    policy.check(&args.output)?;
 
     let read_start = Instant::now();
     let source = match parse_streamed_flag(&args.input)? {
@@ -58,16 +76,11 @@ pub fn run(args: &EncodeArgs, limits: Limits) -> CmdResult {
     let read_seconds = read_start.elapsed().as_secs_f64();
 
     let start = Instant::now();
-    let result =
-        encode_to_file(codec, &params, &source, (&topology, frame_count, frame_rate), &args.output, args.feed as usize);
-    let bytes = match result {
-        Ok(bytes) => bytes,
-        Err(e) => {
-            // Do not leave a truncated container behind that looks like a result.
-            let _ = std::fs::remove_file(&args.output);
-            return Err(e);
-        }
-    };
+    // Written to a temporary file renamed into place when complete: a failure or an interruption
+    // leaves whatever was at the output path before.
+    let file = policy.create(&args.output)?;
+    let bytes =
+        encode_to_file(codec, &params, &source, (&topology, frame_count, frame_rate), file, args.feed as usize)?;
     let encode_seconds = start.elapsed().as_secs_f64();
 
     let (v, f, t) = (topology.vertex_count(), frame_count, topology.triangle_count());
@@ -192,17 +205,29 @@ fn parse_streamed_flag(input: &str) -> CmdResult<Option<(usize, usize, usize)>> 
     }
 }
 
-/// Encodes `source` into `path` through a buffered file, feeding `feed` frames per call;
-/// returns the container size in bytes.
+/// The outputs `encode` may write: not the input (nor its topology), existing ones only with
+/// `--force`.
+fn output_policy(args: &EncodeArgs) -> OutputPolicy {
+    let mut policy = OutputPolicy::new(args.force);
+    if !args.input.starts_with("synth:") {
+        policy = policy.with_input(&args.input);
+    }
+    if let Some(t) = &args.topology {
+        policy = policy.with_input(t);
+    }
+    policy
+}
+
+/// Encodes `source` into `file`, feeding `feed` frames per call, and commits the file; returns
+/// the container size in bytes.
 fn encode_to_file(
     codec: &dyn AnimationCodec,
     params: &ParamSet,
     source: &Source,
     (topology, frame_count, frame_rate): (&Topology, usize, f32),
-    path: &Path,
+    file: PendingFile,
     feed: usize,
 ) -> CmdResult<u64> {
-    let file = File::create(path).map_err(|e| codec_core::Error::io(format!("creating {}", path.display()), e))?;
     let mut encoder = StreamEncoder::new(
         codec,
         params,
@@ -210,7 +235,7 @@ fn encode_to_file(
         frame_count,
         frame_rate,
         false,
-        CountingWriter { inner: BufWriter::new(file), count: 0 },
+        CountingWriter { inner: file, count: 0 },
     )?;
     let per_frame = topology.vertex_count() * 3;
     match source {
@@ -232,9 +257,10 @@ fn encode_to_file(
             }
         }
     }
-    let (_, mut sink) = encoder.finish()?;
-    sink.flush().map_err(|e| codec_core::Error::io(format!("writing {}", path.display()), e))?;
-    Ok(sink.count)
+    let (_, sink) = encoder.finish()?;
+    let count = sink.count;
+    sink.inner.commit()?;
+    Ok(count)
 }
 
 /// Counts the bytes written through it.
@@ -257,7 +283,7 @@ impl<W: Write> Write for CountingWriter<W> {
 
 /// `encode --target`: searches the rate ladder (see [`harness::search_target`]) and writes the
 /// smallest stream that meets the target.
-fn run_target(args: &EncodeArgs, target: Target, limits: Limits) -> CmdResult {
+fn run_target(args: &EncodeArgs, target: Target, limits: Limits, policy: &OutputPolicy) -> CmdResult {
     let registry = animcodec::registry();
     let auto = args.codec == "auto";
     let chosen: Option<(&dyn AnimationCodec, ParamSet)> = if auto {
@@ -279,6 +305,7 @@ fn run_target(args: &EncodeArgs, target: Target, limits: Limits) -> CmdResult {
         Some((codec, params))
     };
     let eval = EvalOptions { sted: sted_params(&args.sted)?, ..EvalOptions::default() };
+    policy.check(&args.output)?;
 
     let read_start = Instant::now();
     let animation = match parse_streamed_flag(&args.input)? {
@@ -330,13 +357,7 @@ fn run_target(args: &EncodeArgs, target: Target, limits: Limits) -> CmdResult {
     bar.finish_and_clear();
     let (hit, others) = found?;
     let search_seconds = start.elapsed().as_secs_f64();
-    let write = File::create(&args.output)
-        .and_then(|mut f| f.write_all(&hit.stream).and_then(|()| f.flush()))
-        .map_err(|e| codec_core::Error::io(format!("writing {}", args.output.display()), e));
-    if let Err(e) = write {
-        let _ = std::fs::remove_file(&args.output);
-        return Err(e.into());
-    }
+    policy.write(&args.output, &hit.stream)?;
 
     let p = &hit.point;
     let reached = target.metric.value(&p.report).unwrap_or(f64::NAN);

@@ -7,6 +7,7 @@ use std::time::Instant;
 use animcodec::formats::gltf_out::{encode_gltf, GltfLayout, GltfOptions};
 use animcodec::formats::{gltf, ReadOptions};
 use animcodec::harness;
+use animcodec::output::OutputPolicy;
 use codec_core::Limits;
 use metrics::EvalOptions;
 use serde_json::json;
@@ -23,6 +24,11 @@ pub fn run(args: &ExportArgs, limits: Limits) -> CmdResult {
         Some("gltf") => false,
         _ => return Err(format!("{}: export writes .glb or .gltf", args.output.display()).into()),
     };
+    let mut policy = OutputPolicy::new(args.force).with_input(&args.input);
+    if let Some(t) = &args.topology {
+        policy = policy.with_input(t);
+    }
+    policy.check(&args.output)?;
     let read = ReadOptions { topology: args.topology.clone(), frame_rate: args.fps };
     let animation = load_any(&args.input, &read, limits)?;
     let layout = match args.layout.as_str() {
@@ -36,7 +42,7 @@ pub fn run(args: &ExportArgs, limits: Limits) -> CmdResult {
     let start = Instant::now();
     let (bytes, summary) = encode_gltf(&animation, &options, glb)?;
     let seconds = start.elapsed().as_secs_f64();
-    harness::write_bytes(&args.output, &bytes)?;
+    policy.write(&args.output, &bytes)?;
     // What an engine plays: the written file read back by our own glTF reader.
     let played = gltf::parse_gltf(&bytes, None, &args.output.display().to_string(), animation.frame_rate())
         .context(|| format!("reading back {}", args.output.display()))?;

@@ -7,6 +7,7 @@ use std::path::Path;
 use std::time::Instant;
 
 use animcodec::formats::ReadOptions;
+use animcodec::output::OutputPolicy;
 use codec_core::{Animation, ParamSet};
 use codec_stseg::{segment_animation, BlockKind, Segment, Segmentation, StsegParams};
 use serde_json::{json, Map, Value};
@@ -50,6 +51,17 @@ pub fn run(args: &InspectArgs) -> CmdResult {
     let params = StsegParams::from_param_set(&param_set)?;
     params.validate()?;
     let mesh_format = args.mesh.as_deref().map(MeshFormat::from_path).transpose()?;
+    let mut policy = OutputPolicy::new(args.force);
+    if !args.input.starts_with("synth:") {
+        policy = policy.with_input(&args.input);
+    }
+    if let Some(t) = &args.topology {
+        policy = policy.with_input(t);
+    }
+    let json_file = args.json.as_deref().filter(|p| *p != Path::new("-"));
+    for path in [json_file, args.mesh.as_deref()].into_iter().flatten() {
+        policy.check(path)?;
+    }
 
     let options = ReadOptions { topology: args.topology.clone(), frame_rate: None };
     let animation = load_animation(&args.input, &options)?;
@@ -75,7 +87,7 @@ pub fn run(args: &InspectArgs) -> CmdResult {
             format!("inspect: no segment contains frame {frame} (segments do not tile the animation)")
         })?;
         let text = mesh_text(&animation, &segmentation, frame, seg_index, format, &args.input);
-        std::fs::write(path, text).map_err(|e| codec_core::Error::io(format!("writing {}", path.display()), e))?;
+        policy.write(path, text.as_bytes())?;
         let seg = &segmentation.segments[seg_index];
         notes.push(format!(
             "wrote {} (frame {frame}, segment {seg_index}: frames {}..{}, {} group{})",
@@ -91,7 +103,7 @@ pub fn run(args: &InspectArgs) -> CmdResult {
         if json_to_stdout {
             emit(&text)?;
         } else {
-            std::fs::write(path, text).map_err(|e| codec_core::Error::io(format!("writing {}", path.display()), e))?;
+            policy.write(path, text.as_bytes())?;
             notes.push(format!("wrote {}", path.display()));
         }
     }

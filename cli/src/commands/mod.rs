@@ -31,7 +31,12 @@ pub fn report_error(e: &(dyn StdError + 'static)) {
     let mut line = format!("error: {e}");
     let mut source = e.source();
     while let Some(s) = source {
-        let text = s.to_string();
+        // I/O errors are shown in plain words (codec_core::error::io_reason) by the error
+        // wrapping them.
+        let text = match s.downcast_ref::<std::io::Error>() {
+            Some(io) => codec_core::error::io_reason(io),
+            None => s.to_string(),
+        };
         if !line.contains(&text) {
             line.push_str(": ");
             line.push_str(&text);
@@ -144,10 +149,24 @@ pub fn load_animation(input: &str, options: &ReadOptions) -> CmdResult<Animation
         });
     }
     let path = Path::new(input);
-    if !path.exists() && !input.contains(['*', '?', '{', '#']) {
-        return Err(format!("cannot read '{input}': no such file or directory").into());
+    if !input.contains(['*', '?', '{', '#']) {
+        if let Err(e) = std::fs::metadata(path) {
+            return Err(io_message(&format!("cannot read '{input}'"), &e).into());
+        }
     }
     Ok(formats::read_animation(path, options)?)
+}
+
+/// "CONTEXT: REASON" for an I/O error, the reason in plain words ("no such file or directory",
+/// "permission denied", …) instead of the OS text with its error number.
+pub fn io_message(context: &str, e: &std::io::Error) -> String {
+    use std::io::ErrorKind;
+    let reason = match e.kind() {
+        ErrorKind::NotFound => "no such file or directory".to_owned(),
+        ErrorKind::PermissionDenied => "permission denied".to_owned(),
+        _ => e.to_string(),
+    };
+    format!("{context}: {reason}")
 }
 
 /// A parameter value as JSON (numbers, booleans, strings).

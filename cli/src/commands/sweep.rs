@@ -7,6 +7,7 @@ use std::time::Instant;
 
 use animcodec::formats::ReadOptions;
 use animcodec::harness::{self, monotone_report, Sweep, SweepOptions, SweepSeries};
+use animcodec::output::OutputPolicy;
 use animcodec::viewer;
 use codec_core::{AnimationCodec, CodecRegistry, Limits};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
@@ -21,12 +22,24 @@ pub const DEFAULT_INPUT: &str = "synth:flag";
 
 /// Runs `sweep`.
 pub fn run(args: &SweepArgs, limits: Limits) -> CmdResult {
+    let input = args.input.as_deref().unwrap_or(DEFAULT_INPUT);
+    // Outputs are checked before the sweep (minutes), and written only once complete.
+    let mut policy = OutputPolicy::new(args.force);
+    if !input.starts_with("synth:") {
+        policy = policy.with_input(input);
+    }
+    if let Some(t) = &args.topology {
+        policy = policy.with_input(t);
+    }
+    let json_file = args.json.as_deref().filter(|p| p.as_os_str() != "-");
+    for path in [json_file, args.csv.as_deref(), args.plot.as_deref(), args.html.as_deref()].into_iter().flatten() {
+        policy.check(path)?;
+    }
     let registry = animcodec::registry();
     let series = sweep_series(&registry, args)?;
     // Checked before the (long) sweep: a typo should not cost it.
     let view_points = args.view_points.iter().map(|t| parse_view_point(t, &series)).collect::<CmdResult<Vec<_>>>()?;
     let eval = eval_options(&args.metrics)?;
-    let input = args.input.as_deref().unwrap_or(DEFAULT_INPUT);
     let read = ReadOptions { topology: args.topology.clone(), frame_rate: None };
     let animation = load_any(input, &read, limits)?;
 

@@ -1,6 +1,7 @@
 //! `animcodec synth`: write a built-in synthetic animation to a file.
 
-use animcodec::formats;
+use animcodec::formats::{self, WriteOptions};
+use animcodec::output::OutputPolicy;
 use codec_core::synth;
 
 use super::{emit, CmdResult};
@@ -9,7 +10,8 @@ use crate::SynthArgs;
 /// Runs `synth`.
 pub fn run(args: &SynthArgs) -> CmdResult {
     let animation = synth::by_name(&args.name, args.size.into())?;
-    formats::write_animation(&args.output, &animation)?;
+    let options = WriteOptions { policy: OutputPolicy::new(args.force), topology_obj: true };
+    formats::write_animation_with(&args.output, &animation, &options)?;
     emit(&format!(
         "{} ({}): {} frames × {} vertices, {} triangles, {} fps → {}\n",
         args.name,

@@ -6,6 +6,7 @@ use std::time::Instant;
 
 use animcodec::formats::ReadOptions;
 use animcodec::harness;
+use animcodec::output::OutputPolicy;
 use animcodec::viewer::{self, Candidate, HeatMetric, ViewerOptions};
 use codec_core::{Animation, CodecRegistry, Limits, StreamDecoder};
 use metrics::EvalOptions;
@@ -26,6 +27,15 @@ struct Loaded {
 /// Runs `view`.
 pub fn run(args: &ViewArgs, limits: Limits) -> CmdResult {
     let start = Instant::now();
+    // The page is checked before the (possibly long) loading and encoding.
+    let mut policy = OutputPolicy::new(args.force).with_input(&args.reference);
+    for c in args.candidates.iter().filter(|c| Path::new(c).exists()) {
+        policy = policy.with_input(c);
+    }
+    if let Some(t) = &args.topology {
+        policy = policy.with_input(t);
+    }
+    policy.check(&args.output)?;
     let registry = animcodec::registry();
     let read = ReadOptions { topology: args.topology.clone(), frame_rate: None };
     let reference = load_any(&args.reference, &read, limits)?;
@@ -56,7 +66,7 @@ pub fn run(args: &ViewArgs, limits: Limits) -> CmdResult {
     };
     let data = viewer::viewer_data(&reference, &candidates, &options)?;
     let page = viewer::viewer_page(&data);
-    harness::write_text(&args.output, &page)?;
+    policy.write(&args.output, page.as_bytes())?;
     emit(&format!(
         "{}: reference + {} candidate(s), {} frames × {} vertices, heat {} up to {:.4e}; {} bytes written in {:.2} s\n",
         args.output.display(),

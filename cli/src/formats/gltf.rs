@@ -420,9 +420,151 @@ fn blend(mesh: &MorphMesh, weights: &[f32], out: &mut Vec<f32>) {
     }
 }
 
+/// Splits a GLB (or takes glTF JSON), deserializes the JSON, checks every index in it
+/// ([`check_indices`]) and only then lets the `gltf` crate validate it (its validation indexes
+/// arrays unchecked in places: a `POSITION` accessor index out of range panics there).
+fn parse_document(bytes: &[u8], file: &str) -> Result<(::gltf::Document, Option<Vec<u8>>)> {
+    let (json, blob) = if bytes.starts_with(b"glTF") {
+        // The crate computes `length - 12` unchecked (an overflow panic, found by fuzzing).
+        let declared = bytes.get(8..12).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]));
+        match declared {
+            None => return Err(bad(file, "glb", "the 12-byte GLB header is truncated")),
+            Some(n) if n < 12 => {
+                return Err(bad(
+                    file,
+                    "glb",
+                    format!("the header declares a total length of {n} bytes, less than itself"),
+                ))
+            }
+            Some(_) => {}
+        }
+        let glb = ::gltf::Glb::from_slice(bytes).map_err(|e| bad(file, "glb", e.to_string()))?;
+        (glb.json.into_owned(), glb.bin.map(|b| b.into_owned()))
+    } else {
+        (bytes.to_vec(), None)
+    };
+    let root: ::gltf::json::Root =
+        ::gltf::json::deserialize::from_slice(&json).map_err(|e| bad(file, "gltf", e.to_string()))?;
+    check_indices(file, &root)?;
+    let document = ::gltf::Document::from_json(root).map_err(|e| bad(file, "gltf", e.to_string()))?;
+    Ok((document, blob))
+}
+
+/// Checks that every index into the document's arrays that this reader or the `gltf` crate
+/// follows is in range: accessors (buffer views, sparse blocks), buffer views (buffers), meshes
+/// (attribute, index and morph-target accessors), nodes (meshes, children, skins, cameras),
+/// scenes, skins and animations (channel samplers and target nodes, sampler accessors).
+/// Materials, textures and images are checked by the crate's own validation, which does so
+/// safely.
+fn check_indices(file: &str, root: &::gltf::json::Root) -> Result<()> {
+    fn check(file: &str, what: impl Fn() -> String, index: usize, len: usize, array: &str) -> Result<()> {
+        if index >= len {
+            return Err(bad(file, "gltf", format!("{} refers to {array} {index}, but there are {len}", what())));
+        }
+        Ok(())
+    }
+    let accessors = root.accessors.len();
+    let views = root.buffer_views.len();
+    let nodes = root.nodes.len();
+    for (i, a) in root.accessors.iter().enumerate() {
+        if let Some(v) = a.buffer_view {
+            check(file, || format!("accessor {i}"), v.value(), views, "bufferView")?;
+        }
+        if let Some(sparse) = &a.sparse {
+            check(
+                file,
+                || format!("accessor {i} sparse indices"),
+                sparse.indices.buffer_view.value(),
+                views,
+                "bufferView",
+            )?;
+            check(
+                file,
+                || format!("accessor {i} sparse values"),
+                sparse.values.buffer_view.value(),
+                views,
+                "bufferView",
+            )?;
+        }
+    }
+    for (i, v) in root.buffer_views.iter().enumerate() {
+        check(file, || format!("bufferView {i}"), v.buffer.value(), root.buffers.len(), "buffer")?;
+    }
+    for (m, mesh) in root.meshes.iter().enumerate() {
+        for (p, primitive) in mesh.primitives.iter().enumerate() {
+            let at = || format!("mesh {m} primitive {p}");
+            for (semantic, accessor) in &primitive.attributes {
+                let what = || format!("{} attribute {}", at(), semantic.to_string());
+                check(file, what, accessor.value(), accessors, "accessor")?;
+            }
+            if let Some(indices) = primitive.indices {
+                check(file, || format!("{} indices", at()), indices.value(), accessors, "accessor")?;
+            }
+            for (t, target) in primitive.targets.iter().flatten().enumerate() {
+                for a in [target.positions, target.normals, target.tangents].into_iter().flatten() {
+                    check(file, || format!("{} morph target {t}", at()), a.value(), accessors, "accessor")?;
+                }
+            }
+        }
+    }
+    for (i, node) in root.nodes.iter().enumerate() {
+        let at = || format!("node {i}");
+        if let Some(mesh) = node.mesh {
+            check(file, at, mesh.value(), root.meshes.len(), "mesh")?;
+        }
+        for child in node.children.iter().flatten() {
+            check(file, at, child.value(), nodes, "node")?;
+        }
+        if let Some(skin) = node.skin {
+            check(file, at, skin.value(), root.skins.len(), "skin")?;
+        }
+        if let Some(camera) = node.camera {
+            check(file, at, camera.value(), root.cameras.len(), "camera")?;
+        }
+    }
+    for (i, scene) in root.scenes.iter().enumerate() {
+        for n in &scene.nodes {
+            check(file, || format!("scene {i}"), n.value(), nodes, "node")?;
+        }
+    }
+    if let Some(scene) = root.scene {
+        check(file, || "the default scene".into(), scene.value(), root.scenes.len(), "scene")?;
+    }
+    for (i, skin) in root.skins.iter().enumerate() {
+        let at = || format!("skin {i}");
+        for n in skin.joints.iter().chain(&skin.skeleton) {
+            check(file, at, n.value(), nodes, "node")?;
+        }
+        if let Some(a) = skin.inverse_bind_matrices {
+            check(file, at, a.value(), accessors, "accessor")?;
+        }
+    }
+    for (i, animation) in root.animations.iter().enumerate() {
+        for (c, channel) in animation.channels.iter().enumerate() {
+            let at = || format!("animation {i} channel {c}");
+            check(file, at, channel.sampler.value(), animation.samplers.len(), "sampler")?;
+            check(file, at, channel.target.node.value(), nodes, "node")?;
+            // The crate's validation skips channels: an unknown `path` would panic in
+            // `Target::property` (found by fuzzing).
+            if !matches!(channel.target.path, ::gltf::json::validation::Checked::Valid(_)) {
+                return Err(bad(
+                    file,
+                    "gltf",
+                    format!("{}: the target path is not one of translation, rotation, scale, weights", at()),
+                ));
+            }
+        }
+        for (k, sampler) in animation.samplers.iter().enumerate() {
+            let at = || format!("animation {i} sampler {k}");
+            check(file, at, sampler.input.value(), accessors, "accessor")?;
+            check(file, at, sampler.output.value(), accessors, "accessor")?;
+        }
+    }
+    Ok(())
+}
+
 fn parse_checked(bytes: &[u8], base: Option<&Path>, file: &str, frame_rate: f32) -> Result<Animation> {
-    let gltf = ::gltf::Gltf::from_slice(bytes).map_err(|e| bad(file, "gltf", e.to_string()))?;
-    let ::gltf::Gltf { document, blob } = gltf;
+    let (document, blob) = parse_document(bytes, file)?;
     let buffers = load_buffers(file, &document, base, blob)?;
     let mesh = document
         .meshes()
@@ -773,6 +915,69 @@ mod tests {
         let hdoc = huge.document(meshes, json!([]), None);
         let e = parse_gltf(&huge.glb(&hdoc), None, "inf.glb", 30.0).unwrap_err().to_string();
         assert!(e.contains("inf.glb") && e.contains("non-finite") && e.contains("vertex 0"), "{e}");
+    }
+
+    /// Issue 16: indices out of range are found before the `gltf` crate follows them (its
+    /// validation panics on a `POSITION` accessor out of range, and nothing checks a channel's
+    /// target node). The message names the index: the catch_unwind fallback's generic message
+    /// would mean a panic was printed.
+    #[test]
+    fn out_of_range_indices_are_errors_before_the_gltf_crate_sees_them() {
+        let (b, doc) = morph_triangle("LINEAR", None);
+        let mut d = doc.clone();
+        d["buffers"][0].as_object_mut().unwrap().remove("uri");
+        type Mutation = Box<dyn Fn(&mut Value)>;
+        let cases: Vec<(&str, Mutation, &str)> = vec![
+            (
+                "position",
+                Box::new(|d| d["meshes"][0]["primitives"][0]["attributes"]["POSITION"] = json!(99999)),
+                "accessor 99999",
+            ),
+            ("node", Box::new(|d| d["animations"][0]["channels"][0]["target"]["node"] = json!(5000)), "node 5000"),
+            ("sampler", Box::new(|d| d["animations"][0]["channels"][0]["sampler"] = json!(7)), "sampler 7"),
+            ("input", Box::new(|d| d["animations"][0]["samplers"][0]["input"] = json!(70)), "accessor 70"),
+            ("indices", Box::new(|d| d["meshes"][0]["primitives"][0]["indices"] = json!(12)), "accessor 12"),
+            (
+                "target",
+                Box::new(|d| d["meshes"][0]["primitives"][0]["targets"][1]["POSITION"] = json!(40)),
+                "accessor 40",
+            ),
+            ("view", Box::new(|d| d["accessors"][0]["bufferView"] = json!(300)), "bufferView 300"),
+            ("buffer", Box::new(|d| d["bufferViews"][0]["buffer"] = json!(9)), "buffer 9"),
+            ("mesh", Box::new(|d| d["nodes"][0]["mesh"] = json!(3)), "mesh 3"),
+            ("child", Box::new(|d| d["nodes"][0]["children"] = json!([0, 77])), "node 77"),
+            ("scene", Box::new(|d| d["scene"] = json!(4)), "scene 4"),
+            // Fuzzing finding (read_gltf): an unknown channel path panicked in the gltf crate.
+            (
+                "path",
+                Box::new(|d| d["animations"][0]["channels"][0]["target"]["path"] = json!("weyghts")),
+                "target path",
+            ),
+        ];
+        for (what, mutate, expected) in cases {
+            let mut bad = d.clone();
+            mutate(&mut bad);
+            for (bytes, file) in [(b.glb(&bad), "bad.glb"), (serde_json::to_vec(&bad).unwrap(), "bad.gltf")] {
+                let e = parse_gltf(&bytes, None, file, 30.0).unwrap_err().to_string();
+                assert!(e.contains(file) && e.contains(expected), "{what}: {e} (expected '{expected}')");
+                assert!(!e.contains("reader failed"), "{what}: the gltf crate panicked: {e}");
+            }
+        }
+    }
+
+    /// Fuzzing finding (read_gltf): a GLB header declaring a total length below 12 bytes made
+    /// the `gltf` crate subtract with overflow.
+    #[test]
+    fn glb_lengths_below_the_header_are_errors() {
+        for n in [0u32, 11] {
+            let mut b = b"glTF\x02\0\0\0".to_vec();
+            b.extend_from_slice(&n.to_le_bytes());
+            b.extend_from_slice(b"JSON{}");
+            let e = parse_gltf(&b, None, "short.glb", 30.0).unwrap_err().to_string();
+            assert!(e.contains("short.glb") && e.contains("less than itself"), "{e}");
+        }
+        let e = parse_gltf(b"glTF\x02\0", None, "cut.glb", 30.0).unwrap_err().to_string();
+        assert!(e.contains("truncated"), "{e}");
     }
 
     #[test]

@@ -20,9 +20,12 @@ pub mod obj;
 pub mod pc2;
 
 use std::cmp::Ordering;
+use std::io::Write as _;
 use std::path::{Path, PathBuf};
 
 use codec_core::{Animation, Error, Limits, Result, Topology};
+
+use crate::output::{commit_all, OutputPolicy, PendingFile};
 
 /// Frame rate used when neither the file nor [`ReadOptions::frame_rate`] gives one.
 pub const DEFAULT_FRAME_RATE: f32 = 30.0;
@@ -87,28 +90,73 @@ pub fn read_animation(path: &Path, options: &ReadOptions) -> Result<Animation> {
 }
 
 /// Writes an animation, choosing the format from the output path: `.pc2`, `.mdd` (each also
-/// writes `STEM.obj` with frame 0 and the faces beside it), or an OBJ sequence: a directory
-/// (existing, or a path ending in `/`) receives `frame_0000.obj`, …; a path ending in `.obj`
-/// receives `stem_0000.obj`, … beside it, or exactly that file for a one-frame animation;
-/// `.glb`/`.gltf` receive a morph-target animation ([`gltf_out`], default options: mean shape +
-/// principal components meeting KG 0.05 %).
+/// writes `STEM.obj` with frame 0 and the faces beside it), an OBJ sequence (see
+/// [`obj::write_obj_sequence`]), or `.glb`/`.gltf`, a morph-target animation ([`gltf_out`],
+/// default options: mean shape + principal components meeting KG 0.05 %). Existing files are
+/// replaced; see [`write_animation_with`] for the checked form the command line uses.
 pub fn write_animation(path: &Path, animation: &Animation) -> Result<()> {
-    if obj::is_directory_target(path) {
-        return obj::write_obj_sequence(path, animation).map(|_| ());
+    let options = WriteOptions { policy: OutputPolicy::new(true), topology_obj: true };
+    write_animation_with(path, animation, &options).map(|_| ())
+}
+
+/// How [`write_animation_with`] writes.
+#[derive(Debug, Clone, Default)]
+pub struct WriteOptions {
+    /// What may be replaced (existing files, inputs). Every file is written to a temporary file
+    /// and renamed into place once all of them are complete.
+    pub policy: OutputPolicy,
+    /// For `.pc2` / `.mdd`: also write `STEM.obj` (frame 0 and the triangles) beside the cache,
+    /// so it can be read back on its own.
+    pub topology_obj: bool,
+}
+
+/// Writes an animation as [`write_animation`] does, under `options`: nothing is written unless
+/// every output is allowed by the policy, and either all files are replaced or none. Returns the
+/// files written.
+pub fn write_animation_with(path: &Path, animation: &Animation, options: &WriteOptions) -> Result<Vec<PathBuf>> {
+    if obj::is_directory_target(path) || extension(path).as_deref() == Some("obj") {
+        return obj::write_obj_sequence_with(path, animation, &options.policy);
     }
-    match extension(path).as_deref() {
-        Some("pc2") => pc2::write_pc2(path, animation),
-        Some("mdd") => mdd::write_mdd(path, animation),
-        Some("obj") => obj::write_obj_sequence(path, animation).map(|_| ()),
+    // A glTF file carries its own triangles: no companion OBJ.
+    let (bytes, companion_obj) = match extension(path).as_deref() {
+        Some("pc2") => (pc2::encode_pc2(animation)?, options.topology_obj),
+        Some("mdd") => (mdd::encode_mdd(animation)?, options.topology_obj),
         Some(ext @ ("glb" | "gltf")) => {
-            let (bytes, _) = gltf_out::encode_gltf(animation, &gltf_out::GltfOptions::default(), ext == "glb")?;
-            write_file(path, &bytes)
+            (gltf_out::encode_gltf(animation, &gltf_out::GltfOptions::default(), ext == "glb")?.0, false)
         }
-        _ => Err(Error::Unsupported {
-            context: "formats".into(),
-            detail: format!("cannot write {}: unknown format; supported outputs: {SUPPORTED_OUTPUTS}", path.display()),
-        }),
+        _ => {
+            return Err(Error::Unsupported {
+                context: "formats".into(),
+                detail: format!(
+                    "cannot write {}: unknown format; supported outputs: {SUPPORTED_OUTPUTS}",
+                    path.display()
+                ),
+            })
+        }
+    };
+    let companion = path.with_extension("obj");
+    options.policy.check(path)?;
+    if companion_obj {
+        options.policy.check(&companion)?;
     }
+    let mut files = vec![PendingFile::new(path)?];
+    files[0].write_all(&bytes).map_err(|e| files[0].error(e))?;
+    if companion_obj {
+        let comment = format!(
+            "animcodec: topology of {} (frame 0 of {}, {} vertices, {} triangles)",
+            path.file_name().map(|f| f.to_string_lossy().into_owned()).unwrap_or_default(),
+            animation.frame_count(),
+            animation.vertex_count(),
+            animation.topology().triangle_count()
+        );
+        let text = obj::obj_text(&companion, animation.frame(0), animation.triangles(), &comment)?;
+        let mut f = PendingFile::new(&companion)?;
+        f.write_all(text.as_bytes()).map_err(|e| f.error(e))?;
+        files.push(f);
+    }
+    let written = files.iter().map(|f| f.target().to_path_buf()).collect();
+    commit_all(files, &[])?;
+    Ok(written)
 }
 
 /// Lower-case extension of a path, if any.
@@ -126,9 +174,9 @@ fn read_file(path: &Path) -> Result<Vec<u8>> {
     std::fs::read(path).map_err(|e| Error::io(name(path), e))
 }
 
-/// Writes a whole file; the error names the path.
+/// Writes a whole file (replacing it) through a temporary file; the error names the path.
 fn write_file(path: &Path, bytes: &[u8]) -> Result<()> {
-    std::fs::write(path, bytes).map_err(|e| Error::io(name(path), e))
+    OutputPolicy::new(true).write(path, bytes)
 }
 
 /// Prefixes the file name to an [`Error::InvalidAnimation`] message (which already names frame,
@@ -238,15 +286,23 @@ fn cache_topology(cache: &Path, topology: Option<&Path>, vertex_count: usize) ->
     Topology::new(vertex_count, mesh.triangles).map_err(|e| in_file(&name(&obj_path), e))
 }
 
-/// True when the last path component contains a wildcard (`*` or `?`).
+/// True when the last path component contains a wildcard (`*` or `?`) or a frame-number
+/// placeholder (`{}` or `#`, as written by [`obj::write_obj_sequence`]).
 fn is_pattern(path: &Path) -> bool {
-    path.file_name().map(|f| f.to_string_lossy().contains(['*', '?'])).unwrap_or(false)
+    path.file_name()
+        .map(|f| {
+            let f = f.to_string_lossy();
+            f.contains(['*', '?', '#']) || f.contains("{}")
+        })
+        .unwrap_or(false)
 }
 
 /// Expands a file-name pattern (wildcards only in the last component: `*` any run, `?` one
 /// character), in natural order. No match is an error naming the pattern.
 fn expand_pattern(pattern: &Path) -> Result<Vec<PathBuf>> {
-    let file_pattern = pattern.file_name().map(|f| f.to_string_lossy().into_owned()).unwrap_or_default();
+    // Placeholders: `{}` is any frame number, each `#` one character (one digit of the number).
+    let file_pattern =
+        pattern.file_name().map(|f| f.to_string_lossy().replace("{}", "*").replace('#', "?")).unwrap_or_default();
     let dir = match pattern.parent() {
         Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
         _ => PathBuf::from("."),

@@ -15,12 +15,14 @@
 //! line continuations (`\` at the end of a line) are not supported.
 
 use std::fmt::Write as _;
+use std::io::Write as _;
 use std::path::{Path, PathBuf};
 
 use codec_core::animation::check_finite;
 use codec_core::{Animation, Error, Limits, Result, Topology};
 
 use super::{in_file, name, read_file, write_file};
+use crate::output::{commit_all, OutputPolicy, PendingFile};
 
 /// One OBJ file: positions in file order and its triangles (0-based).
 #[derive(Debug, Clone, PartialEq)]
@@ -210,6 +212,11 @@ pub fn read_obj_sequence(paths: &[PathBuf], frame_rate: f32) -> Result<Animation
 /// Writes one OBJ file: a comment line, the vertices (`{}` Display of `f32`, which reads back to
 /// the identical value) and the triangles as 1-based `f` lines.
 pub fn write_obj(path: &Path, positions: &[f32], triangles: &[[u32; 3]], comment: &str) -> Result<()> {
+    write_file(path, obj_text(path, positions, triangles, comment)?.as_bytes())
+}
+
+/// The text [`write_obj`] writes; `path` names the file in errors.
+pub fn obj_text(path: &Path, positions: &[f32], triangles: &[[u32; 3]], comment: &str) -> Result<String> {
     // Finite positions are the caller's contract ([`Animation`] guarantees it); check anyway so
     // a bad slice is an error, not a file that fails later.
     check_finite(positions, (positions.len() / 3).max(1), 0).map_err(|e| in_file(&name(path), e))?;
@@ -223,7 +230,7 @@ pub fn write_obj(path: &Path, positions: &[f32], triangles: &[[u32; 3]], comment
     for t in triangles {
         let _ = writeln!(text, "f {} {} {}", t[0] as u64 + 1, t[1] as u64 + 1, t[2] as u64 + 1);
     }
-    write_file(path, text.as_bytes())
+    Ok(text)
 }
 
 /// True when an output path names a directory: an existing one, or a path ending in `/`.
@@ -232,32 +239,145 @@ pub fn is_directory_target(path: &Path) -> bool {
     path.is_dir() || s.ends_with('/') || s.ends_with(std::path::MAIN_SEPARATOR)
 }
 
+/// How the frames of a sequence are named.
+enum Naming {
+    /// `DIR/frame_0000.obj`, …: every other `*.obj` in `DIR` belongs to the sequence when read.
+    Directory(PathBuf),
+    /// A file name with `prefix`, the frame number (at least `width` digits) and `suffix`.
+    Template { dir: PathBuf, prefix: String, width: usize, suffix: String },
+}
+
+impl Naming {
+    fn of(path: &Path, frames: usize) -> Naming {
+        let digits = frames.saturating_sub(1).to_string().len().max(4);
+        if is_directory_target(path) {
+            return Naming::Directory(path.to_path_buf());
+        }
+        let dir = match path.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+            _ => PathBuf::from("."),
+        };
+        let file = path.file_name().map(|f| f.to_string_lossy().into_owned()).unwrap_or_default();
+        if let Some(at) = file.find("{}") {
+            return Naming::Template { dir, prefix: file[..at].into(), width: digits, suffix: file[at + 2..].into() };
+        }
+        if let Some(at) = file.find('#') {
+            let run = file[at..].chars().take_while(|&c| c == '#').count();
+            return Naming::Template {
+                dir,
+                prefix: file[..at].into(),
+                width: run.max(frames.saturating_sub(1).to_string().len()),
+                suffix: file[at + run..].into(),
+            };
+        }
+        let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "frame".into());
+        let ext = path.extension().map(|e| format!(".{}", e.to_string_lossy())).unwrap_or_else(|| ".obj".into());
+        Naming::Template { dir, prefix: format!("{stem}_"), width: digits, suffix: ext }
+    }
+
+    fn dir(&self) -> &Path {
+        match self {
+            Naming::Directory(d) | Naming::Template { dir: d, .. } => d,
+        }
+    }
+
+    fn file(&self, t: usize, frames: usize) -> PathBuf {
+        match self {
+            Naming::Directory(d) => {
+                let digits = frames.saturating_sub(1).to_string().len().max(4);
+                d.join(format!("frame_{t:0digits$}.obj"))
+            }
+            Naming::Template { dir, prefix, width, suffix } => dir.join(format!("{prefix}{t:0width$}{suffix}")),
+        }
+    }
+
+    /// True when an existing file name would be read as a frame of this sequence.
+    fn is_frame(&self, file_name: &str) -> bool {
+        match self {
+            Naming::Directory(_) => file_name.to_ascii_lowercase().ends_with(".obj"),
+            Naming::Template { prefix, suffix, .. } => file_name
+                .strip_prefix(prefix.as_str())
+                .and_then(|rest| rest.strip_suffix(suffix.as_str()))
+                .is_some_and(|digits| !digits.is_empty() && digits.bytes().all(|b| b.is_ascii_digit())),
+        }
+    }
+}
+
+/// Writes every frame as an OBJ file (with the faces) and returns the files written, in order.
+/// Existing files are replaced and stale frames of an older sequence removed
+/// (see [`write_obj_sequence_with`]).
+pub fn write_obj_sequence(path: &Path, animation: &Animation) -> Result<Vec<PathBuf>> {
+    write_obj_sequence_with(path, animation, &OutputPolicy::new(true))
+}
+
 /// Writes every frame as an OBJ file (with the faces) and returns the files written, in order.
 ///
-/// A directory target (existing, or ending in `/`; created if missing) receives
-/// `frame_0000.obj`, `frame_0001.obj`, …; a path `DIR/stem.obj` receives `DIR/stem_0000.obj`, …,
-/// except that a one-frame animation is written to exactly `DIR/stem.obj`. Frame numbers have
-/// at least 4 digits, more when needed so that plain and natural order agree. Files already in the
-/// directory are left alone (a stale longer sequence would be read back with the new one).
-pub fn write_obj_sequence(path: &Path, animation: &Animation) -> Result<Vec<PathBuf>> {
+/// Names: a directory target (existing, or ending in `/`; created if missing) receives
+/// `frame_0000.obj`, `frame_0001.obj`, …; a file name with `{}` gets the frame number there
+/// (`seq/f_{}.obj` → `seq/f_0000.obj`, …), one with a run of `#` the frame number padded to the
+/// run's length (`f_###.obj` → `f_000.obj`, …); a plain `DIR/stem.obj` receives
+/// `DIR/stem_0000.obj`, …, except that a one-frame animation is written to exactly
+/// `DIR/stem.obj`. Frame numbers have at least 4 digits (`{}` and plain names), more when
+/// needed so that plain and natural order agree.
+///
+/// Safety: files that would be read back as frames of the same sequence but are not written now
+/// (an older, longer sequence; any other `.obj` in a directory target) are stale. Unless the
+/// policy allows overwriting, existing frames or stale files make this an error and nothing is
+/// written; with overwriting, stale frames are removed. All frames are written to temporary
+/// files first and renamed into place together.
+pub fn write_obj_sequence_with(path: &Path, animation: &Animation, policy: &OutputPolicy) -> Result<Vec<PathBuf>> {
     let frames = animation.frame_count();
-    let digits = frames.saturating_sub(1).to_string().len().max(4);
-    let files: Vec<PathBuf> = if is_directory_target(path) {
-        std::fs::create_dir_all(path).map_err(|e| Error::io(name(path), e))?;
-        (0..frames).map(|t| path.join(format!("frame_{t:0digits$}.obj"))).collect()
-    } else if frames == 1 {
+    let naming = Naming::of(path, frames);
+    let has_placeholder = matches!(&naming, Naming::Template { .. })
+        && path.file_name().is_some_and(|f| f.to_string_lossy().contains(['#', '{']));
+    let files: Vec<PathBuf> = if frames == 1 && !has_placeholder && !matches!(naming, Naming::Directory(_)) {
         vec![path.to_path_buf()]
     } else {
-        let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "frame".into());
-        (0..frames).map(|t| path.with_file_name(format!("{stem}_{t:0digits$}.obj"))).collect()
+        (0..frames).map(|t| naming.file(t, frames)).collect()
     };
-    if let Some(parent) = files[0].parent().filter(|p| !p.as_os_str().is_empty()) {
-        std::fs::create_dir_all(parent).map_err(|e| Error::io(name(parent), e))?;
+    let dir = naming.dir().to_path_buf();
+    // Existing frame files (ours or stale), found before anything is created.
+    let mut existing = Vec::new();
+    if let Ok(entries) = std::fs::read_dir(&dir) {
+        for entry in entries.flatten() {
+            let file_name = entry.file_name().to_string_lossy().into_owned();
+            let p = entry.path();
+            if p.is_file() && (naming.is_frame(&file_name) || files.iter().any(|f| f.file_name() == p.file_name())) {
+                existing.push(p);
+            }
+        }
     }
+    super::sort_natural(&mut existing);
+    let stale: Vec<PathBuf> =
+        existing.iter().filter(|p| !files.iter().any(|f| f.file_name() == p.file_name())).cloned().collect();
+    if !policy.overwrite && !existing.is_empty() {
+        return Err(crate::output::refused(
+            path,
+            format!(
+                "{} already holds {} frame file{} of this sequence ({}{}) that would be read with the new frames; \
+                 use -f/--force to replace them (older frames beyond the new ones are then removed)",
+                dir.display(),
+                existing.len(),
+                if existing.len() == 1 { "" } else { "s" },
+                existing[0].file_name().map(|f| f.to_string_lossy().into_owned()).unwrap_or_default(),
+                if existing.len() > 1 { ", …" } else { "" }
+            ),
+        ));
+    }
+    let checks = OutputPolicy { overwrite: true, inputs: policy.inputs.clone() };
+    for f in files.iter().chain(&stale) {
+        checks.check(f)?;
+    }
+    std::fs::create_dir_all(&dir).map_err(|e| Error::io(name(&dir), e))?;
+    let mut pending = Vec::with_capacity(files.len());
     for (t, file) in files.iter().enumerate() {
         let comment = format!("animcodec: frame {t} of {frames}, {} vertices", animation.vertex_count());
-        write_obj(file, animation.frame(t), animation.triangles(), &comment)?;
+        let text = obj_text(file, animation.frame(t), animation.triangles(), &comment)?;
+        let mut out = PendingFile::new(file)?;
+        out.write_all(text.as_bytes()).map_err(|e| out.error(e))?;
+        pending.push(out);
     }
+    commit_all(pending, &stale)?;
     Ok(files)
 }
 

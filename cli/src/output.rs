@@ -1,0 +1,332 @@
+//! Safe output files: nothing the tool writes is ever half-written, and nothing a user had is
+//! lost by accident.
+//!
+//! - Every file is written to a temporary file in the target's own folder (`.NAME.PID-N.tmp`)
+//!   and renamed over the target only once it is complete ([`PendingFile::commit`]). A failed
+//!   command drops its [`PendingFile`]s, which deletes them: the old file stays untouched.
+//! - [`install_signal_cleanup`] (called once by the binary) deletes pending temporary files
+//!   when the process is interrupted (SIGINT, SIGTERM, SIGHUP) and makes a write beyond
+//!   `ulimit -f` an ordinary error (SIGXFSZ no longer kills the process), so interrupted or
+//!   failed commands leave no partial file either.
+//! - [`OutputPolicy::check`] refuses an existing target unless overwriting is allowed (the
+//!   `-f/--force` convention of gzip and zstd), and refuses a target that is one of the
+//!   command's inputs even then.
+
+use std::fs::File;
+use std::io::{BufWriter, Write};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::{Mutex, MutexGuard};
+
+use codec_core::{Error, Result};
+
+/// Temporary files not yet renamed into place, deleted on an interrupting signal.
+static PENDING: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+
+fn pending() -> MutexGuard<'static, Vec<PathBuf>> {
+    PENDING.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
+}
+
+/// Installs the signal handling described in the module docs. Call once, early, from `main`.
+/// Errors (no signal support) are ignored: files are still written safely, only an
+/// interruption may then leave a temporary `.NAME.*.tmp` file behind.
+pub fn install_signal_cleanup() {
+    use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM, SIGXFSZ};
+    // With a handler installed, an oversized write fails with EFBIG instead of killing us.
+    let _ = signal_hook::flag::register(SIGXFSZ, std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false)));
+    if let Ok(mut signals) = signal_hook::iterator::Signals::new([SIGINT, SIGTERM, SIGHUP]) {
+        let _ = std::thread::Builder::new().name("signal-cleanup".into()).spawn(move || {
+            if let Some(signal) = signals.forever().next() {
+                // Holding the lock, no commit can be half done: either the rename happened (the
+                // new file is complete) or the temporary file is still listed here.
+                let files = pending();
+                for f in files.iter() {
+                    let _ = std::fs::remove_file(f);
+                }
+                let _ = writeln!(std::io::stderr(), "\ninterrupted: no output file was changed");
+                std::process::exit(128 + signal);
+            }
+        });
+    }
+}
+
+/// What a command may write over.
+#[derive(Debug, Clone, Default)]
+pub struct OutputPolicy {
+    /// Replace existing outputs (`-f/--force`).
+    pub overwrite: bool,
+    /// The command's input files (and folders): never written over, whatever `overwrite` says.
+    pub inputs: Vec<PathBuf>,
+}
+
+impl OutputPolicy {
+    /// A policy with the given overwrite switch and no inputs.
+    pub fn new(overwrite: bool) -> Self {
+        Self { overwrite, inputs: Vec::new() }
+    }
+
+    /// Adds an input path (a file, a directory of frames, or a file-name pattern). For a
+    /// `.pc2`/`.mdd` cache the topology OBJ beside it is an input too.
+    pub fn with_input(mut self, input: impl AsRef<Path>) -> Self {
+        let input = input.as_ref();
+        let ext = input.extension().map(|e| e.to_string_lossy().to_ascii_lowercase());
+        if matches!(ext.as_deref(), Some("pc2") | Some("mdd")) {
+            self.inputs.push(input.with_extension("obj"));
+        }
+        self.inputs.push(input.to_path_buf());
+        self
+    }
+
+    /// Checks that `path` may be written: it is not an input (or inside an input folder) and, unless
+    /// overwriting is allowed, it does not exist.
+    pub fn check(&self, path: &Path) -> Result<()> {
+        if let Some(input) = self.inputs.iter().find(|i| same_or_inside(path, i)) {
+            return Err(refused(
+                path,
+                if same_file(path, input) {
+                    "it is also an input of this command (refused even with --force)".to_owned()
+                } else {
+                    format!("it is inside the input folder {} (refused even with --force)", input.display())
+                },
+            ));
+        }
+        if path.is_dir() {
+            return Err(refused(path, "it is a directory".into()));
+        }
+        if is_special(path) {
+            // A device or a pipe (`-o /dev/null`, `-o >(…)`): written in place, never replaced.
+            return Ok(());
+        }
+        if !self.overwrite && std::fs::symlink_metadata(path).is_ok() {
+            return Err(refused(path, "it already exists (use -f/--force to replace it)".into()));
+        }
+        Ok(())
+    }
+
+    /// Checks `path` (see [`check`](Self::check)) and opens a temporary file for it.
+    pub fn create(&self, path: &Path) -> Result<PendingFile> {
+        self.check(path)?;
+        PendingFile::new(path)
+    }
+
+    /// Writes `bytes` to `path` safely (checked, temporary file, rename).
+    pub fn write(&self, path: &Path, bytes: &[u8]) -> Result<()> {
+        let mut file = self.create(path)?;
+        file.write_all(bytes).map_err(|e| file.error(e))?;
+        file.commit()
+    }
+}
+
+/// The error for an output that may not be written: "refusing to write PATH: WHY".
+pub fn refused(path: &Path, why: String) -> Error {
+    Error::io(
+        format!("refusing to write {}", path.display()),
+        std::io::Error::new(std::io::ErrorKind::AlreadyExists, why),
+    )
+}
+
+/// True when `path` exists and is neither a regular file nor a directory (a device such as
+/// `/dev/null`, a named pipe): such outputs are written in place, not through a temporary file.
+pub fn is_special(path: &Path) -> bool {
+    std::fs::metadata(path).is_ok_and(|m| !m.is_file() && !m.is_dir())
+}
+
+/// True when both paths name the same existing file (or directory).
+pub fn same_file(a: &Path, b: &Path) -> bool {
+    match (std::fs::canonicalize(a), std::fs::canonicalize(b)) {
+        (Ok(x), Ok(y)) => x == y,
+        _ => false,
+    }
+}
+
+/// True when `path` is `input`, or lies inside `input` when that is a directory (or the
+/// directory of a file-name pattern such as `frames/*.obj`, for `.obj` outputs).
+fn same_or_inside(path: &Path, input: &Path) -> bool {
+    if same_file(path, input) {
+        return true;
+    }
+    let pattern = input.file_name().is_some_and(|f| f.to_string_lossy().contains(['*', '?', '{', '#']));
+    let folder = if input.is_dir() {
+        Some(input.to_path_buf())
+    } else if pattern {
+        let is_obj = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("obj"));
+        input.parent().filter(|_| is_obj).map(|p| if p.as_os_str().is_empty() { PathBuf::from(".") } else { p.into() })
+    } else {
+        None
+    };
+    let Some(folder) = folder else { return false };
+    let Ok(folder) = std::fs::canonicalize(folder) else { return false };
+    let parent = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    std::fs::canonicalize(parent).is_ok_and(|p| p == folder)
+}
+
+/// A file being written: a temporary file beside the target, renamed over it by
+/// [`commit`](Self::commit) and deleted if dropped uncommitted.
+#[derive(Debug)]
+pub struct PendingFile {
+    target: PathBuf,
+    temp: PathBuf,
+    file: Option<BufWriter<File>>,
+}
+
+impl PendingFile {
+    /// Creates the temporary file for `target` (no check: see [`OutputPolicy::create`]).
+    pub fn new(target: &Path) -> Result<Self> {
+        static COUNTER: AtomicUsize = AtomicUsize::new(0);
+        let dir = match target.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+            _ => PathBuf::from("."),
+        };
+        let file_name = target.file_name().map(|f| f.to_string_lossy().into_owned()).ok_or_else(|| {
+            Error::io(
+                format!("cannot write {}: not a file name", target.display()),
+                std::io::Error::new(std::io::ErrorKind::InvalidInput, "no file name"),
+            )
+        })?;
+        if is_special(target) {
+            let file = File::options()
+                .write(true)
+                .open(target)
+                .map_err(|e| Error::io(format!("cannot open {}", target.display()), e))?;
+            return Ok(Self { target: target.to_path_buf(), temp: PathBuf::new(), file: Some(BufWriter::new(file)) });
+        }
+        let mut list = pending();
+        let n = COUNTER.fetch_add(1, Ordering::Relaxed);
+        let temp = dir.join(format!(".{file_name}.{}-{n}.tmp", std::process::id()));
+        let file = File::options()
+            .write(true)
+            .create_new(true)
+            .open(&temp)
+            .map_err(|e| Error::io(format!("cannot create {}", target.display()), e))?;
+        list.push(temp.clone());
+        Ok(Self { target: target.to_path_buf(), temp, file: Some(BufWriter::new(file)) })
+    }
+
+    /// The final path.
+    pub fn target(&self) -> &Path {
+        &self.target
+    }
+
+    /// An I/O error naming the target.
+    pub fn error(&self, e: std::io::Error) -> Error {
+        Error::io(format!("writing {}", self.target.display()), e)
+    }
+
+    /// Flushes, syncs and renames the temporary file over the target.
+    pub fn commit(self) -> Result<()> {
+        commit_all(vec![self], &[])
+    }
+
+    fn finish_writing(&mut self) -> Result<()> {
+        let Some(file) = self.file.take() else { return Ok(()) };
+        let file = file.into_inner().map_err(|e| self.error(e.into_error()))?;
+        if self.temp.as_os_str().is_empty() {
+            return Ok(()); // a device or pipe written in place: nothing to sync or rename
+        }
+        file.sync_all().map_err(|e| self.error(e))
+    }
+}
+
+/// Renames every pending file into place after removing `stale` files, as one step that an
+/// interrupting signal cannot split (it waits for the step to finish).
+pub fn commit_all(mut files: Vec<PendingFile>, stale: &[PathBuf]) -> Result<()> {
+    for f in &mut files {
+        f.finish_writing()?;
+    }
+    let mut list = pending();
+    for s in stale {
+        std::fs::remove_file(s).map_err(|e| Error::io(format!("removing stale {}", s.display()), e))?;
+    }
+    for f in files.iter_mut().filter(|f| !f.temp.as_os_str().is_empty()) {
+        std::fs::rename(&f.temp, &f.target).map_err(|e| Error::io(format!("writing {}", f.target.display()), e))?;
+        list.retain(|p| p != &f.temp);
+        f.temp = PathBuf::new();
+    }
+    Ok(())
+}
+
+impl Write for PendingFile {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        match &mut self.file {
+            Some(f) => f.write(buf),
+            None => Err(std::io::Error::other("file already committed")),
+        }
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        match &mut self.file {
+            Some(f) => f.flush(),
+            None => Ok(()),
+        }
+    }
+}
+
+impl Drop for PendingFile {
+    fn drop(&mut self) {
+        if self.temp.as_os_str().is_empty() {
+            return;
+        }
+        // Close before deleting.
+        drop(self.file.take());
+        let mut list = pending();
+        let _ = std::fs::remove_file(&self.temp);
+        list.retain(|p| p != &self.temp);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::formats::TempDir;
+
+    #[test]
+    fn uncommitted_files_leave_the_old_content_and_no_temporary() {
+        let dir = TempDir::new("pending");
+        let target = dir.path("out.bin");
+        std::fs::write(&target, b"old").unwrap();
+        {
+            let mut f = PendingFile::new(&target).unwrap();
+            f.write_all(b"new but unfinished").unwrap();
+        }
+        assert_eq!(std::fs::read(&target).unwrap(), b"old");
+        let mut f = PendingFile::new(&target).unwrap();
+        f.write_all(b"new").unwrap();
+        f.commit().unwrap();
+        assert_eq!(std::fs::read(&target).unwrap(), b"new");
+        let names: Vec<_> = std::fs::read_dir(&dir.0).unwrap().map(|e| e.unwrap().file_name()).collect();
+        assert_eq!(names, ["out.bin"], "no temporary file is left");
+    }
+
+    #[test]
+    fn existing_outputs_need_overwrite_and_inputs_are_never_outputs() {
+        let dir = TempDir::new("policy");
+        let input = dir.path("in.pc2");
+        std::fs::write(&input, b"input").unwrap();
+        let out = dir.path("out.anim");
+        let keep = OutputPolicy::new(false).with_input(&input);
+        keep.write(&out, b"1").unwrap();
+        let e = keep.write(&out, b"2").unwrap_err().to_string();
+        assert!(e.contains("out.anim") && e.contains("already exists") && e.contains("--force"), "{e}");
+        assert_eq!(std::fs::read(&out).unwrap(), b"1");
+        let force = OutputPolicy::new(true).with_input(&input);
+        force.write(&out, b"2").unwrap();
+        assert_eq!(std::fs::read(&out).unwrap(), b"2");
+        for p in [input.clone(), dir.0.join(".").join("in.pc2")] {
+            let e = force.write(&p, b"x").unwrap_err().to_string();
+            assert!(e.contains("also an input") && e.contains("even with --force"), "{e}");
+        }
+        assert_eq!(std::fs::read(&input).unwrap(), b"input");
+        // The companion OBJ of a cache is an input as well.
+        std::fs::write(dir.path("in.obj"), b"v 0 0 0\n").unwrap();
+        assert!(force.check(&dir.path("in.obj")).is_err());
+        // Devices are written in place, without --force and without a temporary file.
+        keep.write(Path::new("/dev/null"), b"discarded").unwrap();
+        assert!(is_special(Path::new("/dev/null")) && !is_special(&input));
+        // So is anything inside an input folder.
+        let frames = OutputPolicy::new(true).with_input(&dir.0);
+        assert!(frames.check(&dir.path("new.obj")).unwrap_err().to_string().contains("inside the input folder"));
+    }
+}

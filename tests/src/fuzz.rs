@@ -1,0 +1,306 @@
+//! The bodies of the fuzz targets in `fuzz/` (cargo-fuzz / libFuzzer), shared with the corpus
+//! replay test (`tests/tests/fuzz_corpus.rs`), which runs every committed corpus file through
+//! the same function on every `cargo test`.
+//!
+//! Each function panics on a finding: a panic inside the code under test, an `Ok` result of the
+//! wrong shape or with non-finite coordinates, or a peak of live memory above its budget (for
+//! streams: [`peak_budget`] of the decoding [`Limits`]; for readers, a multiple of the input
+//! size). Errors are the expected outcome of most inputs and are fine.
+//!
+//! Targets (the names of `fuzz/fuzz_targets/*.rs` and of `fuzz/corpus/*`):
+//! - `container`: any bytes as an `.anim` stream: full decode, index + random access.
+//! - `codec_<name>` (one per registered codec, `-` → `_`): structure-aware. The input is a
+//!   list of records `[kind: u8][len: u16 LE][len bytes]`; the first is the codec config, each
+//!   further one a packet of `1 + kind / 2` frames (keyframe if `kind` is odd). They are
+//!   written into a valid container (right FourCC and version, the [`fuzz_topology`], frame
+//!   count = the packets' sum, every checksum right), so the codec's own parser sees them.
+//! - `read_pc2`, `read_mdd`, `read_obj`, `read_gltf`: the file readers on any bytes.
+
+use std::io::Cursor;
+
+use codec_core::container::{self, ContainerWriter};
+use codec_core::{synth, Animation, Limits, Packet, Topology};
+
+use crate::peak_budget;
+
+/// Every target name, in the order of `fuzz/fuzz_targets`.
+pub fn targets() -> Vec<String> {
+    let mut t = vec!["container".to_owned()];
+    for codec in animcodec::registry().iter() {
+        t.push(format!("codec_{}", codec.name().replace('-', "_")));
+    }
+    t.extend(["read_pc2", "read_mdd", "read_obj", "read_gltf"].map(String::from));
+    t
+}
+
+/// Runs the target named `target` (see [`targets`]) on `data`.
+pub fn run(target: &str, data: &[u8]) {
+    match target {
+        "container" => container(data),
+        "read_pc2" => read_pc2(data),
+        "read_mdd" => read_mdd(data),
+        "read_obj" => read_obj(data),
+        "read_gltf" => read_gltf(data),
+        t => match t.strip_prefix("codec_") {
+            Some(codec) => codec_stream(&codec.replace('_', "-"), data),
+            None => panic!("unknown fuzz target '{t}'"),
+        },
+    }
+}
+
+/// Limits for fuzzed streams: small enough that a decoder sizing a buffer from an unchecked
+/// field is caught by the peak check, large enough for the seeds.
+pub fn fuzz_limits() -> Limits {
+    Limits { max_vertices: 1 << 16, max_frames: 1 << 12, max_triangles: 1 << 17, max_alloc_bytes: 8 << 20 }
+}
+
+/// Runs `f` and panics if the live memory it peaks at exceeds `budget` bytes.
+fn within(what: &str, budget: u64, f: impl FnOnce()) {
+    let info = allocation_counter::measure(f);
+    assert!(info.bytes_max <= budget, "{what}: held {} bytes at peak, over the budget of {budget}", info.bytes_max);
+}
+
+/// Decodes a stream fully and frame `t` by random access; `Ok` results must be finite and
+/// of the declared shape.
+fn decode_stream(bytes: &[u8], limits: Limits) {
+    let registry = animcodec::registry();
+    within("decode", peak_budget(&limits), || {
+        if let Ok(a) = codec_core::decode_animation(bytes, &registry, limits) {
+            assert!(a.positions().iter().all(|x| x.is_finite()), "decoded non-finite coordinates");
+            assert_eq!(a.positions().len(), a.frame_count() * a.vertex_count() * 3);
+        }
+    });
+    within("random access", peak_budget(&limits), || {
+        let mut src = Cursor::new(bytes);
+        if let Ok((header, index)) = container::read_index(&mut src, limits) {
+            for e in &index {
+                let _ = container::read_packet_at(&mut src, e, &header, limits);
+            }
+            let t = header.info.frame_count / 2;
+            if let Ok(frame) = codec_core::decode_frame(&mut Cursor::new(bytes), &registry, limits, t) {
+                assert_eq!(frame.len(), header.info.vertex_count() * 3);
+                assert!(frame.iter().all(|x| x.is_finite()), "decoded non-finite coordinates");
+            }
+        }
+    });
+}
+
+/// Target `container`.
+pub fn container(data: &[u8]) {
+    decode_stream(data, fuzz_limits());
+}
+
+/// The mesh every structure-aware codec input is decoded against: a 5 × 4 flag.
+pub fn fuzz_topology() -> Topology {
+    synth::flag_topology(5, 4)
+}
+
+/// The animation the codec seeds encode (on [`fuzz_topology`]).
+pub fn fuzz_animation(frames: usize) -> Animation {
+    synth::waving_flag(5, 4, frames)
+}
+
+/// Splits a structure-aware input into (config, packets); `None` when it has no record.
+pub fn parse_records(data: &[u8]) -> Option<(Vec<u8>, Vec<Packet>)> {
+    let mut records = Vec::new();
+    let mut rest = data;
+    while rest.len() >= 3 {
+        let kind = rest[0];
+        let len = u16::from_le_bytes([rest[1], rest[2]]) as usize;
+        let body = &rest[3..(3 + len).min(rest.len())];
+        records.push((kind, body.to_vec()));
+        rest = &rest[(3 + len).min(rest.len())..];
+    }
+    let mut it = records.into_iter();
+    let (_, config) = it.next()?;
+    let mut first_frame = 0u32;
+    let packets = it
+        .map(|(kind, data)| {
+            let frame_count = 1 + (kind >> 1) as u32;
+            let p = Packet { first_frame, frame_count, keyframe: kind & 1 == 1, data };
+            first_frame += frame_count;
+            p
+        })
+        .collect();
+    Some((config, packets))
+}
+
+/// The record form of a config and packets (what [`parse_records`] reads); packets of more
+/// than 128 frames or 64 KiB do not fit and are cut.
+pub fn to_records(config: &[u8], packets: &[Packet]) -> Vec<u8> {
+    let mut out = Vec::new();
+    let mut push = |kind: u8, body: &[u8]| {
+        let body = &body[..body.len().min(u16::MAX as usize)];
+        out.push(kind);
+        out.extend_from_slice(&(body.len() as u16).to_le_bytes());
+        out.extend_from_slice(body);
+    };
+    push(0, config);
+    for p in packets {
+        let frames = p.frame_count.clamp(1, 128) - 1;
+        push(((frames as u8) << 1) | p.keyframe as u8, &p.data);
+    }
+    out
+}
+
+/// Targets `codec_<name>`.
+pub fn codec_stream(codec_name: &str, data: &[u8]) {
+    let registry = animcodec::registry();
+    let codec = registry.by_name(codec_name).unwrap_or_else(|e| panic!("{e}"));
+    let Some((config, packets)) = parse_records(data) else { return };
+    let frames: usize = packets.iter().map(|p| p.frame_count as usize).sum();
+    if frames == 0 {
+        return;
+    }
+    let topology = fuzz_topology();
+    let mut w = ContainerWriter::new(
+        Vec::new(),
+        codec.fourcc(),
+        codec.stream_version(),
+        &topology,
+        frames,
+        synth::FRAME_RATE,
+        &config,
+    )
+    .expect("a valid header");
+    for p in &packets {
+        w.write_packet(p).expect("packets written in order");
+    }
+    let bytes = w.finish().expect("packets cover the frames");
+    decode_stream(&bytes, fuzz_limits());
+}
+
+/// Live-memory budget of a reader on an input of `len` bytes: the file's positions as `f32`
+/// and `f64` a few times over, plus a fixed allowance for the parsers' own tables.
+fn reader_budget(len: usize) -> u64 {
+    64 * len as u64 + (16 << 20)
+}
+
+/// Target `read_pc2`.
+pub fn read_pc2(data: &[u8]) {
+    within("read_pc2", reader_budget(data.len()), || {
+        if let Ok((h, p)) = animcodec::formats::pc2::parse_pc2(data, "fuzz.pc2") {
+            assert_eq!(p.len(), h.vertex_count * h.frame_count * 3);
+        }
+    });
+}
+
+/// Target `read_mdd`.
+pub fn read_mdd(data: &[u8]) {
+    within("read_mdd", reader_budget(data.len()), || {
+        let _ = animcodec::formats::mdd::parse_mdd(data, "fuzz.mdd");
+    });
+}
+
+/// Target `read_obj`.
+pub fn read_obj(data: &[u8]) {
+    within("read_obj", reader_budget(data.len()), || {
+        if let Ok(mesh) = animcodec::formats::obj::parse_obj(data, "fuzz.obj") {
+            let n = mesh.vertex_count() as u32;
+            assert!(mesh.triangles.iter().flatten().all(|&i| i < n), "triangle index out of range");
+        }
+    });
+}
+
+/// Target `read_gltf` (GLB or glTF JSON; external buffers are not resolved).
+pub fn read_gltf(data: &[u8]) {
+    within("read_gltf", reader_budget(data.len()), || {
+        if let Ok(a) = animcodec::formats::gltf::parse_gltf(data, None, "fuzz.glb", synth::FRAME_RATE) {
+            assert!(a.positions().iter().all(|x| x.is_finite()));
+        }
+    });
+}
+
+/// Seed inputs for every target, made from the synthetic animations: `(target, name, bytes)`.
+pub fn seeds() -> Vec<(String, String, Vec<u8>)> {
+    let registry = animcodec::registry();
+    let mut out = Vec::new();
+    let tiny = [("flag", fuzz_animation(12)), ("flag3", fuzz_animation(3)), ("flag1", fuzz_animation(1))];
+    for codec in registry.iter() {
+        let target = format!("codec_{}", codec.name().replace('-', "_"));
+        let ladder = codec.rate_ladder(&codec.default_params());
+        let mut settings = vec![("default".to_owned(), codec.default_params())];
+        for (end, step) in [("low", ladder.steps.first()), ("high", ladder.steps.last())] {
+            if let Some(p) =
+                step.and_then(|s| codec.default_params().with(&codec.param_specs(), ladder.param, s.clone()).ok())
+            {
+                settings.push((end.to_owned(), p));
+            }
+        }
+        for (anim_name, anim) in &tiny {
+            for (label, params) in &settings {
+                let Ok(bytes) = codec_core::encode_animation(codec, params, anim) else { continue };
+                let parts = crate::split(&bytes).expect("a valid stream");
+                out.push((
+                    target.clone(),
+                    format!("{anim_name}-{label}"),
+                    to_records(&parts.header.config, &parts.packets),
+                ));
+                if label == "default" {
+                    out.push(("container".to_owned(), format!("{}-{anim_name}", codec.name()), bytes));
+                }
+            }
+        }
+    }
+    for (name, anim) in [("flag", synth::waving_flag(4, 3, 5)), ("tumble1", fuzz_animation(1))] {
+        out.push(("read_pc2".into(), name.into(), animcodec::formats::pc2::encode_pc2(&anim).expect("pc2")));
+        out.push(("read_mdd".into(), name.into(), animcodec::formats::mdd::encode_mdd(&anim).expect("mdd")));
+        let text =
+            animcodec::formats::obj::obj_text(std::path::Path::new("seed.obj"), anim.frame(0), anim.triangles(), name)
+                .expect("obj");
+        out.push(("read_obj".into(), name.into(), text.into_bytes()));
+    }
+    out.push((
+        "read_obj".into(),
+        "polygons".into(),
+        b"v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nf 1/1 2//1 3/1/1 -1\n".to_vec(),
+    ));
+    out.push(("read_gltf".into(), "morph-triangle".into(), seed_gltf()));
+    out
+}
+
+/// A small glTF (JSON, buffer as a base64 data URI): one triangle with two morph targets and
+/// a LINEAR weights animation.
+pub fn seed_gltf() -> Vec<u8> {
+    use base64::Engine as _;
+    let mut bin = Vec::new();
+    let mut views = Vec::new();
+    let mut accessors = Vec::new();
+    let mut add = |bytes: Vec<u8>, count: usize, ty: &str, component: u32, minmax: Option<([f32; 3], [f32; 3])>| {
+        let offset = bin.len();
+        bin.extend_from_slice(&bytes);
+        while bin.len() % 4 != 0 {
+            bin.push(0);
+        }
+        views.push(serde_json::json!({"buffer": 0, "byteOffset": offset, "byteLength": bytes.len()}));
+        let mut a =
+            serde_json::json!({"bufferView": views.len() - 1, "componentType": component, "count": count, "type": ty});
+        if let Some((min, max)) = minmax {
+            a["min"] = serde_json::json!(min);
+            a["max"] = serde_json::json!(max);
+        }
+        accessors.push(a);
+        accessors.len() - 1
+    };
+    let f32s = |v: &[f32]| v.iter().flat_map(|x| x.to_le_bytes()).collect::<Vec<u8>>();
+    let base = add(f32s(&[0., 0., 0., 1., 0., 0., 0., 1., 0.]), 3, "VEC3", 5126, Some(([0.; 3], [1., 1., 0.])));
+    let t0 = add(f32s(&[0.5, 0., 0., 0.5, 0., 0., 0.5, 0., 0.]), 3, "VEC3", 5126, Some(([0.5, 0., 0.], [0.5, 0., 0.])));
+    let t1 = add(f32s(&[0., 0.5, 0., 0., 0.5, 0., 0., 0.5, 0.]), 3, "VEC3", 5126, Some(([0., 0.5, 0.], [0., 0.5, 0.])));
+    let idx = add([0u16, 1, 2].iter().flat_map(|x| x.to_le_bytes()).collect(), 3, "SCALAR", 5123, None);
+    let input = add(f32s(&[0., 0.5, 1.]), 3, "SCALAR", 5126, None);
+    let output = add(f32s(&[0., 0., 1., 0., 0., 1.]), 6, "SCALAR", 5126, None);
+    let uri =
+        format!("data:application/octet-stream;base64,{}", base64::engine::general_purpose::STANDARD.encode(&bin));
+    let doc = serde_json::json!({
+        "asset": {"version": "2.0"},
+        "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": base}, "indices": idx,
+            "targets": [{"POSITION": t0}, {"POSITION": t1}]}]}],
+        "animations": [{"samplers": [{"input": input, "output": output, "interpolation": "LINEAR"}],
+            "channels": [{"sampler": 0, "target": {"node": 0, "path": "weights"}}]}],
+        "buffers": [{"byteLength": bin.len(), "uri": uri}],
+        "bufferViews": views,
+        "accessors": accessors,
+    });
+    serde_json::to_vec(&doc).expect("json")
+}

@@ -1,0 +1,141 @@
+//! Golden streams (issue 16): `tests/golden/` holds one small stream per codec and stream
+//! version, made by that version of the codec, with the hash of its decoded frames in
+//! `tests/golden/hashes.txt`. Every one must still decode to exactly those frames: a codec that
+//! changes its bitstream bumps its stream version (`AnimationCodec::stream_version`) and keeps
+//! decoding the versions that have golden files.
+//!
+//! A new codec or a new stream version gets its golden file with
+//! `ANIMCODEC_WRITE_GOLDEN=1 cargo test -p conformance-tests --test golden`, which writes only
+//! the missing files (existing golden files are never rewritten).
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use codec_core::container::ContainerReader;
+use codec_core::{decode_animation, encode_animation, synth, Animation, Limits};
+use conformance_tests::registry;
+
+fn golden_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("golden")
+}
+
+/// FNV-1a (64 bit) over the frame count, vertex count, triangles and the bits of every
+/// coordinate, little-endian: any change to the decoded frames changes it.
+fn frames_hash(a: &Animation) -> String {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    let mut eat = |bytes: &[u8]| {
+        for &b in bytes {
+            h ^= b as u64;
+            h = h.wrapping_mul(0x0000_0100_0000_01b3);
+        }
+    };
+    eat(&(a.frame_count() as u64).to_le_bytes());
+    eat(&(a.vertex_count() as u64).to_le_bytes());
+    for t in a.triangles() {
+        for i in t {
+            eat(&i.to_le_bytes());
+        }
+    }
+    for x in a.positions() {
+        eat(&x.to_bits().to_le_bytes());
+    }
+    format!("{h:016x}")
+}
+
+/// The animation every golden stream encodes: small, but with real motion and triangles.
+fn golden_input() -> Animation {
+    synth::waving_flag(8, 6, 16)
+}
+
+/// `hashes.txt`: `file frames vertices hash` per line, `#` comments.
+fn read_hashes() -> BTreeMap<String, (usize, usize, String)> {
+    let text = std::fs::read_to_string(golden_dir().join("hashes.txt")).unwrap_or_default();
+    text.lines()
+        .filter(|l| !l.trim().is_empty() && !l.starts_with('#'))
+        .map(|l| {
+            let f: Vec<&str> = l.split_whitespace().collect();
+            assert_eq!(f.len(), 4, "hashes.txt: bad line '{l}'");
+            (f[0].to_owned(), (f[1].parse().unwrap(), f[2].parse().unwrap(), f[3].to_owned()))
+        })
+        .collect()
+}
+
+fn file_name(codec: &str, version: u16) -> String {
+    format!("{codec}-v{version}.anim")
+}
+
+#[test]
+fn every_golden_stream_decodes_to_its_hash() {
+    let registry = registry();
+    let dir = golden_dir();
+    let mut hashes = read_hashes();
+    if std::env::var_os("ANIMCODEC_WRITE_GOLDEN").is_some() {
+        let input = golden_input();
+        for codec in registry.iter() {
+            let name = file_name(codec.name(), codec.stream_version());
+            if hashes.contains_key(&name) {
+                continue;
+            }
+            let bytes = encode_animation(codec, &codec.default_params(), &input).unwrap();
+            let decoded = decode_animation(&bytes, &registry, Limits::default()).unwrap();
+            std::fs::create_dir_all(&dir).unwrap();
+            std::fs::write(dir.join(&name), &bytes).unwrap();
+            eprintln!("wrote golden stream {name} ({} bytes)", bytes.len());
+            hashes.insert(name, (decoded.frame_count(), decoded.vertex_count(), frames_hash(&decoded)));
+        }
+        let mut text = String::from(
+            "# golden stream, frames, vertices, FNV-1a 64 of the decoded frames (tests/tests/golden.rs)\n",
+        );
+        for (file, (f, v, h)) in &hashes {
+            text.push_str(&format!("{file} {f} {v} {h}\n"));
+        }
+        std::fs::write(dir.join("hashes.txt"), text).unwrap();
+    }
+
+    // Every registered codec has a golden stream for its current version.
+    for codec in registry.iter() {
+        let name = file_name(codec.name(), codec.stream_version());
+        assert!(
+            hashes.contains_key(&name),
+            "{}: no golden stream for stream version {} ({name}); make it with ANIMCODEC_WRITE_GOLDEN=1 \
+             (see tests/tests/golden.rs)",
+            codec.name(),
+            codec.stream_version()
+        );
+    }
+    // Every golden stream decodes to its hash, and every file is listed.
+    let files: Vec<String> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.ends_with(".anim"))
+        .collect();
+    for f in &files {
+        assert!(hashes.contains_key(f), "{f} is in tests/golden but not in hashes.txt");
+    }
+    for (file, (frames, vertices, hash)) in &hashes {
+        let bytes = std::fs::read(dir.join(file)).unwrap_or_else(|e| panic!("{file}: {e}"));
+        let header = ContainerReader::new(&bytes[..], Limits::default()).unwrap().header().clone();
+        let codec = registry.by_fourcc(header.info.fourcc).unwrap_or_else(|e| panic!("{file}: {e}"));
+        assert_eq!(file, &file_name(codec.name(), header.info.codec_version), "file name and header disagree");
+        assert!(header.info.codec_version <= codec.stream_version(), "{file}: from a newer version of the codec");
+        let decoded = decode_animation(&bytes, &registry, Limits::default())
+            .unwrap_or_else(|e| panic!("{file} no longer decodes: {e}"));
+        assert_eq!((decoded.frame_count(), decoded.vertex_count()), (*frames, *vertices), "{file}");
+        assert_eq!(
+            &frames_hash(&decoded),
+            hash,
+            "{file}: decodes to different frames than when it was made: the bitstream changed without a new \
+             stream version"
+        );
+    }
+}
+
+#[test]
+fn the_frames_hash_sees_one_bit() {
+    let a = golden_input();
+    let (topology, mut positions, fps) = a.clone().into_parts();
+    positions[7] = f32::from_bits(positions[7].to_bits() ^ 1);
+    let b = Animation::new(topology, positions, fps).unwrap();
+    assert_ne!(frames_hash(&a), frames_hash(&b));
+    assert_eq!(frames_hash(&a), frames_hash(&a.clone()));
+}
