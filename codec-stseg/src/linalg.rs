@@ -34,8 +34,9 @@ pub fn sym_eig_desc(g: MatRef<'_, f64>, step: &'static str) -> Result<(Vec<f64>,
     let mut u = Mat::<f64>::zeros(n, n);
     let mut mem =
         MemBuffer::new(evd::self_adjoint_evd_scratch::<f64>(n, ComputeEigenvectors::Yes, par, Default::default()));
-    evd::self_adjoint_evd(g, s.as_mut(), Some(u.as_mut()), par, MemStack::new(&mut mem), Default::default())
-        .map_err(|e| Error::Numerical { context: NAME.into(), step: step.into(), detail: format!("{e:?}") })?;
+    evd::self_adjoint_evd(g, s.as_mut(), Some(u.as_mut()), par, MemStack::new(&mut mem), Default::default()).map_err(
+        |e| Error::Numerical { context: NAME.into(), step: step.into(), detail: codec_core::error::debug_in_words(&e) },
+    )?;
     // faer sorts ascending; PCA wants the leading components first.
     let vals: Vec<f64> = (0..n).rev().map(|i| s.column_vector()[i].max(0.0)).collect();
     let vecs = Mat::from_fn(n, n, |i, j| u[(i, n - 1 - j)]);
@@ -52,8 +53,9 @@ pub fn sym_eigvals_desc(g: MatRef<'_, f64>, step: &'static str) -> Result<Vec<f6
     let mut s = faer::diag::Diag::<f64>::zeros(n);
     let mut mem =
         MemBuffer::new(evd::self_adjoint_evd_scratch::<f64>(n, ComputeEigenvectors::No, par, Default::default()));
-    evd::self_adjoint_evd(g, s.as_mut(), None, par, MemStack::new(&mut mem), Default::default())
-        .map_err(|e| Error::Numerical { context: NAME.into(), step: step.into(), detail: format!("{e:?}") })?;
+    evd::self_adjoint_evd(g, s.as_mut(), None, par, MemStack::new(&mut mem), Default::default()).map_err(|e| {
+        Error::Numerical { context: NAME.into(), step: step.into(), detail: codec_core::error::debug_in_words(&e) }
+    })?;
     Ok((0..n).rev().map(|i| s.column_vector()[i].max(0.0)).collect())
 }
 

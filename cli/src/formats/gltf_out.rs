@@ -135,7 +135,7 @@ fn basis_morphs(a: &Animation, options: &GltfOptions) -> Result<Morphs> {
     let eig = gram.self_adjoint_eigen(Side::Lower).map_err(|e| Error::Numerical {
         context: "glTF export".into(),
         step: "eigen-decomposition of the frames' Gram matrix".into(),
-        detail: format!("{e:?}"),
+        detail: codec_core::error::debug_in_words(&e),
     })?;
     // Descending eigenvalues (faer sorts them ascending).
     let order: Vec<usize> = (0..frames).rev().collect();
