@@ -177,7 +177,7 @@ fn corrupt_streams_fail_cleanly() {
     let pk = enc.push_frames(anim.positions()).unwrap();
     let info = StreamInfo {
         fourcc: Sac.fourcc(),
-        codec_version: 1,
+        codec_version: STREAM_VERSION,
         topology: anim.topology().clone(),
         frame_count: anim.frame_count(),
         frame_rate: 30.0,
@@ -220,9 +220,17 @@ fn parameters_are_validated_with_ranges() {
     assert_eq!(SacParams::from_param_set(&Sac.default_params()).unwrap(), SacParams::default());
     for step in Sac.rate_ladder(&Sac.default_params()).steps {
         let mut p = Sac.default_params();
-        p.set(&Sac.param_specs(), "bases", step).unwrap();
+        p.set(&Sac.param_specs(), "rate", step).unwrap();
         Sac.validate(&p).unwrap();
     }
+    // The residual step is 0 (off) or at least 1e-6.
+    let e = SacParams { residual: 1e-7, ..Default::default() }.validate().unwrap_err().to_string();
+    assert!(e.contains("residual") && e.contains("1e-6"), "{e}");
+    // A preset sets bases and residual.
+    let mut p = Sac.default_params();
+    p.set(&Sac.param_specs(), "rate", ParamValue::Int(RATE_PRESETS.len() as i64)).unwrap();
+    let typed = SacParams::from_param_set(&p).unwrap();
+    assert_eq!((typed.bases, typed.residual), RATE_PRESETS[RATE_PRESETS.len() - 1]);
 }
 
 #[test]
@@ -246,10 +254,104 @@ fn rate_ladder_streams_grow_on_synthetic_data() {
         let mut last = 0usize;
         for step in Sac.rate_ladder(&Sac.default_params()).steps {
             let mut p = Sac.default_params();
-            p.set(&Sac.param_specs(), "bases", step.clone()).unwrap();
+            p.set(&Sac.param_specs(), "rate", step.clone()).unwrap();
             let size = encode_animation_fed(&Sac, &p, &anim, false, frames).unwrap().bytes.len();
-            assert!(size >= last, "{name}: bases {step} gives {size} bytes, fewer than the previous step's {last}");
+            assert!(size >= last, "{name}: rate {step} gives {size} bytes, fewer than the previous step's {last}");
             last = size;
         }
     }
+}
+
+/// Two flags side by side (two connected components), the second one moving differently.
+fn two_flags(frames: usize) -> Animation {
+    let (cols, rows) = (12, 10);
+    let a = synth::waving_flag(cols, rows, frames);
+    let n1 = a.vertex_count();
+    let mut tris: Vec<[u32; 3]> = a.topology().triangles().to_vec();
+    tris.extend(a.topology().triangles().iter().map(|t| t.map(|i| i + n1 as u32)));
+    let mut pos = Vec::new();
+    for t in 0..frames {
+        pos.extend_from_slice(a.frame(t));
+        // The second flag plays the first one's motion backwards, mirrored and shifted.
+        pos.extend(a.frame(frames - 1 - t).chunks_exact(3).flat_map(|p| [p[0] + 3.0, -p[1], p[2]]));
+    }
+    Animation::new(Topology::new(2 * n1, tris).unwrap(), pos, 30.0).unwrap()
+}
+
+/// An encoder writing stream version `version` (the current code's old-version path).
+fn packets_version(anim: &Animation, p: SacParams, version: u16) -> (Vec<u8>, Vec<EncodedPacket>) {
+    let settings = Settings { bits: p.bits, bases: p.bases, polar: p.polar, iframe_bits: p.iframe_bits, version };
+    let shared = Shared::new(anim.topology(), settings).unwrap();
+    let mut enc = SacEncoder { params: p, shared, want_reconstruction: true, next_frame: 0, gop: None };
+    let config = enc.config();
+    (config, enc.push_frames(anim.positions()).unwrap())
+}
+
+/// Issue 14 bumped the stream version to 2 (per-component harmonics). A version-1 stream of a
+/// disconnected mesh must still decode to exactly what its encoder reconstructed, which needs
+/// version 1's basis: decoding the same packets as version 2 gives different frames.
+#[test]
+fn version_1_streams_still_decode_with_the_version_1_basis() {
+    let anim = two_flags(6);
+    let p = SacParams { bases: 8, ..Default::default() };
+    let (config, pk) = packets_version(&anim, p, 1);
+    assert!(kinds(&pk)[1..].iter().all(|&k| k == KIND_P), "{:?}", kinds(&pk));
+    let decode = |version: u16| -> Result<Vec<Vec<f32>>> {
+        let info = StreamInfo {
+            fourcc: Sac.fourcc(),
+            codec_version: version,
+            topology: anim.topology().clone(),
+            frame_count: anim.frame_count(),
+            frame_rate: 30.0,
+        };
+        let mut dec = Sac.new_decoder(&info, &config, &Limits::default()).unwrap();
+        pk.iter().map(|p| dec.decode_packet(&p.packet)).collect()
+    };
+    let v1 = decode(1).unwrap();
+    for (t, p) in pk.iter().enumerate() {
+        assert_eq!(Some(&v1[t]), p.reconstruction.as_ref(), "frame {t}");
+    }
+    // Read as version 2 the packets are malformed (no residual field) or decode differently.
+    assert!(decode(2).map_or(true, |v2| v2 != v1), "the version gate must matter");
+    // Unknown versions are rejected.
+    let info = StreamInfo {
+        fourcc: Sac.fourcc(),
+        codec_version: STREAM_VERSION + 1,
+        topology: anim.topology().clone(),
+        frame_count: anim.frame_count(),
+        frame_rate: 30.0,
+    };
+    assert!(Sac.new_decoder(&info, &config, &Limits::default()).is_err());
+    // The current encoder writes version 2 and round-trips the same animation.
+    let registry = CodecRegistry::new(vec![Box::new(Sac)]).unwrap();
+    let enc = encode_animation_fed(&Sac, &params(p), &anim, true, 3).unwrap();
+    let dec = decode_animation(&enc.bytes, &registry, Limits::default()).unwrap();
+    assert_eq!(Some(&dec), enc.reconstruction.as_ref());
+}
+
+/// Issue 14: the residual layer removes the error floor of the paper's method. On a bending
+/// cylinder, finer residual steps lower KG step by step below the paper's method at the same
+/// 4 bases, the decoder reproduces the encoder's closed loop exactly, and every frame but
+/// the first is still a P-frame.
+#[test]
+fn residual_layer_lowers_the_error_below_the_paper_floor() {
+    let anim = synth::bending_cylinder(16, 20, 16);
+    let registry = CodecRegistry::new(vec![Box::new(Sac)]).unwrap();
+    let run = |p: SacParams| {
+        let enc = encode_animation_fed(&Sac, &params(p), &anim, true, 5).unwrap();
+        let dec = decode_animation(&enc.bytes, &registry, Limits::default()).unwrap();
+        assert_eq!(Some(&dec), enc.reconstruction.as_ref(), "decoder differs from the encoder");
+        (kg(&anim, dec.positions()), enc.bytes.len())
+    };
+    let (paper_kg, paper_bytes) = run(SacParams { bases: 4, ..Default::default() });
+    let mut last = (paper_kg, paper_bytes);
+    for residual in [0.003, 0.001, 0.0003, 0.0001] {
+        let (k, b) = run(SacParams { bases: 4, residual, ..Default::default() });
+        assert!(k < last.0, "residual {residual}: KG {k} not below {}", last.0);
+        assert!(b > last.1, "residual {residual}: {b} bytes not above {}", last.1);
+        last = (k, b);
+    }
+    assert!(last.0 < 0.1 * paper_kg, "finest residual KG {} vs the paper's {paper_kg}", last.0);
+    let pk = packets(&anim, SacParams { bases: 4, residual: 0.0003, ..Default::default() });
+    assert!(kinds(&pk)[1..].iter().all(|&k| k == KIND_P), "{:?}", kinds(&pk));
 }
