@@ -378,6 +378,10 @@ struct Gop {
     transfer: Option<Transfer>,
     /// Encoder only: the analysis operator.
     analysis: Option<Mat<f64>>,
+    /// Version ≥ 2: the vertex basis `H` (`n × l`) for the spectral part of the residual layer.
+    basis: Option<Mat<f64>>,
+    /// Encoder only: the keyframe's lumped mass, for the projection `Hᵀ M r`.
+    mass: Option<Vec<f64>>,
     contexts: Contexts,
     prev: Vec<V3>,
 }
@@ -414,7 +418,7 @@ impl Shared {
         let prev = to_v3(frame);
         let contexts = Contexts::new(self.settings.groups().len(), self.settings.bits);
         let want = with_basis.unwrap_or(true) && self.poisson.is_some();
-        let mut gop = Gop { transfer: None, analysis: None, contexts, prev };
+        let mut gop = Gop { transfer: None, analysis: None, basis: None, mass: None, contexts, prev };
         if !want {
             return Ok(gop);
         }
@@ -432,12 +436,18 @@ impl Shared {
             } else {
                 None
             };
-            Ok((t, a))
+            Ok((t, a, h.basis))
         });
         match result {
-            Ok((t, a)) => {
+            Ok((t, a, b)) => {
                 gop.transfer = Some(t);
                 gop.analysis = a;
+                if self.settings.version >= 2 {
+                    gop.basis = Some(b);
+                    if encoder {
+                        gop.mass = Some(harmonics::laplacian(&gop.prev, &self.tris).1);
+                    }
+                }
             }
             // The encoder falls back to refresh frames for this interval and says so in the
             // stream; the decoder was told a basis exists, so failing here is an error.
@@ -571,6 +581,95 @@ fn encode_residual(frame: &[f32], rec: &mut [f32], step: f32, level: i32) -> Opt
         }
     }
     Some((planes as u8, entropy::compress(&raw, level)))
+}
+
+/// Spectral part of the residual layer (version ≥ 2): the M-orthogonal projection
+/// `c = Hᵀ M r` of the residual `r = frame − rec` (per axis) on the manifold harmonics `H`,
+/// quantized like the descriptors (`bits`, symmetric, amplitude = max |c| as f32), added to
+/// `rec` exactly as [`decode_spectral`] will. The Poisson reconstruction of truncated
+/// gradient fields misses mostly smooth, low-frequency shape (README, "Where the error comes
+/// from"), which these `3 l` numbers carry far more cheaply than per-vertex residuals.
+/// Returns the amplitude (0 = nothing sent) and the zstd block of signed varint codes.
+fn encode_spectral(
+    frame: &[f32],
+    rec: &mut [f32],
+    basis: &Mat<f64>,
+    mass: &[f64],
+    bits: u8,
+    level: i32,
+) -> (f32, Vec<u8>) {
+    let (n, l) = basis.shape();
+    let mut c = vec![0.0f64; 3 * l];
+    for k in 0..l {
+        let col = basis.col(k);
+        for i in 0..n {
+            let w = col[i] * mass[i];
+            for a in 0..3 {
+                c[a * l + k] += w * (frame[3 * i + a] as f64 - rec[3 * i + a] as f64);
+            }
+        }
+    }
+    let amax = c.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    let amp = coding::amplitude(amax);
+    if !(amp.is_finite() && amp > 0.0) {
+        return (0.0, Vec::new());
+    }
+    let step = coding::step(amp, bits);
+    let codes: Vec<i64> = c.iter().map(|&x| coding::quantize(x, step, bits)).collect();
+    apply_spectral(rec, basis, &codes, step);
+    let mut w = ByteWriter::new();
+    for &q in &codes {
+        w.varint_signed(q);
+    }
+    (amp, entropy::compress(w.as_slice(), level))
+}
+
+/// `rec += H q step`, per axis, in a fixed order (shared by encoder and decoder).
+fn apply_spectral(rec: &mut [f32], basis: &Mat<f64>, codes: &[i64], step: f64) {
+    let (n, l) = basis.shape();
+    let mut d = vec![0.0f64; 3 * n];
+    for k in 0..l {
+        let col = basis.col(k);
+        for a in 0..3 {
+            let q = codes[a * l + k];
+            if q != 0 {
+                let x = q as f64 * step;
+                for i in 0..n {
+                    d[3 * i + a] += col[i] * x;
+                }
+            }
+        }
+    }
+    for (r, d) in rec.iter_mut().zip(&d) {
+        *r = (*r as f64 + d) as f32;
+    }
+}
+
+/// Reads and applies the spectral part (amplitude 0: none).
+fn decode_spectral(r: &mut ByteReader<'_>, rec: &mut [f32], basis: &Mat<f64>, bits: u8) -> Result<()> {
+    let amp = r.f32("residual.amplitude")?;
+    if !(amp.is_finite() && amp >= 0.0) {
+        return Err(r.malformed("residual.amplitude", format!("{amp} is not a finite non-negative number")));
+    }
+    if amp == 0.0 {
+        return Ok(());
+    }
+    let l = basis.ncols();
+    let block = r.length_prefixed("residual.spectral")?;
+    let raw = entropy::decompress(block, NAME, "residual.spectral", 3 * l * 10)?;
+    let mut cr = ByteReader::new(&raw, NAME);
+    let max = coding::max_code(bits);
+    let mut codes = Vec::with_capacity(3 * l);
+    for _ in 0..3 * l {
+        let q = cr.varint_signed("residual.spectral")?;
+        if q.abs() > max {
+            return Err(cr.malformed("residual.spectral", format!("code {q} exceeds {max}")));
+        }
+        codes.push(q);
+    }
+    cr.expect_end("residual.spectral")?;
+    apply_spectral(rec, basis, &codes, coding::step(amp, bits));
+    Ok(())
 }
 
 /// Reads the residual layer of a version-2 P-frame and applies it to `rec`; every field is
@@ -733,8 +832,10 @@ impl SacEncoder {
             let diag = (0..3).map(|a| (hi[a] as f64 - lo[a] as f64).powi(2)).sum::<f64>().sqrt();
             let step = (self.params.residual * diag) as f32;
             if step > 0.0 && step.is_finite() {
+                let (Some(basis), Some(mass)) = (gop.basis.as_ref(), gop.mass.as_ref()) else { return Ok(None) };
+                let spectral = encode_spectral(frame, &mut rec, basis, mass, settings.bits, self.params.level);
                 let Some(coded) = encode_residual(frame, &mut rec, step, self.params.level) else { return Ok(None) };
-                residual = Some((step, coded));
+                residual = Some((spectral, step, coded));
             }
             if rec.iter().any(|x| !x.is_finite()) {
                 return Ok(None);
@@ -756,12 +857,19 @@ impl SacEncoder {
         }
         if settings.version >= 2 {
             match &residual {
-                Some((step, (planes, block))) => {
+                Some(((amp, spectral), step, (planes, block))) => {
+                    w.f32(*amp);
+                    if *amp > 0.0 {
+                        w.length_prefixed(spectral);
+                    }
                     w.f32(*step);
                     w.u8(*planes);
                     w.length_prefixed(block);
                 }
-                None => w.f32(0.0),
+                None => {
+                    w.f32(0.0);
+                    w.f32(0.0);
+                }
             }
         }
         w.bytes(&coded);
@@ -865,8 +973,10 @@ impl FrameDecoder for SacDecoder {
                 let mut residual = None;
                 if s.settings.version >= 2 {
                     let start = r.position();
-                    let step = r.f32("residual.step")?;
-                    if step != 0.0 {
+                    if r.f32("residual.amplitude")? != 0.0 {
+                        r.length_prefixed("residual.spectral")?;
+                    }
+                    if r.f32("residual.step")? != 0.0 {
                         r.u8("residual.planes")?;
                         r.length_prefixed("residual")?;
                     }
@@ -879,7 +989,11 @@ impl FrameDecoder for SacDecoder {
                 let solved = s.reconstruct(gop, &codes, &amps)?;
                 let mut rec = s.translate(&solved, &shifts);
                 if let Some(bytes) = residual {
-                    decode_residual(&mut ByteReader::new(bytes, NAME), &mut rec, &self.limits)?;
+                    let mut rr = ByteReader::new(bytes, NAME);
+                    let basis = gop.basis.as_ref().ok_or_else(|| rr.malformed("residual", "no basis"))?;
+                    decode_spectral(&mut rr, &mut rec, basis, s.settings.bits)?;
+                    decode_residual(&mut rr, &mut rec, &self.limits)?;
+                    rr.expect_end("residual")?;
                 }
                 if rec.iter().any(|x| !x.is_finite()) {
                     return Err(Error::malformed(NAME, "packet", "decoded positions are not finite"));

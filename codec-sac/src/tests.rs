@@ -166,49 +166,52 @@ fn awkward_meshes_give_finite_output_within_the_bound() {
 #[test]
 fn corrupt_streams_fail_cleanly() {
     let anim = synth::waving_flag(6, 5, 5);
-    let ps = params(SacParams { bases: 8, ..Default::default() });
-    let setup = EncoderSetup {
-        topology: anim.topology(),
-        frame_count: anim.frame_count(),
-        frame_rate: 30.0,
-        want_reconstruction: false,
-    };
-    let mut enc = Sac.new_encoder(&ps, &setup).unwrap();
-    let pk = enc.push_frames(anim.positions()).unwrap();
-    let info = StreamInfo {
-        fourcc: Sac.fourcc(),
-        codec_version: STREAM_VERSION,
-        topology: anim.topology().clone(),
-        frame_count: anim.frame_count(),
-        frame_rate: 30.0,
-    };
-    let config = enc.config();
-    for cut in 0..config.len() {
-        assert!(Sac.new_decoder(&info, &config[..cut], &Limits::default()).is_err());
-    }
-    let mut state = 7u64;
-    for trial in 0..300 {
-        let mut dec = Sac.new_decoder(&info, &config, &Limits::default()).unwrap();
-        for (i, p) in pk.iter().enumerate() {
-            let mut p = p.packet.clone();
-            if i == trial % pk.len() {
-                state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-                if trial % 3 == 0 {
-                    p.data.truncate((state >> 33) as usize % p.data.len());
-                } else {
-                    let at = (state >> 33) as usize % p.data.len();
-                    p.data[at] ^= (state >> 20) as u8 | 1;
+    // Without and with the residual layer (issue 14).
+    for residual in [0.0, 0.001] {
+        let ps = params(SacParams { bases: 8, residual, ..Default::default() });
+        let setup = EncoderSetup {
+            topology: anim.topology(),
+            frame_count: anim.frame_count(),
+            frame_rate: 30.0,
+            want_reconstruction: false,
+        };
+        let mut enc = Sac.new_encoder(&ps, &setup).unwrap();
+        let pk = enc.push_frames(anim.positions()).unwrap();
+        let info = StreamInfo {
+            fourcc: Sac.fourcc(),
+            codec_version: STREAM_VERSION,
+            topology: anim.topology().clone(),
+            frame_count: anim.frame_count(),
+            frame_rate: 30.0,
+        };
+        let config = enc.config();
+        for cut in 0..config.len() {
+            assert!(Sac.new_decoder(&info, &config[..cut], &Limits::default()).is_err());
+        }
+        let mut state = 7u64;
+        for trial in 0..300 {
+            let mut dec = Sac.new_decoder(&info, &config, &Limits::default()).unwrap();
+            for (i, p) in pk.iter().enumerate() {
+                let mut p = p.packet.clone();
+                if i == trial % pk.len() {
+                    state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                    if trial % 3 == 0 {
+                        p.data.truncate((state >> 33) as usize % p.data.len());
+                    } else {
+                        let at = (state >> 33) as usize % p.data.len();
+                        p.data[at] ^= (state >> 20) as u8 | 1;
+                    }
+                }
+                match dec.decode_packet(&p) {
+                    Ok(f) => assert!(f.len() == anim.vertex_count() * 3 && f.iter().all(|x| x.is_finite())),
+                    Err(_) => break,
                 }
             }
-            match dec.decode_packet(&p) {
-                Ok(f) => assert!(f.len() == anim.vertex_count() * 3 && f.iter().all(|x| x.is_finite())),
-                Err(_) => break,
-            }
         }
+        // A P-frame first is an error, not a panic.
+        let mut dec = Sac.new_decoder(&info, &config, &Limits::default()).unwrap();
+        assert!(dec.decode_packet(&pk[1].packet).is_err());
     }
-    // A P-frame first is an error, not a panic.
-    let mut dec = Sac.new_decoder(&info, &config, &Limits::default()).unwrap();
-    assert!(dec.decode_packet(&pk[1].packet).is_err());
 }
 
 #[test]
@@ -354,4 +357,42 @@ fn residual_layer_lowers_the_error_below_the_paper_floor() {
     assert!(last.0 < 0.1 * paper_kg, "finest residual KG {} vs the paper's {paper_kg}", last.0);
     let pk = packets(&anim, SacParams { bases: 4, residual: 0.0003, ..Default::default() });
     assert!(kinds(&pk)[1..].iter().all(|&k| k == KIND_P), "{:?}", kinds(&pk));
+}
+
+/// Issue 14, item 3: a closed mesh under large elastic deformation (stretch to 1.8× with
+/// volume-preserving squash, plus a twist of up to ±1.2 rad along the axis). Walking the rate
+/// ladder, the stream grows and KG falls at every step, down to the residual presets.
+#[test]
+fn ladder_is_monotone_under_large_elastic_deformation() {
+    let (rest, tris) = crate::geometry::tests::blob(3);
+    let frames = 12;
+    let mut pos = Vec::new();
+    for t in 0..frames {
+        let phase = (t as f64 / (frames - 1) as f64 * std::f64::consts::PI * 2.0).sin();
+        let s = 1.0 + 0.8 * phase.abs();
+        for p in &rest {
+            let (x, y, z) = (p[0] * s, p[1] / s.sqrt(), p[2] / s.sqrt());
+            let a = 1.2 * phase * p[0];
+            let (c, si) = (a.cos(), a.sin());
+            pos.extend([x as f32, (c * y - si * z) as f32, (si * y + c * z) as f32]);
+        }
+    }
+    let tris: Vec<[u32; 3]> = tris.iter().map(|t| t.map(|i| i as u32)).collect();
+    let anim = Animation::new(Topology::new(rest.len(), tris).unwrap(), pos, 30.0).unwrap();
+    let registry = CodecRegistry::new(vec![Box::new(Sac)]).unwrap();
+    let mut last: Option<(f64, usize)> = None;
+    for step in Sac.rate_ladder(&Sac.default_params()).steps {
+        let mut p = Sac.default_params();
+        p.set(&Sac.param_specs(), "rate", step.clone()).unwrap();
+        let enc = encode_animation_fed(&Sac, &p, &anim, false, frames).unwrap();
+        let dec = decode_animation(&enc.bytes, &registry, Limits::default()).unwrap();
+        let (k, b) = (kg(&anim, dec.positions()), enc.bytes.len());
+        if let Some((lk, lb)) = last {
+            assert!(b >= lb, "rate {step}: {b} bytes, fewer than the previous step's {lb}");
+            assert!(k <= lk, "rate {step}: KG {k} above the previous step's {lk}");
+        }
+        last = Some((k, b));
+    }
+    let (k, _) = last.unwrap();
+    assert!(k < 0.2, "the last ladder step reaches only KG {k}");
 }
