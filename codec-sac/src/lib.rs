@@ -583,21 +583,27 @@ fn encode_residual(frame: &[f32], rec: &mut [f32], step: f32, level: i32) -> Opt
     Some((planes as u8, entropy::compress(&raw, level)))
 }
 
+/// How much finer the spectral step is than the per-vertex step (measured on horse-gallop,
+/// pcow and chicken-crossing; README).
+const SPECTRAL_FINER: f64 = 16.0;
+
 /// Spectral part of the residual layer (version ≥ 2): the M-orthogonal projection
 /// `c = Hᵀ M r` of the residual `r = frame − rec` (per axis) on the manifold harmonics `H`,
-/// quantized like the descriptors (`bits`, symmetric, amplitude = max |c| as f32), added to
-/// `rec` exactly as [`decode_spectral`] will. The Poisson reconstruction of truncated
-/// gradient fields misses mostly smooth, low-frequency shape (README, "Where the error comes
-/// from"), which these `3 l` numbers carry far more cheaply than per-vertex residuals.
-/// Returns the amplitude (0 = nothing sent) and the zstd block of signed varint codes.
+/// quantized with step `vertex_step · √(Σ M)` (an error `δ` in `c` moves the frame by `‖δ‖` in
+/// the M-norm, i.e. by about `‖δ‖/√area` RMS, so this step matches the per-vertex step), and
+/// added to `rec` exactly as [`decode_spectral`] will. The Poisson reconstruction of
+/// truncated gradient fields misses mostly smooth, low-frequency shape (README, "Where the
+/// error comes from"), which these `3 l` numbers carry more cheaply than per-vertex
+/// residuals. Returns the step (0 = nothing sent) and the zstd block of signed varint codes;
+/// `None` if a code does not fit in 30 bits.
 fn encode_spectral(
     frame: &[f32],
     rec: &mut [f32],
     basis: &Mat<f64>,
     mass: &[f64],
-    bits: u8,
+    vertex_step: f32,
     level: i32,
-) -> (f32, Vec<u8>) {
+) -> Option<(f32, Vec<u8>)> {
     let (n, l) = basis.shape();
     let mut c = vec![0.0f64; 3 * l];
     for k in 0..l {
@@ -609,19 +615,24 @@ fn encode_spectral(
             }
         }
     }
-    let amax = c.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-    let amp = coding::amplitude(amax);
-    if !(amp.is_finite() && amp > 0.0) {
-        return (0.0, Vec::new());
+    let step = (vertex_step as f64 * mass.iter().sum::<f64>().sqrt() / SPECTRAL_FINER) as f32;
+    if !(step.is_finite() && step > 0.0) {
+        return Some((0.0, Vec::new()));
     }
-    let step = coding::step(amp, bits);
-    let codes: Vec<i64> = c.iter().map(|&x| coding::quantize(x, step, bits)).collect();
-    apply_spectral(rec, basis, &codes, step);
+    let mut codes = Vec::with_capacity(3 * l);
+    for &x in &c {
+        let q = (x / step as f64).round();
+        if q.is_nan() || q.abs() >= (1u64 << 30) as f64 {
+            return None;
+        }
+        codes.push(q as i64);
+    }
+    apply_spectral(rec, basis, &codes, step as f64);
     let mut w = ByteWriter::new();
     for &q in &codes {
         w.varint_signed(q);
     }
-    (amp, entropy::compress(w.as_slice(), level))
+    Some((step, entropy::compress(w.as_slice(), level)))
 }
 
 /// `rec += H q step`, per axis, in a fixed order (shared by encoder and decoder).
@@ -645,20 +656,20 @@ fn apply_spectral(rec: &mut [f32], basis: &Mat<f64>, codes: &[i64], step: f64) {
     }
 }
 
-/// Reads and applies the spectral part (amplitude 0: none).
-fn decode_spectral(r: &mut ByteReader<'_>, rec: &mut [f32], basis: &Mat<f64>, bits: u8) -> Result<()> {
-    let amp = r.f32("residual.amplitude")?;
-    if !(amp.is_finite() && amp >= 0.0) {
-        return Err(r.malformed("residual.amplitude", format!("{amp} is not a finite non-negative number")));
+/// Reads and applies the spectral part (step 0: none).
+fn decode_spectral(r: &mut ByteReader<'_>, rec: &mut [f32], basis: &Mat<f64>) -> Result<()> {
+    let step = r.f32("residual.spectral_step")?;
+    if !(step.is_finite() && step >= 0.0) {
+        return Err(r.malformed("residual.spectral_step", format!("{step} is not a finite non-negative number")));
     }
-    if amp == 0.0 {
+    if step == 0.0 {
         return Ok(());
     }
     let l = basis.ncols();
     let block = r.length_prefixed("residual.spectral")?;
     let raw = entropy::decompress(block, NAME, "residual.spectral", 3 * l * 10)?;
     let mut cr = ByteReader::new(&raw, NAME);
-    let max = coding::max_code(bits);
+    let max = (1i64 << 30) - 1;
     let mut codes = Vec::with_capacity(3 * l);
     for _ in 0..3 * l {
         let q = cr.varint_signed("residual.spectral")?;
@@ -668,7 +679,7 @@ fn decode_spectral(r: &mut ByteReader<'_>, rec: &mut [f32], basis: &Mat<f64>, bi
         codes.push(q);
     }
     cr.expect_end("residual.spectral")?;
-    apply_spectral(rec, basis, &codes, coding::step(amp, bits));
+    apply_spectral(rec, basis, &codes, step as f64);
     Ok(())
 }
 
@@ -833,7 +844,9 @@ impl SacEncoder {
             let step = (self.params.residual * diag) as f32;
             if step > 0.0 && step.is_finite() {
                 let (Some(basis), Some(mass)) = (gop.basis.as_ref(), gop.mass.as_ref()) else { return Ok(None) };
-                let spectral = encode_spectral(frame, &mut rec, basis, mass, settings.bits, self.params.level);
+                let Some(spectral) = encode_spectral(frame, &mut rec, basis, mass, step, self.params.level) else {
+                    return Ok(None);
+                };
                 let Some(coded) = encode_residual(frame, &mut rec, step, self.params.level) else { return Ok(None) };
                 residual = Some((spectral, step, coded));
             }
@@ -973,7 +986,7 @@ impl FrameDecoder for SacDecoder {
                 let mut residual = None;
                 if s.settings.version >= 2 {
                     let start = r.position();
-                    if r.f32("residual.amplitude")? != 0.0 {
+                    if r.f32("residual.spectral_step")? != 0.0 {
                         r.length_prefixed("residual.spectral")?;
                     }
                     if r.f32("residual.step")? != 0.0 {
@@ -991,7 +1004,7 @@ impl FrameDecoder for SacDecoder {
                 if let Some(bytes) = residual {
                     let mut rr = ByteReader::new(bytes, NAME);
                     let basis = gop.basis.as_ref().ok_or_else(|| rr.malformed("residual", "no basis"))?;
-                    decode_spectral(&mut rr, &mut rec, basis, s.settings.bits)?;
+                    decode_spectral(&mut rr, &mut rec, basis)?;
                     decode_residual(&mut rr, &mut rec, &self.limits)?;
                     rr.expect_end("residual")?;
                 }
