@@ -8,6 +8,11 @@
 //! (§3.3) → least-squares spectral descriptors on the first `bases` harmonics (§3.4) →
 //! quantization and arithmetic coding (§3.5) → decoded gradients → least-squares Poisson
 //! reconstruction (§3.6) plus one stored translation per connected component.
+//!
+//! Beyond the paper (issue 14, stream version 2): the harmonics of a disconnected mesh are
+//! computed per connected component, and an optional residual layer (`residual > 0`; spectral
+//! projection on the same harmonics, then per-vertex residuals) codes what the Poisson
+//! reconstruction missed, inside the closed loop. `residual = 0` is the paper's method.
 
 pub mod coding;
 pub mod geometry;
