@@ -213,7 +213,7 @@ fn rate_point(anim: &Animation, p: SacParams) -> codec_core::Result<()> {
     let rec: Vec<f32> = packets.iter().flat_map(|p| p.reconstruction.clone().unwrap()).collect();
     let info = StreamInfo {
         fourcc: Sac.fourcc(),
-        codec_version: 1,
+        codec_version: codec_sac::STREAM_VERSION,
         topology: anim.topology().clone(),
         frame_count: anim.frame_count(),
         frame_rate: anim.frame_rate(),

@@ -273,6 +273,12 @@ pub struct Harmonics {
 /// sequentially, and each eigenvector's sign is chosen so that its largest-magnitude entry (the
 /// first one on exact ties) is positive: the same decoded frame always gives the same basis.
 pub fn harmonics(pos: &[V3], tris: &[[usize; 3]], count: usize) -> Result<Harmonics> {
+    harmonics_with(pos, tris, count, 0)
+}
+
+/// [`harmonics`] with a dense solve whenever `n ≤ dense_up_to` (0 keeps stream version 1's
+/// rule: dense only when the Krylov space would reach `n`).
+fn harmonics_with(pos: &[V3], tris: &[[usize; 3]], count: usize, dense_up_to: usize) -> Result<Harmonics> {
     let n = pos.len();
     let count = count.min(n);
     if n == 0 || count == 0 {
@@ -295,7 +301,7 @@ pub fn harmonics(pos: &[V3], tris: &[[usize; 3]], count: usize) -> Result<Harmon
     // Krylov–Schur needs a projection space smaller than n; faer panics otherwise, so small
     // meshes (where a dense problem is cheap anyway) take the dense path.
     let max_dim = (2 * count + 20).max(64);
-    let (sym_vecs, eigenvalues) = if max_dim + 1 >= n {
+    let (sym_vecs, eigenvalues) = if max_dim + 1 >= n || n <= dense_up_to {
         dense_eigen(&trip, &sqrt_mass, count, sigma)?
     } else {
         krylov_eigen(&a, &sqrt_mass, count, sigma, max_dim)?
@@ -319,6 +325,81 @@ pub fn harmonics(pos: &[V3], tris: &[[usize; 3]], count: usize) -> Result<Harmon
     }
     Ok(Harmonics { basis, eigenvalues })
 }
+
+/// Manifold harmonics of a possibly disconnected mesh, one connected component at a time
+/// (stream version ≥ 2).
+///
+/// The Laplacian of a disconnected mesh is block diagonal, so its eigenpairs are the union of
+/// the components' eigenpairs (each extended by zero), and the `count` smallest of the union
+/// are the whole mesh's first `count` harmonics. Solving per component matters because the
+/// eigenvalue 0 has one eigenvector per component: on chicken-crossing (41 components) the
+/// single-start-vector Krylov–Schur of [`harmonics`] must find a 41-fold eigenvalue, which it
+/// cannot (a Krylov space holds one vector per eigenspace), and with 16 bases it ran for more
+/// than 12 minutes (issue 14). Per component, 0 is simple. Components without triangles or
+/// without area carry no triangle field and get no basis vector. Components of at most
+/// [`DENSE_COMPONENT`] vertices use the dense solver. Ties in `λ` are broken by component
+/// (lowest vertex first), then by position within the component; the order is deterministic.
+/// A connected mesh gives exactly [`harmonics`]' result.
+pub fn harmonics_by_component(pos: &[V3], tris: &[[usize; 3]], count: usize) -> Result<Harmonics> {
+    let n = pos.len();
+    let (component, pins) = crate::geometry::components(n, tris);
+    if pins.len() <= 1 {
+        return harmonics(pos, tris, count);
+    }
+    let nc = pins.len();
+    let mut local = vec![0usize; n];
+    let mut members: Vec<Vec<usize>> = vec![Vec::new(); nc];
+    for (v, &c) in component.iter().enumerate() {
+        local[v] = members[c].len();
+        members[c].push(v);
+    }
+    let mut comp_tris: Vec<Vec<[usize; 3]>> = vec![Vec::new(); nc];
+    for t in tris {
+        comp_tris[component[t[0]]].push([local[t[0]], local[t[1]], local[t[2]]]);
+    }
+    // (λ, component, index within the component's result, the component's harmonics)
+    let mut parts: Vec<Option<Harmonics>> = Vec::with_capacity(nc);
+    let mut pairs: Vec<(f64, usize, usize)> = Vec::new();
+    for c in 0..nc {
+        if comp_tris[c].is_empty() {
+            parts.push(None);
+            continue;
+        }
+        let lpos: Vec<V3> = members[c].iter().map(|&v| pos[v]).collect();
+        let area: f64 = comp_tris[c]
+            .iter()
+            .map(|&t| {
+                let p = corners(&lpos, t);
+                0.5 * norm(cross(sub(p[1], p[0]), sub(p[2], p[0])))
+            })
+            .sum();
+        if area.is_finite() && area <= 0.0 {
+            parts.push(None);
+            continue;
+        }
+        let h = harmonics_with(&lpos, &comp_tris[c], count.min(lpos.len()), DENSE_COMPONENT)?;
+        for (k, &l) in h.eigenvalues.iter().enumerate() {
+            pairs.push((l, c, k));
+        }
+        parts.push(Some(h));
+    }
+    pairs.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2)));
+    pairs.truncate(count);
+    if pairs.is_empty() && count > 0 {
+        return Err(numerical("manifold harmonics", "no component has a positive area"));
+    }
+    let mut basis = Mat::<f64>::zeros(n, pairs.len());
+    for (col, &(_, c, k)) in pairs.iter().enumerate() {
+        let h = parts[c].as_ref().expect("pairs come from solved components");
+        for (i, &v) in members[c].iter().enumerate() {
+            basis[(v, col)] = h.basis[(i, k)];
+        }
+    }
+    Ok(Harmonics { basis, eigenvalues: pairs.iter().map(|p| p.0).collect() })
+}
+
+/// Components up to this many vertices are solved densely by [`harmonics_by_component`].
+pub const DENSE_COMPONENT: usize = 400;
 
 /// The per-triangle spectral transform: synthesis `B = C H` (`m × l`, paper Eq. 5 applied to
 /// every basis vector, as Eq. 10–11 use it) and, for the encoder, the analysis operator
@@ -465,6 +546,59 @@ mod tests {
         assert!((0..n).all(|i| (h.basis[(i, 0)] - c0).abs() < 1e-8 * c0.abs()));
         let again = harmonics(&pos, &tris, 20).unwrap();
         assert_eq!(again.basis, h.basis, "the basis must be bit-for-bit reproducible");
+    }
+
+    /// Issue 14: identical disconnected components make every eigenvalue a multiple one (the
+    /// eigenvalue 0 once per component), which the single-vector Krylov iteration of the whole
+    /// mesh cannot resolve. Per component, the result is the single component's spectrum
+    /// repeated, with exact eigenpairs of the whole mesh.
+    #[test]
+    fn disconnected_copies_give_each_component_spectrum_repeated() {
+        let (one, one_tris) = blob(4);
+        let n1 = one.len();
+        assert!(n1 > DENSE_COMPONENT, "the copies must take the Krylov path");
+        let copies = 4;
+        let mut pos = Vec::new();
+        let mut tris = Vec::new();
+        for c in 0..copies {
+            pos.extend(one.iter().map(|p| [p[0] + 3.0 * c as f64, p[1], p[2]]));
+            tris.extend(one_tris.iter().map(|t| [t[0] + c * n1, t[1] + c * n1, t[2] + c * n1]));
+        }
+        let count = 14;
+        let h = harmonics_by_component(&pos, &tris, count).unwrap();
+        assert_eq!(h.basis.ncols(), count);
+        let single = harmonics(&one, &one_tris, count).unwrap();
+        let mut want: Vec<f64> = single.eigenvalues.iter().flat_map(|&l| std::iter::repeat_n(l, copies)).collect();
+        want.sort_by(f64::total_cmp);
+        for (k, &w) in want.iter().enumerate().take(count) {
+            let got = h.eigenvalues[k];
+            assert!((got - w).abs() < 1e-7 * (1.0 + w.abs()), "eigenvalue {k}: {got} vs {w}");
+        }
+        assert!(h.eigenvalues[..copies].iter().all(|l| l.abs() < 1e-8), "{:?}", h.eigenvalues);
+        // Eigenpairs of the whole mesh, M-orthonormal.
+        let n = pos.len();
+        let (trip, mass, _) = laplacian(&pos, &tris);
+        for k in 0..count {
+            let x = h.basis.col(k);
+            let mut lx = vec![0.0; n];
+            for t in &trip {
+                lx[t.row] += t.val * x[t.col];
+                if t.row != t.col {
+                    lx[t.col] += t.val * x[t.row];
+                }
+            }
+            let res = (0..n).map(|i| (lx[i] - h.eigenvalues[k] * mass[i] * x[i]).powi(2)).sum::<f64>().sqrt();
+            let scale = (0..n).map(|i| (mass[i] * x[i]).powi(2)).sum::<f64>().sqrt() * (1.0 + h.eigenvalues[k]);
+            assert!(res < 1e-6 * scale, "eigenpair {k}: residual {res}");
+            for q in 0..=k {
+                let ip: f64 = (0..n).map(|i| h.basis[(i, q)] * mass[i] * x[i]).sum();
+                let want = if q == k { 1.0 } else { 0.0 };
+                assert!((ip - want).abs() < 1e-8, "<h{q}, h{k}>_M = {ip}");
+            }
+        }
+        // A connected mesh gives exactly the whole-mesh solver's basis.
+        let same = harmonics_by_component(&one, &one_tris, count).unwrap();
+        assert_eq!(same.basis, single.basis);
     }
 
     #[test]

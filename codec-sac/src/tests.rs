@@ -166,49 +166,52 @@ fn awkward_meshes_give_finite_output_within_the_bound() {
 #[test]
 fn corrupt_streams_fail_cleanly() {
     let anim = synth::waving_flag(6, 5, 5);
-    let ps = params(SacParams { bases: 8, ..Default::default() });
-    let setup = EncoderSetup {
-        topology: anim.topology(),
-        frame_count: anim.frame_count(),
-        frame_rate: 30.0,
-        want_reconstruction: false,
-    };
-    let mut enc = Sac.new_encoder(&ps, &setup).unwrap();
-    let pk = enc.push_frames(anim.positions()).unwrap();
-    let info = StreamInfo {
-        fourcc: Sac.fourcc(),
-        codec_version: 1,
-        topology: anim.topology().clone(),
-        frame_count: anim.frame_count(),
-        frame_rate: 30.0,
-    };
-    let config = enc.config();
-    for cut in 0..config.len() {
-        assert!(Sac.new_decoder(&info, &config[..cut], &Limits::default()).is_err());
-    }
-    let mut state = 7u64;
-    for trial in 0..300 {
-        let mut dec = Sac.new_decoder(&info, &config, &Limits::default()).unwrap();
-        for (i, p) in pk.iter().enumerate() {
-            let mut p = p.packet.clone();
-            if i == trial % pk.len() {
-                state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-                if trial % 3 == 0 {
-                    p.data.truncate((state >> 33) as usize % p.data.len());
-                } else {
-                    let at = (state >> 33) as usize % p.data.len();
-                    p.data[at] ^= (state >> 20) as u8 | 1;
+    // Without and with the residual layer (issue 14).
+    for residual in [0.0, 0.001] {
+        let ps = params(SacParams { bases: 8, residual, ..Default::default() });
+        let setup = EncoderSetup {
+            topology: anim.topology(),
+            frame_count: anim.frame_count(),
+            frame_rate: 30.0,
+            want_reconstruction: false,
+        };
+        let mut enc = Sac.new_encoder(&ps, &setup).unwrap();
+        let pk = enc.push_frames(anim.positions()).unwrap();
+        let info = StreamInfo {
+            fourcc: Sac.fourcc(),
+            codec_version: STREAM_VERSION,
+            topology: anim.topology().clone(),
+            frame_count: anim.frame_count(),
+            frame_rate: 30.0,
+        };
+        let config = enc.config();
+        for cut in 0..config.len() {
+            assert!(Sac.new_decoder(&info, &config[..cut], &Limits::default()).is_err());
+        }
+        let mut state = 7u64;
+        for trial in 0..300 {
+            let mut dec = Sac.new_decoder(&info, &config, &Limits::default()).unwrap();
+            for (i, p) in pk.iter().enumerate() {
+                let mut p = p.packet.clone();
+                if i == trial % pk.len() {
+                    state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                    if trial % 3 == 0 {
+                        p.data.truncate((state >> 33) as usize % p.data.len());
+                    } else {
+                        let at = (state >> 33) as usize % p.data.len();
+                        p.data[at] ^= (state >> 20) as u8 | 1;
+                    }
+                }
+                match dec.decode_packet(&p) {
+                    Ok(f) => assert!(f.len() == anim.vertex_count() * 3 && f.iter().all(|x| x.is_finite())),
+                    Err(_) => break,
                 }
             }
-            match dec.decode_packet(&p) {
-                Ok(f) => assert!(f.len() == anim.vertex_count() * 3 && f.iter().all(|x| x.is_finite())),
-                Err(_) => break,
-            }
         }
+        // A P-frame first is an error, not a panic.
+        let mut dec = Sac.new_decoder(&info, &config, &Limits::default()).unwrap();
+        assert!(dec.decode_packet(&pk[1].packet).is_err());
     }
-    // A P-frame first is an error, not a panic.
-    let mut dec = Sac.new_decoder(&info, &config, &Limits::default()).unwrap();
-    assert!(dec.decode_packet(&pk[1].packet).is_err());
 }
 
 #[test]
@@ -220,9 +223,17 @@ fn parameters_are_validated_with_ranges() {
     assert_eq!(SacParams::from_param_set(&Sac.default_params()).unwrap(), SacParams::default());
     for step in Sac.rate_ladder(&Sac.default_params()).steps {
         let mut p = Sac.default_params();
-        p.set(&Sac.param_specs(), "bases", step).unwrap();
+        p.set(&Sac.param_specs(), "rate", step).unwrap();
         Sac.validate(&p).unwrap();
     }
+    // The residual step is 0 (off) or at least 1e-6.
+    let e = SacParams { residual: 1e-7, ..Default::default() }.validate().unwrap_err().to_string();
+    assert!(e.contains("residual") && e.contains("1e-6"), "{e}");
+    // A preset sets bases and residual.
+    let mut p = Sac.default_params();
+    p.set(&Sac.param_specs(), "rate", ParamValue::Int(RATE_PRESETS.len() as i64)).unwrap();
+    let typed = SacParams::from_param_set(&p).unwrap();
+    assert_eq!((typed.bases, typed.residual), RATE_PRESETS[RATE_PRESETS.len() - 1]);
 }
 
 #[test]
@@ -246,10 +257,142 @@ fn rate_ladder_streams_grow_on_synthetic_data() {
         let mut last = 0usize;
         for step in Sac.rate_ladder(&Sac.default_params()).steps {
             let mut p = Sac.default_params();
-            p.set(&Sac.param_specs(), "bases", step.clone()).unwrap();
+            p.set(&Sac.param_specs(), "rate", step.clone()).unwrap();
             let size = encode_animation_fed(&Sac, &p, &anim, false, frames).unwrap().bytes.len();
-            assert!(size >= last, "{name}: bases {step} gives {size} bytes, fewer than the previous step's {last}");
+            assert!(size >= last, "{name}: rate {step} gives {size} bytes, fewer than the previous step's {last}");
             last = size;
         }
     }
+}
+
+/// Two flags side by side (two connected components), the second one moving differently.
+fn two_flags(frames: usize) -> Animation {
+    let (cols, rows) = (12, 10);
+    let a = synth::waving_flag(cols, rows, frames);
+    let n1 = a.vertex_count();
+    let mut tris: Vec<[u32; 3]> = a.topology().triangles().to_vec();
+    tris.extend(a.topology().triangles().iter().map(|t| t.map(|i| i + n1 as u32)));
+    let mut pos = Vec::new();
+    for t in 0..frames {
+        pos.extend_from_slice(a.frame(t));
+        // The second flag plays the first one's motion backwards, mirrored and shifted.
+        pos.extend(a.frame(frames - 1 - t).chunks_exact(3).flat_map(|p| [p[0] + 3.0, -p[1], p[2]]));
+    }
+    Animation::new(Topology::new(2 * n1, tris).unwrap(), pos, 30.0).unwrap()
+}
+
+/// An encoder writing stream version `version` (the current code's old-version path).
+fn packets_version(anim: &Animation, p: SacParams, version: u16) -> (Vec<u8>, Vec<EncodedPacket>) {
+    let settings = Settings { bits: p.bits, bases: p.bases, polar: p.polar, iframe_bits: p.iframe_bits, version };
+    let shared = Shared::new(anim.topology(), settings).unwrap();
+    let mut enc = SacEncoder { params: p, shared, want_reconstruction: true, next_frame: 0, gop: None };
+    let config = enc.config();
+    (config, enc.push_frames(anim.positions()).unwrap())
+}
+
+/// Issue 14 bumped the stream version to 2 (per-component harmonics). A version-1 stream of a
+/// disconnected mesh must still decode to exactly what its encoder reconstructed, which needs
+/// version 1's basis: decoding the same packets as version 2 gives different frames.
+#[test]
+fn version_1_streams_still_decode_with_the_version_1_basis() {
+    let anim = two_flags(6);
+    let p = SacParams { bases: 8, ..Default::default() };
+    let (config, pk) = packets_version(&anim, p, 1);
+    assert!(kinds(&pk)[1..].iter().all(|&k| k == KIND_P), "{:?}", kinds(&pk));
+    let decode = |version: u16| -> Result<Vec<Vec<f32>>> {
+        let info = StreamInfo {
+            fourcc: Sac.fourcc(),
+            codec_version: version,
+            topology: anim.topology().clone(),
+            frame_count: anim.frame_count(),
+            frame_rate: 30.0,
+        };
+        let mut dec = Sac.new_decoder(&info, &config, &Limits::default()).unwrap();
+        pk.iter().map(|p| dec.decode_packet(&p.packet)).collect()
+    };
+    let v1 = decode(1).unwrap();
+    for (t, p) in pk.iter().enumerate() {
+        assert_eq!(Some(&v1[t]), p.reconstruction.as_ref(), "frame {t}");
+    }
+    // Read as version 2 the packets are malformed (no residual field) or decode differently.
+    assert!(decode(2).map_or(true, |v2| v2 != v1), "the version gate must matter");
+    // Unknown versions are rejected.
+    let info = StreamInfo {
+        fourcc: Sac.fourcc(),
+        codec_version: STREAM_VERSION + 1,
+        topology: anim.topology().clone(),
+        frame_count: anim.frame_count(),
+        frame_rate: 30.0,
+    };
+    assert!(Sac.new_decoder(&info, &config, &Limits::default()).is_err());
+    // The current encoder writes version 2 and round-trips the same animation.
+    let registry = CodecRegistry::new(vec![Box::new(Sac)]).unwrap();
+    let enc = encode_animation_fed(&Sac, &params(p), &anim, true, 3).unwrap();
+    let dec = decode_animation(&enc.bytes, &registry, Limits::default()).unwrap();
+    assert_eq!(Some(&dec), enc.reconstruction.as_ref());
+}
+
+/// Issue 14: the residual layer removes the error floor of the paper's method. On a bending
+/// cylinder, finer residual steps lower KG step by step below the paper's method at the same
+/// 4 bases, the decoder reproduces the encoder's closed loop exactly, and every frame but
+/// the first is still a P-frame.
+#[test]
+fn residual_layer_lowers_the_error_below_the_paper_floor() {
+    let anim = synth::bending_cylinder(16, 20, 16);
+    let registry = CodecRegistry::new(vec![Box::new(Sac)]).unwrap();
+    let run = |p: SacParams| {
+        let enc = encode_animation_fed(&Sac, &params(p), &anim, true, 5).unwrap();
+        let dec = decode_animation(&enc.bytes, &registry, Limits::default()).unwrap();
+        assert_eq!(Some(&dec), enc.reconstruction.as_ref(), "decoder differs from the encoder");
+        (kg(&anim, dec.positions()), enc.bytes.len())
+    };
+    let (paper_kg, paper_bytes) = run(SacParams { bases: 4, ..Default::default() });
+    let mut last = (paper_kg, paper_bytes);
+    for residual in [0.003, 0.001, 0.0003, 0.0001] {
+        let (k, b) = run(SacParams { bases: 4, residual, ..Default::default() });
+        assert!(k < last.0, "residual {residual}: KG {k} not below {}", last.0);
+        assert!(b > last.1, "residual {residual}: {b} bytes not above {}", last.1);
+        last = (k, b);
+    }
+    assert!(last.0 < 0.1 * paper_kg, "finest residual KG {} vs the paper's {paper_kg}", last.0);
+    let pk = packets(&anim, SacParams { bases: 4, residual: 0.0003, ..Default::default() });
+    assert!(kinds(&pk)[1..].iter().all(|&k| k == KIND_P), "{:?}", kinds(&pk));
+}
+
+/// Issue 14, item 3: a closed mesh under large elastic deformation (stretch to 1.8× with
+/// volume-preserving squash, plus a twist of up to ±1.2 rad along the axis). Walking the rate
+/// ladder, the stream grows and KG falls at every step, down to the residual presets.
+#[test]
+fn ladder_is_monotone_under_large_elastic_deformation() {
+    let (rest, tris) = crate::geometry::tests::blob(3);
+    let frames = 12;
+    let mut pos = Vec::new();
+    for t in 0..frames {
+        let phase = (t as f64 / (frames - 1) as f64 * std::f64::consts::PI * 2.0).sin();
+        let s = 1.0 + 0.8 * phase.abs();
+        for p in &rest {
+            let (x, y, z) = (p[0] * s, p[1] / s.sqrt(), p[2] / s.sqrt());
+            let a = 1.2 * phase * p[0];
+            let (c, si) = (a.cos(), a.sin());
+            pos.extend([x as f32, (c * y - si * z) as f32, (si * y + c * z) as f32]);
+        }
+    }
+    let tris: Vec<[u32; 3]> = tris.iter().map(|t| t.map(|i| i as u32)).collect();
+    let anim = Animation::new(Topology::new(rest.len(), tris).unwrap(), pos, 30.0).unwrap();
+    let registry = CodecRegistry::new(vec![Box::new(Sac)]).unwrap();
+    let mut last: Option<(f64, usize)> = None;
+    for step in Sac.rate_ladder(&Sac.default_params()).steps {
+        let mut p = Sac.default_params();
+        p.set(&Sac.param_specs(), "rate", step.clone()).unwrap();
+        let enc = encode_animation_fed(&Sac, &p, &anim, false, frames).unwrap();
+        let dec = decode_animation(&enc.bytes, &registry, Limits::default()).unwrap();
+        let (k, b) = (kg(&anim, dec.positions()), enc.bytes.len());
+        if let Some((lk, lb)) = last {
+            assert!(b >= lb, "rate {step}: {b} bytes, fewer than the previous step's {lb}");
+            assert!(k <= lk, "rate {step}: KG {k} above the previous step's {lk}");
+        }
+        last = Some((k, b));
+    }
+    let (k, _) = last.unwrap();
+    assert!(k < 0.2, "the last ladder step reaches only KG {k}");
 }
