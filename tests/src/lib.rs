@@ -610,44 +610,4 @@ mod tests {
     }
 }
 
-/// Looks like a Rust `Debug` value: `Name(Name…` (no space before the parenthesis) or
-/// `Name { field: …`.
-pub fn looks_like_debug(text: &str) -> bool {
-    let camel = |w: &str| {
-        w.len() > 1 && w.starts_with(|c: char| c.is_ascii_uppercase()) && w.chars().any(|c| c.is_ascii_lowercase())
-    };
-    let word_before = |end: usize| {
-        let start = text[..end].rfind(|c: char| !c.is_ascii_alphanumeric()).map_or(0, |p| p + 1);
-        &text[start..end]
-    };
-    let word_after = |start: usize| {
-        let end =
-            text[start..].find(|c: char| !(c.is_ascii_alphanumeric() || c == '_')).map_or(text.len(), |p| start + p);
-        (&text[start..end], &text[end..])
-    };
-    for (i, c) in text.char_indices() {
-        if c == '(' && camel(word_before(i)) && camel(word_after(i + 1).0) {
-            return true;
-        }
-        if c == '{' && i > 0 && text[..i].ends_with(' ') && camel(word_before(i - 1)) {
-            let (field, rest) = word_after((i + 2).min(text.len()));
-            if text[i + 1..].starts_with(' ') && !field.is_empty() && rest.starts_with(':') {
-                return true;
-            }
-        }
-    }
-    false
-}
-
-#[cfg(test)]
-mod debug_detector_tests {
-    use super::looks_like_debug;
-
-    #[test]
-    fn debug_value_detector_works() {
-        assert!(looks_like_debug("field 'descriptors' is malformed: Frontend(InvalidData)"));
-        assert!(looks_like_debug("x: Io { kind: NotFound }"));
-        assert!(!looks_like_debug("quant-delta (FourCC QDLT) 12 bits (see --help)"));
-        assert!(!looks_like_debug("frames (Small) are fine"));
-    }
-}
+pub use codec_core::error::looks_like_debug;
