@@ -10,6 +10,8 @@
 //! `animcodec::registry()`, so a codec added to the registry list is tested with no other
 //! change.
 
+/// Shared with the CLI tests: whether a message shows a Rust `Debug` value.
+pub use codec_core::error::looks_like_debug;
 use std::io::Cursor;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 
@@ -609,5 +611,3 @@ mod tests {
         assert!((0..1000).all(|_| c.nonzero_byte() != 0));
     }
 }
-
-pub use codec_core::error::looks_like_debug;

@@ -77,4 +77,5 @@ impl Drop for Scratch {
     }
 }
 
+#[allow(unused_imports)]
 pub use codec_core::error::looks_like_debug as has_debug_value;
