@@ -109,19 +109,23 @@ fn load_candidate(
             });
         }
     }
-    let animation = load_any(spec, read, limits)?;
-    let mut info = json!({});
-    if spec.to_ascii_lowercase().ends_with(".anim") {
+    let (animation, info) = if spec.to_ascii_lowercase().ends_with(".anim") {
+        // One pass over the stream: its codec from the header, then its frames.
         let size = std::fs::metadata(spec).map(|m| m.len()).unwrap_or(0);
         let decoder =
             StreamDecoder::new(super::decode::open(Path::new(spec))?, registry, limits).context(|| spec.to_string())?;
-        info = json!({
-            "codec": decoder.codec_name(),
+        let codec = decoder.codec_name();
+        let animation = decoder.decode_all().context(|| spec.to_string())?;
+        let info = json!({
+            "codec": codec,
             "params": "not stored in the stream",
             "bytes": size,
             "bpvf": metrics::bpvf(size, animation.vertex_count(), animation.frame_count())?,
         });
-    }
+        (animation, info)
+    } else {
+        (load_any(spec, read, limits)?, json!({}))
+    };
     let label = Path::new(spec).file_name().map_or_else(|| spec.to_string(), |f| f.to_string_lossy().into_owned());
     Ok(Loaded { label, animation, info })
 }
