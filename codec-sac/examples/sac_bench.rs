@@ -22,14 +22,14 @@ use std::io::Write;
 use std::path::Path;
 use std::time::Instant;
 
-use codec_core::{Animation, AnimationCodec, EncoderSetup, Limits, StreamInfo, Topology};
+use codec_core::{Animation, AnimationCodec, EncoderSetup, Limits, StreamInfo};
 use codec_sac::geometry::{self, PoissonSystem, Svd3};
 use codec_sac::{coding, harmonics, Sac, SacParams};
 
 #[path = "support/data.rs"]
 mod data;
 
-use data::{kg, read_obj_faces, read_pc2, to_v3};
+use data::{data_root, kg, load_named, to_v3};
 
 /// Per-frame stage times of paper Table 1, on the closed loop (reference = previous
 /// reconstruction), 100 bases, polar decomposition, 18 bits.
@@ -245,24 +245,10 @@ fn main() {
     let skip_stages = take("--no-stages").is_some();
     let no_polar = take("--no-polar-at").map(|v| v.split(',').filter_map(|x| x.parse().ok()).collect::<Vec<u32>>());
     let names = if args.is_empty() { vec!["horse-gallop".to_string()] } else { args };
-    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data");
-    if !root.exists() {
-        println!("SKIP: {} is absent", root.display());
-        return;
-    }
+    let Some(root) = data_root() else { return };
     for name in names {
-        let dir = root.join(&name);
-        let (n, frames, pos) = match read_pc2(&dir.join(format!("{name}.pc2"))) {
-            Ok(x) => x,
-            Err(e) => {
-                println!("SKIP {name}: {e}");
-                continue;
-            }
-        };
-        let tris = read_obj_faces(&dir.join(format!("{name}.obj"))).expect("obj");
-        let f = frames.min(max_frames);
-        let anim = Animation::new(Topology::new(n, tris).expect("topology"), pos[..f * n * 3].to_vec(), 30.0)
-            .expect("animation");
+        let Some(anim) = load_named(&root, &name, max_frames) else { continue };
+        let (n, f) = (anim.vertex_count(), anim.frame_count());
         println!("{name}: {n} vertices, {} triangles, {f} frames", anim.topology().triangle_count());
         if let Some(d) = &dump {
             dump_laplacian(&anim, Path::new(d), &name).expect("dump");

@@ -19,10 +19,9 @@
 //!
 //! KG = 100·‖A−Â‖_F / ‖A−E(A)‖_F as in `sac_bench`; frame 0 is the original in rows 1–5.
 
-use std::path::Path;
 use std::time::Instant;
 
-use codec_core::{Animation, AnimationCodec, EncoderSetup, Topology};
+use codec_core::{Animation, AnimationCodec, EncoderSetup};
 use codec_sac::geometry::{self, PoissonSystem, Svd3, M3, V3};
 use codec_sac::harmonics::{self, Transfer};
 use codec_sac::{coding, Sac, SacParams};
@@ -31,7 +30,7 @@ use faer::Mat;
 #[path = "support/data.rs"]
 mod data;
 
-use data::{kg, read_obj_faces, read_pc2, to_v3};
+use data::{data_root, kg, load_named, to_v3};
 
 #[derive(Clone, Copy)]
 enum Spectral {
@@ -139,24 +138,10 @@ fn main() {
     let bits: u8 = take("--bits").and_then(|v| v.parse().ok()).unwrap_or(18);
     let max_frames: usize = take("--frames").and_then(|v| v.parse().ok()).unwrap_or(usize::MAX);
     let names = if args.is_empty() { vec!["horse-gallop".to_string()] } else { args };
-    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data");
-    if !root.exists() {
-        println!("SKIP: {} is absent", root.display());
-        return;
-    }
+    let Some(root) = data_root() else { return };
     for name in names {
-        let dir = root.join(&name);
-        let (n, frames, pos) = match read_pc2(&dir.join(format!("{name}.pc2"))) {
-            Ok(x) => x,
-            Err(e) => {
-                println!("SKIP {name}: {e}");
-                continue;
-            }
-        };
-        let tris32 = read_obj_faces(&dir.join(format!("{name}.obj"))).expect("obj");
-        let f = frames.min(max_frames);
-        let anim = Animation::new(Topology::new(n, tris32).expect("topology"), pos[..f * n * 3].to_vec(), 30.0)
-            .expect("animation");
+        let Some(anim) = load_named(&root, &name, max_frames) else { continue };
+        let (n, f) = (anim.vertex_count(), anim.frame_count());
         let tris: Vec<[usize; 3]> = anim
             .triangles()
             .iter()

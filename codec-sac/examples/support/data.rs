@@ -3,9 +3,9 @@
 //! point conversion.
 #![allow(dead_code)]
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
-use codec_core::Animation;
+use codec_core::{Animation, Topology};
 use codec_sac::geometry::V3;
 
 /// `(vertex count, frame count, positions)` of a POINTCACHE2 file.
@@ -63,4 +63,31 @@ pub fn kg(a: &Animation, b: &[f32]) -> f64 {
 /// Interleaved xyz `f32` as `f64` points.
 pub fn to_v3(f: &[f32]) -> Vec<V3> {
     f.chunks_exact(3).map(|p| [p[0] as f64, p[1] as f64, p[2] as f64]).collect()
+}
+
+/// `../shared/data`, or `None` (after a SKIP message) when it is absent.
+pub fn data_root() -> Option<PathBuf> {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data");
+    if root.exists() {
+        Some(root)
+    } else {
+        println!("SKIP: {} is absent", root.display());
+        None
+    }
+}
+
+/// `root/NAME/NAME.pc2` with the triangles of `NAME.obj`, its first `max_frames` frames at
+/// 30 fps; `None` (after a SKIP message) when the cache cannot be read.
+pub fn load_named(root: &Path, name: &str, max_frames: usize) -> Option<Animation> {
+    let dir = root.join(name);
+    let (n, frames, pos) = match read_pc2(&dir.join(format!("{name}.pc2"))) {
+        Ok(x) => x,
+        Err(e) => {
+            println!("SKIP {name}: {e}");
+            return None;
+        }
+    };
+    let tris = read_obj_faces(&dir.join(format!("{name}.obj"))).expect("obj");
+    let f = frames.min(max_frames);
+    Some(Animation::new(Topology::new(n, tris).expect("topology"), pos[..f * n * 3].to_vec(), 30.0).expect("animation"))
 }
