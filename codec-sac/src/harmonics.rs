@@ -512,24 +512,20 @@ mod tests {
     use super::*;
     use crate::geometry::tests::blob;
 
-    #[test]
-    fn harmonics_are_mass_orthonormal_eigenvectors_and_deterministic() {
-        let (pos, tris) = blob(3);
+    /// The first `count` columns of `h` solve `L x = λ M x` (residual below 1e-6 of `‖Mx‖(1+λ)`)
+    /// and are M-orthonormal to 1e-8; `L x` from the upper-triangle triplets.
+    fn assert_mass_orthonormal_eigenpairs(pos: &[V3], tris: &[[usize; 3]], h: &Harmonics, count: usize) {
         let n = pos.len();
-        let h = harmonics(&pos, &tris, 20).unwrap();
-        assert_eq!(h.basis.shape(), (n, 20));
-        let (trip, mass, _) = laplacian(&pos, &tris);
-        // L as a dense matrix from its upper triangle (small mesh, test only).
-        let mut l = Mat::<f64>::zeros(n, n);
-        for t in &trip {
-            l[(t.row, t.col)] += t.val;
-            if t.row != t.col {
-                l[(t.col, t.row)] += t.val;
-            }
-        }
-        for k in 0..20 {
+        let (trip, mass, _) = laplacian(pos, tris);
+        for k in 0..count {
             let x = h.basis.col(k);
-            let lx = &l * x;
+            let mut lx = vec![0.0; n];
+            for t in &trip {
+                lx[t.row] += t.val * x[t.col];
+                if t.row != t.col {
+                    lx[t.col] += t.val * x[t.row];
+                }
+            }
             let res = (0..n).map(|i| (lx[i] - h.eigenvalues[k] * mass[i] * x[i]).powi(2)).sum::<f64>().sqrt();
             let scale = (0..n).map(|i| (mass[i] * x[i]).powi(2)).sum::<f64>().sqrt() * (1.0 + h.eigenvalues[k]);
             assert!(res < 1e-6 * scale, "eigenpair {k}: residual {res}");
@@ -539,6 +535,15 @@ mod tests {
                 assert!((ip - want).abs() < 1e-8, "<h{q}, h{k}>_M = {ip}");
             }
         }
+    }
+
+    #[test]
+    fn harmonics_are_mass_orthonormal_eigenvectors_and_deterministic() {
+        let (pos, tris) = blob(3);
+        let n = pos.len();
+        let h = harmonics(&pos, &tris, 20).unwrap();
+        assert_eq!(h.basis.shape(), (n, 20));
+        assert_mass_orthonormal_eigenpairs(&pos, &tris, &h, 20);
         assert!(h.eigenvalues.windows(2).all(|w| w[0] <= w[1] + 1e-9));
         assert!(h.eigenvalues[0].abs() < 1e-8, "first eigenvalue {}", h.eigenvalues[0]);
         // The first basis vector of a connected mesh is constant.
@@ -576,26 +581,7 @@ mod tests {
         }
         assert!(h.eigenvalues[..copies].iter().all(|l| l.abs() < 1e-8), "{:?}", h.eigenvalues);
         // Eigenpairs of the whole mesh, M-orthonormal.
-        let n = pos.len();
-        let (trip, mass, _) = laplacian(&pos, &tris);
-        for k in 0..count {
-            let x = h.basis.col(k);
-            let mut lx = vec![0.0; n];
-            for t in &trip {
-                lx[t.row] += t.val * x[t.col];
-                if t.row != t.col {
-                    lx[t.col] += t.val * x[t.row];
-                }
-            }
-            let res = (0..n).map(|i| (lx[i] - h.eigenvalues[k] * mass[i] * x[i]).powi(2)).sum::<f64>().sqrt();
-            let scale = (0..n).map(|i| (mass[i] * x[i]).powi(2)).sum::<f64>().sqrt() * (1.0 + h.eigenvalues[k]);
-            assert!(res < 1e-6 * scale, "eigenpair {k}: residual {res}");
-            for q in 0..=k {
-                let ip: f64 = (0..n).map(|i| h.basis[(i, q)] * mass[i] * x[i]).sum();
-                let want = if q == k { 1.0 } else { 0.0 };
-                assert!((ip - want).abs() < 1e-8, "<h{q}, h{k}>_M = {ip}");
-            }
-        }
+        assert_mass_orthonormal_eigenpairs(&pos, &tris, &h, count);
         // A connected mesh gives exactly the whole-mesh solver's basis.
         let same = harmonics_by_component(&one, &one_tris, count).unwrap();
         assert_eq!(same.basis, single.basis);
