@@ -423,3 +423,32 @@ fn bound_holds_when_truncation_error_is_tiny_next_to_the_norm() {
     // Not vacuous: within a small factor of the real error.
     assert!(b.stats.error_bound < 10.0 * err, "bound {} vs error {err}", b.stats.error_bound);
 }
+
+#[test]
+fn toolkit_coding_is_smaller_than_the_paper_coding_at_a_similar_error() {
+    let anim = flag(30, 20, 40, 1.0, 1.0);
+    let reg = registry();
+    let run = |hp: HosvdParams| {
+        let p = params(hp);
+        let enc = encode_animation_fed(&Hosvd, &p, &anim, true, 1000).unwrap();
+        let dec = decode_animation(&enc.bytes, &reg, Limits::default()).unwrap();
+        assert_eq!(Some(&dec), enc.reconstruction.as_ref(), "{p}");
+        let bound = Hosvd.error_bound(&p, &anim).unwrap().max_coordinate_error.unwrap();
+        let err = frob_error(anim.positions(), dec.positions());
+        assert!(err <= bound, "{p}: error {err} > bound {bound}");
+        (enc.bytes.len(), err)
+    };
+    let paper = run(HosvdParams { ss: 0.9, coding: Coding::Paper, ..Default::default() });
+    let toolkit = run(HosvdParams { ss: 0.9, ..Default::default() });
+    // Measured: 5326 vs 6972 bytes (−24%), error +1.3%.
+    assert!((toolkit.0 as f64) < 0.9 * paper.0 as f64, "toolkit {toolkit:?} vs paper {paper:?}");
+    assert!(toolkit.1 < 1.1 * paper.1, "toolkit {toolkit:?} vs paper {paper:?}");
+    // Every predictor, shaping and the rule-of-thumb steps round-trip and stay within the bound.
+    for (mesh_predictor, time_predictor, shaping, rdq) in [
+        (Predictor::Parallelogram, Predictor::Parallelogram, 0.0, true),
+        (Predictor::Previous, Predictor::Average, 0.7, true),
+        (Predictor::Zero, Predictor::Zero, 0.0, false),
+    ] {
+        run(HosvdParams { ss: 0.9, mesh_predictor, time_predictor, shaping, rdq, ..Default::default() });
+    }
+}
