@@ -18,6 +18,7 @@ pub mod quant_delta;
 pub mod registry;
 pub mod stream;
 pub mod synth;
+pub mod toolkit;
 
 pub use animation::{Animation, Topology};
 pub use codec::{

@@ -13,6 +13,11 @@
 //! 3. HOOI at equal ranks (unquantized error and quantized stream);
 //! 4. temporal blocks.
 //!
+//! With `--speed` as the first argument only the speed check of issue 15 runs: per animation
+//! and `ss`, encode and decode times of the paper coding and the toolkit coding (stream version
+//! 2's default) and a memcpy of the decoded frames, all in one run, as ratios:
+//! `target/release/examples/hosvd_bench --speed ../shared/data samba`.
+//!
 //! KG = 100·‖A−Â‖_F / ‖A−E(A)‖_F with E(A) the per-frame centroid of the original (f64).
 //! MSE = mean over vertices and frames of the squared vertex distance (§2.7).
 
@@ -111,7 +116,7 @@ struct Run {
 /// per-block statistics are available, then decodes through the registry.
 fn run(a: &Animation, p: &HosvdParams) -> Run {
     let t0 = Instant::now();
-    let mut enc = HosvdEncoder::new(*p, a.vertex_count(), a.frame_count(), true);
+    let mut enc = HosvdEncoder::new(*p, a.topology(), a.frame_count(), true);
     let mut w = ContainerWriter::new(
         Vec::new(),
         Hosvd.fourcc(),
@@ -174,8 +179,63 @@ fn centred_energy(a: &Animation) -> f64 {
     den
 }
 
+/// Best of `reps` timings of `f`.
+fn best_of(reps: usize, mut f: impl FnMut()) -> f64 {
+    (0..reps)
+        .map(|_| {
+            let t = Instant::now();
+            f();
+            t.elapsed().as_secs_f64()
+        })
+        .fold(f64::INFINITY, f64::min)
+}
+
+/// Issue 15's speed check: decode speed as a share of memcpy speed of the decoded output, and
+/// the toolkit coding's encode time relative to the paper coding's, measured in one run.
+fn speed(a: &Animation, name: &str) {
+    use codec_hosvd::Coding;
+    let out_bytes = a.positions().len() * 4;
+    println!("\n## {name}: speed (best of 3; decoded output {:.1} MB)\n", out_bytes as f64 / 1e6);
+    println!("| ss | coding | bpvf | KG | encode s | decode s | memcpy s | decode speed / memcpy speed | encode / paper encode |");
+    println!("|---|---|---|---|---|---|---|---|---|");
+    let reg = CodecRegistry::new(vec![Box::new(Hosvd)]).unwrap();
+    for ss in [0.95, 0.9, 0.8] {
+        let mut paper_enc = 0.0;
+        for coding in [Coding::Paper, Coding::Toolkit] {
+            let p = HosvdParams { ss, coding, ..Default::default() };
+            let ps = p.to_param_set().unwrap();
+            let mut bytes = Vec::new();
+            let enc_s =
+                best_of(3, || bytes = encode_animation_fed(&Hosvd, &ps, a, false, a.frame_count()).unwrap().bytes);
+            let mut dec = None;
+            let dec_s = best_of(3, || dec = Some(decode_animation(&bytes, &reg, Limits::default()).unwrap()));
+            let dec = dec.unwrap();
+            let mut copy = vec![0.0f32; dec.positions().len()];
+            let memcpy_s = best_of(5, || {
+                copy.copy_from_slice(std::hint::black_box(dec.positions()));
+                std::hint::black_box(&copy);
+            });
+            if coding == Coding::Paper {
+                paper_enc = enc_s;
+            }
+            let e = errors(a, dec.positions());
+            println!(
+                "| {ss} | {coding:?} | {:.3} | {:.3} | {enc_s:.3} | {dec_s:.4} | {memcpy_s:.5} | {:.2}% | {:.2} |",
+                bytes.len() as f64 * 8.0 / (a.vertex_count() * a.frame_count()) as f64,
+                e.kg,
+                100.0 * memcpy_s / dec_s,
+                enc_s / paper_enc,
+            );
+        }
+    }
+}
+
 fn main() {
-    let mut args = std::env::args().skip(1);
+    let mut args = std::env::args().skip(1).peekable();
+    let speed_only = args.peek().is_some_and(|a| a == "--speed");
+    if speed_only {
+        args.next();
+    }
     let dir = PathBuf::from(args.next().unwrap_or_else(|| "../shared/data".into()));
     let mut names: Vec<String> = args.collect();
     if names.is_empty() {
@@ -194,6 +254,10 @@ fn main() {
                 continue;
             }
         };
+        if speed_only {
+            speed(&a, name);
+            continue;
+        }
         let (k, f) = (a.vertex_count(), a.frame_count());
         let raw = (k * f * 12) as f64;
         println!("\n## {name}: {k} vertices, {f} frames, {} triangles\n", a.topology().triangle_count());
@@ -261,15 +325,23 @@ fn main() {
         println!("|---|---|---|---|---|---|---|---|");
         for &ss in &ladder {
             let p = HosvdParams { ss, strategy: Strategy::Exhaustive, rigid: true, ..Default::default() };
-            let s = codec_hosvd::encode_block(a.positions(), k, &p, false).unwrap().stats;
+            let s = codec_hosvd::encode_block(a.positions(), k, &p, &codec_hosvd::mesh_graph(&p, a.topology()), false)
+                .unwrap()
+                .stats;
             let (unq, _) = truncated_reconstruction(a.positions(), k, s.v, s.f, true, 0).unwrap();
             let eh = errors(&a, &unq).kg;
             let pn = HosvdParams { rigid: false, ..p };
-            let sn = codec_hosvd::encode_block(a.positions(), k, &pn, false).unwrap().stats;
+            let sn =
+                codec_hosvd::encode_block(a.positions(), k, &pn, &codec_hosvd::mesh_graph(&pn, a.topology()), false)
+                    .unwrap()
+                    .stats;
             let (unqn, _) = truncated_reconstruction(a.positions(), k, sn.v, sn.f, false, 0).unwrap();
             let ehn = errors(&a, &unqn).kg;
             let pr = HosvdParams { affine: false, ..p };
-            let sr = codec_hosvd::encode_block(a.positions(), k, &pr, false).unwrap().stats;
+            let sr =
+                codec_hosvd::encode_block(a.positions(), k, &pr, &codec_hosvd::mesh_graph(&pr, a.topology()), false)
+                    .unwrap()
+                    .stats;
             let (unqr, _) = truncated_reconstruction_with(a.positions(), k, sr.v, sr.f, true, false, 0).unwrap();
             let ehr = errors(&a, &unqr).kg;
             let budget = (1.0 - ss) * (3 * k * f) as f64;

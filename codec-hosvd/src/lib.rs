@@ -14,15 +14,18 @@
 //!
 //! See `README.md` for the stream layout and every choice the paper leaves open.
 
+pub mod coding;
 pub mod strategy;
 pub mod tensor;
 
 use std::time::Instant;
 
 use codec_core::bytes::{zigzag_decode, zigzag_encode, ByteReader, ByteWriter};
+use codec_core::toolkit::order::CausalGraph;
+use codec_core::toolkit::predict::Predictor;
 use codec_core::{
     entropy, Animation, AnimationCodec, EncodedPacket, EncoderSetup, Error, ErrorBound, FourCc, FrameDecoder,
-    FrameEncoder, Limits, Packet, ParamSet, ParamSpec, ParamValue, Quantizer, RateLadder, Result, StreamInfo,
+    FrameEncoder, Limits, Packet, ParamSet, ParamSpec, ParamValue, Quantizer, RateLadder, Result, StreamInfo, Topology,
 };
 use faer::Mat;
 
@@ -34,6 +37,9 @@ const NAME: &str = "hosvd";
 
 /// Largest bit depth given to one quantized column: keeps zigzag deltas of codes inside 32 bits.
 const MAX_BITS: u8 = 30;
+
+/// Packet flag bit 1 (stream version 2): the operator is coded with the toolkit (`coding.rs`).
+const FLAG_TOOLKIT: u8 = 2;
 
 /// Typed parameters of `hosvd`.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -63,6 +69,42 @@ pub struct HosvdParams {
     pub depth: u32,
     /// zstd level, 1..=22. Default 19.
     pub level: i32,
+    /// How factors and core are coded: the toolkit (stream version 2's coding, default) or
+    /// the paper's (version 1: one rule-of-thumb step per column, byte planes + zstd).
+    pub coding: Coding,
+    /// Toolkit: predictor of mode-1 factor entries along the mesh. Default average.
+    pub mesh_predictor: Predictor,
+    /// Toolkit: predictor of mode-3 factor entries along time. Default previous.
+    pub time_predictor: Predictor,
+    /// Toolkit: noise shaping of the mode-1 factor along the mesh, 0..=0.95. Default 0.
+    pub shaping: f64,
+    /// Toolkit: per-component steps by the equal-slope rule (true) or the paper coding's rule
+    /// of thumb (false). Default true.
+    pub rdq: bool,
+    /// Toolkit: weight of the edge error (STED-like) in the mode-1 factor's RD distortion,
+    /// 0..=1. Default 0.
+    pub edge_weight: f64,
+}
+
+/// Coding of the quantized operator (`coding` parameter).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Coding {
+    /// Stream version 2: prediction along mesh and time, RD quantization, adaptive
+    /// arithmetic coding (`coding.rs`).
+    Toolkit,
+    /// Stream version 1's coding (written inside a version 2 stream with flag bit 1 clear).
+    Paper,
+}
+
+impl Coding {
+    /// Parameter names.
+    pub const NAMES: [&'static str; 2] = ["toolkit", "paper"];
+    fn name(self) -> &'static str {
+        match self {
+            Self::Toolkit => "toolkit",
+            Self::Paper => "paper",
+        }
+    }
 }
 
 impl Default for HosvdParams {
@@ -80,6 +122,12 @@ impl Default for HosvdParams {
             samples: 5,
             depth: 4,
             level: entropy::DEFAULT_LEVEL,
+            coding: Coding::Toolkit,
+            mesh_predictor: Predictor::Average,
+            time_predictor: Predictor::Previous,
+            shaping: 0.0,
+            rdq: true,
+            edge_weight: 0.0,
         }
     }
 }
@@ -152,6 +200,43 @@ impl HosvdParams {
             ParamSpec::int("samples", 3, 64, d.samples as i64, "iterative strategy: samples per level (s in Alg. 4)"),
             ParamSpec::int("depth", 1, 32, d.depth as i64, "iterative strategy: recursion limit (I in Alg. 4)"),
             ParamSpec::int("level", 1, 22, d.level as i64, "zstd compression level"),
+            ParamSpec::choice(
+                "coding",
+                &Coding::NAMES,
+                d.coding.name(),
+                "toolkit (mesh/time prediction, RD steps, adaptive arithmetic coding) or paper (v1 coding)",
+            ),
+            ParamSpec::choice(
+                "mesh_predictor",
+                &Predictor::NAMES,
+                d.mesh_predictor.name(),
+                "toolkit: predictor of mode-1 factor entries along the mesh traversal",
+            ),
+            ParamSpec::choice(
+                "time_predictor",
+                &Predictor::NAMES,
+                d.time_predictor.name(),
+                "toolkit: predictor of mode-3 factor entries along time (parallelogram = linear extrapolation)",
+            ),
+            ParamSpec::float(
+                "shaping",
+                0.0,
+                0.95,
+                d.shaping,
+                "toolkit: noise shaping of the mode-1 factor (neighbouring vertices err alike; 0 = off)",
+            ),
+            ParamSpec::boolean(
+                "rdq",
+                d.rdq,
+                "toolkit: per-component steps by the equal-slope rule (false: rule of thumb)",
+            ),
+            ParamSpec::float(
+                "edge_weight",
+                0.0,
+                1.0,
+                d.edge_weight,
+                "toolkit: weight of edge (STED-like) error in the mode-1 factor's RD distortion",
+            ),
         ]
     }
 
@@ -195,6 +280,12 @@ impl HosvdParams {
             samples: p.int("samples")? as u32,
             depth: p.int("depth")? as u32,
             level: p.int("level")? as i32,
+            coding: if p.choice("coding")? == "paper" { Coding::Paper } else { Coding::Toolkit },
+            mesh_predictor: predictor_param(p, "mesh_predictor")?,
+            time_predictor: predictor_param(p, "time_predictor")?,
+            shaping: p.float("shaping")?,
+            rdq: p.bool("rdq")?,
+            edge_weight: p.float("edge_weight")?,
         };
         out.check_cross()?;
         Ok(out)
@@ -216,8 +307,19 @@ impl HosvdParams {
             .with(&specs, "block", ParamValue::Int(self.block as i64))?
             .with(&specs, "samples", ParamValue::Int(self.samples as i64))?
             .with(&specs, "depth", ParamValue::Int(self.depth as i64))?
-            .with(&specs, "level", ParamValue::Int(self.level as i64))
+            .with(&specs, "level", ParamValue::Int(self.level as i64))?
+            .with(&specs, "coding", ParamValue::Choice(self.coding.name()))?
+            .with(&specs, "mesh_predictor", ParamValue::Choice(self.mesh_predictor.name()))?
+            .with(&specs, "time_predictor", ParamValue::Choice(self.time_predictor.name()))?
+            .with(&specs, "shaping", ParamValue::Float(self.shaping))?
+            .with(&specs, "rdq", ParamValue::Bool(self.rdq))?
+            .with(&specs, "edge_weight", ParamValue::Float(self.edge_weight))
     }
+}
+
+fn predictor_param(p: &ParamSet, name: &'static str) -> Result<Predictor> {
+    Predictor::from_name(p.choice(name)?)
+        .ok_or_else(|| Error::parameter(NAME, name, format!("expected one of {}", Predictor::NAMES.join("|"))))
 }
 
 /// The `hosvd` codec.
@@ -235,7 +337,7 @@ impl AnimationCodec for Hosvd {
         FOURCC
     }
     fn stream_version(&self) -> u16 {
-        1
+        2
     }
     fn summary(&self) -> &'static str {
         "HO-SVD / Tucker (v, 3, f) truncation with affine motion removal (Romaszewski et al.)"
@@ -261,9 +363,10 @@ impl AnimationCodec for Hosvd {
         let per_block = if p.block == 0 { animation.frame_count() } else { p.block as usize };
         let mut total2 = 0.0;
         let whole = per_block >= animation.frame_count();
+        let graph = mesh_graph(&p, animation.topology());
         for chunk in animation.positions().chunks(per_block * k * 3) {
             let bp = block_params(&p, k, chunk.len() / (3 * k).max(1), whole)?;
-            let b = encode_block(chunk, k, &bp, false)?;
+            let b = encode_block(chunk, k, &bp, &graph, false)?;
             total2 += b.stats.error_bound.powi(2);
         }
         let frob = total2.sqrt();
@@ -274,7 +377,7 @@ impl AnimationCodec for Hosvd {
     }
     fn new_encoder(&self, params: &ParamSet, setup: &EncoderSetup<'_>) -> Result<Box<dyn FrameEncoder>> {
         let p = HosvdParams::from_param_set(params)?;
-        Ok(Box::new(HosvdEncoder::new(p, setup.topology.vertex_count(), setup.frame_count, setup.want_reconstruction)))
+        Ok(Box::new(HosvdEncoder::new(p, setup.topology, setup.frame_count, setup.want_reconstruction)))
     }
     fn new_decoder(&self, info: &StreamInfo, config: &[u8], limits: &Limits) -> Result<Box<dyn FrameDecoder>> {
         let mut r = ByteReader::new(config, NAME);
@@ -283,7 +386,16 @@ impl AnimationCodec for Hosvd {
         if block == 0 {
             return Err(r.malformed("config.block", "0 frames per block"));
         }
-        Ok(Box::new(HosvdDecoder { k: info.vertex_count(), limits: *limits }))
+        if !(1..=2).contains(&info.codec_version) {
+            return Err(Error::Unsupported {
+                context: NAME.into(),
+                detail: format!("stream version {} (this build decodes 1 and 2)", info.codec_version),
+            });
+        }
+        // Version 2 packets may use the toolkit coding, which needs the mesh's coding order.
+        let graph =
+            (info.codec_version >= 2).then(|| CausalGraph::mesh(info.vertex_count(), info.topology.triangles()));
+        Ok(Box::new(HosvdDecoder { k: info.vertex_count(), limits: *limits, graph }))
     }
 }
 
@@ -469,8 +581,92 @@ fn column(m: &[f64], rows: usize, cols: usize, c: usize) -> impl Iterator<Item =
     (0..rows).map(move |r| m[r * cols + c])
 }
 
+/// Version 1's coding of the operator: one `Quantizer` per column with the rule-of-thumb step,
+/// zigzag deltas, byte planes + zstd. Fills `m`'s factors and core and returns the per-column
+/// bounds of `‖δu1_i‖`, `‖δu3_l‖` and the bound of `‖δC‖` (from the quantizers' half steps).
+#[allow(clippy::too_many_arguments)]
+fn paper_code(
+    w: &mut ByteWriter,
+    mut side: ByteWriter,
+    m: &mut Model,
+    p: &HosvdParams,
+    u1: &[f64],
+    u3: &[f64],
+    core: &[f64],
+    s1: &[f64],
+    s3: &[f64],
+    budget: f64,
+) -> Result<(Vec<f64>, Vec<f64>, f64)> {
+    let (k, frames, v, f) = (m.k, m.frames, m.v, m.f);
+    let step_core = (4.0 * budget / core.len() as f64).sqrt();
+    let q1: Vec<Quantizer> = (0..v)
+        .map(|i| column_quantizer(column(u1, k, v, i), (4.0 * budget / (v * k) as f64).sqrt() / s1[i]))
+        .collect::<Result<_>>()?;
+    let q3: Vec<Quantizer> = (0..f)
+        .map(|l| column_quantizer(column(u3, frames, f, l), (4.0 * budget / (f * frames) as f64).sqrt() / s3[l]))
+        .collect::<Result<_>>()?;
+    let qc = column_quantizer(core.iter().copied(), step_core)?;
+    for q in q1.iter().chain(&q3).chain(std::iter::once(&qc)) {
+        q.write(&mut side);
+    }
+
+    // Codes: factor columns as zigzag deltas down the column (neighbouring vertices / frames
+    // have similar loadings); core as zigzag offsets from the code of 0.
+    m.u1 = vec![0.0; k * v];
+    m.u3 = vec![0.0; frames * f];
+    m.core = vec![0.0; core.len()];
+    let mut codes1 = Vec::with_capacity(k * v);
+    for (i, q) in q1.iter().enumerate() {
+        let mut prev = q.quantize(0.0) as i64;
+        for r in 0..k {
+            let c = q.quantize(u1[r * v + i] as f32);
+            codes1.push(zigzag_encode(c as i64 - prev) as u32);
+            prev = c as i64;
+            m.u1[r * v + i] = q.dequantize(c) as f64;
+        }
+    }
+    let mut codes3 = Vec::with_capacity(frames * f);
+    for (l, q) in q3.iter().enumerate() {
+        let mut prev = q.quantize(0.0) as i64;
+        for r in 0..frames {
+            let c = q.quantize(u3[r * f + l] as f32);
+            codes3.push(zigzag_encode(c as i64 - prev) as u32);
+            prev = c as i64;
+            m.u3[r * f + l] = q.dequantize(c) as f64;
+        }
+    }
+    let zero = qc.quantize(0.0) as i64;
+    let mut codesc = Vec::with_capacity(core.len());
+    for (o, &c) in m.core.iter_mut().zip(core) {
+        let code = qc.quantize(c as f32);
+        codesc.push(zigzag_encode(code as i64 - zero) as u32);
+        *o = qc.dequantize(code) as f64;
+    }
+
+    w.u8(p.rigid as u8);
+    w.varint(v as u64);
+    w.varint(f as u64);
+    w.length_prefixed(&entropy::compress(side.as_slice(), p.level));
+    write_codes(w, &codes1, p.level);
+    write_codes(w, &codes3, p.level);
+    write_codes(w, &codesc, p.level);
+    // The quantizer bounds every entry error by half a step.
+    let n1 = q1.iter().map(|q| (k as f64).sqrt() * q.max_error()).collect();
+    let n3 = q3.iter().map(|q| (frames as f64).sqrt() * q.max_error()).collect();
+    let dc = (core.len() as f64).sqrt() * qc.max_error();
+    Ok((n1, n3, dc))
+}
+
 /// Encodes one block of frames (`F × K × 3`). This is exactly what a packet holds.
-pub fn encode_block(positions: &[f32], k: usize, p: &HosvdParams, want_reconstruction: bool) -> Result<EncodedBlock> {
+/// `graph` is the mesh's coding order ([`CausalGraph::mesh`] of the topology), used by the
+/// toolkit coding.
+pub fn encode_block(
+    positions: &[f32],
+    k: usize,
+    p: &HosvdParams,
+    graph: &CausalGraph,
+    want_reconstruction: bool,
+) -> Result<EncodedBlock> {
     let frames = positions.len() / (3 * k);
     let start = Instant::now();
     let (transforms, x) = normalise(positions, k, frames, p.rigid, p.affine);
@@ -545,15 +741,6 @@ pub fn encode_block(positions: &[f32], k: usize, p: &HosvdParams, want_reconstru
     // its contribution (entries × step²/12 × s_i²) is the same.
     let eps2 = trunc2.max(1e-12 * norm2);
     let budget = p.quant * p.quant * eps2;
-    let step_core = (4.0 * budget / core.len() as f64).sqrt();
-    let q1: Vec<Quantizer> = (0..v)
-        .map(|i| column_quantizer(column(&u1, k, v, i), (4.0 * budget / (v * k) as f64).sqrt() / s1[i]))
-        .collect::<Result<_>>()?;
-    let q3: Vec<Quantizer> = (0..f)
-        .map(|l| column_quantizer(column(&u3, frames, f, l), (4.0 * budget / (f * frames) as f64).sqrt() / s3[l]))
-        .collect::<Result<_>>()?;
-    let qc = column_quantizer(core.iter().copied(), step_core)?;
-
     let mut side = ByteWriter::new();
     for i in 0..9 {
         side.f32(u2r[(i / 3, i % 3)] as f32);
@@ -563,68 +750,54 @@ pub fn encode_block(positions: &[f32], k: usize, p: &HosvdParams, want_reconstru
             a.m.iter().chain(&a.c).for_each(|&x| side.f32(x));
         }
     }
-    for q in q1.iter().chain(&q3).chain(std::iter::once(&qc)) {
-        q.write(&mut side);
-    }
-
-    // Codes: factor columns as zigzag deltas down the column (neighbouring vertices / frames
-    // have similar loadings); core as zigzag offsets from the code of 0.
     let mut m = Model {
         k,
         frames,
         v,
         f,
-        u1: vec![0.0; k * v],
+        u1: Vec::new(),
         u2: std::array::from_fn(|i| u2r[(i / 3, i % 3)]),
-        u3: vec![0.0; frames * f],
-        core: vec![0.0; core.len()],
+        u3: Vec::new(),
+        core: Vec::new(),
         transforms: if p.rigid { transforms.clone() } else { vec![Affine::IDENTITY; frames] },
     };
-    let mut codes1 = Vec::with_capacity(k * v);
-    for (i, q) in q1.iter().enumerate() {
-        let mut prev = q.quantize(0.0) as i64;
-        for r in 0..k {
-            let c = q.quantize(u1[r * v + i] as f32);
-            codes1.push(zigzag_encode(c as i64 - prev) as u32);
-            prev = c as i64;
-            m.u1[r * v + i] = q.dequantize(c) as f64;
-        }
-    }
-    let mut codes3 = Vec::with_capacity(frames * f);
-    for (l, q) in q3.iter().enumerate() {
-        let mut prev = q.quantize(0.0) as i64;
-        for r in 0..frames {
-            let c = q.quantize(u3[r * f + l] as f32);
-            codes3.push(zigzag_encode(c as i64 - prev) as u32);
-            prev = c as i64;
-            m.u3[r * f + l] = q.dequantize(c) as f64;
-        }
-    }
-    let zero = qc.quantize(0.0) as i64;
-    let mut codesc = Vec::with_capacity(core.len());
-    for (o, &c) in m.core.iter_mut().zip(&core) {
-        let code = qc.quantize(c as f32);
-        codesc.push(zigzag_encode(code as i64 - zero) as u32);
-        *o = qc.dequantize(code) as f64;
-    }
-
     let mut w = ByteWriter::new();
-    w.u8(p.rigid as u8);
-    w.varint(v as u64);
-    w.varint(f as u64);
-    w.length_prefixed(&entropy::compress(side.as_slice(), p.level));
-    write_codes(&mut w, &codes1, p.level);
-    write_codes(&mut w, &codes3, p.level);
-    write_codes(&mut w, &codesc, p.level);
+    // Per-column bounds of ‖δu1_i‖, ‖δu3_l‖, and ‖δC‖, for the error bound below.
+    let (n1, n3, dc) = match p.coding {
+        Coding::Paper => paper_code(&mut w, side, &mut m, p, &u1, &u3, &core, &s1, &s3, budget)?,
+        Coding::Toolkit => {
+            let op = coding::Operator { k, frames, v, f, u1: &u1, u3: &u3, core: &core, s1: &s1, s3: &s3 };
+            let settings = coding::Settings {
+                mesh: p.mesh_predictor,
+                time: p.time_predictor,
+                shaping: p.shaping,
+                rdq: p.rdq,
+                edge_weight: p.edge_weight,
+            };
+            let coded = coding::code(&op, graph, &settings, budget);
+            for &step in &coded.steps {
+                side.f32(step);
+            }
+            w.u8(p.rigid as u8 | FLAG_TOOLKIT);
+            w.varint(v as u64);
+            w.varint(f as u64);
+            w.u8(p.mesh_predictor.code());
+            w.u8(p.time_predictor.code());
+            w.length_prefixed(&entropy::compress(side.as_slice(), p.level));
+            w.length_prefixed(&coded.bytes);
+            m.u1 = coded.u1;
+            m.u3 = coded.u3;
+            m.core = coded.core;
+            (coded.du1, coded.du3, coded.dc)
+        }
+    };
     let payload = w.into_vec();
 
     // Error bound (Frobenius, original coordinates). With Û = U + δU, Ĉ = C + δC:
     // Ĉ×₁Û1×₂U2×₃Û3 − C×₁U1×₂U2×₃U3 = δC×Û1×Û3 + C×δU1×Û3 + C×U1×δU3 (all ×₂U2), and
-    // ‖C ×₁ δU1‖ ≤ Σ_i ‖δu_i‖·s1_i; ‖Û‖₂ ≤ 1 + ‖δU‖_F; the quantizer bounds every entry error.
-    let me = |q: &Quantizer| q.max_error();
-    let du1: f64 = q1.iter().map(|q| k as f64 * me(q).powi(2)).sum::<f64>().sqrt();
-    let du3: f64 = q3.iter().map(|q| frames as f64 * me(q).powi(2)).sum::<f64>().sqrt();
-    let dc = (core.len() as f64).sqrt() * me(&qc);
+    // ‖C ×₁ δU1‖ ≤ Σ_i ‖δu_i‖·s1_i; ‖Û‖₂ ≤ 1 + ‖δU‖_F.
+    let du1: f64 = n1.iter().map(|x| x * x).sum::<f64>().sqrt();
+    let du3: f64 = n3.iter().map(|x| x * x).sum::<f64>().sqrt();
     let g2 = {
         let mut dev = 0.0f64;
         for i in 0..3 {
@@ -635,8 +808,8 @@ pub fn encode_block(positions: &[f32], k: usize, p: &HosvdParams, want_reconstru
         }
         dev.sqrt()
     };
-    let t1: f64 = q1.iter().zip(&s1).map(|(q, s)| (k as f64).sqrt() * me(q) * s).sum();
-    let t3: f64 = q3.iter().zip(&s3).map(|(q, s)| (frames as f64).sqrt() * me(q) * s).sum();
+    let t1: f64 = n1.iter().zip(&s1).map(|(n, s)| n * s).sum();
+    let t3: f64 = n3.iter().zip(&s3).map(|(n, s)| n * s).sum();
     let norm = norm2.sqrt();
     let ex =
         trunc2.sqrt() + 1e-7 * norm + g2 * norm + (1.0 + g2) * (dc * (1.0 + du1) * (1.0 + du3) + t1 * (1.0 + du3) + t3);
@@ -670,6 +843,7 @@ pub fn encode_block(positions: &[f32], k: usize, p: &HosvdParams, want_reconstru
 pub struct HosvdEncoder {
     params: HosvdParams,
     k: usize,
+    graph: CausalGraph,
     block: usize,
     want_reconstruction: bool,
     pending: Vec<f32>,
@@ -713,12 +887,13 @@ fn block_params(p: &HosvdParams, k: usize, frames: usize, whole: bool) -> Result
 }
 
 impl HosvdEncoder {
-    /// An encoder for `frame_count` frames of `k` vertices.
-    pub fn new(params: HosvdParams, k: usize, frame_count: usize, want_reconstruction: bool) -> Self {
+    /// An encoder for `frame_count` frames over `topology`.
+    pub fn new(params: HosvdParams, topology: &Topology, frame_count: usize, want_reconstruction: bool) -> Self {
         let block = if params.block == 0 { frame_count.max(1) } else { params.block as usize };
         Self {
             params,
-            k,
+            k: topology.vertex_count(),
+            graph: mesh_graph(&params, topology),
             block,
             want_reconstruction,
             pending: Vec::new(),
@@ -738,7 +913,7 @@ impl HosvdEncoder {
         let whole = self.next_frame == 0 && frames >= self.frame_count;
         let params = block_params(&self.params, self.k, frames, whole)?;
         let block: Vec<f32> = self.pending.drain(..n).collect();
-        let b = encode_block(&block, self.k, &params, self.want_reconstruction)?;
+        let b = encode_block(&block, self.k, &params, &self.graph, self.want_reconstruction)?;
         self.stats.push(b.stats);
         let packet =
             Packet { first_frame: self.next_frame, frame_count: frames as u32, keyframe: true, data: b.payload };
@@ -770,9 +945,19 @@ impl FrameEncoder for HosvdEncoder {
     }
 }
 
+/// The mesh's coding order when the toolkit coding needs it (an empty order otherwise).
+pub fn mesh_graph(p: &HosvdParams, topology: &Topology) -> CausalGraph {
+    match p.coding {
+        Coding::Toolkit => CausalGraph::mesh(topology.vertex_count(), topology.triangles()),
+        Coding::Paper => CausalGraph::chain(0, false),
+    }
+}
+
 struct HosvdDecoder {
     k: usize,
     limits: Limits,
+    /// Mesh coding order (stream version 2 only).
+    graph: Option<CausalGraph>,
 }
 
 impl FrameDecoder for HosvdDecoder {
@@ -783,10 +968,12 @@ impl FrameDecoder for HosvdDecoder {
         }
         let mut r = ByteReader::new(&packet.data, NAME);
         let flags = r.u8("flags")?;
-        if flags > 1 {
+        let known = if self.graph.is_some() { 1 | FLAG_TOOLKIT } else { 1 };
+        if flags & !known != 0 {
             return Err(r.malformed("flags", format!("{flags:#04x} has unknown bits")));
         }
-        let rigid = flags == 1;
+        let rigid = flags & 1 == 1;
+        let toolkit = flags & FLAG_TOOLKIT != 0;
         let vmax = k.min(3 * frames);
         let fmax = frames.min(3 * k);
         let v = r.varint("v")?;
@@ -805,7 +992,17 @@ impl FrameDecoder for HosvdDecoder {
             .saturating_add(6 * v as u64 * f as u64)
             .saturating_add(3 * frames as u64 * v as u64);
         self.limits.check_alloc(NAME, "factors", doubles.saturating_mul(8))?;
-        let side_len = 36 + if rigid { 48 * frames } else { 0 } + 9 * (v + f + 1);
+        let (mesh_predictor, time_predictor) = if toolkit {
+            let mut predictor = |field| {
+                let c = r.u8(field)?;
+                Predictor::from_code(c).ok_or_else(|| r.malformed(field, format!("unknown predictor {c}")))
+            };
+            (predictor("mesh_predictor")?, predictor("time_predictor")?)
+        } else {
+            (Predictor::Zero, Predictor::Zero)
+        };
+        let side_len =
+            36 + if rigid { 48 * frames } else { 0 } + if toolkit { 4 * (2 * v + f) } else { 9 * (v + f + 1) };
         self.limits.check_alloc(NAME, "side", side_len as u64)?;
         let side_block = r.length_prefixed("side")?;
         let side = entropy::decompress(side_block, NAME, "side", side_len)?;
@@ -830,6 +1027,22 @@ impl FrameDecoder for HosvdDecoder {
         } else {
             vec![Affine::IDENTITY; frames]
         };
+        if toolkit {
+            let steps = (0..2 * v + f).map(|_| s.finite_f32("steps")).collect::<Result<Vec<f32>>>()?;
+            s.expect_end("side")?;
+            if let Some(bad) = steps.iter().find(|x| **x < 0.0) {
+                return Err(Error::malformed(NAME, "steps", format!("negative step {bad}")));
+            }
+            let bytes = r.length_prefixed("codes")?;
+            r.expect_end("packet")?;
+            let graph = self
+                .graph
+                .as_ref()
+                .ok_or_else(|| Error::malformed(NAME, "flags", "toolkit coding in a version 1 stream"))?;
+            let (u1, u3, core) = coding::decode(bytes, graph, mesh_predictor, time_predictor, frames, v, f, &steps)?;
+            let model = Model { k, frames, v, f, u1, u2, u3, core, transforms };
+            return Ok(tensor::reconstruct(&model));
+        }
         let q1: Vec<Quantizer> = (0..v).map(|_| Quantizer::read(&mut s, "u1_quantizer")).collect::<Result<_>>()?;
         let q3: Vec<Quantizer> = (0..f).map(|_| Quantizer::read(&mut s, "u3_quantizer")).collect::<Result<_>>()?;
         let qc = Quantizer::read(&mut s, "core_quantizer")?;
