@@ -71,6 +71,21 @@ enum Command {
     /// Write any input (or a decoded `.anim` stream) as a glTF/GLB morph-target animation that
     /// every glTF engine plays, and report its error as played back.
     Export(ExportArgs),
+    /// List the animations of a glTF/GLB file (index, name, channels, key times and rate):
+    /// what `--animation NAME|INDEX` chooses from. `info FILE.glb` prints the same.
+    ListAnimations(ListAnimationsArgs),
+}
+
+/// Arguments of `animcodec list-animations`.
+#[derive(Debug, Args)]
+pub struct ListAnimationsArgs {
+    /// A `.gltf` or `.glb` file.
+    #[arg(value_name = "FILE.glb")]
+    pub input: PathBuf,
+
+    /// Print JSON: {file, animations: [{index, name, channels, start, end, key_rate, properties}]}.
+    #[arg(long)]
+    pub json: bool,
 }
 
 /// Arguments of `animcodec export`.
@@ -101,6 +116,11 @@ pub struct ExportArgs {
     /// OBJ file giving the triangles of a .pc2/.mdd input (default: the OBJ beside it).
     #[arg(long, value_name = "OBJ")]
     pub topology: Option<PathBuf>,
+
+    /// glTF input: the animation to play, by name or index (default: the first; `animcodec
+    /// list-animations FILE` lists them).
+    #[arg(long, value_name = "NAME|INDEX")]
+    pub animation: Option<String>,
 
     /// Frame rate of the input when it stores none (keys are written at frame / fps seconds).
     #[arg(long, value_name = "F", value_parser = commands::parse_fps, allow_negative_numbers = true)]
@@ -153,6 +173,11 @@ pub struct ViewArgs {
     #[arg(long, value_name = "OBJ")]
     pub topology: Option<PathBuf>,
 
+    /// glTF input: the animation to play, by name or index (default: the first; `animcodec
+    /// list-animations FILE` lists them).
+    #[arg(long, value_name = "NAME|INDEX")]
+    pub animation: Option<String>,
+
     /// STED options (header values and `--heat sted`).
     #[command(flatten)]
     pub sted: StedArgs,
@@ -204,6 +229,11 @@ pub struct InspectArgs {
     /// same stem).
     #[arg(long, value_name = "OBJ")]
     pub topology: Option<PathBuf>,
+
+    /// glTF input: the animation to play, by name or index (default: the first; `animcodec
+    /// list-animations FILE` lists them).
+    #[arg(long, value_name = "NAME|INDEX")]
+    pub animation: Option<String>,
 }
 
 /// Arguments of `animcodec list`.
@@ -245,6 +275,11 @@ pub struct EncodeArgs {
     /// same stem).
     #[arg(long, value_name = "OBJ")]
     pub topology: Option<PathBuf>,
+
+    /// glTF input: the animation to play, by name or index (default: the first; `animcodec
+    /// list-animations FILE` lists them).
+    #[arg(long, value_name = "NAME|INDEX")]
+    pub animation: Option<String>,
 
     /// Frame rate to use when the input stores none (or to override a synthetic one).
     #[arg(long, value_name = "F", value_parser = commands::parse_fps, allow_negative_numbers = true)]
@@ -344,6 +379,11 @@ pub struct EvalArgs {
     #[arg(long, value_name = "OBJ")]
     pub topology: Option<PathBuf>,
 
+    /// glTF input: the animation to play, by name or index (default: the first; `animcodec
+    /// list-animations FILE` lists them).
+    #[arg(long, value_name = "NAME|INDEX")]
+    pub animation: Option<String>,
+
     /// Which metrics, and STED's options.
     #[command(flatten)]
     pub metrics: MetricArgs,
@@ -414,6 +454,11 @@ pub struct SweepArgs {
     #[arg(long, value_name = "OBJ")]
     pub topology: Option<PathBuf>,
 
+    /// glTF input: the animation to play, by name or index (default: the first; `animcodec
+    /// list-animations FILE` lists them).
+    #[arg(long, value_name = "NAME|INDEX")]
+    pub animation: Option<String>,
+
     /// Write an HTML report: the interactive rate-distortion plot (hover a point for its
     /// parameters, bytes and every metric), the table, and a viewer per `--view-points` point.
     #[arg(long, value_name = "F.html")]
@@ -462,7 +507,7 @@ pub struct DecodeArgs {
 /// Arguments of `animcodec info`.
 #[derive(Debug, Args)]
 pub struct InfoArgs {
-    /// Input `.anim` container.
+    /// Input `.anim` container (or a `.gltf`/`.glb` file: its animations are listed).
     #[arg(value_name = "IN.anim")]
     pub input: PathBuf,
 
@@ -572,5 +617,6 @@ fn run(cli: Cli) -> commands::CmdResult {
         Command::Inspect(a) => commands::inspect::run(&a),
         Command::View(a) => commands::view::run(&a, limits),
         Command::Export(a) => commands::export::run(&a, limits),
+        Command::ListAnimations(a) => commands::animations::run(&a.input, a.json),
     }
 }

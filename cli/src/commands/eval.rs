@@ -52,7 +52,7 @@ pub fn eval_options(args: &MetricArgs) -> CmdResult<EvalOptions> {
 /// Runs `eval`.
 pub fn run(args: &EvalArgs, limits: Limits) -> CmdResult {
     let options = eval_options(&args.metrics)?;
-    let read = ReadOptions { topology: args.topology.clone(), frame_rate: None };
+    let read = ReadOptions { topology: args.topology.clone(), frame_rate: None, animation: args.animation.clone() };
     let reference = load_any(&args.reference, &read, limits)?;
     let candidate = load_any(&args.candidate, &read, limits)?;
     let start = Instant::now();

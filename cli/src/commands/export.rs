@@ -29,7 +29,7 @@ pub fn run(args: &ExportArgs, limits: Limits) -> CmdResult {
         policy = policy.with_input(t);
     }
     policy.check(&args.output)?;
-    let read = ReadOptions { topology: args.topology.clone(), frame_rate: args.fps };
+    let read = ReadOptions { topology: args.topology.clone(), frame_rate: args.fps, animation: args.animation.clone() };
     let animation = load_any(&args.input, &read, limits)?;
     let layout = match args.layout.as_str() {
         "basis" => GltfLayout::Basis,

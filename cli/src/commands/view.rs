@@ -37,7 +37,7 @@ pub fn run(args: &ViewArgs, limits: Limits) -> CmdResult {
     }
     policy.check(&args.output)?;
     let registry = animcodec::registry();
-    let read = ReadOptions { topology: args.topology.clone(), frame_rate: None };
+    let read = ReadOptions { topology: args.topology.clone(), frame_rate: None, animation: args.animation.clone() };
     let reference = load_any(&args.reference, &read, limits)?;
     let sted = sted_params(&args.sted)?;
     let mut loaded = Vec::new();
