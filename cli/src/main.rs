@@ -109,9 +109,15 @@ pub struct ExportArgs {
     #[arg(long, value_name = "K")]
     pub targets: Option<usize>,
 
-    /// basis: the KG error (%) the written animation must meet against the input (> 0).
-    #[arg(long, value_name = "KG", default_value_t = 0.05)]
-    pub target_kg: f64,
+    /// basis: the KG error (%) the written animation must meet against the input (> 0);
+    /// the same as --target kg=KG. Default 0.05.
+    #[arg(long, value_name = "KG", conflicts_with = "target")]
+    pub target_kg: Option<f64>,
+
+    /// basis: the error target, `kg=T` (KG in %, > 0), as `encode --target` spells it; the
+    /// fewest morph targets meeting it are written. Only kg is supported here.
+    #[arg(long, value_name = "kg=T", value_parser = parse_target)]
+    pub target: Option<animcodec::harness::Target>,
 
     /// OBJ file giving the triangles of a .pc2/.mdd input (default: the OBJ beside it).
     #[arg(long, value_name = "OBJ")]
@@ -174,7 +180,7 @@ pub struct ViewArgs {
     pub topology: Option<PathBuf>,
 
     /// glTF input: the animation to play, by name or index (default: the first; `animcodec
-    /// list-animations FILE` lists them).
+    /// list-animations FILE` lists them). Applies to the reference; a glTF candidate plays its first.
     #[arg(long, value_name = "NAME|INDEX")]
     pub animation: Option<String>,
 
@@ -380,7 +386,7 @@ pub struct EvalArgs {
     pub topology: Option<PathBuf>,
 
     /// glTF input: the animation to play, by name or index (default: the first; `animcodec
-    /// list-animations FILE` lists them).
+    /// list-animations FILE` lists them). Applies to the reference; a glTF candidate plays its first.
     #[arg(long, value_name = "NAME|INDEX")]
     pub animation: Option<String>,
 

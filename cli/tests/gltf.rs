@@ -166,3 +166,41 @@ fn written_gltf_is_valid_and_three_js_plays_it_like_our_reader() {
         assert!(error <= 1e-5, "{}: {error:e}", path.display());
     }
 }
+
+/// The Done-when chain on RobotExpressive: list its animations, encode one by name
+/// with hosvd, decode to a GLB; the GLB passes the validator and three.js plays it as our
+/// reader does. The CLI parts run without Node.js; the checks needing it skip.
+#[test]
+fn robot_dance_encodes_decodes_to_a_valid_glb() {
+    use common::{fails, ok, ok_json};
+    let Some(robot) = data("robot-expressive/RobotExpressive.glb") else {
+        return println!("SKIP robot_dance_encodes_decodes_to_a_valid_glb: RobotExpressive.glb not in ../shared/data");
+    };
+    let robot = robot.to_string_lossy().into_owned();
+    let list = ok_json(&["list-animations", &robot, "--json"]);
+    let names: Vec<&str> = list["animations"].as_array().unwrap().iter().map(|a| a["name"].as_str().unwrap()).collect();
+    assert_eq!(names.len(), 14);
+    assert!(names.contains(&"Dance") && names.contains(&"Wave"), "{names:?}");
+    assert!(ok(&["info", &robot]).contains("Dance"));
+    let s = Scratch::new("gltf-robot");
+    let anim = s.path("d.anim");
+    ok(&["encode", &robot, "--animation", "Dance", "-c", "hosvd", "-o", &anim]);
+    let glb = s.path("d.glb");
+    ok(&["decode", &anim, "-o", &glb]);
+    // The decoded GLB against the baked input: within the default KG target plus hosvd's error.
+    let e = ok_json(&["eval", &robot, &glb, "--animation", "Dance", "--json", "--no-hausdorff"]);
+    assert!(e["kg"].as_f64().unwrap() < 0.1, "{e}");
+    fails(&["encode", &robot, "--animation", "Moonwalk", "-c", "hosvd", "-o", &anim, "-f"], &["Moonwalk", "0 'Dance'"]);
+    let tools = match node_tools() {
+        Ok(t) => t,
+        Err(why) => {
+            return println!("SKIP validator/three.js part of robot_dance_encodes_decodes_to_a_valid_glb: {why}")
+        }
+    };
+    let report = &validate(&tools, &[PathBuf::from(&glb)])[0];
+    assert_eq!(report["errors"], 0, "{report}");
+    let ours = gltf::read_gltf(Path::new(&glb), &GltfSelection::default()).unwrap();
+    let theirs =
+        three_play(&tools, Path::new(&glb), 0, 0.0, ours.frame_rate() as f64, ours.frame_count(), &s.0.join("t.f32"));
+    assert!(relative_max_error(&ours, &theirs) <= 1e-5);
+}

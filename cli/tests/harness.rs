@@ -606,4 +606,8 @@ fn export_writes_gltf_that_plays_back_at_the_reported_error() {
     fails(&["export", &glb, "-o", &glb, "-f"], &["also an input"]);
     fails(&["export", &pc2, "-o", &s.path("flag.fbx")], &[".glb or .gltf"]);
     fails(&["export", &pc2, "-o", &glb, "-f", "--target-kg", "0"], &["target_kg"]);
+    // The spelling, --target kg=T, is the same request; other metrics are refused.
+    let same = ok_json(&["export", &pc2, "-o", &glb, "-f", "--json", "--target", "kg=1"]);
+    assert_eq!((same["targets"].clone(), same["bytes"].clone()), (loose["targets"].clone(), loose["bytes"].clone()));
+    fails(&["export", &pc2, "-o", &glb, "-f", "--target", "sted=0.1"], &["kg=T"]);
 }

@@ -6,7 +6,7 @@ use std::time::Instant;
 
 use animcodec::formats::gltf_out::{encode_gltf, GltfLayout, GltfOptions};
 use animcodec::formats::{gltf, ReadOptions};
-use animcodec::harness;
+use animcodec::harness::{self, TargetMetric};
 use animcodec::output::OutputPolicy;
 use codec_core::Limits;
 use metrics::EvalOptions;
@@ -38,7 +38,15 @@ pub fn run(args: &ExportArgs, limits: Limits) -> CmdResult {
     };
     let name =
         Path::new(&args.input).file_stem().map_or_else(|| "animcodec".into(), |s| s.to_string_lossy().into_owned());
-    let options = GltfOptions { layout, targets: args.targets, target_kg: args.target_kg, name };
+    let target_kg = match (&args.target, args.target_kg) {
+        (Some(t), _) if t.metric != TargetMetric::Kg => {
+            return Err(format!("--target {t}: export meets KG targets only (--target kg=T)").into())
+        }
+        (Some(t), _) => t.value,
+        (None, Some(kg)) => kg,
+        (None, None) => GltfOptions::default().target_kg,
+    };
+    let options = GltfOptions { layout, targets: args.targets, target_kg, name };
     let start = Instant::now();
     let (bytes, summary) = encode_gltf(&animation, &options, glb)?;
     let seconds = start.elapsed().as_secs_f64();
