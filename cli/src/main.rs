@@ -119,6 +119,11 @@ pub struct ExportArgs {
     #[arg(long, value_name = "kg=T", value_parser = parse_target)]
     pub target: Option<animcodec::harness::Target>,
 
+    /// Write plain f32 positions and targets: no KHR_mesh_quantization (16-bit positions) and
+    /// no EXT_meshopt_compression (meshoptimizer's codecs), which are the default.
+    #[arg(long)]
+    pub no_compress: bool,
+
     /// OBJ file giving the triangles of a .pc2/.mdd input (default: the OBJ beside it).
     #[arg(long, value_name = "OBJ")]
     pub topology: Option<PathBuf>,

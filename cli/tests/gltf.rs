@@ -121,16 +121,25 @@ fn writer_inputs() -> Vec<(String, Animation)> {
     out
 }
 
-/// Every glTF variant we write: basis and frames layouts, .glb and .gltf.
-fn variants() -> Vec<(&'static str, GltfOptions, bool)> {
-    let basis = GltfOptions { target_kg: 0.5, ..Default::default() };
-    let frames = GltfOptions { layout: GltfLayout::Frames, ..Default::default() };
-    vec![
-        ("basis.glb", basis.clone(), true),
-        ("basis.gltf", basis, false),
-        ("frames.glb", frames.clone(), true),
-        ("frames.gltf", frames, false),
-    ]
+/// Every glTF variant we write: basis and frames layouts, .glb and .gltf, compressed
+/// (KHR_mesh_quantization + EXT_meshopt_compression, the default) or not.
+fn variants() -> Vec<(String, GltfOptions, bool)> {
+    let mut out = Vec::new();
+    for compress in [true, false] {
+        for layout in [GltfLayout::Basis, GltfLayout::Frames] {
+            for glb in [true, false] {
+                let options = GltfOptions { layout, target_kg: 0.5, compress, ..Default::default() };
+                let name = format!(
+                    "{}{}.{}",
+                    if layout == GltfLayout::Basis { "basis" } else { "frames" },
+                    if compress { "-meshopt" } else { "" },
+                    if glb { "glb" } else { "gltf" }
+                );
+                out.push((name, options, glb));
+            }
+        }
+    }
+    out
 }
 
 /// Everything we write passes the Khronos glTF Validator with 0 errors, and three.js plays it

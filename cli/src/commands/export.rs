@@ -46,7 +46,7 @@ pub fn run(args: &ExportArgs, limits: Limits) -> CmdResult {
         (None, Some(kg)) => kg,
         (None, None) => GltfOptions::default().target_kg,
     };
-    let options = GltfOptions { layout, targets: args.targets, target_kg, name };
+    let options = GltfOptions { layout, targets: args.targets, target_kg, name, compress: !args.no_compress };
     let start = Instant::now();
     let (bytes, summary) = encode_gltf(&animation, &options, glb)?;
     let seconds = start.elapsed().as_secs_f64();

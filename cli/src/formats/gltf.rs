@@ -50,6 +50,7 @@ use ::gltf::Accessor;
 use base64::Engine as _;
 use codec_core::{Animation, Error, Limits, Result};
 
+use super::gltf_meshopt;
 use super::gltf_scene::{self, Selection};
 use super::{name, read_file};
 
@@ -87,13 +88,11 @@ pub fn parse_gltf_with(bytes: &[u8], base: Option<&Path>, file: &str, selection:
         }
     }
     guarded(file, || {
-        let (document, blob, json) = parse_document(bytes, file)?;
-        let buffers = load_buffers(file, &document, base, blob)?;
-        let raw: Option<serde_json::Value> =
-            if selection.frame_rate.is_none() { serde_json::from_slice(&json).ok() } else { None };
+        let (document, blob, raw) = parse_document(bytes, file)?;
+        let buffers = load_buffers(file, &document, base, blob, &raw)?;
         let wanted =
             Selection { animation: selection.animation.as_deref(), frame_rate: selection.frame_rate.map(f64::from) };
-        gltf_scene::bake(file, &document, &buffers, raw.as_ref(), &wanted)
+        gltf_scene::bake(file, &document, &buffers, Some(&raw), &wanted)
     })
 }
 
@@ -103,11 +102,14 @@ pub fn list_animations(path: &Path) -> Result<Vec<AnimationInfo>> {
     let base = path.parent().map(|p| if p.as_os_str().is_empty() { Path::new(".") } else { p });
     let file = name(path);
     guarded(&file, || {
-        let (document, blob, _) = parse_document(&bytes, &file)?;
-        let buffers = load_buffers(&file, &document, base, blob)?;
+        let (document, blob, raw) = parse_document(&bytes, &file)?;
+        let buffers = load_buffers(&file, &document, base, blob, &raw)?;
         gltf_scene::list(&file, &document, &buffers)
     })
 }
+
+/// Extensions read here rather than by the `gltf` crate.
+const SUPPORTED_EXTENSIONS: [&str; 2] = ["KHR_mesh_quantization", gltf_meshopt::EXTENSION];
 
 /// Runs `parse` with a panic inside the `gltf` crate turned into an error.
 fn guarded<T>(file: &str, parse: impl FnOnce() -> Result<T>) -> Result<T> {
@@ -183,6 +185,7 @@ fn load_buffers(
     document: &::gltf::Document,
     base: Option<&Path>,
     mut blob: Option<Vec<u8>>,
+    raw: &serde_json::Value,
 ) -> Result<Vec<BufferData>> {
     let limits = Limits::default();
     let mut buffers = Vec::with_capacity(document.buffers().len());
@@ -191,6 +194,8 @@ fn load_buffers(
         let declared = buffer.length();
         limits.check_alloc("gltf", "buffers", declared as u64)?;
         let data = match buffer.source() {
+            // An EXT_meshopt_compression fallback buffer: filled by decoding the views below.
+            ::gltf::buffer::Source::Bin if gltf_meshopt::is_fallback(raw, index) => vec![0; declared],
             ::gltf::buffer::Source::Bin => blob.take().ok_or_else(|| {
                 bad(file, "buffers", format!("buffer {index} refers to a GLB BIN chunk the file lacks"))
             })?,
@@ -205,6 +210,7 @@ fn load_buffers(
         }
         buffers.push(BufferData(data));
     }
+    gltf_meshopt::decode_views(file, raw, &mut buffers)?;
     Ok(buffers)
 }
 
@@ -251,7 +257,7 @@ fn read_uri(
 /// Splits a GLB (or takes glTF JSON), deserializes the JSON, checks every index in it
 /// ([`check_indices`]) and only then lets the `gltf` crate validate it (its validation indexes
 /// arrays unchecked in places: a `POSITION` accessor index out of range panics there).
-fn parse_document(bytes: &[u8], file: &str) -> Result<(::gltf::Document, Option<Vec<u8>>, Vec<u8>)> {
+fn parse_document(bytes: &[u8], file: &str) -> Result<(::gltf::Document, Option<Vec<u8>>, serde_json::Value)> {
     let (json, blob) = if bytes.starts_with(b"glTF") {
         // The crate computes `length - 12` unchecked (an overflow panic, found by fuzzing).
         let declared = bytes.get(8..12).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]));
@@ -271,11 +277,15 @@ fn parse_document(bytes: &[u8], file: &str) -> Result<(::gltf::Document, Option<
     } else {
         (bytes.to_vec(), None)
     };
-    let root: ::gltf::json::Root =
+    let mut root: ::gltf::json::Root =
         ::gltf::json::deserialize::from_slice(&json).map_err(|e| bad(file, "gltf", e.to_string()))?;
     check_indices(file, &root)?;
+    // The extensions this reader implements itself (the crate refuses to load files requiring
+    // them); their data is read from the raw JSON, which keeps every extension object.
+    root.extensions_required.retain(|e| !SUPPORTED_EXTENSIONS.contains(&e.as_str()));
+    let raw: serde_json::Value = serde_json::from_slice(&json).map_err(|e| bad(file, "gltf", e.to_string()))?;
     let document = ::gltf::Document::from_json(root).map_err(|e| bad(file, "gltf", e.to_string()))?;
-    Ok((document, blob, json))
+    Ok((document, blob, raw))
 }
 
 /// Checks that every index into the document's arrays that this reader or the `gltf` crate
@@ -681,8 +691,9 @@ mod tests {
         let mut wrong_count = d.clone();
         wrong_count["accessors"][5]["count"] = json!(5);
         check(&wrong_count, "expected 6");
+        // (8/16-bit positions are KHR_mesh_quantization's; 32-bit integers are not allowed.)
         let mut wrong_type = d.clone();
-        wrong_type["accessors"][0]["componentType"] = json!(5121);
+        wrong_type["accessors"][0]["componentType"] = json!(5125);
         check(&wrong_type, "component type");
         let mut bad_index = d.clone();
         bad_index["accessors"][3]["componentType"] = json!(5126);
@@ -989,6 +1000,48 @@ mod tests {
             }
         }
         assert!(accepted > 0);
+    }
+
+    /// EXT_meshopt_compression + KHR_mesh_quantization (as our writer produces them) are read;
+    /// malformed extension data is an error naming the view, never a panic.
+    #[test]
+    fn meshopt_compressed_quantized_files_are_read_and_checked() {
+        use super::super::gltf_out::{encode_gltf, GltfLayout, GltfOptions};
+        let a = codec_core::synth::waving_flag(8, 5, 6);
+        let opts = GltfOptions { layout: GltfLayout::Frames, ..Default::default() };
+        let (text, _) = encode_gltf(&a, &opts, false).unwrap();
+        let doc: Value = serde_json::from_slice(&text).unwrap();
+        let read = |d: &Value| parse_gltf(&serde_json::to_vec(d).unwrap(), None, "m.gltf", a.frame_rate());
+        let b = read(&doc).unwrap();
+        let worst = a.positions().iter().zip(b.positions()).map(|(x, y)| (x - y).abs()).fold(0f32, f32::max);
+        assert!(worst < 2.5e-5 * a.bounding_box_diagonal() as f32, "{worst}");
+        let view = (0..doc["bufferViews"].as_array().unwrap().len())
+            .find(|&i| doc["bufferViews"][i]["extensions"]["EXT_meshopt_compression"].is_object())
+            .unwrap();
+        fn ext(d: &mut Value, view: usize) -> &mut Value {
+            &mut d["bufferViews"][view]["extensions"]["EXT_meshopt_compression"]
+        }
+        type Mutation = Box<dyn Fn(&mut Value)>;
+        let cases: Vec<(Mutation, &str)> = vec![
+            (Box::new(move |d| ext(d, view)["buffer"] = json!(7)), "buffer 7"),
+            (Box::new(move |d| ext(d, view)["byteLength"] = json!(1u64 << 40)), "outside buffer"),
+            (Box::new(move |d| ext(d, view)["mode"] = json!("WIGGLE")), "unknown mode"),
+            (Box::new(move |d| ext(d, view)["filter"] = json!("OCTAHEDRAL")), "filter OCTAHEDRAL"),
+            (Box::new(move |d| ext(d, view)["byteStride"] = json!(6)), "byteStride 6"),
+            (Box::new(move |d| ext(d, view)["count"] = json!(1u64 << 40)), "EXT_meshopt_compression"),
+            (Box::new(move |d| ext(d, view)["byteLength"] = json!(3)), "malformed"),
+            (Box::new(move |d| d["bufferViews"][view]["byteOffset"] = json!(1u64 << 30)), "do not fit"),
+        ];
+        for (mutate, expected) in cases {
+            let mut bad = doc.clone();
+            mutate(&mut bad);
+            let e = read(&bad).unwrap_err().to_string();
+            assert!(e.contains("m.gltf") && e.contains(expected), "{e} (expected '{expected}')");
+        }
+        // Without the extension's data the fallback buffer holds zeros: no crash either way.
+        let mut stripped = doc.clone();
+        stripped["bufferViews"][view].as_object_mut().unwrap().remove("extensions");
+        assert!(read(&stripped).is_ok());
     }
 
     #[test]

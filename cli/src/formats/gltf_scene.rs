@@ -49,6 +49,54 @@ fn limit(file: &str, field: &'static str, value: usize, limit: usize) -> Error {
     }
 }
 
+/// Position-like VEC3 data: `f32`, or (`KHR_mesh_quantization`) 8/16-bit integers, normalized
+/// or not (`max(c / (2ᵇ⁻¹ − 1), −1)` / `c / (2ᵇ − 1)` when normalized, `c` otherwise).
+/// Integer accessors are read here with their view's stride, bounds checked (the crate's
+/// reader reads only `f32` positions); sparse integer accessors are refused.
+fn read_vec3(file: &str, field: &'static str, accessor: &::gltf::Accessor, buffers: &[BufferData]) -> Result<Vec<f32>> {
+    let n = accessor.count();
+    let get = |b: ::gltf::Buffer| buffers.get(b.index()).map(|d| &d.0[..]);
+    if accessor.data_type() == DataType::F32 {
+        let items = collect_exact(file, field, ::gltf::accessor::Iter::<[f32; 3]>::new(accessor.clone(), get), n)?;
+        return Ok(items.concat());
+    }
+    let what = format!("accessor {}", accessor.index());
+    if accessor.sparse().is_some() {
+        return Err(bad(file, field, format!("{what}: sparse quantized positions are not supported")));
+    }
+    let view = accessor.view().ok_or_else(|| bad(file, field, format!("{what} has no bufferView")))?;
+    let size = accessor.data_type().size();
+    let stride = view.stride().unwrap_or(3 * size);
+    let data = buffers.get(view.buffer().index()).map(|d| &d.0[..]).unwrap_or(&[]);
+    let start = view.offset() + accessor.offset();
+    let view_end = view.offset().saturating_add(view.length()).min(data.len());
+    let needed = start.saturating_add(stride.saturating_mul(n - 1)).saturating_add(3 * size);
+    if needed > view_end || stride < 3 * size {
+        return Err(bad(
+            file,
+            field,
+            format!("{what}: {n} items of stride {stride} do not fit in bufferView {}", view.index()),
+        ));
+    }
+    let normalized = accessor.normalized();
+    let mut out = Vec::with_capacity(3 * n);
+    for v in 0..n {
+        for c in 0..3 {
+            let at = start + v * stride + c * size;
+            let b = &data[at..at + size];
+            let x = match accessor.data_type() {
+                DataType::I8 => (b[0] as i8) as f32 / if normalized { 127.0 } else { 1.0 },
+                DataType::U8 => b[0] as f32 / if normalized { 255.0 } else { 1.0 },
+                DataType::I16 => i16::from_le_bytes([b[0], b[1]]) as f32 / if normalized { 32767.0 } else { 1.0 },
+                DataType::U16 => u16::from_le_bytes([b[0], b[1]]) as f32 / if normalized { 65535.0 } else { 1.0 },
+                other => return Err(bad(file, field, format!("{what} has component type {other:?}"))),
+            };
+            out.push(if normalized { x.max(-1.0) } else { x });
+        }
+    }
+    Ok(out)
+}
+
 /// Loads a mesh: every primitive, in order (primitive `k`'s vertices follow those of `0..k`).
 fn load_mesh(file: &str, mesh: &::gltf::Mesh, buffers: &[BufferData]) -> Result<MeshData> {
     let limits = Limits::default();
@@ -76,7 +124,8 @@ fn load_mesh(file: &str, mesh: &::gltf::Mesh, buffers: &[BufferData]) -> Result<
         let positions = primitive
             .get(&Semantic::Positions)
             .ok_or_else(|| bad(file, "POSITION", format!("mesh {m} primitive {p} has no POSITION")))?;
-        let n = check_accessor(file, "POSITION", &positions, Dimensions::Vec3, &[DataType::F32])?;
+        let quantized = [DataType::F32, DataType::I8, DataType::U8, DataType::I16, DataType::U16];
+        let n = check_accessor(file, "POSITION", &positions, Dimensions::Vec3, &quantized)?;
         let offset = data.vertex_count();
         if primitive.morph_targets().len() != target_count {
             return Err(bad(
@@ -90,7 +139,7 @@ fn load_mesh(file: &str, mesh: &::gltf::Mesh, buffers: &[BufferData]) -> Result<
         }
         for target in primitive.morph_targets() {
             if let Some(acc) = target.positions() {
-                let count = check_accessor(file, "targets.POSITION", &acc, Dimensions::Vec3, &[DataType::F32])?;
+                let count = check_accessor(file, "targets.POSITION", &acc, Dimensions::Vec3, &quantized)?;
                 if count != n {
                     return Err(bad(
                         file,
@@ -139,16 +188,10 @@ fn load_mesh(file: &str, mesh: &::gltf::Mesh, buffers: &[BufferData]) -> Result<
             None => None,
         };
         let reader = primitive.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]));
-        for [x, y, z] in collect_exact(file, "POSITION", reader.read_positions(), n)? {
-            data.base.extend_from_slice(&[x, y, z]);
-        }
-        for (t, (pos, _, _)) in reader.read_morph_targets().enumerate() {
-            match pos {
-                Some(iter) => {
-                    for [x, y, z] in collect_exact(file, "targets.POSITION", Some(iter), n)? {
-                        data.targets[t].extend_from_slice(&[x, y, z]);
-                    }
-                }
+        data.base.extend(read_vec3(file, "POSITION", &positions, buffers)?);
+        for (t, target) in primitive.morph_targets().enumerate() {
+            match target.positions() {
+                Some(acc) => data.targets[t].extend(read_vec3(file, "targets.POSITION", &acc, buffers)?),
                 None => data.targets[t].resize((offset + n) * 3, 0.0),
             }
         }
