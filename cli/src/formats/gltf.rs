@@ -1038,6 +1038,20 @@ mod tests {
             let e = read(&bad).unwrap_err().to_string();
             assert!(e.contains("m.gltf") && e.contains(expected), "{e} (expected '{expected}')");
         }
+        // Corrupted compressed bytes (GLB form): a result, never a crash.
+        let (glb, _) = encode_gltf(&a, &opts, true).unwrap();
+        let mut accepted = 0;
+        for i in (0..glb.len()).step_by(2) {
+            for v in [0u8, 0x5a, 0xff] {
+                let mut m = glb.clone();
+                m[i] = v;
+                if let Ok(b) = parse_gltf(&m, None, "m.glb", a.frame_rate()) {
+                    assert!(b.positions().iter().all(|x| x.is_finite()));
+                    accepted += 1;
+                }
+            }
+        }
+        assert!(accepted > 0);
         // Without the extension's data the fallback buffer holds zeros: no crash either way.
         let mut stripped = doc.clone();
         stripped["bufferViews"][view].as_object_mut().unwrap().remove("extensions");

@@ -277,15 +277,17 @@ fn hierarchy(file: &str, document: &::gltf::Document) -> Result<Hierarchy> {
             parent[child.index()] = Some(node.index());
         }
     }
+    let children: Vec<Vec<usize>> = document.nodes().map(|n| n.children().map(|c| c.index()).collect()).collect();
     let mut order = Vec::with_capacity(count);
+    let mut reached = vec![false; count];
     let mut stack: Vec<usize> = (0..count).rev().filter(|&n| parent[n].is_none()).collect();
     while let Some(n) = stack.pop() {
         order.push(n);
-        let node = document.nodes().nth(n).expect("index in range");
-        stack.extend(node.children().map(|c| c.index()).collect::<Vec<_>>().into_iter().rev());
+        reached[n] = true;
+        stack.extend(children[n].iter().rev());
     }
-    if order.len() != count {
-        let stuck = (0..count).find(|n| !order.contains(n)).unwrap_or(0);
+    // Every node has at most one parent, so a node not reached from a root lies on a cycle.
+    if let Some(stuck) = reached.iter().position(|r| !r) {
         return Err(bad(file, "nodes", format!("node {stuck} is part of a cycle in the node hierarchy")));
     }
     Ok(Hierarchy { parent, order })
@@ -301,6 +303,9 @@ fn scene_mesh_nodes(document: &::gltf::Document, hierarchy: &Hierarchy) -> Vec<u
     };
     let nodes: Vec<::gltf::Node> = document.nodes().collect();
     let mut out = Vec::new();
+    // A root listed twice (invalid) is played once.
+    let mut seen = vec![false; nodes.len()];
+    let roots: Vec<usize> = roots.into_iter().filter(|&r| !std::mem::replace(&mut seen[r], true)).collect();
     let mut stack: Vec<usize> = roots.into_iter().rev().collect();
     while let Some(n) = stack.pop() {
         if nodes[n].mesh().is_some() {
