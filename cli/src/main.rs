@@ -119,6 +119,12 @@ pub struct ExportArgs {
     #[arg(long, value_name = "kg=T", value_parser = parse_target)]
     pub target: Option<animcodec::harness::Target>,
 
+    /// basis: auto (default) writes the file both with the per-frame rigid motion (rotation +
+    /// translation fitted to the mean shape) as node animation and without, and keeps the
+    /// smaller; on / off force it.
+    #[arg(long, value_name = "auto|on|off", default_value = "auto")]
+    pub rigid: String,
+
     /// Write plain f32 positions and targets: no KHR_mesh_quantization (16-bit positions) and
     /// no EXT_meshopt_compression (meshoptimizer's codecs), which are the default.
     #[arg(long)]

@@ -139,6 +139,10 @@ fn variants() -> Vec<(String, GltfOptions, bool)> {
             }
         }
     }
+    // The rigid motion as node animation (parent node translation + rotation, LINEAR/slerp).
+    let rigid = GltfOptions { target_kg: 0.5, rigid: Some(true), ..Default::default() };
+    out.push(("basis-rigid-meshopt.glb".into(), rigid.clone(), true));
+    out.push(("basis-rigid.gltf".into(), GltfOptions { compress: false, ..rigid }, false));
     out
 }
 

@@ -46,11 +46,23 @@ pub struct GltfOptions {
     /// (meshoptimizer's vertex and index codecs on the quantized data, the weights and the key
     /// times). Default true; the frames layout is then exact up to the 16-bit quantization.
     pub compress: bool,
+    /// `Basis`: move the per-frame rigid motion (Kabsch fit of each frame to the mean shape:
+    /// rotation + translation) to a parent node's `rotation`/`translation` animation and
+    /// decompose only what is left. `Some(true)`/`Some(false)` force it; `None` (default) writes
+    /// both and keeps the smaller file (with `targets` given: the smaller KG).
+    pub rigid: Option<bool>,
 }
 
 impl Default for GltfOptions {
     fn default() -> Self {
-        Self { layout: GltfLayout::Basis, targets: None, target_kg: 0.05, name: "animcodec".into(), compress: true }
+        Self {
+            layout: GltfLayout::Basis,
+            targets: None,
+            target_kg: 0.05,
+            name: "animcodec".into(),
+            compress: true,
+            rigid: None,
+        }
     }
 }
 
@@ -62,6 +74,8 @@ pub struct GltfSummary {
     /// `Basis`: KG (%) of the truncated basis against the input, before f32 rounding (0 for
     /// `Frames`).
     pub basis_kg: f64,
+    /// The rigid motion went to node animation.
+    pub rigid: bool,
 }
 
 /// Little-endian binary buffer with 4-byte aligned views. With `compress`, view data is
@@ -133,7 +147,11 @@ impl Buffer {
     /// Appends `f32` data as a view + accessor of `kind` ("SCALAR", "VEC3"); returns the accessor
     /// index. `bounds` adds the min/max glTF requires for positions and animation inputs.
     fn floats(&mut self, data: &[f32], kind: &str, target: Option<u32>, bounds: bool) -> Result<usize> {
-        let width = if kind == "VEC3" { 3 } else { 1 };
+        let width = match kind {
+            "VEC3" => 3,
+            "VEC4" => 4,
+            _ => 1,
+        };
         let raw: Vec<u8> = data.iter().flat_map(|x| x.to_le_bytes()).collect();
         // VEC3 floats are 12-byte records: written plain (only quantized data is compressed).
         let stream = Stream::Attributes { stride: 4, vertex_stride: false };
@@ -285,6 +303,98 @@ fn frame_morphs(a: &Animation) -> Morphs {
     Morphs { base, targets, weights, basis_kg: 0.0 }
 }
 
+/// Per-frame rigid motion: frame f ≈ R_f · local_f + t_f.
+struct RigidMotion {
+    translations: Vec<f32>,
+    rotations: Vec<f32>,
+}
+
+/// Splits the rigid motion off every frame: Kabsch fit (SVD of the 3 × 3 cross-covariance,
+/// reflection excluded) of the mean shape onto each frame; returns the frames brought back by
+/// the inverse motion (`local_f = R_fᵀ (frame_f − t_f)`, an isometry per frame, so KG and the
+/// PCA's discarded energy measure the same error in either space) and the motion, rotations as
+/// unit quaternions `[x, y, z, w]` kept on one hemisphere from frame to frame.
+fn rigid_split(a: &Animation) -> Result<(Animation, RigidMotion)> {
+    let (frames, v) = (a.frame_count(), a.vertex_count());
+    let mut mean = vec![0.0f64; 3 * v];
+    for f in 0..frames {
+        for (m, &x) in mean.iter_mut().zip(a.frame(f)) {
+            *m += x as f64 / frames as f64;
+        }
+    }
+    let centroid = |p: &dyn Fn(usize) -> f64| -> [f64; 3] {
+        std::array::from_fn(|k| (0..v).map(|i| p(3 * i + k)).sum::<f64>() / v as f64)
+    };
+    let cm = centroid(&|i| mean[i]);
+    let mut local = Vec::with_capacity(frames * 3 * v);
+    let (mut translations, mut rotations) = (Vec::new(), Vec::new());
+    let mut previous = [0.0, 0.0, 0.0, 1.0];
+    for f in 0..frames {
+        let frame = a.frame(f);
+        let cf = centroid(&|i| frame[i] as f64);
+        // H = Σ (p − c_p)(q − c_q)ᵀ, p the mean shape, q the frame.
+        let h = Mat::<f64>::from_fn(3, 3, |r, c| {
+            (0..v).map(|i| (mean[3 * i + r] - cm[r]) * (frame[3 * i + c] as f64 - cf[c])).sum::<f64>()
+        });
+        let svd = h.thin_svd().map_err(|e| Error::Numerical {
+            context: "glTF export".into(),
+            step: "rigid fit (SVD of the 3 × 3 cross-covariance)".into(),
+            detail: codec_core::error::debug_in_words(&e),
+        })?;
+        let (u, w) = (svd.U(), svd.V());
+        let vu = w * u.transpose();
+        let det = vu[(0, 0)] * (vu[(1, 1)] * vu[(2, 2)] - vu[(1, 2)] * vu[(2, 1)])
+            - vu[(0, 1)] * (vu[(1, 0)] * vu[(2, 2)] - vu[(1, 2)] * vu[(2, 0)])
+            + vu[(0, 2)] * (vu[(1, 0)] * vu[(2, 1)] - vu[(1, 1)] * vu[(2, 0)]);
+        let d = Mat::<f64>::from_fn(3, 3, |r, c| {
+            if r != c {
+                0.0
+            } else if r == 2 {
+                det.signum()
+            } else {
+                1.0
+            }
+        });
+        let r = w * d * u.transpose();
+        let rot: [[f64; 3]; 3] = std::array::from_fn(|i| std::array::from_fn(|j| r[(i, j)]));
+        let t: [f64; 3] = std::array::from_fn(|k| cf[k] - (0..3).map(|j| rot[k][j] * cm[j]).sum::<f64>());
+        for p in frame.chunks_exact(3) {
+            let q: [f64; 3] = std::array::from_fn(|k| p[k] as f64 - t[k]);
+            // Rᵀ q
+            local.extend((0..3).map(|j| (0..3).map(|k| rot[k][j] * q[k]).sum::<f64>() as f32));
+        }
+        let mut quat = quaternion(&rot);
+        if quat.iter().zip(&previous).map(|(a, b)| a * b).sum::<f64>() < 0.0 {
+            quat = quat.map(|x| -x);
+        }
+        previous = quat;
+        translations.extend(t.map(|x| x as f32));
+        rotations.extend(quat.map(|x| x as f32));
+    }
+    let local = Animation::from_parts(v, a.triangles().to_vec(), local, a.frame_rate())?;
+    Ok((local, RigidMotion { translations, rotations }))
+}
+
+/// Unit quaternion `[x, y, z, w]` of a rotation matrix (`m[row][column]`; Shepperd's method).
+fn quaternion(m: &[[f64; 3]; 3]) -> [f64; 4] {
+    let trace = m[0][0] + m[1][1] + m[2][2];
+    let q = if trace > 0.0 {
+        let s = 0.5 / (trace + 1.0).sqrt();
+        [(m[2][1] - m[1][2]) * s, (m[0][2] - m[2][0]) * s, (m[1][0] - m[0][1]) * s, 0.25 / s]
+    } else if m[0][0] > m[1][1] && m[0][0] > m[2][2] {
+        let s = 2.0 * (1.0 + m[0][0] - m[1][1] - m[2][2]).sqrt();
+        [0.25 * s, (m[0][1] + m[1][0]) / s, (m[0][2] + m[2][0]) / s, (m[2][1] - m[1][2]) / s]
+    } else if m[1][1] > m[2][2] {
+        let s = 2.0 * (1.0 + m[1][1] - m[0][0] - m[2][2]).sqrt();
+        [(m[0][1] + m[1][0]) / s, 0.25 * s, (m[1][2] + m[2][1]) / s, (m[0][2] - m[2][0]) / s]
+    } else {
+        let s = 2.0 * (1.0 + m[2][2] - m[0][0] - m[1][1]).sqrt();
+        [(m[0][2] + m[2][0]) / s, (m[1][2] + m[2][1]) / s, 0.25 * s, (m[1][0] - m[0][1]) / s]
+    };
+    let len = q.iter().map(|x| x * x).sum::<f64>().sqrt();
+    q.map(|x| x / len)
+}
+
 /// `KHR_mesh_quantization` form of the morphs: positions and targets as 16-bit integers, the
 /// node's translation and scale undoing the quantization.
 struct Quantized {
@@ -343,12 +453,51 @@ pub fn encode_gltf(animation: &Animation, options: &GltfOptions, glb: bool) -> R
             format!("{} is not a finite positive KG (%)", options.target_kg),
         ));
     }
-    let morphs = match options.layout {
-        GltfLayout::Basis => basis_morphs(animation, options)?,
-        GltfLayout::Frames => frame_morphs(animation),
+    let full = animation;
+    let (morphs, motion, local) = match options.layout {
+        GltfLayout::Frames => (frame_morphs(full), None, None),
+        GltfLayout::Basis if full.frame_count() < 2 || options.rigid == Some(false) => {
+            (basis_morphs(full, options)?, None, None)
+        }
+        GltfLayout::Basis => {
+            let (local, motion) = rigid_split(full)?;
+            let split = basis_morphs(&local, options)?;
+            if options.rigid.is_none() {
+                // Both meet the KG target: keep the smaller file (the motion's keys cost bytes,
+                // and a local frame can compress worse than the original); with `targets`
+                // given, the smaller KG.
+                let plain_kg = basis_morphs(full, options)?;
+                let (split_kg, plain_basis_kg) = (split.basis_kg, plain_kg.basis_kg);
+                let with = finish(&local, split, Some(motion), options, glb)?;
+                let without = finish(full, plain_kg, None, options, glb)?;
+                let keep_with = match options.targets {
+                    None => with.0.len() < without.0.len(),
+                    Some(_) => split_kg < plain_basis_kg,
+                };
+                return Ok(if keep_with { with } else { without });
+            }
+            (split, Some(motion), Some(local))
+        }
     };
+    match local {
+        Some(local) => finish(&local, morphs, motion, options, glb),
+        None => finish(full, morphs, motion, options, glb),
+    }
+}
+
+/// Writes the file: `animation` (already without the rigid motion when `motion` is given) as
+/// `morphs`, the motion as a parent node's animation.
+fn finish(
+    animation: &Animation,
+    morphs: Morphs,
+    motion: Option<RigidMotion>,
+    options: &GltfOptions,
+    glb: bool,
+) -> Result<(Vec<u8>, GltfSummary)> {
     let (frames, k) = (animation.frame_count(), morphs.targets.len());
     let mut morphs = morphs;
+    // With rigid motion: node 0 carries it, its child node 1 the mesh.
+    let mesh_node = if motion.is_some() { 1 } else { 0 };
     let mut buf = Buffer::new(options.compress);
     let tri: Vec<u32> = animation.triangles().iter().flatten().copied().collect();
     let indices = buf.indices(&tri, animation.vertex_count());
@@ -382,22 +531,46 @@ pub fn encode_gltf(animation: &Animation, options: &GltfOptions, glb: bool) -> R
         "scenes": [{"nodes": [0]}],
         "nodes": [node],
     });
+    if let Some(m) = &motion {
+        // The rigid part's node starts at frame 0's pose.
+        let parent = json!({"name": format!("{} motion", options.name), "children": [1],
+            "translation": m.translations[..3], "rotation": m.rotations[..4]});
+        root["nodes"] = json!([parent, root["nodes"][0].clone()]);
+    }
+    let (mut channels, mut samplers) = (Vec::new(), Vec::new());
+    let times: Vec<f32> = (0..frames).map(|f| f as f32 / fps).collect();
+    let mut input = None;
     if k > 0 {
         primitive["targets"] = targets.into();
         // The node starts at frame 0's weights so a viewer without animation shows frame 0.
         mesh["weights"] = json!(morphs.weights[..k]);
         if frames > 1 {
-            let times: Vec<f32> = (0..frames).map(|f| f as f32 / fps).collect();
-            let input = buf.floats(&times, "SCALAR", None, true)?;
+            let keys = buf.floats(&times, "SCALAR", None, true)?;
+            input = Some(keys);
             let output = buf.floats(&morphs.weights, "SCALAR", None, false)?;
             let interpolation = if options.layout == GltfLayout::Frames { "STEP" } else { "LINEAR" };
-            root["animations"] = json!([{
-                "name": options.name,
-                "channels": [{"sampler": 0, "target": {"node": 0, "path": "weights"}}],
-                "samplers": [{"input": input, "output": output, "interpolation": interpolation}],
-                "extras": {"animcodec": {"fps": fps}},
-            }]);
+            channels.push(json!({"sampler": samplers.len(), "target": {"node": mesh_node, "path": "weights"}}));
+            samplers.push(json!({"input": keys, "output": output, "interpolation": interpolation}));
         }
+    }
+    if let (Some(m), true) = (&motion, frames > 1) {
+        let keys = match input {
+            Some(keys) => keys,
+            None => buf.floats(&times, "SCALAR", None, true)?,
+        };
+        for (path, data, kind) in [("translation", &m.translations, "VEC3"), ("rotation", &m.rotations, "VEC4")] {
+            let output = buf.floats(data, kind, None, false)?;
+            channels.push(json!({"sampler": samplers.len(), "target": {"node": 0, "path": path}}));
+            samplers.push(json!({"input": keys, "output": output, "interpolation": "LINEAR"}));
+        }
+    }
+    if !channels.is_empty() {
+        root["animations"] = json!([{
+            "name": options.name,
+            "channels": channels,
+            "samplers": samplers,
+            "extras": {"animcodec": {"fps": fps}},
+        }]);
     }
     mesh["primitives"] = json!([primitive]);
     root["meshes"] = json!([mesh]);
@@ -405,7 +578,7 @@ pub fn encode_gltf(animation: &Animation, options: &GltfOptions, glb: bool) -> R
     root["accessors"] = buf.accessors.into();
     let mut bin = buf.bin;
     align4(&mut bin);
-    let summary = GltfSummary { targets: k, basis_kg: morphs.basis_kg };
+    let summary = GltfSummary { targets: k, basis_kg: morphs.basis_kg, rigid: motion.is_some() };
     let mut buffers = vec![json!({"byteLength": bin.len()})];
     if options.compress {
         let used = json!(["KHR_mesh_quantization", "EXT_meshopt_compression"]);
@@ -513,6 +686,23 @@ mod tests {
         assert_eq!(s.targets, 3);
         let e = encode_gltf(&a, &GltfOptions { target_kg: 0.0, ..Default::default() }, true).unwrap_err();
         assert!(e.to_string().contains("target_kg"), "{e}");
+    }
+
+    /// A tumbling rigid body: its motion goes to the parent node's animation (auto picks it:
+    /// fewer targets, smaller file) and plays back within the KG target; forcing it off needs more.
+    #[test]
+    fn rigid_motion_goes_to_node_animation() {
+        let a = synth::by_name("tumble", synth::SynthSize::Small).unwrap();
+        let opts = GltfOptions { target_kg: 0.5, ..Default::default() };
+        let (bytes, auto) = encode_gltf(&a, &opts, true).unwrap();
+        let (plain, off) = encode_gltf(&a, &GltfOptions { rigid: Some(false), ..opts.clone() }, true).unwrap();
+        assert!(auto.rigid && auto.targets < off.targets, "auto {auto:?}, off {off:?}");
+        assert!(bytes.len() < plain.len());
+        let b = read_back(&bytes, a.frame_rate());
+        let kg = metrics::kg_error(&a, &b).unwrap();
+        assert!(kg <= 0.5 * 1.05, "played back KG {kg}");
+        let text = String::from_utf8_lossy(&bytes);
+        assert!(text.contains("\"rotation\"") && text.contains("\"translation\""));
     }
 
     /// A frame rate other than the reader's default keeps the frame times (keys at f / fps).
