@@ -71,6 +71,21 @@ enum Command {
     /// Write any input (or a decoded `.anim` stream) as a glTF/GLB morph-target animation that
     /// every glTF engine plays, and report its error as played back.
     Export(ExportArgs),
+    /// List the animations of a glTF/GLB file (index, name, channels, key times and rate):
+    /// what `--animation NAME|INDEX` chooses from. `info FILE.glb` prints the same.
+    ListAnimations(ListAnimationsArgs),
+}
+
+/// Arguments of `animcodec list-animations`.
+#[derive(Debug, Args)]
+pub struct ListAnimationsArgs {
+    /// A `.gltf` or `.glb` file.
+    #[arg(value_name = "FILE.glb")]
+    pub input: PathBuf,
+
+    /// Print JSON: {file, animations: [{index, name, channels, start, end, key_rate, properties}]}.
+    #[arg(long)]
+    pub json: bool,
 }
 
 /// Arguments of `animcodec export`.
@@ -94,13 +109,35 @@ pub struct ExportArgs {
     #[arg(long, value_name = "K")]
     pub targets: Option<usize>,
 
-    /// basis: the KG error (%) the written animation must meet against the input (> 0).
-    #[arg(long, value_name = "KG", default_value_t = 0.05)]
-    pub target_kg: f64,
+    /// basis: the KG error (%) the written animation must meet against the input (> 0);
+    /// the same as --target kg=KG. Default 0.05.
+    #[arg(long, value_name = "KG", conflicts_with = "target")]
+    pub target_kg: Option<f64>,
+
+    /// basis: the error target, `kg=T` (KG in %, > 0), as `encode --target` spells it; the
+    /// fewest morph targets meeting it are written. Only kg is supported here.
+    #[arg(long, value_name = "kg=T", value_parser = parse_target)]
+    pub target: Option<animcodec::harness::Target>,
+
+    /// basis: auto (default) writes the file both with the per-frame rigid motion (rotation +
+    /// translation fitted to the mean shape) as node animation and without, and keeps the
+    /// smaller; on / off force it.
+    #[arg(long, value_name = "auto|on|off", default_value = "auto")]
+    pub rigid: String,
+
+    /// Write plain f32 positions and targets: no KHR_mesh_quantization (16-bit positions) and
+    /// no EXT_meshopt_compression (meshoptimizer's codecs), which are the default.
+    #[arg(long)]
+    pub no_compress: bool,
 
     /// OBJ file giving the triangles of a .pc2/.mdd input (default: the OBJ beside it).
     #[arg(long, value_name = "OBJ")]
     pub topology: Option<PathBuf>,
+
+    /// glTF input: the animation to play, by name or index (default: the first; `animcodec
+    /// list-animations FILE` lists them).
+    #[arg(long, value_name = "NAME|INDEX")]
+    pub animation: Option<String>,
 
     /// Frame rate of the input when it stores none (keys are written at frame / fps seconds).
     #[arg(long, value_name = "F", value_parser = commands::parse_fps, allow_negative_numbers = true)]
@@ -153,6 +190,11 @@ pub struct ViewArgs {
     #[arg(long, value_name = "OBJ")]
     pub topology: Option<PathBuf>,
 
+    /// glTF input: the animation to play, by name or index (default: the first; `animcodec
+    /// list-animations FILE` lists them). Applies to the reference; a glTF candidate plays its first.
+    #[arg(long, value_name = "NAME|INDEX")]
+    pub animation: Option<String>,
+
     /// STED options (header values and `--heat sted`).
     #[command(flatten)]
     pub sted: StedArgs,
@@ -204,6 +246,11 @@ pub struct InspectArgs {
     /// same stem).
     #[arg(long, value_name = "OBJ")]
     pub topology: Option<PathBuf>,
+
+    /// glTF input: the animation to play, by name or index (default: the first; `animcodec
+    /// list-animations FILE` lists them).
+    #[arg(long, value_name = "NAME|INDEX")]
+    pub animation: Option<String>,
 }
 
 /// Arguments of `animcodec list`.
@@ -245,6 +292,11 @@ pub struct EncodeArgs {
     /// same stem).
     #[arg(long, value_name = "OBJ")]
     pub topology: Option<PathBuf>,
+
+    /// glTF input: the animation to play, by name or index (default: the first; `animcodec
+    /// list-animations FILE` lists them).
+    #[arg(long, value_name = "NAME|INDEX")]
+    pub animation: Option<String>,
 
     /// Frame rate to use when the input stores none (or to override a synthetic one).
     #[arg(long, value_name = "F", value_parser = commands::parse_fps, allow_negative_numbers = true)]
@@ -344,6 +396,11 @@ pub struct EvalArgs {
     #[arg(long, value_name = "OBJ")]
     pub topology: Option<PathBuf>,
 
+    /// glTF input: the animation to play, by name or index (default: the first; `animcodec
+    /// list-animations FILE` lists them). Applies to the reference; a glTF candidate plays its first.
+    #[arg(long, value_name = "NAME|INDEX")]
+    pub animation: Option<String>,
+
     /// Which metrics, and STED's options.
     #[command(flatten)]
     pub metrics: MetricArgs,
@@ -414,6 +471,11 @@ pub struct SweepArgs {
     #[arg(long, value_name = "OBJ")]
     pub topology: Option<PathBuf>,
 
+    /// glTF input: the animation to play, by name or index (default: the first; `animcodec
+    /// list-animations FILE` lists them).
+    #[arg(long, value_name = "NAME|INDEX")]
+    pub animation: Option<String>,
+
     /// Write an HTML report: the interactive rate-distortion plot (hover a point for its
     /// parameters, bytes and every metric), the table, and a viewer per `--view-points` point.
     #[arg(long, value_name = "F.html")]
@@ -462,7 +524,7 @@ pub struct DecodeArgs {
 /// Arguments of `animcodec info`.
 #[derive(Debug, Args)]
 pub struct InfoArgs {
-    /// Input `.anim` container.
+    /// Input `.anim` container (or a `.gltf`/`.glb` file: its animations are listed).
     #[arg(value_name = "IN.anim")]
     pub input: PathBuf,
 
@@ -572,5 +634,6 @@ fn run(cli: Cli) -> commands::CmdResult {
         Command::Inspect(a) => commands::inspect::run(&a),
         Command::View(a) => commands::view::run(&a, limits),
         Command::Export(a) => commands::export::run(&a, limits),
+        Command::ListAnimations(a) => commands::animations::run(&a.input, a.json),
     }
 }

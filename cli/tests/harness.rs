@@ -589,9 +589,13 @@ fn export_writes_gltf_that_plays_back_at_the_reported_error() {
     let loose = ok_json(&["export", &pc2, "-o", &glb, "-f", "--json", "--target-kg", "1"]);
     assert!(loose["targets"].as_u64().unwrap() < k && f(&loose["kg"]) <= 1.05, "{loose}");
     let gltf = s.path("flag.gltf");
-    let exact = ok_json(&["export", &pc2, "-o", &gltf, "--json", "--layout", "frames"]);
+    let exact = ok_json(&["export", &pc2, "-o", &gltf, "--json", "--layout", "frames", "--no-compress"]);
     assert_eq!(exact["targets"].as_u64(), Some(39));
     assert!(f(&exact["kg"]) < 1e-4, "{exact}");
+    // Compressed (the default): 16-bit positions cost a little error and save bytes.
+    let packed = ok_json(&["export", &pc2, "-o", &s.path("packed.glb"), "--json", "--layout", "frames"]);
+    assert!(f(&packed["kg"]) < 0.01 && f(&packed["kg"]) > f(&exact["kg"]), "{packed}");
+    assert!(packed["bytes"].as_u64() < exact["bytes"].as_u64(), "{packed} {exact}");
     let text = std::fs::read_to_string(&gltf).unwrap();
     assert!(text.contains("\"STEP\"") && text.contains("data:application/octet-stream;base64,"));
     // decode writes glTF too.
@@ -606,4 +610,8 @@ fn export_writes_gltf_that_plays_back_at_the_reported_error() {
     fails(&["export", &glb, "-o", &glb, "-f"], &["also an input"]);
     fails(&["export", &pc2, "-o", &s.path("flag.fbx")], &[".glb or .gltf"]);
     fails(&["export", &pc2, "-o", &glb, "-f", "--target-kg", "0"], &["target_kg"]);
+    // The spelling, --target kg=T, is the same request; other metrics are refused.
+    let same = ok_json(&["export", &pc2, "-o", &glb, "-f", "--json", "--target", "kg=1"]);
+    assert_eq!((same["targets"].clone(), same["bytes"].clone()), (loose["targets"].clone(), loose["bytes"].clone()));
+    fails(&["export", &pc2, "-o", &glb, "-f", "--target", "sted=0.1"], &["kg=T"]);
 }

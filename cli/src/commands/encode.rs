@@ -67,7 +67,11 @@ pub fn run(args: &EncodeArgs, limits: Limits) -> CmdResult {
     let source = match parse_streamed_flag(&args.input)? {
         Some((cols, rows, frames)) => Source::Flag { cols, rows, frames },
         None => {
-            let options = ReadOptions { topology: args.topology.clone(), frame_rate: args.fps };
+            let options = ReadOptions {
+                topology: args.topology.clone(),
+                frame_rate: args.fps,
+                animation: args.animation.clone(),
+            };
             Source::Whole(load_animation(&args.input, &options)?)
         }
     };
@@ -315,7 +319,11 @@ fn run_target(args: &EncodeArgs, target: Target, limits: Limits, policy: &Output
             Animation::new(topology, positions, args.fps.unwrap_or(synth::FRAME_RATE))?
         }
         None => {
-            let options = ReadOptions { topology: args.topology.clone(), frame_rate: args.fps };
+            let options = ReadOptions {
+                topology: args.topology.clone(),
+                frame_rate: args.fps,
+                animation: args.animation.clone(),
+            };
             load_animation(&args.input, &options)?
         }
     };

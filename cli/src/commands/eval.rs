@@ -52,9 +52,10 @@ pub fn eval_options(args: &MetricArgs) -> CmdResult<EvalOptions> {
 /// Runs `eval`.
 pub fn run(args: &EvalArgs, limits: Limits) -> CmdResult {
     let options = eval_options(&args.metrics)?;
-    let read = ReadOptions { topology: args.topology.clone(), frame_rate: None };
+    let read = ReadOptions { topology: args.topology.clone(), frame_rate: None, animation: args.animation.clone() };
     let reference = load_any(&args.reference, &read, limits)?;
-    let candidate = load_any(&args.candidate, &read, limits)?;
+    // --animation chooses the reference's animation; a glTF candidate plays its first.
+    let candidate = load_any(&args.candidate, &ReadOptions { animation: None, ..read }, limits)?;
     let start = Instant::now();
     let report = metrics::evaluate(&reference, &candidate, &options)
         .context(|| format!("comparing {} with {}", args.reference, args.candidate))?;

@@ -6,7 +6,7 @@ use std::time::Instant;
 
 use animcodec::formats::gltf_out::{encode_gltf, GltfLayout, GltfOptions};
 use animcodec::formats::{gltf, ReadOptions};
-use animcodec::harness;
+use animcodec::harness::{self, TargetMetric};
 use animcodec::output::OutputPolicy;
 use codec_core::Limits;
 use metrics::EvalOptions;
@@ -29,7 +29,7 @@ pub fn run(args: &ExportArgs, limits: Limits) -> CmdResult {
         policy = policy.with_input(t);
     }
     policy.check(&args.output)?;
-    let read = ReadOptions { topology: args.topology.clone(), frame_rate: args.fps };
+    let read = ReadOptions { topology: args.topology.clone(), frame_rate: args.fps, animation: args.animation.clone() };
     let animation = load_any(&args.input, &read, limits)?;
     let layout = match args.layout.as_str() {
         "basis" => GltfLayout::Basis,
@@ -38,7 +38,21 @@ pub fn run(args: &ExportArgs, limits: Limits) -> CmdResult {
     };
     let name =
         Path::new(&args.input).file_stem().map_or_else(|| "animcodec".into(), |s| s.to_string_lossy().into_owned());
-    let options = GltfOptions { layout, targets: args.targets, target_kg: args.target_kg, name };
+    let target_kg = match (&args.target, args.target_kg) {
+        (Some(t), _) if t.metric != TargetMetric::Kg => {
+            return Err(format!("--target {t}: export meets KG targets only (--target kg=T)").into())
+        }
+        (Some(t), _) => t.value,
+        (None, Some(kg)) => kg,
+        (None, None) => GltfOptions::default().target_kg,
+    };
+    let rigid = match args.rigid.as_str() {
+        "auto" => None,
+        "on" => Some(true),
+        "off" => Some(false),
+        other => return Err(format!("--rigid '{other}': expected auto, on or off").into()),
+    };
+    let options = GltfOptions { layout, targets: args.targets, target_kg, name, compress: !args.no_compress, rigid };
     let start = Instant::now();
     let (bytes, summary) = encode_gltf(&animation, &options, glb)?;
     let seconds = start.elapsed().as_secs_f64();
@@ -56,6 +70,7 @@ pub fn run(args: &ExportArgs, limits: Limits) -> CmdResult {
             "output": args.output.display().to_string(),
             "layout": args.layout,
             "targets": summary.targets,
+            "rigid": summary.rigid,
             "bytes": bytes.len(),
             "bpvf": rate,
             "kg": report.kg,
@@ -71,7 +86,7 @@ pub fn run(args: &ExportArgs, limits: Limits) -> CmdResult {
     let num = |x: Option<f64>| x.map_or_else(|| "n/a".to_string(), |x| format!("{x:.4e}"));
     emit(&format!(
         "{input}: {f} frames × {v} vertices at {fps} fps → {out}\n\
-         {layout} layout, {k} morph targets, {bytes} bytes, {rate:.3} bits/vertex/frame (written in {seconds:.2} s)\n\
+         {layout} layout, {k} morph targets{rigid}, {bytes} bytes, {rate:.3} bits/vertex/frame (written in {seconds:.2} s)\n\
          played back (read with animcodec's glTF reader at {fps} fps): KG {kg} %, STED {sted}, max error {max:.4e}\n",
         input = args.input,
         f = animation.frame_count(),
@@ -80,6 +95,7 @@ pub fn run(args: &ExportArgs, limits: Limits) -> CmdResult {
         out = args.output.display(),
         layout = args.layout,
         k = summary.targets,
+        rigid = if summary.rigid { " + rigid motion as node animation" } else { "" },
         bytes = bytes.len(),
         kg = num(report.kg),
         sted = num(report.sted),

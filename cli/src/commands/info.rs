@@ -16,6 +16,10 @@ const SHOWN_PACKETS: usize = 32;
 
 /// Runs `info`.
 pub fn run(args: &InfoArgs, limits: Limits) -> CmdResult {
+    let ext = args.input.extension().map(|e| e.to_string_lossy().to_ascii_lowercase());
+    if matches!(ext.as_deref(), Some("gltf" | "glb")) {
+        return super::animations::run(&args.input, args.json);
+    }
     let mut src = open(&args.input)?;
     let (header, index) = container::read_index(&mut src, limits).context(|| args.input.display().to_string())?;
     // read_index has checked the header and index checksums; every packet's checksum and frame

@@ -63,7 +63,7 @@ pub fn run(args: &InspectArgs) -> CmdResult {
         policy.check(path)?;
     }
 
-    let options = ReadOptions { topology: args.topology.clone(), frame_rate: None };
+    let options = ReadOptions { topology: args.topology.clone(), frame_rate: None, animation: args.animation.clone() };
     let animation = load_animation(&args.input, &options)?;
     let frames = animation.frame_count();
     let frame = args.frame;

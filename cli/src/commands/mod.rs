@@ -1,6 +1,7 @@
 //! The subcommands, one module each, and what they share: error reporting, stdout output,
 //! input loading and JSON conversions.
 
+pub mod animations;
 pub mod decode;
 pub mod demo;
 pub mod encode;

@@ -40,7 +40,7 @@ pub fn run(args: &SweepArgs, limits: Limits) -> CmdResult {
     // Checked before the (long) sweep: a typo should not cost it.
     let view_points = args.view_points.iter().map(|t| parse_view_point(t, &series)).collect::<CmdResult<Vec<_>>>()?;
     let eval = eval_options(&args.metrics)?;
-    let read = ReadOptions { topology: args.topology.clone(), frame_rate: None };
+    let read = ReadOptions { topology: args.topology.clone(), frame_rate: None, animation: args.animation.clone() };
     let animation = load_any(input, &read, limits)?;
 
     let options =

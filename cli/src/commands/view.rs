@@ -37,12 +37,14 @@ pub fn run(args: &ViewArgs, limits: Limits) -> CmdResult {
     }
     policy.check(&args.output)?;
     let registry = animcodec::registry();
-    let read = ReadOptions { topology: args.topology.clone(), frame_rate: None };
+    let read = ReadOptions { topology: args.topology.clone(), frame_rate: None, animation: args.animation.clone() };
     let reference = load_any(&args.reference, &read, limits)?;
     let sted = sted_params(&args.sted)?;
     let mut loaded = Vec::new();
+    // --animation chooses the reference's animation; a glTF candidate plays its first.
+    let read_candidate = ReadOptions { animation: None, ..read };
     for spec in &args.candidates {
-        loaded.push(load_candidate(&registry, spec, &reference, &read, limits)?);
+        loaded.push(load_candidate(&registry, spec, &reference, &read_candidate, limits)?);
     }
     let eval = EvalOptions { sted, ..EvalOptions::default() };
     let mut candidates = Vec::new();

@@ -1,21 +1,34 @@
-//! glTF 2.0 / GLB morph-target animations, read with the `gltf` crate.
+//! glTF 2.0 / GLB input: the scene of a glTF file played back into one fixed-topology vertex
+//! cache, read with the `gltf` crate. Morph-target animations (Horse.glb), node (TRS)
+//! animation and skinned characters (RobotExpressive.glb) all come out as per-frame vertex
+//! positions.
 //!
 //! Choices (all documented here so callers know what they get):
-//! - **Mesh**: the first mesh that has morph targets, else the first mesh. All its primitives are
-//!   concatenated in order into one vertex list (primitive `k`'s indices are offset by the vertex
-//!   counts of primitives `0..k`). Only `TRIANGLES` primitives are accepted; a primitive without
-//!   indices is a plain triangle list.
-//! - **Space**: positions stay in mesh space: no node or scene transform is applied (the
-//!   compression codecs do not care, and skinning/node animation are out of scope).
-//! - **Animation**: the first animation (in file order) with a `weights` channel targeting a node
-//!   that uses the chosen mesh. It is sampled at the frame rate (default 30 fps) from its first
-//!   to its last key time: `floor(duration × fps) + 1` frames at `t₀ + k / fps`. Interpolation:
-//!   `STEP`, `LINEAR`, and `CUBICSPLINE` evaluated with the glTF Hermite formula (spec §3.11,
-//!   "Interpolation"), not just its value component.
-//! - **Frame** = base + Σᵢ wᵢ(t) · targetᵢ (morph target `POSITION` displacements; a target
-//!   without positions displaces nothing), summed in target order in `f32`.
-//! - **No such animation**: a single frame with the node's `weights`, else the mesh's default
-//!   `weights`, else the base mesh.
+//! - **Vertices** (the vertex order): every node with a mesh in the default scene (else scene 0,
+//!   else every root node), visited depth first from the scene's root nodes in order, a node's
+//!   own mesh before its children. Each such mesh instance contributes all its primitives'
+//!   vertices in primitive order, each in its `POSITION` accessor's order (a mesh used by two
+//!   nodes appears twice). Triangles are re-indexed accordingly. Only `TRIANGLES` primitives are
+//!   accepted; a primitive without indices is a plain triangle list.
+//! - **Space**: world space of the scene (the node hierarchy's transforms applied). A skinned
+//!   mesh follows the spec (§3.7.3 "Skins"): Σⱼ wⱼ · world(jointⱼ) · inverseBindⱼ · p, the
+//!   skinned node's own transform ignored; weights from every `JOINTS_n`/`WEIGHTS_n` set (4 per
+//!   set) normalized to sum 1; a joint with zero weight is ignored even when out of range, and
+//!   a vertex with no weight at all stays where its node puts it.
+//! - **Morph targets** before skinning: p = base + Σᵢ wᵢ(t) · targetᵢ (`POSITION` displacements;
+//!   a target without positions displaces nothing). Weights: the node's `weights` channel, else
+//!   the node's default `weights`, else the mesh's, else zeros.
+//! - **Animation**: `--animation NAME|INDEX` (an exact name first, then an index), default the
+//!   first in file order; every one of its channels (translation, rotation, scale, weights) is
+//!   applied; nodes it does not animate stay at rest. No animation in the file: one frame at rest.
+//! - **Sampling**: from the first to the last key time over all channels,
+//!   `floor(duration × fps) + 1` frames at `t₀ + k / fps`. `fps`: the caller's, else the rate
+//!   animcodec's writer stores in the animation's `extras`, else the rate of the key grid when
+//!   every key lies on one (RobotExpressive: 24, Horse: 10), else 30. Interpolation: `STEP`,
+//!   `LINEAR` (rotations: slerp along the short arc), and `CUBICSPLINE` evaluated with the
+//!   Hermite formula (spec Appendix C), rotations normalized ([`super::gltf_anim`]). Before
+//!   its first key a channel holds its first value, after its last key its last value.
+//! - Arithmetic in `f64`, positions rounded to `f32` once at the end.
 //! - Images are never loaded (only buffers), so textures in unsupported formats do not matter.
 //! - **Buffers** are loaded here, not by `gltf::import_buffers`: the crate's `import` feature
 //!   also compiles an image decoder this reader never uses, and its loader panics on a
@@ -24,48 +37,95 @@
 //!   declared `byteLength`; the declared length is checked against [`Limits`] before reading.
 //!
 //! Every accessor is checked (type, component type, count, range) before the `gltf` reader is
-//! used, because the reader panics on some invalid combinations; as a last line of defence the
-//! whole parse runs under `catch_unwind` and a panic inside the crate becomes an error.
+//! used, because the reader panics on some invalid combinations; joint indices, inverse bind
+//! matrix counts and the node hierarchy (one parent per node, no cycles) are checked too. As a
+//! last line of defence the whole parse runs under `catch_unwind` and a panic inside the crate
+//! becomes an error.
 
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::Path;
 
 use ::gltf::accessor::{DataType, Dimensions};
-use ::gltf::animation::{Interpolation, Property};
-use ::gltf::mesh::Mode;
-use ::gltf::{Accessor, Semantic};
+use ::gltf::Accessor;
 use base64::Engine as _;
 use codec_core::{Animation, Error, Limits, Result};
 
-use super::{in_file, name, read_file};
+use super::gltf_meshopt;
+use super::gltf_scene::{self, Selection};
+use super::{name, read_file};
 
-/// Reads the morph-target animation of a `.gltf` or `.glb` file, sampled at `frame_rate`.
-/// External buffers of a `.gltf` are resolved relative to the file's directory.
-pub fn read_gltf(path: &Path, frame_rate: f32) -> Result<Animation> {
-    let bytes = read_file(path)?;
-    let base = path.parent().map(|p| if p.as_os_str().is_empty() { Path::new(".") } else { p });
-    parse_gltf(&bytes, base, &name(path), frame_rate)
+pub use super::gltf_scene::AnimationInfo;
+
+/// What to read from a glTF file.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct GltfSelection {
+    /// The animation: a name, else an index. `None`: the first.
+    pub animation: Option<String>,
+    /// Sampling rate. `None`: the file's own (see the module docs).
+    pub frame_rate: Option<f32>,
 }
 
-/// Parses glTF JSON or GLB bytes. `base` resolves external buffer URIs (`None`: only embedded
-/// and data-URI buffers work); `file` names the source in errors.
+/// Reads a `.gltf` or `.glb` file's scene played back as `selection` says. External buffers of
+/// a `.gltf` are resolved relative to the file's directory.
+pub fn read_gltf(path: &Path, selection: &GltfSelection) -> Result<Animation> {
+    let bytes = read_file(path)?;
+    let base = path.parent().map(|p| if p.as_os_str().is_empty() { Path::new(".") } else { p });
+    parse_gltf_with(&bytes, base, &name(path), selection)
+}
+
+/// Parses glTF JSON or GLB bytes, its first animation sampled at `frame_rate`. `base` resolves
+/// external buffer URIs (`None`: only embedded and data-URI buffers work); `file` names the
+/// source in errors.
 pub fn parse_gltf(bytes: &[u8], base: Option<&Path>, file: &str, frame_rate: f32) -> Result<Animation> {
-    if !(frame_rate.is_finite() && frame_rate > 0.0) {
-        return Err(Error::InvalidAnimation(format!("frame rate {frame_rate} is not a finite positive number")));
+    parse_gltf_with(bytes, base, file, &GltfSelection { animation: None, frame_rate: Some(frame_rate) })
+}
+
+/// Parses glTF JSON or GLB bytes as `selection` says (see [`parse_gltf`]).
+pub fn parse_gltf_with(bytes: &[u8], base: Option<&Path>, file: &str, selection: &GltfSelection) -> Result<Animation> {
+    if let Some(fps) = selection.frame_rate {
+        if !(fps.is_finite() && fps > 0.0) {
+            return Err(Error::InvalidAnimation(format!("frame rate {fps} is not a finite positive number")));
+        }
     }
-    match catch_unwind(AssertUnwindSafe(|| parse_checked(bytes, base, file, frame_rate))) {
+    guarded(file, || {
+        let (document, blob, raw) = parse_document(bytes, file)?;
+        let buffers = load_buffers(file, &document, base, blob, &raw)?;
+        let wanted =
+            Selection { animation: selection.animation.as_deref(), frame_rate: selection.frame_rate.map(f64::from) };
+        gltf_scene::bake(file, &document, &buffers, Some(&raw), &wanted)
+    })
+}
+
+/// Every animation of a `.gltf` or `.glb` file: index, name, channels, key range and rate.
+pub fn list_animations(path: &Path) -> Result<Vec<AnimationInfo>> {
+    let bytes = read_file(path)?;
+    let base = path.parent().map(|p| if p.as_os_str().is_empty() { Path::new(".") } else { p });
+    let file = name(path);
+    guarded(&file, || {
+        let (document, blob, raw) = parse_document(&bytes, &file)?;
+        let buffers = load_buffers(&file, &document, base, blob, &raw)?;
+        gltf_scene::list(&file, &document, &buffers)
+    })
+}
+
+/// Extensions read here rather than by the `gltf` crate.
+const SUPPORTED_EXTENSIONS: [&str; 2] = ["KHR_mesh_quantization", gltf_meshopt::EXTENSION];
+
+/// Runs `parse` with a panic inside the `gltf` crate turned into an error.
+fn guarded<T>(file: &str, parse: impl FnOnce() -> Result<T>) -> Result<T> {
+    match catch_unwind(AssertUnwindSafe(parse)) {
         Ok(result) => result,
         Err(_) => Err(Error::malformed(file.to_owned(), "gltf", "the glTF reader failed on malformed data")),
     }
 }
 
-fn bad(file: &str, field: &'static str, detail: impl Into<String>) -> Error {
+pub(super) fn bad(file: &str, field: &'static str, detail: impl Into<String>) -> Error {
     Error::malformed(file.to_owned(), field, detail)
 }
 
 /// Checks an accessor before handing it to the `gltf` reader: dimensions, component type,
 /// non-zero counts (the reader computes `count - 1`), and the vertex limit. Returns the count.
-fn check_accessor(
+pub(super) fn check_accessor(
     file: &str,
     field: &'static str,
     accessor: &Accessor,
@@ -103,7 +163,7 @@ fn check_accessor(
 
 /// Collects exactly `count` items from a reader, or fails (the reader yields fewer items when the
 /// buffer view is too short for the accessor).
-fn collect_exact<T>(
+pub(super) fn collect_exact<T>(
     file: &str,
     field: &'static str,
     iter: Option<impl Iterator<Item = T>>,
@@ -116,15 +176,8 @@ fn collect_exact<T>(
     Ok(items)
 }
 
-/// The chosen mesh, flattened: base positions, per-target displacements, triangles.
-struct MorphMesh {
-    base: Vec<f32>,
-    targets: Vec<Vec<f32>>,
-    triangles: Vec<[u32; 3]>,
-}
-
 /// The bytes of one glTF buffer.
-struct BufferData(Vec<u8>);
+pub(super) struct BufferData(pub(super) Vec<u8>);
 
 /// Loads every buffer of `document` (see the module docs for the sources accepted).
 fn load_buffers(
@@ -132,6 +185,7 @@ fn load_buffers(
     document: &::gltf::Document,
     base: Option<&Path>,
     mut blob: Option<Vec<u8>>,
+    raw: &serde_json::Value,
 ) -> Result<Vec<BufferData>> {
     let limits = Limits::default();
     let mut buffers = Vec::with_capacity(document.buffers().len());
@@ -140,6 +194,8 @@ fn load_buffers(
         let declared = buffer.length();
         limits.check_alloc("gltf", "buffers", declared as u64)?;
         let data = match buffer.source() {
+            // An EXT_meshopt_compression fallback buffer: filled by decoding the views below.
+            ::gltf::buffer::Source::Bin if gltf_meshopt::is_fallback(raw, index) => vec![0; declared],
             ::gltf::buffer::Source::Bin => blob.take().ok_or_else(|| {
                 bad(file, "buffers", format!("buffer {index} refers to a GLB BIN chunk the file lacks"))
             })?,
@@ -154,6 +210,7 @@ fn load_buffers(
         }
         buffers.push(BufferData(data));
     }
+    gltf_meshopt::decode_views(file, raw, &mut buffers)?;
     Ok(buffers)
 }
 
@@ -197,233 +254,10 @@ fn read_uri(
     Ok(data)
 }
 
-fn load_mesh(file: &str, mesh: &::gltf::Mesh, buffers: &[BufferData]) -> Result<MorphMesh> {
-    let limits = Limits::default();
-    let target_count = mesh.primitives().next().map(|p| p.morph_targets().len()).unwrap_or(0);
-    let mut base: Vec<f32> = Vec::new();
-    let mut targets: Vec<Vec<f32>> = vec![Vec::new(); target_count];
-    let mut triangles: Vec<[u32; 3]> = Vec::new();
-    for primitive in mesh.primitives() {
-        let p = primitive.index();
-        if primitive.mode() != Mode::Triangles {
-            return Err(Error::Unsupported {
-                context: file.to_owned().into(),
-                detail: format!(
-                    "mesh {} primitive {p} has mode {:?}; only TRIANGLES is supported",
-                    mesh.index(),
-                    primitive.mode()
-                ),
-            });
-        }
-        let positions = primitive
-            .get(&Semantic::Positions)
-            .ok_or_else(|| bad(file, "POSITION", format!("mesh {} primitive {p} has no POSITION", mesh.index())))?;
-        let n = check_accessor(file, "POSITION", &positions, Dimensions::Vec3, &[DataType::F32])?;
-        let offset = base.len() / 3;
-        if offset + n > limits.max_vertices {
-            return Err(Error::LimitExceeded {
-                context: file.to_owned().into(),
-                field: "vertex_count".into(),
-                value: (offset + n) as u64,
-                limit: limits.max_vertices as u64,
-            });
-        }
-        if primitive.morph_targets().len() != target_count {
-            return Err(bad(
-                file,
-                "targets",
-                format!(
-                    "mesh {} primitive {p} has {} morph targets, primitive 0 has {target_count}",
-                    mesh.index(),
-                    primitive.morph_targets().len()
-                ),
-            ));
-        }
-        for target in primitive.morph_targets() {
-            if let Some(acc) = target.positions() {
-                let count = check_accessor(file, "targets.POSITION", &acc, Dimensions::Vec3, &[DataType::F32])?;
-                if count != n {
-                    return Err(bad(
-                        file,
-                        "targets.POSITION",
-                        format!("primitive {p}: {count} displacements for {n} vertices"),
-                    ));
-                }
-            }
-        }
-        let indices = match primitive.indices() {
-            Some(acc) => {
-                check_accessor(
-                    file,
-                    "indices",
-                    &acc,
-                    Dimensions::Scalar,
-                    &[DataType::U8, DataType::U16, DataType::U32],
-                )?;
-                Some(acc.count())
-            }
-            None => None,
-        };
-        let reader = primitive.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]));
-        for [x, y, z] in collect_exact(file, "POSITION", reader.read_positions(), n)? {
-            base.extend_from_slice(&[x, y, z]);
-        }
-        for (t, (pos, _, _)) in reader.read_morph_targets().enumerate() {
-            match pos {
-                Some(iter) => {
-                    for [x, y, z] in collect_exact(file, "targets.POSITION", Some(iter), n)? {
-                        targets[t].extend_from_slice(&[x, y, z]);
-                    }
-                }
-                None => targets[t].resize((offset + n) * 3, 0.0),
-            }
-        }
-        let flat: Vec<u32> = match indices {
-            Some(count) => collect_exact(file, "indices", reader.read_indices().map(|i| i.into_u32()), count)?,
-            None => (0..n as u32).collect(),
-        };
-        if flat.len() % 3 != 0 {
-            return Err(bad(
-                file,
-                "indices",
-                format!("primitive {p}: {} indices is not a whole number of triangles", flat.len()),
-            ));
-        }
-        if let Some(&i) = flat.iter().find(|&&i| i as usize >= n) {
-            return Err(bad(file, "indices", format!("primitive {p}: index {i} out of range for {n} vertices")));
-        }
-        let o = offset as u32;
-        triangles.extend(flat.chunks_exact(3).map(|c| [c[0] + o, c[1] + o, c[2] + o]));
-        if triangles.len() > limits.max_triangles {
-            return Err(Error::LimitExceeded {
-                context: file.to_owned().into(),
-                field: "triangle_count".into(),
-                value: triangles.len() as u64,
-                limit: limits.max_triangles as u64,
-            });
-        }
-    }
-    if base.is_empty() {
-        return Err(bad(file, "meshes", format!("mesh {} has no primitives", mesh.index())));
-    }
-    Ok(MorphMesh { base, targets, triangles })
-}
-
-/// Keyframes of a weights channel: times and the raw output values (`keys × targets`, or
-/// `keys × 3 × targets` for cubic splines: in-tangent, value, out-tangent).
-struct WeightTrack {
-    times: Vec<f32>,
-    values: Vec<f32>,
-    interpolation: Interpolation,
-    targets: usize,
-}
-
-impl WeightTrack {
-    /// Weights at time `t` (seconds), clamped to the key range.
-    fn sample(&self, t: f64, out: &mut [f32]) {
-        let n = self.targets;
-        let keys = self.times.len();
-        let cubic = self.interpolation == Interpolation::CubicSpline;
-        // Value of target i at key k (the middle element of the triple for cubic splines).
-        let value = |k: usize, i: usize| if cubic { self.values[(3 * k + 1) * n + i] } else { self.values[k * n + i] };
-        // Last key with time <= t (the first key if t precedes it). Key times are f32: a key
-        // written at frame k's time (k / fps rounded to f32) may lie a rounding error after
-        // the f64 sample time, and must still count as reached (else STEP shows frame k − 1).
-        let reached = t + 1e-6 * t.abs().max(1.0);
-        let k = self.times.partition_point(|&x| x as f64 <= reached).saturating_sub(1);
-        if k + 1 >= keys || t <= self.times[0] as f64 {
-            for (i, w) in out.iter_mut().enumerate() {
-                *w = value(k, i);
-            }
-            return;
-        }
-        let (t0, t1) = (self.times[k] as f64, self.times[k + 1] as f64);
-        let dt = t1 - t0;
-        let s = ((t - t0) / dt).clamp(0.0, 1.0);
-        for (i, w) in out.iter_mut().enumerate() {
-            let (v0, v1) = (value(k, i) as f64, value(k + 1, i) as f64);
-            *w = match self.interpolation {
-                Interpolation::Step => v0 as f32,
-                Interpolation::Linear => (v0 + s * (v1 - v0)) as f32,
-                Interpolation::CubicSpline => {
-                    // glTF 2.0 spec, Appendix C "Interpolation": Hermite with the out-tangent b_k
-                    // of key k and the in-tangent a_{k+1} of key k+1, both scaled by the interval.
-                    let b0 = self.values[(3 * k + 2) * n + i] as f64;
-                    let a1 = self.values[(3 * (k + 1)) * n + i] as f64;
-                    let (s2, s3) = (s * s, s * s * s);
-                    ((2.0 * s3 - 3.0 * s2 + 1.0) * v0
-                        + (s3 - 2.0 * s2 + s) * dt * b0
-                        + (-2.0 * s3 + 3.0 * s2) * v1
-                        + (s3 - s2) * dt * a1) as f32
-                }
-            };
-        }
-    }
-}
-
-fn load_track(
-    file: &str,
-    channel: &::gltf::animation::Channel,
-    buffers: &[BufferData],
-    targets: usize,
-) -> Result<WeightTrack> {
-    let sampler = channel.sampler();
-    let keys = check_accessor(file, "animation.input", &sampler.input(), Dimensions::Scalar, &[DataType::F32])?;
-    let all_types = [DataType::F32, DataType::I8, DataType::U8, DataType::I16, DataType::U16];
-    let outputs = check_accessor(file, "animation.output", &sampler.output(), Dimensions::Scalar, &all_types)?;
-    let interpolation = sampler.interpolation();
-    let per_key = if interpolation == Interpolation::CubicSpline { 3 * targets } else { targets };
-    if targets == 0 {
-        return Err(bad(file, "animation.output", "a weights animation on a mesh without morph targets"));
-    }
-    if outputs != keys * per_key {
-        return Err(bad(
-            file,
-            "animation.output",
-            format!(
-                "{outputs} weights for {keys} keys × {targets} targets ({interpolation:?}); expected {}",
-                keys * per_key
-            ),
-        ));
-    }
-    let reader = channel.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]));
-    let times = collect_exact(file, "animation.input", reader.read_inputs(), keys)?;
-    if let Some(k) = times.iter().position(|t| !t.is_finite()) {
-        return Err(bad(file, "animation.input", format!("key {k} has time {}", times[k])));
-    }
-    if let Some(k) = times.windows(2).position(|w| w[1] <= w[0]) {
-        return Err(bad(file, "animation.input", format!("key times are not increasing at key {}", k + 1)));
-    }
-    let values = match reader.read_outputs() {
-        Some(::gltf::animation::util::ReadOutputs::MorphTargetWeights(w)) => {
-            collect_exact(file, "animation.output", Some(w.into_f32()), outputs)?
-        }
-        _ => return Err(bad(file, "animation.output", "weights buffer data is missing")),
-    };
-    if let Some(k) = values.iter().position(|v| !v.is_finite()) {
-        return Err(bad(file, "animation.output", format!("weight {k} is {}", values[k])));
-    }
-    Ok(WeightTrack { times, values, interpolation, targets })
-}
-
-/// frame = base + Σ wᵢ · targetᵢ, appended to `out`.
-fn blend(mesh: &MorphMesh, weights: &[f32], out: &mut Vec<f32>) {
-    let start = out.len();
-    out.extend_from_slice(&mesh.base);
-    let frame = &mut out[start..];
-    for (target, &w) in mesh.targets.iter().zip(weights) {
-        if w != 0.0 {
-            for (p, d) in frame.iter_mut().zip(target) {
-                *p += w * d;
-            }
-        }
-    }
-}
-
 /// Splits a GLB (or takes glTF JSON), deserializes the JSON, checks every index in it
 /// ([`check_indices`]) and only then lets the `gltf` crate validate it (its validation indexes
 /// arrays unchecked in places: a `POSITION` accessor index out of range panics there).
-fn parse_document(bytes: &[u8], file: &str) -> Result<(::gltf::Document, Option<Vec<u8>>)> {
+fn parse_document(bytes: &[u8], file: &str) -> Result<(::gltf::Document, Option<Vec<u8>>, serde_json::Value)> {
     let (json, blob) = if bytes.starts_with(b"glTF") {
         // The crate computes `length - 12` unchecked (an overflow panic, found by fuzzing).
         let declared = bytes.get(8..12).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]));
@@ -443,11 +277,15 @@ fn parse_document(bytes: &[u8], file: &str) -> Result<(::gltf::Document, Option<
     } else {
         (bytes.to_vec(), None)
     };
-    let root: ::gltf::json::Root =
+    let mut root: ::gltf::json::Root =
         ::gltf::json::deserialize::from_slice(&json).map_err(|e| bad(file, "gltf", e.to_string()))?;
     check_indices(file, &root)?;
+    // The extensions this reader implements itself (the crate refuses to load files requiring
+    // them); their data is read from the raw JSON, which keeps every extension object.
+    root.extensions_required.retain(|e| !SUPPORTED_EXTENSIONS.contains(&e.as_str()));
+    let raw: serde_json::Value = serde_json::from_slice(&json).map_err(|e| bad(file, "gltf", e.to_string()))?;
     let document = ::gltf::Document::from_json(root).map_err(|e| bad(file, "gltf", e.to_string()))?;
-    Ok((document, blob))
+    Ok((document, blob, raw))
 }
 
 /// Checks that every index into the document's arrays that this reader or the `gltf` crate
@@ -563,65 +401,6 @@ fn check_indices(file: &str, root: &::gltf::json::Root) -> Result<()> {
     Ok(())
 }
 
-fn parse_checked(bytes: &[u8], base: Option<&Path>, file: &str, frame_rate: f32) -> Result<Animation> {
-    let (document, blob) = parse_document(bytes, file)?;
-    let buffers = load_buffers(file, &document, base, blob)?;
-    let mesh = document
-        .meshes()
-        .find(|m| m.primitives().any(|p| p.morph_targets().len() > 0))
-        .or_else(|| document.meshes().next())
-        .ok_or_else(|| bad(file, "meshes", "the file has no mesh"))?;
-    let morph = load_mesh(file, &mesh, &buffers)?;
-    let vertex_count = morph.base.len() / 3;
-    let target_count = morph.targets.len();
-    let uses_mesh = |node: &::gltf::Node| node.mesh().is_some_and(|m| m.index() == mesh.index());
-    let channel = document.animations().find_map(|anim| {
-        anim.channels().find(|c| c.target().property() == Property::MorphTargetWeights && uses_mesh(&c.target().node()))
-    });
-    let mut positions = Vec::new();
-    match channel {
-        None => {
-            let node = document.nodes().find(|n| uses_mesh(n));
-            let default = node.and_then(|n| n.weights()).or_else(|| mesh.weights()).unwrap_or(&[]);
-            if !default.is_empty() && default.len() != target_count {
-                return Err(bad(
-                    file,
-                    "weights",
-                    format!("{} default weights for {target_count} targets", default.len()),
-                ));
-            }
-            blend(&morph, default, &mut positions);
-        }
-        Some(channel) => {
-            let track = load_track(file, &channel, &buffers, target_count)?;
-            let (t0, t1) = (track.times[0] as f64, track.times[track.times.len() - 1] as f64);
-            let fps = frame_rate as f64;
-            // The small epsilon keeps a key that falls on a frame boundary (1.5 s × 30 fps) in,
-            // also when the f32 key time lies a rounding error short of it (39 / 30 s as f32 is
-            // 38.9999986 frames; f32 time errors are ≈ 6e-8 relative, far below 1e-4 frames).
-            let frames_f = ((t1 - t0) * fps + 1e-4).floor() + 1.0;
-            let limits = Limits::default();
-            if frames_f > limits.max_frames as f64 {
-                return Err(Error::LimitExceeded {
-                    context: file.to_owned().into(),
-                    field: "frame_count".into(),
-                    value: frames_f as u64,
-                    limit: limits.max_frames as u64,
-                });
-            }
-            let frames = frames_f as usize;
-            limits.check_alloc("gltf", "positions", (frames * vertex_count * 12) as u64)?;
-            positions.reserve_exact(frames * vertex_count * 3);
-            let mut weights = vec![0f32; target_count];
-            for k in 0..frames {
-                track.sample(t0 + k as f64 / fps, &mut weights);
-                blend(&morph, &weights, &mut positions);
-            }
-        }
-    }
-    Animation::from_parts(vertex_count, morph.triangles, positions, frame_rate).map_err(|e| in_file(file, e))
-}
-
 #[cfg(test)]
 mod tests {
     use super::super::{read_animation, ReadOptions, TempDir};
@@ -653,7 +432,12 @@ mod tests {
         }
 
         fn f32s(&mut self, v: &[f32], ty: &str) -> usize {
-            let per = if ty == "VEC3" { 3 } else { 1 };
+            let per = match ty {
+                "VEC3" => 3,
+                "VEC4" => 4,
+                "MAT4" => 16,
+                _ => 1,
+            };
             let bytes: Vec<u8> = v.iter().flat_map(|x| x.to_le_bytes()).collect();
             let a = self.push(&bytes, v.len() / per, ty, 5126);
             if per == 3 {
@@ -671,6 +455,22 @@ mod tests {
         fn u16s(&mut self, v: &[u16]) -> usize {
             let bytes: Vec<u8> = v.iter().flat_map(|x| x.to_le_bytes()).collect();
             self.push(&bytes, v.len(), "SCALAR", 5123)
+        }
+
+        /// JOINTS_n data: four u16 joint indices per vertex.
+        fn joints(&mut self, v: &[u16]) -> usize {
+            let bytes: Vec<u8> = v.iter().flat_map(|x| x.to_le_bytes()).collect();
+            self.push(&bytes, v.len() / 4, "VEC4", 5123)
+        }
+
+        /// A whole document with the given nodes, scene roots, meshes, skins and animations.
+        fn scene_document(&self, nodes: Value, roots: Value, meshes: Value, skins: Value, animations: Value) -> Value {
+            json!({
+                "asset": {"version": "2.0"},
+                "scene": 0, "scenes": [{"nodes": roots}], "nodes": nodes,
+                "meshes": meshes, "skins": skins, "animations": animations,
+                "buffers": [{"byteLength": self.bin.len()}], "bufferViews": self.views, "accessors": self.accessors
+            })
         }
 
         /// The document; `buffer_uri` None means a GLB blob.
@@ -757,8 +557,9 @@ mod tests {
         assert_eq!(offsets(&a), vec![(0., 0.), (0.5, 0.), (1., 0.), (0.5, 0.5), (0., 1.)]);
         // Every vertex moves by the same blend: vertex 1 = (1, 0, 0) + offsets.
         assert_eq!(a.vertex(3, 1), [2.0, 2.0, 0.0]);
-        // Default rate: 2 s at 30 fps = 61 frames.
-        assert_eq!(read_animation(&path, &ReadOptions::default()).unwrap().frame_count(), 61);
+        // Default rate: the key grid's (keys 1 s apart: 1 fps, 3 frames).
+        let own = read_animation(&path, &ReadOptions::default()).unwrap();
+        assert_eq!((own.frame_count(), own.frame_rate()), (3, 1.0));
 
         let (b, doc) = morph_triangle("STEP", None);
         let path = write_gltf(&dir, &b, &doc);
@@ -890,8 +691,9 @@ mod tests {
         let mut wrong_count = d.clone();
         wrong_count["accessors"][5]["count"] = json!(5);
         check(&wrong_count, "expected 6");
+        // (8/16-bit positions are KHR_mesh_quantization's; 32-bit integers are not allowed.)
         let mut wrong_type = d.clone();
-        wrong_type["accessors"][0]["componentType"] = json!(5121);
+        wrong_type["accessors"][0]["componentType"] = json!(5125);
         check(&wrong_type, "component type");
         let mut bad_index = d.clone();
         bad_index["accessors"][3]["componentType"] = json!(5126);
@@ -980,6 +782,282 @@ mod tests {
         assert!(e.contains("truncated"), "{e}");
     }
 
+    fn assert_close(got: [f32; 3], expected: [f64; 3], what: &str) {
+        let ok = got.iter().zip(expected).all(|(g, e)| (*g as f64 - e).abs() <= 1e-5);
+        assert!(ok, "{what}: got {got:?}, expected {expected:?}");
+    }
+
+    /// A two-bone skin whose positions can be worked out by hand.
+    ///
+    /// Nodes: 0 = bone 0 at the origin (child: 1), 1 = bone 1 at (0, 1, 0) carrying a rigid
+    /// triangle (mesh 1), 2 = the skinned mesh node, translated by (100, 0, 0), which the spec
+    /// says to ignore. Scene roots [0, 2]: vertex order = mesh 1 (node 1, reached through node 0)
+    /// then mesh 0 (node 2). Mesh 0: v0 = (1, 0, 0) on bone 0; v1 = (1, 1, 0) half on each bone,
+    /// with bone 1 in the second influence set (JOINTS_1/WEIGHTS_1) and unnormalized weights
+    /// 1 + 1; v2 = (1, 2, 0) on bone 1; one morph target (+1, 0, 0) at default weight 0.5.
+    /// Inverse bind matrices: identity and translate(0, −1, 0). Animation "Bend": bone 0
+    /// translates (0,0,0) → (0,0,2) and bone 1 rotates 0° → 90° about z over 1 s (LINEAR).
+    fn two_bone_skin() -> (Builder, Value) {
+        let mut b = Builder::new();
+        let positions = b.f32s(&[1., 0., 0., 1., 1., 0., 1., 2., 0.], "VEC3");
+        let morph = b.f32s(&[1., 0., 0., 1., 0., 0., 1., 0., 0.], "VEC3");
+        let joints0 = b.joints(&[0, 0, 0, 0, 0, 0, 0, 0, 1, 0, 0, 0]);
+        let weights0 = b.f32s(&[1., 0., 0., 0., 1., 0., 0., 0., 1., 0., 0., 0.], "VEC4");
+        let joints1 = b.joints(&[0, 0, 0, 0, 1, 0, 0, 0, 0, 0, 0, 0]);
+        let weights1 = b.f32s(&[0., 0., 0., 0., 1., 0., 0., 0., 0., 0., 0., 0.], "VEC4");
+        let rigid = b.f32s(&[0., 0., 0., 1., 0., 0., 0., 0., 1.], "VEC3");
+        let mut ibm = vec![0f32; 32];
+        for k in 0..4 {
+            ibm[5 * k] = 1.0;
+            ibm[16 + 5 * k] = 1.0;
+        }
+        ibm[16 + 13] = -1.0;
+        let ibm = b.f32s(&ibm, "MAT4");
+        let times = b.f32s(&[0., 1.], "SCALAR");
+        let moves = b.f32s(&[0., 0., 0., 0., 0., 2.], "VEC3");
+        let h = std::f32::consts::FRAC_1_SQRT_2;
+        let turns = b.f32s(&[0., 0., 0., 1., 0., 0., h, h], "VEC4");
+        let nodes = json!([
+            {"name": "bone0", "children": [1]},
+            {"name": "bone1", "translation": [0, 1, 0], "mesh": 1},
+            {"name": "skinned", "translation": [100, 0, 0], "mesh": 0, "skin": 0}
+        ]);
+        let meshes = json!([
+            {"weights": [0.5], "primitives": [{"attributes": {"POSITION": positions,
+                "JOINTS_0": joints0, "WEIGHTS_0": weights0, "JOINTS_1": joints1, "WEIGHTS_1": weights1},
+                "targets": [{"POSITION": morph}]}]},
+            {"primitives": [{"attributes": {"POSITION": rigid}}]}
+        ]);
+        let skins = json!([{"joints": [0, 1], "inverseBindMatrices": ibm}]);
+        let animations = json!([{"name": "Bend",
+            "samplers": [{"input": times, "output": moves}, {"input": times, "output": turns}],
+            "channels": [{"sampler": 0, "target": {"node": 0, "path": "translation"}},
+                         {"sampler": 1, "target": {"node": 1, "path": "rotation"}}]}]);
+        let doc = b.scene_document(nodes, json!([0, 2]), meshes, skins, animations);
+        (b, doc)
+    }
+
+    #[test]
+    fn two_bone_skin_matches_the_hand_computed_positions() {
+        let (b, doc) = two_bone_skin();
+        let glb = b.glb(&doc);
+        let read = |fps: f32| {
+            let selection = GltfSelection { animation: Some("Bend".into()), frame_rate: Some(fps) };
+            parse_gltf_with(&glb, None, "skin.glb", &selection).unwrap()
+        };
+        let a = read(1.0);
+        assert_eq!((a.vertex_count(), a.frame_count()), (6, 2));
+        // Mesh 1 (node 1) first, then the skinned mesh 0, re-indexed.
+        assert_eq!(a.triangles(), &[[0, 1, 2], [3, 4, 5]]);
+        // Rest (t = 0): bone 1 at (0, 1, 0); the skin reproduces the bind pose + morph (0.5, 0, 0).
+        assert_close(a.vertex(0, 0), [0., 1., 0.], "rigid vertex 0 at rest");
+        assert_close(a.vertex(0, 3), [1.5, 0., 0.], "v0 at rest");
+        assert_close(a.vertex(0, 4), [1.5, 1., 0.], "v1 at rest");
+        assert_close(a.vertex(0, 5), [1.5, 2., 0.], "v2 at rest");
+        // t = 1: bone 0 moved to z = 2, bone 1 turned 90°. v2: (1.5, 2, 0) − (0, 1, 0) = (1.5, 1, 0),
+        // turned: (−1, 1.5, 0), + (0, 1, 0) + (0, 0, 2) = (−1, 2.5, 2). v1: the mean of bone 0's
+        // (1.5, 1, 2) and bone 1's (0, 2.5, 2). The node's own (100, 0, 0) is ignored.
+        assert_close(a.vertex(1, 0), [0., 1., 2.], "rigid vertex 0 at t = 1");
+        assert_close(a.vertex(1, 1), [0., 2., 2.], "rigid vertex 1 at t = 1");
+        assert_close(a.vertex(1, 3), [1.5, 0., 2.], "v0 at t = 1");
+        assert_close(a.vertex(1, 4), [0.75, 1.75, 2.], "v1 at t = 1");
+        assert_close(a.vertex(1, 5), [-1., 2.5, 2.], "v2 at t = 1");
+        // t = 0.25 (4 fps, frame 1): slerp gives 22.5° (a normalized linear blend ≈ 21.6°).
+        let a = read(4.0);
+        assert_eq!(a.frame_count(), 5);
+        let (c, s) = (22.5f64.to_radians().cos(), 22.5f64.to_radians().sin());
+        // v2: (1.5, 1, 0) turned by 22.5°, + (0, 1, 0) + (0, 0, 0.5).
+        assert_close(a.vertex(1, 5), [1.5 * c - s, 1.5 * s + c + 1.0, 0.5], "v2 at t = 0.25");
+        // The same file picked by index, and by default (the first animation).
+        let by_index = GltfSelection { animation: Some("0".into()), frame_rate: Some(1.0) };
+        assert_eq!(parse_gltf_with(&glb, None, "skin.glb", &by_index).unwrap().positions(), read(1.0).positions());
+        // Default rate: the keys' own (1 s apart → 1 fps).
+        let own = parse_gltf_with(&glb, None, "skin.glb", &GltfSelection::default()).unwrap();
+        assert_eq!((own.frame_rate(), own.frame_count()), (1.0, 2));
+    }
+
+    #[test]
+    fn step_translation_and_cubic_rotation_on_a_node() {
+        let mut b = Builder::new();
+        let positions = b.f32s(&[1., 0., 0., 0., 1., 0., 0., 0., 1.], "VEC3");
+        let steps = b.f32s(&[0., 1., 2.], "SCALAR");
+        let moves = b.f32s(&[0., 0., 0., 1., 0., 0., 2., 0., 0.], "VEC3");
+        let ends = b.f32s(&[0., 2.], "SCALAR");
+        let h = std::f32::consts::FRAC_1_SQRT_2;
+        // Cubic keys: (in-tangent, value, out-tangent) per key, zero tangents: 0° → 90° about z.
+        let z = [0f32; 4];
+        let turns = b.f32s(&[z, [0., 0., 0., 1.], z, z, [0., 0., h, h], z].concat(), "VEC4");
+        let nodes = json!([{"mesh": 0}]);
+        let meshes = json!([{"primitives": [{"attributes": {"POSITION": positions}}]}]);
+        let animations = json!([{"samplers": [
+                {"input": steps, "output": moves, "interpolation": "STEP"},
+                {"input": ends, "output": turns, "interpolation": "CUBICSPLINE"}],
+            "channels": [{"sampler": 0, "target": {"node": 0, "path": "translation"}},
+                         {"sampler": 1, "target": {"node": 0, "path": "rotation"}}]}]);
+        let doc = b.scene_document(nodes, json!([0]), meshes, json!([]), animations);
+        let selection = GltfSelection { animation: None, frame_rate: Some(2.0) };
+        let a = parse_gltf_with(&b.glb(&doc), None, "node.glb", &selection).unwrap();
+        assert_eq!(a.frame_count(), 5);
+        // Hermite with zero tangents at s: h00·q0 + h01·q1, normalized.
+        let angle = |s: f64| {
+            let (h00, h01) = (2. * s * s * s - 3. * s * s + 1., -2. * s * s * s + 3. * s * s);
+            let half = std::f64::consts::FRAC_PI_4;
+            2.0 * (h01 * half.sin()).atan2(h00 + h01 * half.cos())
+        };
+        for (frame, step_x) in [(0, 0.0), (1, 0.0), (2, 1.0), (3, 1.0), (4, 2.0)] {
+            let theta = angle(frame as f64 / 4.0);
+            assert_close(a.vertex(frame, 0), [step_x + theta.cos(), theta.sin(), 0.], &format!("frame {frame}"));
+        }
+        assert!((angle(0.5) - std::f64::consts::FRAC_PI_4).abs() < 1e-12, "symmetric at the midpoint");
+        assert_close(a.vertex(4, 0), [2., 1., 0.], "last key");
+    }
+
+    #[test]
+    fn malformed_skins_and_scenes_are_errors_naming_the_problem() {
+        let (b, doc) = two_bone_skin();
+        let check = |doc: &Value, expected: &str| {
+            let e = parse_gltf(&b.glb(doc), None, "bad.glb", 30.0).unwrap_err().to_string();
+            assert!(e.contains("bad.glb") && e.contains(expected), "{e} (expected '{expected}')");
+            assert!(!e.contains("reader failed"), "the gltf crate panicked: {e}");
+        };
+        type Mutation = Box<dyn Fn(&mut Value)>;
+        let cases: Vec<(Mutation, &str)> = vec![
+            (Box::new(|d| d["skins"][0]["joints"] = json!([0])), "uses joint 1 but skin 0 has 1 joints"),
+            (Box::new(|d| d["accessors"][7]["count"] = json!(1)), "1 inverse bind matrices for 2 joints"),
+            (Box::new(|d| d["accessors"][7]["type"] = json!("MAT3")), "inverseBindMatrices"),
+            (Box::new(|d| d["nodes"][2]["children"] = json!([1])), "child of both node 0 and node 2"),
+            (Box::new(|d| d["nodes"][1]["children"] = json!([0])), "cycle"),
+            (
+                Box::new(|d| {
+                    let attributes = d["meshes"][0]["primitives"][0]["attributes"].as_object_mut().unwrap();
+                    attributes.remove("WEIGHTS_1");
+                }),
+                "JOINTS_1 but no WEIGHTS_1",
+            ),
+            (
+                Box::new(|d| {
+                    let attributes = d["meshes"][0]["primitives"][0]["attributes"].as_object_mut().unwrap();
+                    for k in ["JOINTS_0", "WEIGHTS_0", "JOINTS_1", "WEIGHTS_1"] {
+                        attributes.remove(k);
+                    }
+                }),
+                "has no JOINTS_0",
+            ),
+            (Box::new(|d| d["accessors"][2]["type"] = json!("VEC3")), "JOINTS"),
+            (Box::new(|d| d["animations"][0]["channels"][1]["target"]["path"] = json!("weights")), "no morph targets"),
+            (Box::new(|d| d["animations"][0]["channels"][1]["target"]["path"] = json!("scale")), "expected"),
+            (
+                Box::new(|d| d["nodes"][0]["matrix"] = json!([1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1])),
+                "has a matrix",
+            ),
+            (Box::new(|d| d["scenes"][0]["nodes"] = json!([0])), "bad.glb"),
+            (Box::new(|d| d["nodes"][2].as_object_mut().unwrap().remove("mesh").map(|_| ()).unwrap()), "bad.glb"),
+        ];
+        for (mutate, expected) in cases {
+            let mut bad = doc.clone();
+            mutate(&mut bad);
+            if expected == "bad.glb" {
+                // Still valid: fewer vertices (mesh 1 only), no error expected.
+                assert!(parse_gltf(&b.glb(&bad), None, "bad.glb", 30.0).is_ok());
+                continue;
+            }
+            check(&bad, expected);
+        }
+        // A joint out of range with zero weight is ignored (real exporters write joint 0 / weight 0
+        // padding, some write garbage indices there).
+        let mut padded = doc.clone();
+        let mut b2 = Builder { bin: b.bin.clone(), views: b.views.clone(), accessors: b.accessors.clone() };
+        let junk = b2.joints(&[0, 77, 0, 0, 0, 77, 0, 0, 1, 77, 0, 0]);
+        padded["accessors"] = json!(b2.accessors);
+        padded["bufferViews"] = json!(b2.views);
+        padded["buffers"][0]["byteLength"] = json!(b2.bin.len());
+        padded["meshes"][0]["primitives"][0]["attributes"]["JOINTS_0"] = json!(junk);
+        assert_eq!(
+            parse_gltf(&b2.glb(&padded), None, "pad.glb", 1.0).unwrap().positions(),
+            parse_gltf(&b.glb(&doc), None, "pad.glb", 1.0).unwrap().positions()
+        );
+        // Animations by name: a missing one lists what the file has.
+        let selection = GltfSelection { animation: Some("Jump".into()), frame_rate: None };
+        let e = parse_gltf_with(&b.glb(&doc), None, "skin.glb", &selection).unwrap_err().to_string();
+        assert!(e.contains("no animation named or numbered 'Jump'") && e.contains("0 'Bend'"), "{e}");
+        let selection = GltfSelection { animation: Some("3".into()), frame_rate: None };
+        assert!(parse_gltf_with(&b.glb(&doc), None, "skin.glb", &selection).is_err());
+    }
+
+    #[test]
+    fn corrupted_skinned_files_give_results_not_crashes() {
+        let (b, doc) = two_bone_skin();
+        let glb = b.glb(&doc);
+        let mut accepted = 0;
+        for i in (0..glb.len()).step_by(3) {
+            for v in [0u8, 0x7f, 0xff] {
+                let mut m = glb.clone();
+                m[i] = v;
+                if let Ok(a) = parse_gltf(&m, None, "m.glb", 3.0) {
+                    assert!(a.positions().iter().all(|x| x.is_finite()));
+                    accepted += 1;
+                }
+            }
+        }
+        assert!(accepted > 0);
+    }
+
+    /// EXT_meshopt_compression + KHR_mesh_quantization (as our writer produces them) are read;
+    /// malformed extension data is an error naming the view, never a panic.
+    #[test]
+    fn meshopt_compressed_quantized_files_are_read_and_checked() {
+        use super::super::gltf_out::{encode_gltf, GltfLayout, GltfOptions};
+        let a = codec_core::synth::waving_flag(8, 5, 6);
+        let opts = GltfOptions { layout: GltfLayout::Frames, ..Default::default() };
+        let (text, _) = encode_gltf(&a, &opts, false).unwrap();
+        let doc: Value = serde_json::from_slice(&text).unwrap();
+        let read = |d: &Value| parse_gltf(&serde_json::to_vec(d).unwrap(), None, "m.gltf", a.frame_rate());
+        let b = read(&doc).unwrap();
+        let worst = a.positions().iter().zip(b.positions()).map(|(x, y)| (x - y).abs()).fold(0f32, f32::max);
+        assert!(worst < 2.5e-5 * a.bounding_box_diagonal() as f32, "{worst}");
+        let view = (0..doc["bufferViews"].as_array().unwrap().len())
+            .find(|&i| doc["bufferViews"][i]["extensions"]["EXT_meshopt_compression"].is_object())
+            .unwrap();
+        fn ext(d: &mut Value, view: usize) -> &mut Value {
+            &mut d["bufferViews"][view]["extensions"]["EXT_meshopt_compression"]
+        }
+        type Mutation = Box<dyn Fn(&mut Value)>;
+        let cases: Vec<(Mutation, &str)> = vec![
+            (Box::new(move |d| ext(d, view)["buffer"] = json!(7)), "buffer 7"),
+            (Box::new(move |d| ext(d, view)["byteLength"] = json!(1u64 << 40)), "outside buffer"),
+            (Box::new(move |d| ext(d, view)["mode"] = json!("WIGGLE")), "unknown mode"),
+            (Box::new(move |d| ext(d, view)["filter"] = json!("OCTAHEDRAL")), "filter OCTAHEDRAL"),
+            (Box::new(move |d| ext(d, view)["byteStride"] = json!(6)), "byteStride 6"),
+            (Box::new(move |d| ext(d, view)["count"] = json!(1u64 << 40)), "EXT_meshopt_compression"),
+            (Box::new(move |d| ext(d, view)["byteLength"] = json!(3)), "malformed"),
+            (Box::new(move |d| d["bufferViews"][view]["byteOffset"] = json!(1u64 << 30)), "do not fit"),
+        ];
+        for (mutate, expected) in cases {
+            let mut bad = doc.clone();
+            mutate(&mut bad);
+            let e = read(&bad).unwrap_err().to_string();
+            assert!(e.contains("m.gltf") && e.contains(expected), "{e} (expected '{expected}')");
+        }
+        // Corrupted compressed bytes (GLB form): a result, never a crash.
+        let (glb, _) = encode_gltf(&a, &opts, true).unwrap();
+        let mut accepted = 0;
+        for i in (0..glb.len()).step_by(2) {
+            for v in [0u8, 0x5a, 0xff] {
+                let mut m = glb.clone();
+                m[i] = v;
+                if let Ok(b) = parse_gltf(&m, None, "m.glb", a.frame_rate()) {
+                    assert!(b.positions().iter().all(|x| x.is_finite()));
+                    accepted += 1;
+                }
+            }
+        }
+        assert!(accepted > 0);
+        // Without the extension's data the fallback buffer holds zeros: no crash either way.
+        let mut stripped = doc.clone();
+        stripped["bufferViews"][view].as_object_mut().unwrap().remove("extensions");
+        assert!(read(&stripped).is_ok());
+    }
+
     #[test]
     fn reads_horse_glb_when_present() {
         let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/horse-glb/Horse.glb");
@@ -987,12 +1065,12 @@ mod tests {
             println!("SKIP reads_horse_glb_when_present: {} not found", path.display());
             return;
         }
-        let a = read_animation(&path, &ReadOptions::default()).unwrap();
+        let a = read_animation(&path, &ReadOptions { frame_rate: Some(30.0), ..Default::default() }).unwrap();
         assert_eq!((a.vertex_count(), a.topology().triangle_count()), (796, 984));
-        // 16 keys from 0 to 1.5 s: 46 frames at 30 fps, 16 at the keys' own 10 fps.
+        // 16 keys from 0 to 1.5 s: 46 frames at 30 fps, 16 at the keys' own 10 fps (the default).
         assert_eq!(a.frame_count(), 46);
-        let at_keys = read_animation(&path, &ReadOptions { frame_rate: Some(10.0), ..Default::default() }).unwrap();
-        assert_eq!(at_keys.frame_count(), 16);
+        let at_keys = read_animation(&path, &ReadOptions::default()).unwrap();
+        assert_eq!((at_keys.frame_count(), at_keys.frame_rate()), (16, 10.0));
         // Sampling at 30 fps hits every key: frame 3k equals key frame k (up to f32 key-time rounding).
         let scale = a.bounding_box_diagonal() as f32;
         for k in 0..16 {

@@ -42,11 +42,27 @@ pub struct GltfOptions {
     pub target_kg: f64,
     /// Mesh, node and animation name.
     pub name: String,
+    /// `KHR_mesh_quantization` (16-bit positions and targets) + `EXT_meshopt_compression`
+    /// (meshoptimizer's vertex and index codecs on the quantized data, the weights and the key
+    /// times). Default true; the frames layout is then exact up to the 16-bit quantization.
+    pub compress: bool,
+    /// `Basis`: move the per-frame rigid motion (Kabsch fit of each frame to the mean shape:
+    /// rotation + translation) to a parent node's `rotation`/`translation` animation and
+    /// decompose only what is left. `Some(true)`/`Some(false)` force it; `None` (default) writes
+    /// both and keeps the smaller file (with `targets` given: the smaller KG).
+    pub rigid: Option<bool>,
 }
 
 impl Default for GltfOptions {
     fn default() -> Self {
-        Self { layout: GltfLayout::Basis, targets: None, target_kg: 0.05, name: "animcodec".into() }
+        Self {
+            layout: GltfLayout::Basis,
+            targets: None,
+            target_kg: 0.05,
+            name: "animcodec".into(),
+            compress: true,
+            rigid: None,
+        }
     }
 }
 
@@ -58,30 +74,90 @@ pub struct GltfSummary {
     /// `Basis`: KG (%) of the truncated basis against the input, before f32 rounding (0 for
     /// `Frames`).
     pub basis_kg: f64,
+    /// The rigid motion went to node animation.
+    pub rigid: bool,
 }
 
-/// Little-endian binary buffer with 4-byte aligned views.
+/// Little-endian binary buffer with 4-byte aligned views. With `compress`, view data is
+/// meshoptimizer-encoded into buffer 0 and the view itself points into buffer 1, the
+/// `EXT_meshopt_compression` fallback buffer that holds no data (`fallback` = its length).
 struct Buffer {
     bin: Vec<u8>,
     views: Vec<Value>,
     accessors: Vec<Value>,
+    compress: bool,
+    fallback: usize,
+}
+
+/// How a view is meshopt-encoded: records of `stride` bytes (`vertex_stride`: a vertex
+/// attribute view, which declares its `byteStride`).
+#[derive(Clone, Copy)]
+enum Stream {
+    Attributes { stride: usize, vertex_stride: bool },
+}
+
+fn align4(bytes: &mut Vec<u8>) {
+    while bytes.len() % 4 != 0 {
+        bytes.push(0);
+    }
+}
+
+/// Encodes `raw` (records of `N` bytes) with meshopt's vertex codec.
+fn encode_records<const N: usize>(raw: &[u8]) -> Result<Vec<u8>> {
+    let records: Vec<[u8; N]> = raw.chunks_exact(N).map(|c| c.try_into().expect("chunks of N")).collect();
+    meshopt::encode_vertex_buffer(&records).map_err(|e| Error::InvalidAnimation(format!("meshopt encoding: {e}")))
 }
 
 impl Buffer {
-    /// Appends `f32` data as a view + accessor of `kind` ("SCALAR", "VEC3"); returns the accessor
-    /// index. `bounds` adds the min/max glTF requires for positions and animation inputs.
-    fn floats(&mut self, data: &[f32], kind: &str, target: Option<u32>, bounds: bool) -> usize {
-        let width = if kind == "VEC3" { 3 } else { 1 };
-        let offset = self.bin.len();
-        for x in data {
-            self.bin.extend_from_slice(&x.to_le_bytes());
+    fn new(compress: bool) -> Self {
+        Self { bin: Vec::new(), views: Vec::new(), accessors: Vec::new(), compress, fallback: 0 }
+    }
+
+    /// Appends a view holding `raw`; returns its index.
+    fn view(&mut self, raw: &[u8], stream: Stream, target: Option<u32>) -> Result<usize> {
+        align4(&mut self.bin);
+        let mut view = json!({"buffer": 0, "byteOffset": self.bin.len(), "byteLength": raw.len()});
+        let Stream::Attributes { stride, vertex_stride } = stream;
+        if vertex_stride {
+            view["byteStride"] = stride.into();
         }
-        let mut view = json!({"buffer": 0, "byteOffset": offset, "byteLength": data.len() * 4});
         if let Some(t) = target {
             view["target"] = t.into();
         }
+        if self.compress {
+            let (encoded, stride, count, mode) = match stream {
+                Stream::Attributes { stride: 4, .. } => (encode_records::<4>(raw)?, 4, raw.len() / 4, "ATTRIBUTES"),
+                Stream::Attributes { stride: 8, .. } => (encode_records::<8>(raw)?, 8, raw.len() / 8, "ATTRIBUTES"),
+                Stream::Attributes { stride, .. } => unreachable!("stride {stride} is not written"),
+            };
+            view["buffer"] = 1.into();
+            view["byteOffset"] = self.fallback.into();
+            self.fallback += raw.len().div_ceil(4) * 4;
+            view["extensions"] = json!({"EXT_meshopt_compression": {
+                "buffer": 0, "byteOffset": self.bin.len(), "byteLength": encoded.len(),
+                "byteStride": stride, "count": count, "mode": mode}});
+            self.bin.extend_from_slice(&encoded);
+        } else {
+            self.bin.extend_from_slice(raw);
+        }
         self.views.push(view);
-        let mut accessor = json!({"bufferView": self.views.len() - 1, "componentType": 5126, "count": data.len() / width, "type": kind});
+        Ok(self.views.len() - 1)
+    }
+
+    /// Appends `f32` data as a view + accessor of `kind` ("SCALAR", "VEC3"); returns the accessor
+    /// index. `bounds` adds the min/max glTF requires for positions and animation inputs.
+    fn floats(&mut self, data: &[f32], kind: &str, target: Option<u32>, bounds: bool) -> Result<usize> {
+        let width = match kind {
+            "VEC3" => 3,
+            "VEC4" => 4,
+            _ => 1,
+        };
+        let raw: Vec<u8> = data.iter().flat_map(|x| x.to_le_bytes()).collect();
+        // VEC3 floats are 12-byte records: written plain (only quantized data is compressed).
+        let stream = Stream::Attributes { stride: 4, vertex_stride: false };
+        let view = if width == 1 { self.view(&raw, stream, target)? } else { self.plain_view(&raw, target) };
+        let mut accessor =
+            json!({"bufferView": view, "componentType": 5126, "count": data.len() / width, "type": kind});
         if bounds && !data.is_empty() {
             let (mut lo, mut hi) = (vec![f32::INFINITY; width], vec![f32::NEG_INFINITY; width]);
             for c in data.chunks_exact(width) {
@@ -94,19 +170,46 @@ impl Buffer {
             accessor["max"] = json!(hi);
         }
         self.accessors.push(accessor);
-        self.accessors.len() - 1
+        Ok(self.accessors.len() - 1)
     }
 
-    /// Appends `u32` triangle indices; returns the accessor index.
-    fn indices(&mut self, data: &[u32]) -> usize {
-        let offset = self.bin.len();
-        for x in data {
-            self.bin.extend_from_slice(&x.to_le_bytes());
+    /// A view that is never compressed.
+    fn plain_view(&mut self, raw: &[u8], target: Option<u32>) -> usize {
+        align4(&mut self.bin);
+        let mut view = json!({"buffer": 0, "byteOffset": self.bin.len(), "byteLength": raw.len()});
+        if let Some(t) = target {
+            view["target"] = t.into();
         }
-        self.views.push(json!({"buffer": 0, "byteOffset": offset, "byteLength": data.len() * 4, "target": 34963}));
-        self.accessors.push(
-            json!({"bufferView": self.views.len() - 1, "componentType": 5125, "count": data.len(), "type": "SCALAR"}),
-        );
+        self.bin.extend_from_slice(raw);
+        self.views.push(view);
+        self.views.len() - 1
+    }
+
+    /// Appends `KHR_mesh_quantization` positions: signed 16-bit integers (not normalized) in
+    /// 8-byte records, with the min/max glTF requires; returns the accessor index.
+    fn shorts(&mut self, data: &[[i16; 3]]) -> Result<usize> {
+        let raw: Vec<u8> = data.iter().flat_map(|p| [p[0], p[1], p[2], 0]).flat_map(|x| x.to_le_bytes()).collect();
+        let view = self.view(&raw, Stream::Attributes { stride: 8, vertex_stride: true }, Some(34962))?;
+        let lo: Vec<i16> = (0..3).map(|k| data.iter().map(|p| p[k]).min().unwrap_or(0)).collect();
+        let hi: Vec<i16> = (0..3).map(|k| data.iter().map(|p| p[k]).max().unwrap_or(0)).collect();
+        self.accessors.push(json!({"bufferView": view, "componentType": 5122, "count": data.len(), "type": "VEC3",
+            "min": lo, "max": hi}));
+        Ok(self.accessors.len() - 1)
+    }
+
+    /// Appends triangle indices (u16 when every index fits, else u32), never meshopt-encoded:
+    /// meshoptimizer's index codec rotates the corners of triangles, and the triangle list
+    /// must come back exactly as it was (same topology for `eval` and the codecs); returns the
+    /// accessor index.
+    fn indices(&mut self, data: &[u32], vertex_count: usize) -> usize {
+        let (raw, component): (Vec<u8>, u32) = if vertex_count <= u16::MAX as usize {
+            (data.iter().flat_map(|&x| (x as u16).to_le_bytes()).collect(), 5123)
+        } else {
+            (data.iter().flat_map(|x| x.to_le_bytes()).collect(), 5125)
+        };
+        let view = self.plain_view(&raw, Some(34963));
+        self.accessors
+            .push(json!({"bufferView": view, "componentType": component, "count": data.len(), "type": "SCALAR"}));
         self.accessors.len() - 1
     }
 }
@@ -200,6 +303,147 @@ fn frame_morphs(a: &Animation) -> Morphs {
     Morphs { base, targets, weights, basis_kg: 0.0 }
 }
 
+/// Per-frame rigid motion: frame f ≈ R_f · local_f + t_f.
+struct RigidMotion {
+    translations: Vec<f32>,
+    rotations: Vec<f32>,
+}
+
+/// Splits the rigid motion off every frame: Kabsch fit (SVD of the 3 × 3 cross-covariance,
+/// reflection excluded) of the mean shape onto each frame; returns the frames brought back by
+/// the inverse motion (`local_f = R_fᵀ (frame_f − t_f)`, an isometry per frame, so KG and the
+/// PCA's discarded energy measure the same error in either space) and the motion, rotations as
+/// unit quaternions `[x, y, z, w]` kept on one hemisphere from frame to frame.
+fn rigid_split(a: &Animation) -> Result<(Animation, RigidMotion)> {
+    let (frames, v) = (a.frame_count(), a.vertex_count());
+    let mut mean = vec![0.0f64; 3 * v];
+    for f in 0..frames {
+        for (m, &x) in mean.iter_mut().zip(a.frame(f)) {
+            *m += x as f64 / frames as f64;
+        }
+    }
+    let centroid = |p: &dyn Fn(usize) -> f64| -> [f64; 3] {
+        std::array::from_fn(|k| (0..v).map(|i| p(3 * i + k)).sum::<f64>() / v as f64)
+    };
+    let cm = centroid(&|i| mean[i]);
+    let mut local = Vec::with_capacity(frames * 3 * v);
+    let (mut translations, mut rotations) = (Vec::new(), Vec::new());
+    let mut previous = [0.0, 0.0, 0.0, 1.0];
+    for f in 0..frames {
+        let frame = a.frame(f);
+        let cf = centroid(&|i| frame[i] as f64);
+        // H = Σ (p − c_p)(q − c_q)ᵀ, p the mean shape, q the frame.
+        let h = Mat::<f64>::from_fn(3, 3, |r, c| {
+            (0..v).map(|i| (mean[3 * i + r] - cm[r]) * (frame[3 * i + c] as f64 - cf[c])).sum::<f64>()
+        });
+        let svd = h.thin_svd().map_err(|e| Error::Numerical {
+            context: "glTF export".into(),
+            step: "rigid fit (SVD of the 3 × 3 cross-covariance)".into(),
+            detail: codec_core::error::debug_in_words(&e),
+        })?;
+        let (u, w) = (svd.U(), svd.V());
+        let vu = w * u.transpose();
+        let det = vu[(0, 0)] * (vu[(1, 1)] * vu[(2, 2)] - vu[(1, 2)] * vu[(2, 1)])
+            - vu[(0, 1)] * (vu[(1, 0)] * vu[(2, 2)] - vu[(1, 2)] * vu[(2, 0)])
+            + vu[(0, 2)] * (vu[(1, 0)] * vu[(2, 1)] - vu[(1, 1)] * vu[(2, 0)]);
+        let d = Mat::<f64>::from_fn(3, 3, |r, c| {
+            if r != c {
+                0.0
+            } else if r == 2 {
+                det.signum()
+            } else {
+                1.0
+            }
+        });
+        let r = w * d * u.transpose();
+        let rot: [[f64; 3]; 3] = std::array::from_fn(|i| std::array::from_fn(|j| r[(i, j)]));
+        let t: [f64; 3] = std::array::from_fn(|k| cf[k] - (0..3).map(|j| rot[k][j] * cm[j]).sum::<f64>());
+        for p in frame.chunks_exact(3) {
+            let q: [f64; 3] = std::array::from_fn(|k| p[k] as f64 - t[k]);
+            // Rᵀ q
+            local.extend((0..3).map(|j| (0..3).map(|k| rot[k][j] * q[k]).sum::<f64>() as f32));
+        }
+        let mut quat = quaternion(&rot);
+        if quat.iter().zip(&previous).map(|(a, b)| a * b).sum::<f64>() < 0.0 {
+            quat = quat.map(|x| -x);
+        }
+        previous = quat;
+        translations.extend(t.map(|x| x as f32));
+        rotations.extend(quat.map(|x| x as f32));
+    }
+    let local = Animation::from_parts(v, a.triangles().to_vec(), local, a.frame_rate())?;
+    Ok((local, RigidMotion { translations, rotations }))
+}
+
+/// Unit quaternion `[x, y, z, w]` of a rotation matrix (`m[row][column]`; Shepperd's method).
+fn quaternion(m: &[[f64; 3]; 3]) -> [f64; 4] {
+    let trace = m[0][0] + m[1][1] + m[2][2];
+    let q = if trace > 0.0 {
+        let s = 0.5 / (trace + 1.0).sqrt();
+        [(m[2][1] - m[1][2]) * s, (m[0][2] - m[2][0]) * s, (m[1][0] - m[0][1]) * s, 0.25 / s]
+    } else if m[0][0] > m[1][1] && m[0][0] > m[2][2] {
+        let s = 2.0 * (1.0 + m[0][0] - m[1][1] - m[2][2]).sqrt();
+        [0.25 * s, (m[0][1] + m[1][0]) / s, (m[0][2] + m[2][0]) / s, (m[2][1] - m[1][2]) / s]
+    } else if m[1][1] > m[2][2] {
+        let s = 2.0 * (1.0 + m[1][1] - m[0][0] - m[2][2]).sqrt();
+        [(m[0][1] + m[1][0]) / s, 0.25 * s, (m[1][2] + m[2][1]) / s, (m[0][2] - m[2][0]) / s]
+    } else {
+        let s = 2.0 * (1.0 + m[2][2] - m[0][0] - m[1][1]).sqrt();
+        [(m[0][2] + m[2][0]) / s, (m[1][2] + m[2][1]) / s, 0.25 * s, (m[1][0] - m[0][1]) / s]
+    };
+    let len = q.iter().map(|x| x * x).sum::<f64>().sqrt();
+    q.map(|x| x / len)
+}
+
+/// `KHR_mesh_quantization` form of the morphs: positions and targets as 16-bit integers, the
+/// node's translation and scale undoing the quantization.
+struct Quantized {
+    base: Vec<[i16; 3]>,
+    targets: Vec<Vec<[i16; 3]>>,
+    translation: [f32; 3],
+    scale: [f32; 3],
+}
+
+/// Quantizes the morphs: the base about the centre of the animation's bounding box (over every
+/// frame) in steps of half its extent per axis / 32767; each target rescaled to use the full
+/// 16-bit range (its weights multiplied by the same factor, so the played frames are
+/// unchanged up to rounding).
+fn quantize(animation: &Animation, morphs: &mut Morphs) -> Quantized {
+    let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+    for p in animation.positions().chunks_exact(3) {
+        for a in 0..3 {
+            lo[a] = lo[a].min(p[a] as f64);
+            hi[a] = hi[a].max(p[a] as f64);
+        }
+    }
+    let widest = (0..3).map(|a| hi[a] - lo[a]).fold(0.0, f64::max).max(1e-30);
+    // A flat axis still gets a usable step (targets may move along it).
+    let half: [f64; 3] = std::array::from_fn(|a| ((hi[a] - lo[a]) / 2.0).max(widest * 1e-3));
+    let centre: [f64; 3] = std::array::from_fn(|a| (hi[a] + lo[a]) / 2.0);
+    let to_short = |x: f64| x.round().clamp(-32767.0, 32767.0) as i16;
+    let base = morphs
+        .base
+        .chunks_exact(3)
+        .map(|p| std::array::from_fn(|a| to_short((p[a] as f64 - centre[a]) / half[a] * 32767.0)))
+        .collect();
+    let k = morphs.targets.len();
+    let mut targets = Vec::with_capacity(k);
+    for (j, t) in morphs.targets.iter().enumerate() {
+        let reach =
+            t.chunks_exact(3).flat_map(|d| (0..3).map(move |a| (d[a] as f64).abs() / half[a])).fold(0.0, f64::max);
+        let factor = if reach > 0.0 { reach } else { 1.0 };
+        targets.push(
+            t.chunks_exact(3)
+                .map(|d| std::array::from_fn(|a| to_short(d[a] as f64 / (factor * half[a]) * 32767.0)))
+                .collect(),
+        );
+        for f in 0..morphs.weights.len() / k.max(1) {
+            morphs.weights[f * k + j] = (morphs.weights[f * k + j] as f64 * factor) as f32;
+        }
+    }
+    Quantized { base, targets, translation: centre.map(|c| c as f32), scale: half.map(|h| (h / 32767.0) as f32) }
+}
+
 /// Encodes `animation` as glTF: GLB bytes when `glb`, else glTF JSON with an embedded buffer.
 pub fn encode_gltf(animation: &Animation, options: &GltfOptions, glb: bool) -> Result<(Vec<u8>, GltfSummary)> {
     if !(options.target_kg.is_finite() && options.target_kg > 0.0) {
@@ -209,17 +453,72 @@ pub fn encode_gltf(animation: &Animation, options: &GltfOptions, glb: bool) -> R
             format!("{} is not a finite positive KG (%)", options.target_kg),
         ));
     }
-    let morphs = match options.layout {
-        GltfLayout::Basis => basis_morphs(animation, options)?,
-        GltfLayout::Frames => frame_morphs(animation),
+    let full = animation;
+    let (morphs, motion, local) = match options.layout {
+        GltfLayout::Frames => (frame_morphs(full), None, None),
+        GltfLayout::Basis if full.frame_count() < 2 || options.rigid == Some(false) => {
+            (basis_morphs(full, options)?, None, None)
+        }
+        GltfLayout::Basis => {
+            let (local, motion) = rigid_split(full)?;
+            let split = basis_morphs(&local, options)?;
+            if options.rigid.is_none() {
+                // Both meet the KG target: keep the smaller file (the motion's keys cost bytes,
+                // and a local frame can compress worse than the original); with `targets`
+                // given, the smaller KG.
+                let plain_kg = basis_morphs(full, options)?;
+                let (split_kg, plain_basis_kg) = (split.basis_kg, plain_kg.basis_kg);
+                let with = finish(&local, split, Some(motion), options, glb)?;
+                let without = finish(full, plain_kg, None, options, glb)?;
+                let keep_with = match options.targets {
+                    None => with.0.len() < without.0.len(),
+                    Some(_) => split_kg < plain_basis_kg,
+                };
+                return Ok(if keep_with { with } else { without });
+            }
+            (split, Some(motion), Some(local))
+        }
     };
+    match local {
+        Some(local) => finish(&local, morphs, motion, options, glb),
+        None => finish(full, morphs, motion, options, glb),
+    }
+}
+
+/// Writes the file: `animation` (already without the rigid motion when `motion` is given) as
+/// `morphs`, the motion as a parent node's animation.
+fn finish(
+    animation: &Animation,
+    morphs: Morphs,
+    motion: Option<RigidMotion>,
+    options: &GltfOptions,
+    glb: bool,
+) -> Result<(Vec<u8>, GltfSummary)> {
     let (frames, k) = (animation.frame_count(), morphs.targets.len());
-    let mut buf = Buffer { bin: Vec::new(), views: Vec::new(), accessors: Vec::new() };
+    let mut morphs = morphs;
+    // With rigid motion: node 0 carries it, its child node 1 the mesh.
+    let mesh_node = if motion.is_some() { 1 } else { 0 };
+    let mut buf = Buffer::new(options.compress);
     let tri: Vec<u32> = animation.triangles().iter().flatten().copied().collect();
-    let indices = buf.indices(&tri);
-    let position = buf.floats(&morphs.base, "VEC3", Some(34962), true);
-    let targets: Vec<Value> =
-        morphs.targets.iter().map(|t| json!({"POSITION": buf.floats(t, "VEC3", Some(34962), true)})).collect();
+    let indices = buf.indices(&tri, animation.vertex_count());
+    let mut node = json!({"mesh": 0, "name": options.name});
+    let (position, targets) = if options.compress {
+        let q = quantize(animation, &mut morphs);
+        node["translation"] = json!(q.translation);
+        node["scale"] = json!(q.scale);
+        let position = buf.shorts(&q.base)?;
+        let targets: Vec<Value> =
+            q.targets.iter().map(|t| Ok(json!({"POSITION": buf.shorts(t)?}))).collect::<Result<_>>()?;
+        (position, targets)
+    } else {
+        let position = buf.floats(&morphs.base, "VEC3", Some(34962), true)?;
+        let targets: Vec<Value> = morphs
+            .targets
+            .iter()
+            .map(|t| Ok(json!({"POSITION": buf.floats(t, "VEC3", Some(34962), true)?})))
+            .collect::<Result<_>>()?;
+        (position, targets)
+    };
     let fps = animation.frame_rate();
     let mut primitive = json!({"attributes": {"POSITION": position}, "indices": indices, "mode": 4});
     let mut mesh = json!({"name": options.name, "primitives": [], "extras": {"targetNames": (0..k).map(|j| match options.layout {
@@ -230,38 +529,72 @@ pub fn encode_gltf(animation: &Animation, options: &GltfOptions, glb: bool) -> R
         "asset": {"version": "2.0", "generator": concat!("animcodec ", env!("CARGO_PKG_VERSION"))},
         "scene": 0,
         "scenes": [{"nodes": [0]}],
-        "nodes": [{"mesh": 0, "name": options.name}],
+        "nodes": [node],
     });
+    if let Some(m) = &motion {
+        // The rigid part's node starts at frame 0's pose.
+        let parent = json!({"name": format!("{} motion", options.name), "children": [1],
+            "translation": m.translations[..3], "rotation": m.rotations[..4]});
+        root["nodes"] = json!([parent, root["nodes"][0].clone()]);
+    }
+    let (mut channels, mut samplers) = (Vec::new(), Vec::new());
+    let times: Vec<f32> = (0..frames).map(|f| f as f32 / fps).collect();
+    let mut input = None;
     if k > 0 {
         primitive["targets"] = targets.into();
         // The node starts at frame 0's weights so a viewer without animation shows frame 0.
         mesh["weights"] = json!(morphs.weights[..k]);
         if frames > 1 {
-            let times: Vec<f32> = (0..frames).map(|f| f as f32 / fps).collect();
-            let input = buf.floats(&times, "SCALAR", None, true);
-            let output = buf.floats(&morphs.weights, "SCALAR", None, false);
+            let keys = buf.floats(&times, "SCALAR", None, true)?;
+            input = Some(keys);
+            let output = buf.floats(&morphs.weights, "SCALAR", None, false)?;
             let interpolation = if options.layout == GltfLayout::Frames { "STEP" } else { "LINEAR" };
-            root["animations"] = json!([{
-                "name": options.name,
-                "channels": [{"sampler": 0, "target": {"node": 0, "path": "weights"}}],
-                "samplers": [{"input": input, "output": output, "interpolation": interpolation}],
-                "extras": {"animcodec": {"fps": fps}},
-            }]);
+            channels.push(json!({"sampler": samplers.len(), "target": {"node": mesh_node, "path": "weights"}}));
+            samplers.push(json!({"input": keys, "output": output, "interpolation": interpolation}));
         }
+    }
+    if let (Some(m), true) = (&motion, frames > 1) {
+        let keys = match input {
+            Some(keys) => keys,
+            None => buf.floats(&times, "SCALAR", None, true)?,
+        };
+        for (path, data, kind) in [("translation", &m.translations, "VEC3"), ("rotation", &m.rotations, "VEC4")] {
+            let output = buf.floats(data, kind, None, false)?;
+            channels.push(json!({"sampler": samplers.len(), "target": {"node": 0, "path": path}}));
+            samplers.push(json!({"input": keys, "output": output, "interpolation": "LINEAR"}));
+        }
+    }
+    if !channels.is_empty() {
+        root["animations"] = json!([{
+            "name": options.name,
+            "channels": channels,
+            "samplers": samplers,
+            "extras": {"animcodec": {"fps": fps}},
+        }]);
     }
     mesh["primitives"] = json!([primitive]);
     root["meshes"] = json!([mesh]);
     root["bufferViews"] = buf.views.into();
     root["accessors"] = buf.accessors.into();
-    let bin = buf.bin;
-    let summary = GltfSummary { targets: k, basis_kg: morphs.basis_kg };
+    let mut bin = buf.bin;
+    align4(&mut bin);
+    let summary = GltfSummary { targets: k, basis_kg: morphs.basis_kg, rigid: motion.is_some() };
+    let mut buffers = vec![json!({"byteLength": bin.len()})];
+    if options.compress {
+        let used = json!(["KHR_mesh_quantization", "EXT_meshopt_compression"]);
+        root["extensionsUsed"] = used.clone();
+        root["extensionsRequired"] = used;
+        buffers
+            .push(json!({"byteLength": buf.fallback, "extensions": {"EXT_meshopt_compression": {"fallback": true}}}));
+    }
     if glb {
-        root["buffers"] = json!([{"byteLength": bin.len()}]);
+        root["buffers"] = buffers.into();
         Ok((glb_bytes(&root, &bin)?, summary))
     } else {
         let uri =
             format!("data:application/octet-stream;base64,{}", base64::engine::general_purpose::STANDARD.encode(&bin));
-        root["buffers"] = json!([{"byteLength": bin.len(), "uri": uri}]);
+        buffers[0]["uri"] = uri.into();
+        root["buffers"] = buffers.into();
         let text = serde_json::to_vec(&root).map_err(|e| Error::InvalidAnimation(format!("glTF JSON: {e}")))?;
         Ok((text, summary))
     }
@@ -307,19 +640,31 @@ mod tests {
         a.positions().iter().zip(b.positions()).map(|(x, y)| (x - y).abs()).fold(0.0, f32::max)
     }
 
-    /// Frames layout: our reader plays back every frame to f32 rounding of the differences.
+    /// Frames layout: our reader plays back every frame to f32 rounding of the differences;
+    /// compressed, to the 16-bit quantization: at most half a step of the base and of the
+    /// (rescaled) target, 3 · half-extent / 65534 per axis, below 2.5e-5 × the diagonal.
     #[test]
     fn frames_layout_plays_back_every_frame() {
         let a = synth::waving_flag(10, 6, 12);
-        for glb in [true, false] {
-            let opts = GltfOptions { layout: GltfLayout::Frames, ..Default::default() };
+        for (glb, compress) in [(true, false), (false, false), (true, true), (false, true)] {
+            let opts = GltfOptions { layout: GltfLayout::Frames, compress, ..Default::default() };
             let (bytes, summary) = encode_gltf(&a, &opts, glb).unwrap();
             assert_eq!(summary.targets, 11);
             let b = read_back(&bytes, a.frame_rate());
             assert_eq!((b.frame_count(), b.vertex_count()), (12, a.vertex_count()));
             assert_eq!(b.triangles(), a.triangles());
-            assert!(max_diff(&a, &b) < 1e-5, "{}", max_diff(&a, &b));
+            let bound = if compress { 2.5e-5 * a.bounding_box_diagonal() as f32 } else { 1e-5 };
+            assert!(max_diff(&a, &b) < bound, "compress {compress}: {} > {bound}", max_diff(&a, &b));
+            let text = String::from_utf8_lossy(&bytes);
+            assert_eq!(text.contains("EXT_meshopt_compression"), compress);
+            assert_eq!(text.contains("KHR_mesh_quantization"), compress);
         }
+        // Compression makes the file smaller.
+        let size = |compress| {
+            let opts = GltfOptions { layout: GltfLayout::Frames, compress, ..Default::default() };
+            encode_gltf(&a, &opts, true).unwrap().0.len()
+        };
+        assert!(size(true) < size(false), "{} vs {}", size(true), size(false));
     }
 
     /// Basis layout: the KG target is met on playback, more targets for a tighter target, and
@@ -343,6 +688,23 @@ mod tests {
         assert!(e.to_string().contains("target_kg"), "{e}");
     }
 
+    /// A tumbling rigid body: its motion goes to the parent node's animation (auto picks it:
+    /// fewer targets, smaller file) and plays back within the KG target; forcing it off needs more.
+    #[test]
+    fn rigid_motion_goes_to_node_animation() {
+        let a = synth::by_name("tumble", synth::SynthSize::Small).unwrap();
+        let opts = GltfOptions { target_kg: 0.5, ..Default::default() };
+        let (bytes, auto) = encode_gltf(&a, &opts, true).unwrap();
+        let (plain, off) = encode_gltf(&a, &GltfOptions { rigid: Some(false), ..opts.clone() }, true).unwrap();
+        assert!(auto.rigid && auto.targets < off.targets, "auto {auto:?}, off {off:?}");
+        assert!(bytes.len() < plain.len());
+        let b = read_back(&bytes, a.frame_rate());
+        let kg = metrics::kg_error(&a, &b).unwrap();
+        assert!(kg <= 0.5 * 1.05, "played back KG {kg}");
+        let text = String::from_utf8_lossy(&bytes);
+        assert!(text.contains("\"rotation\"") && text.contains("\"translation\""));
+    }
+
     /// A frame rate other than the reader's default keeps the frame times (keys at f / fps).
     #[test]
     fn keys_sit_at_the_frame_times() {
@@ -361,7 +723,8 @@ mod tests {
             assert_eq!(s.targets, 0);
             let b = read_back(&bytes, 30.0);
             assert_eq!(b.frame_count(), 1);
-            assert!(max_diff(&a, &b) < 1e-6);
+            // 16-bit positions: half a step of the half-extent.
+            assert!(max_diff(&a, &b) < 1e-5 * a.bounding_box_diagonal() as f32);
         }
     }
 }

@@ -6,7 +6,7 @@
 //! | single OBJ | `*.obj` | the file | one frame |
 //! | PC2 | `*.pc2` | [`ReadOptions::topology`], else `STEM.obj` beside the cache | [`ReadOptions::frame_rate`], else 30 (PC2 stores none) |
 //! | MDD | `*.mdd` | as for PC2 | [`ReadOptions::frame_rate`], else derived from the stored times when sane, else 30 |
-//! | glTF / GLB | `*.gltf`, `*.glb` | the mesh's indices | sampling rate: [`ReadOptions::frame_rate`], else 30 |
+//! | glTF / GLB | `*.gltf`, `*.glb` (the scene played back: every mesh, node animation, skins, morph targets; [`gltf`]) | the meshes' indices | sampling rate: [`ReadOptions::frame_rate`], else the file's own (animcodec's extras, the key grid), else 30 |
 //!
 //! Outputs: `.pc2`, `.mdd` (each with `STEM.obj` holding frame 0 and the faces written beside
 //! it, so the cache can be read back on its own) and OBJ sequences (see [`obj::write_obj_sequence`]).
@@ -14,7 +14,10 @@
 //! allocating, and name the file (and frame / vertex / line) in every error.
 
 pub mod gltf;
+mod gltf_anim;
+mod gltf_meshopt;
 pub mod gltf_out;
+mod gltf_scene;
 pub mod mdd;
 pub mod obj;
 pub mod pc2;
@@ -46,11 +49,14 @@ pub struct ReadOptions {
     /// Its vertex count must equal the cache's; only its faces are used. Ignored for OBJ and glTF inputs.
     pub topology: Option<PathBuf>,
     /// Frame rate. When given it overrides whatever the file says; otherwise MDD times are used
-    /// when they are strictly increasing and give a sane rate, and everything else gets 30 fps.
-    /// A PC2 "sample rate" is the step between samples in frames (usually 1.0), not a frame
-    /// rate, so PC2 is always 30 fps unless this is set. For glTF this is the rate at which the
-    /// weights animation is sampled.
+    /// when they are strictly increasing and give a sane rate, glTF animations are sampled at
+    /// their own rate (see [`gltf`]), and everything else gets 30 fps. A PC2 "sample rate" is
+    /// the step between samples in frames (usually 1.0), not a frame rate, so PC2 is always
+    /// 30 fps unless this is set.
     pub frame_rate: Option<f32>,
+    /// glTF: the animation to play, by name or index (default: the first). Ignored for other
+    /// inputs.
+    pub animation: Option<String>,
 }
 
 impl ReadOptions {
@@ -81,7 +87,9 @@ pub fn read_animation(path: &Path, options: &ReadOptions) -> Result<Animation> {
         Some("obj") => obj::read_obj_sequence(&[path.to_path_buf()], fps),
         Some("pc2") => pc2::read_pc2(path, options.topology.as_deref(), frame_rate),
         Some("mdd") => mdd::read_mdd(path, options.topology.as_deref(), frame_rate),
-        Some("gltf") | Some("glb") => gltf::read_gltf(path, fps),
+        Some("gltf") | Some("glb") => {
+            gltf::read_gltf(path, &gltf::GltfSelection { animation: options.animation.clone(), frame_rate })
+        }
         _ => Err(Error::Unsupported {
             context: "formats".into(),
             detail: format!("cannot read {}: unknown format; supported inputs: {SUPPORTED_INPUTS}", path.display()),

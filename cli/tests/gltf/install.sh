@@ -1,0 +1,10 @@
+#!/usr/bin/env bash
+# Installs what the glTF interoperability tests (cli/tests/gltf.rs) need: npm `three` (three.js:
+# GLTFLoader, AnimationMixer, CPU skinning, MeshoptDecoder) and `gltf-validator` (the Khronos
+# glTF Validator), pinned by package-lock.json, run under the machine's Node.js. Without them
+# the tests skip with a message. Safe to run again.
+set -euo pipefail
+cd "$(dirname "$0")"
+command -v node >/dev/null || { echo "node not found" >&2; exit 1; }
+npm ci --no-audit --no-fund --silent
+node -e "console.log('three', require('./node_modules/three/package.json').version, '/ gltf-validator', require('./node_modules/gltf-validator/package.json').version)"
