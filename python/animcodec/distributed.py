@@ -324,9 +324,9 @@ def sweep(
 
     items = _input_list(inputs)
     plan_series = _series_list(codecs, params, series)
+    # Validates every series (codec, parameters, the walked one left out) before any work.
     plan = _native.sweep_plan(plan_series, points)
     eval_options = _eval_dict(sted, hausdorff, sted_options)
-    _native.sweep_plan(plan_series, points)  # validates the series before any cluster starts
 
     outputs: List[Tuple[int, Optional[str], Optional[str], Optional[str]]] = []
     if len(items) > 1 and (json or csv or plot):
