@@ -1074,6 +1074,45 @@ mod tests {
     }
 
     #[test]
+    fn sweep_points_and_rows_read_back_give_the_sweep_rows() {
+        let registry = crate::registry();
+        let a = synth::tumbling_body_sized(8, 6, 4);
+        let series: Vec<SweepSeries<'_>> = registry.iter().take(2).map(SweepSeries::defaults).collect();
+        let options = SweepOptions { points: Some(2), jobs: Some(1), ..Default::default() };
+        let swept = sweep(&registry, &series, &a, &options, &|| {}).unwrap();
+        assert_eq!(swept.points.len(), 4);
+        let without_timings = |p: &Point| {
+            let mut v = point_json(p);
+            v["encode_seconds"] = Value::Null;
+            v["decode_seconds"] = Value::Null;
+            v
+        };
+        // One job on its own measures what the sweep measured at that point.
+        for (p, &(c, step)) in swept.points.iter().zip(&sweep_jobs(&series, options.points)) {
+            let alone = sweep_point(&registry, &series[c], step, &a, &options).unwrap();
+            assert_eq!(without_timings(&alone), without_timings(p));
+        }
+        // Rows gathered elsewhere come back as the same rows, table and document.
+        let dims = (a.vertex_count(), a.frame_count());
+        let back: Vec<Point> = swept
+            .points
+            .iter()
+            .map(|p| point_from_row(&registry, &point_json(p), &options.eval, dims).unwrap())
+            .collect();
+        assert_eq!(
+            back.iter().map(point_json).collect::<Vec<_>>(),
+            swept.points.iter().map(point_json).collect::<Vec<_>>()
+        );
+        assert_eq!(csv_text(&back), csv_text(&swept.points));
+        let rebuilt = Sweep { points: back, failures: Vec::new() };
+        assert_eq!(sweep_json_sized("x", dims, &options.eval, &rebuilt), sweep_json("x", &a, &options.eval, &swept));
+        let mut broken = point_json(&swept.points[0]);
+        broken.as_object_mut().unwrap().remove("bpvf");
+        let e = point_from_row(&registry, &broken, &options.eval, dims).unwrap_err().to_string();
+        assert!(e.contains("'bpvf' is missing"), "{e}");
+    }
+
+    #[test]
     fn miss_reports_the_best_point() {
         let registry = crate::registry();
         let codec = registry.by_name("quant-delta").unwrap();
