@@ -222,23 +222,7 @@ pub fn sweep(
 ) -> HResult<Sweep> {
     let jobs = sweep_jobs(series, options.points);
     let run = |&(c, step): &(usize, usize)| -> (usize, usize, HResult<Point>) {
-        let entry = &series[c];
-        let ladder = entry.ladder();
-        let result = ladder_params(entry.codec, &entry.base, &ladder, step).and_then(|params| {
-            measure_point(
-                registry,
-                entry.codec,
-                &params,
-                (ladder.param, step),
-                animation,
-                &options.eval,
-                options.limits,
-            )
-            .map(|(mut p, _)| {
-                p.series.clone_from(&entry.label);
-                p
-            })
-        });
+        let result = sweep_point(registry, &series[c], step, animation, options);
         progress();
         (c, step, result)
     };
@@ -266,6 +250,110 @@ pub fn sweep(
         }
     }
     Ok(out)
+}
+
+/// One sweep job: `entry` at step `step` of its rate ladder on `animation`, measured as
+/// [`sweep`] measures each of its points (it calls this). Exposed so that other schedulers
+/// (the Python package's Dask sweep runs one job per (input, series, step)) produce rows
+/// identical to the command line's.
+pub fn sweep_point(
+    registry: &CodecRegistry,
+    entry: &SweepSeries<'_>,
+    step: usize,
+    animation: &Animation,
+    options: &SweepOptions,
+) -> HResult<Point> {
+    let ladder = entry.ladder();
+    let params = ladder_params(entry.codec, &entry.base, &ladder, step)?;
+    let (mut point, _) =
+        measure_point(registry, entry.codec, &params, (ladder.param, step), animation, &options.eval, options.limits)?;
+    point.series.clone_from(&entry.label);
+    Ok(point)
+}
+
+/// A sweep row ([`point_json`]) back as a [`Point`], for writing rows gathered from elsewhere
+/// (another process or machine) with [`sweep_json`], [`csv_text`] and [`plot_svg`]. The report
+/// holds the row's metrics; what a row does not carry is filled from the arguments
+/// (`sted_params` from `eval`, the counts) or left empty (`hausdorff_mean`, the relative MSE and
+/// RMSE, `bbox_diagonal` = NaN, no notes), so [`point_json`] of the result equals `row`.
+pub fn point_from_row(
+    registry: &CodecRegistry,
+    row: &Value,
+    eval: &EvalOptions,
+    (vertex_count, frame_count): (usize, usize),
+) -> HResult<Point> {
+    let field = |name: &str| row.get(name).ok_or_else(|| format!("sweep row: field '{name}' is missing"));
+    let text = |name: &str| -> HResult<&str> {
+        Ok(field(name)?.as_str().ok_or_else(|| format!("sweep row: '{name}' is not a string"))?)
+    };
+    let count = |name: &str| -> HResult<u64> {
+        Ok(field(name)?.as_u64().ok_or_else(|| format!("sweep row: '{name}' is not a non-negative integer"))?)
+    };
+    let number = |name: &str| -> HResult<f64> {
+        Ok(field(name)?.as_f64().ok_or_else(|| format!("sweep row: '{name}' is not a number"))?)
+    };
+    let metric = |name: &str| -> HResult<Option<f64>> {
+        match field(name)? {
+            Value::Null => Ok(None),
+            v => Ok(Some(v.as_f64().ok_or_else(|| format!("sweep row: '{name}' is not a number or null"))?)),
+        }
+    };
+    let codec = registry.by_name(text("codec")?)?;
+    let specs = codec.param_specs();
+    let mut params = codec.default_params();
+    let Some(Value::Object(given)) = row.get("params") else {
+        return Err("sweep row: 'params' is not an object".into());
+    };
+    for (name, value) in given {
+        let spec = codec_core::params::find_spec(codec.name(), &specs, name)?;
+        let value = match (&spec.kind, value) {
+            (codec_core::ParamKind::Int { .. }, Value::Number(n)) if n.is_i64() => {
+                ParamValue::Int(n.as_i64().unwrap_or(0))
+            }
+            (codec_core::ParamKind::Float { .. }, Value::Number(n)) => {
+                ParamValue::Float(n.as_f64().unwrap_or(f64::NAN))
+            }
+            (codec_core::ParamKind::Bool, Value::Bool(b)) => ParamValue::Bool(*b),
+            (codec_core::ParamKind::Choice(_), Value::String(s)) => spec.parse(codec.name(), s)?,
+            _ => return Err(format!("sweep row: parameter '{name}' = {value} does not fit {}", spec.kind).into()),
+        };
+        params.set(&specs, spec.name, value)?;
+    }
+    let ladder_name = text("ladder_param")?;
+    let ladder_param = codec_core::params::find_spec(codec.name(), &specs, ladder_name)?.name;
+    let report = MetricReport {
+        kg: metric("kg")?,
+        sted: metric("sted")?,
+        sted_spatial: metric("sted_spatial")?,
+        sted_temporal: metric("sted_temporal")?,
+        hausdorff: metric("hausdorff")?,
+        hausdorff_mean: None,
+        hausdorff_relative: metric("hausdorff_relative")?,
+        hausdorff_mean_relative: None,
+        hausdorff_mode: None,
+        mse: number("mse")?,
+        rmse: number("rmse")?,
+        mse_relative: None,
+        rmse_relative: None,
+        max_error: number("max_error")?,
+        sted_params: eval.sted,
+        bbox_diagonal: f64::NAN,
+        vertex_count,
+        frame_count,
+        notes: Vec::new(),
+    };
+    Ok(Point {
+        codec: codec.name(),
+        series: text("series")?.to_string(),
+        params,
+        ladder_param,
+        ladder_index: usize::try_from(count("ladder_index")?)?,
+        bytes: count("bytes")?,
+        bpvf: number("bpvf")?,
+        report,
+        encode_seconds: number("encode_seconds")?,
+        decode_seconds: number("decode_seconds")?,
+    })
 }
 
 /// The (series position, ladder step) pairs a sweep measures.
@@ -460,10 +548,16 @@ pub fn write_text(path: &Path, text: &str) -> HResult<()> {
 /// failures: [{codec, ladder_index, error}], monotone: [{codec, bpvf_increasing, kg_decreasing,
 /// sted_decreasing, violations}]}`.
 pub fn sweep_json(input: &str, animation: &Animation, eval: &EvalOptions, sweep: &Sweep) -> Value {
+    sweep_json_sized(input, (animation.vertex_count(), animation.frame_count()), eval, sweep)
+}
+
+/// [`sweep_json`] given the input's `(vertices, frames)` instead of the animation (for rows
+/// gathered from other processes, see [`point_from_row`]).
+pub fn sweep_json_sized(input: &str, (vertices, frames): (usize, usize), eval: &EvalOptions, sweep: &Sweep) -> Value {
     json!({
         "input": input,
-        "vertices": animation.vertex_count(),
-        "frames": animation.frame_count(),
+        "vertices": vertices,
+        "frames": frames,
         "eval_options": serde_json::to_value(eval).unwrap_or(Value::Null),
         "rows": sweep.points.iter().map(point_json).collect::<Vec<_>>(),
         "failures": sweep.failures.iter().map(|f| json!({
@@ -977,6 +1071,45 @@ mod tests {
         assert!(a < 2.0 && b > 2.0);
         let (a, b) = padded_range([1.0, 3.0].into_iter(), false);
         assert!(a < 1.0 && b > 3.0);
+    }
+
+    #[test]
+    fn sweep_points_and_rows_read_back_give_the_sweep_rows() {
+        let registry = crate::registry();
+        let a = synth::tumbling_body_sized(8, 6, 4);
+        let series: Vec<SweepSeries<'_>> = registry.iter().take(2).map(SweepSeries::defaults).collect();
+        let options = SweepOptions { points: Some(2), jobs: Some(1), ..Default::default() };
+        let swept = sweep(&registry, &series, &a, &options, &|| {}).unwrap();
+        assert_eq!(swept.points.len(), 4);
+        let without_timings = |p: &Point| {
+            let mut v = point_json(p);
+            v["encode_seconds"] = Value::Null;
+            v["decode_seconds"] = Value::Null;
+            v
+        };
+        // One job on its own measures what the sweep measured at that point.
+        for (p, &(c, step)) in swept.points.iter().zip(&sweep_jobs(&series, options.points)) {
+            let alone = sweep_point(&registry, &series[c], step, &a, &options).unwrap();
+            assert_eq!(without_timings(&alone), without_timings(p));
+        }
+        // Rows gathered elsewhere come back as the same rows, table and document.
+        let dims = (a.vertex_count(), a.frame_count());
+        let back: Vec<Point> = swept
+            .points
+            .iter()
+            .map(|p| point_from_row(&registry, &point_json(p), &options.eval, dims).unwrap())
+            .collect();
+        assert_eq!(
+            back.iter().map(point_json).collect::<Vec<_>>(),
+            swept.points.iter().map(point_json).collect::<Vec<_>>()
+        );
+        assert_eq!(csv_text(&back), csv_text(&swept.points));
+        let rebuilt = Sweep { points: back, failures: Vec::new() };
+        assert_eq!(sweep_json_sized("x", dims, &options.eval, &rebuilt), sweep_json("x", &a, &options.eval, &swept));
+        let mut broken = point_json(&swept.points[0]);
+        broken.as_object_mut().unwrap().remove("bpvf");
+        let e = point_from_row(&registry, &broken, &options.eval, dims).unwrap_err().to_string();
+        assert!(e.contains("'bpvf' is missing"), "{e}");
     }
 
     #[test]

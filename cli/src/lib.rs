@@ -1,6 +1,7 @@
 //! The `animcodec` library behind the command-line tool: the codec registry list and the
 //! file formats (OBJ sequences, PC2, MDD, glTF/GLB morph-target animations).
 
+pub mod describe;
 pub mod formats;
 pub mod harness;
 pub mod output;

@@ -3,9 +3,9 @@
 
 use std::fmt::Write as _;
 
-use codec_core::container::{self, INDEX_ENTRY_BYTES, TRAILER_BYTES};
+use animcodec::describe;
+use codec_core::container;
 use codec_core::Limits;
-use serde_json::json;
 
 use super::decode::open;
 use super::{bpvf, emit, emit_json, CmdResult, WithContext};
@@ -36,12 +36,9 @@ pub fn run(args: &InfoArgs, limits: Limits) -> CmdResult {
             )
         })?;
     }
-    // read_index has checked that header, packets, index and trailer tile the file exactly,
-    // so the total is their sum.
-    let packet_bytes: u64 = index.iter().map(|e| e.stored_bytes()).sum();
-    let payload_bytes: u64 = index.iter().map(|e| e.payload_bytes as u64).sum();
-    let index_bytes = (8 + index.len() * INDEX_ENTRY_BYTES + 4 + TRAILER_BYTES) as u64;
-    let total = header.header_bytes as u64 + packet_bytes + index_bytes;
+    let sizes = describe::container_sizes(&header, &index);
+    let (packet_bytes, payload_bytes, index_bytes, total) =
+        (sizes.packet_bytes, sizes.payload_bytes, sizes.index_bytes, sizes.total);
 
     let info = &header.info;
     let registry = animcodec::registry();
@@ -52,40 +49,7 @@ pub fn run(args: &InfoArgs, limits: Limits) -> CmdResult {
     let keyframes = index.iter().filter(|e| e.keyframe).count();
 
     if args.json {
-        let packets: Vec<_> = index
-            .iter()
-            .map(|e| {
-                json!({
-                    "first_frame": e.first_frame,
-                    "frame_count": e.frame_count,
-                    "keyframe": e.keyframe,
-                    "bytes": e.payload_bytes,
-                    "offset": e.offset,
-                })
-            })
-            .collect();
-        return emit_json(&json!({
-            "codec": codec,
-            "fourcc": info.fourcc.to_string(),
-            "codec_version": info.codec_version,
-            "container_version": header.container_version,
-            "frames": f,
-            "vertices": v,
-            "triangles": t,
-            "frame_rate": info.frame_rate,
-            "bytes": total,
-            "header_bytes": header.header_bytes,
-            "config_bytes": header.config.len(),
-            "topology_bytes": header.topology_bytes,
-            "packet_bytes": packet_bytes,
-            "payload_bytes": payload_bytes,
-            "index_bytes": index_bytes,
-            "bpvf": rate,
-            "geometry_bpvf": geometry_rate,
-            "keyframes": keyframes,
-            "verified": { "header_checksum": true, "index_checksum": true, "packet_checksums": index.len() },
-            "packets": packets,
-        }));
+        return emit_json(&describe::info_json(&registry, &header, &index));
     }
 
     let mut out = String::new();

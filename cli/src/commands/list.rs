@@ -2,10 +2,11 @@
 
 use std::fmt::Write as _;
 
-use codec_core::{AnimationCodec, ParamKind, ParamSpec};
-use serde_json::{json, Map, Value};
+use animcodec::describe::codec_json;
+use codec_core::AnimationCodec;
+use serde_json::Value;
 
-use super::{emit, emit_json, param_json, CmdResult};
+use super::{emit, emit_json, CmdResult};
 use crate::ListArgs;
 
 /// Runs `list`.
@@ -22,49 +23,6 @@ pub fn run(args: &ListArgs) -> CmdResult {
         write_codec(&mut out, codec);
     }
     emit(&out)
-}
-
-/// One codec as JSON: `{name, fourcc, stream_version, summary, params, rate_ladder}`.
-pub fn codec_json(codec: &dyn AnimationCodec) -> Value {
-    let ladder = codec.rate_ladder(&codec.default_params());
-    json!({
-        "name": codec.name(),
-        "fourcc": codec.fourcc().to_string(),
-        "stream_version": codec.stream_version(),
-        "summary": codec.summary(),
-        "params": codec.param_specs().iter().map(spec_json).collect::<Vec<_>>(),
-        "rate_ladder": {
-            "param": ladder.param,
-            "steps": ladder.steps.iter().map(param_json).collect::<Vec<_>>(),
-        },
-    })
-}
-
-/// One parameter as JSON: `{name, kind, default, min?, max?, choices?, doc}`.
-fn spec_json(spec: &ParamSpec) -> Value {
-    let mut m = Map::new();
-    m.insert("name".into(), spec.name.into());
-    let kind = match &spec.kind {
-        ParamKind::Int { min, max } => {
-            m.insert("min".into(), (*min).into());
-            m.insert("max".into(), (*max).into());
-            "int"
-        }
-        ParamKind::Float { min, max } => {
-            m.insert("min".into(), (*min).into());
-            m.insert("max".into(), (*max).into());
-            "float"
-        }
-        ParamKind::Bool => "bool",
-        ParamKind::Choice(options) => {
-            m.insert("choices".into(), options.iter().map(|o| Value::from(*o)).collect());
-            "choice"
-        }
-    };
-    m.insert("kind".into(), kind.into());
-    m.insert("default".into(), param_json(&spec.default));
-    m.insert("doc".into(), spec.doc.into());
-    Value::Object(m)
 }
 
 fn write_codec(out: &mut String, codec: &dyn AnimationCodec) {

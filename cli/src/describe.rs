@@ -1,0 +1,151 @@
+//! Machine-readable descriptions shared by the command line (`list --json`, `info --json`)
+//! and the Python package: a codec with its parameters and rate ladder, and what an `.anim`
+//! container holds.
+
+use std::io::{Read, Seek};
+
+use codec_core::container::{self, Header, IndexEntry, INDEX_ENTRY_BYTES, TRAILER_BYTES};
+use codec_core::{AnimationCodec, CodecRegistry, Limits, ParamKind, ParamSpec, ParamValue};
+use serde_json::{json, Map, Value};
+
+/// A parameter value as JSON (numbers, booleans, strings).
+pub fn param_value_json(value: &ParamValue) -> Value {
+    match value {
+        ParamValue::Int(v) => Value::from(*v),
+        ParamValue::Float(v) => Value::from(*v),
+        ParamValue::Bool(v) => Value::from(*v),
+        ParamValue::Choice(v) => Value::from(*v),
+    }
+}
+
+/// One codec as JSON: `{name, fourcc, stream_version, summary, params, rate_ladder}`.
+pub fn codec_json(codec: &dyn AnimationCodec) -> Value {
+    let ladder = codec.rate_ladder(&codec.default_params());
+    json!({
+        "name": codec.name(),
+        "fourcc": codec.fourcc().to_string(),
+        "stream_version": codec.stream_version(),
+        "summary": codec.summary(),
+        "params": codec.param_specs().iter().map(spec_json).collect::<Vec<_>>(),
+        "rate_ladder": {
+            "param": ladder.param,
+            "steps": ladder.steps.iter().map(param_value_json).collect::<Vec<_>>(),
+        },
+    })
+}
+
+/// One parameter as JSON: `{name, kind, default, min?, max?, choices?, doc}`.
+pub fn spec_json(spec: &ParamSpec) -> Value {
+    let mut m = Map::new();
+    m.insert("name".into(), spec.name.into());
+    let kind = match &spec.kind {
+        ParamKind::Int { min, max } => {
+            m.insert("min".into(), (*min).into());
+            m.insert("max".into(), (*max).into());
+            "int"
+        }
+        ParamKind::Float { min, max } => {
+            m.insert("min".into(), (*min).into());
+            m.insert("max".into(), (*max).into());
+            "float"
+        }
+        ParamKind::Bool => "bool",
+        ParamKind::Choice(options) => {
+            m.insert("choices".into(), options.iter().map(|o| Value::from(*o)).collect());
+            "choice"
+        }
+    };
+    m.insert("kind".into(), kind.into());
+    m.insert("default".into(), param_value_json(&spec.default));
+    m.insert("doc".into(), spec.doc.into());
+    Value::Object(m)
+}
+
+/// Reads a container's header and index and verifies every checksum (header, index, each
+/// packet's payload; payloads are read one at a time, not decoded). Errors name the packet.
+pub fn read_verified<R: Read + Seek>(src: &mut R, limits: Limits) -> codec_core::Result<(Header, Vec<IndexEntry>)> {
+    let (header, index) = container::read_index(src, limits)?;
+    for (i, entry) in index.iter().enumerate() {
+        container::read_packet_at(src, entry, &header, limits).map_err(|e| {
+            codec_core::Error::InvalidAnimation(format!(
+                "packet {i} of {} (frames {}..{}, offset {}): {e}",
+                index.len(),
+                entry.first_frame,
+                entry.first_frame as u64 + entry.frame_count as u64,
+                entry.offset
+            ))
+        })?;
+    }
+    Ok((header, index))
+}
+
+/// The sizes of a container, from its header and index.
+#[derive(Debug, Clone, Copy)]
+pub struct ContainerSizes {
+    /// Whole file.
+    pub total: u64,
+    /// Packets with their framing.
+    pub packet_bytes: u64,
+    /// Packet payloads only.
+    pub payload_bytes: u64,
+    /// Index and trailer.
+    pub index_bytes: u64,
+}
+
+/// Sizes of a container whose header and index [`container::read_index`] has checked (it
+/// checks that header, packets, index and trailer tile the file exactly, so the total is their sum).
+pub fn container_sizes(header: &Header, index: &[IndexEntry]) -> ContainerSizes {
+    let packet_bytes: u64 = index.iter().map(|e| e.stored_bytes()).sum();
+    let payload_bytes: u64 = index.iter().map(|e| e.payload_bytes as u64).sum();
+    let index_bytes = (8 + index.len() * INDEX_ENTRY_BYTES + 4 + TRAILER_BYTES) as u64;
+    ContainerSizes {
+        total: header.header_bytes as u64 + packet_bytes + index_bytes,
+        packet_bytes,
+        payload_bytes,
+        index_bytes,
+    }
+}
+
+/// `info --json`: codec, sizes, bpvf, checksums verified and every packet, for a container
+/// verified by [`read_verified`].
+pub fn info_json(registry: &CodecRegistry, header: &Header, index: &[IndexEntry]) -> Value {
+    let sizes = container_sizes(header, index);
+    let info = &header.info;
+    let codec = registry.by_fourcc(info.fourcc).ok().map(|c| c.name());
+    let (v, f, t) = (info.vertex_count(), info.frame_count, info.topology.triangle_count());
+    let bpvf = |bytes: u64| bytes as f64 * 8.0 / (v as f64 * f as f64);
+    let packets: Vec<_> = index
+        .iter()
+        .map(|e| {
+            json!({
+                "first_frame": e.first_frame,
+                "frame_count": e.frame_count,
+                "keyframe": e.keyframe,
+                "bytes": e.payload_bytes,
+                "offset": e.offset,
+            })
+        })
+        .collect();
+    json!({
+        "codec": codec,
+        "fourcc": info.fourcc.to_string(),
+        "codec_version": info.codec_version,
+        "container_version": header.container_version,
+        "frames": f,
+        "vertices": v,
+        "triangles": t,
+        "frame_rate": info.frame_rate,
+        "bytes": sizes.total,
+        "header_bytes": header.header_bytes,
+        "config_bytes": header.config.len(),
+        "topology_bytes": header.topology_bytes,
+        "packet_bytes": sizes.packet_bytes,
+        "payload_bytes": sizes.payload_bytes,
+        "index_bytes": sizes.index_bytes,
+        "bpvf": bpvf(sizes.total),
+        "geometry_bpvf": bpvf(sizes.payload_bytes),
+        "keyframes": index.iter().filter(|e| e.keyframe).count(),
+        "verified": { "header_checksum": true, "index_checksum": true, "packet_checksums": index.len() },
+        "packets": packets,
+    })
+}

@@ -1,0 +1,732 @@
+//! `animcodec._native`: the Rust side of the `animcodec` Python package.
+//!
+//! Thin wrappers over the library crates — the `animcodec` facade (`cli/`: registry, file
+//! formats, sweep harness, descriptions), `codec-core` and `metrics` — so Python gets exactly
+//! what the command line computes. The pure-Python layer (`python/animcodec/`) checks and
+//! converts numpy arrays (dtype, shape, contiguity) before calling in here; these functions
+//! still check everything they receive. Long calls (encode, decode, evaluate, sweep jobs)
+//! release the GIL. Every library error becomes `animcodec.AnimcodecError` carrying the Rust
+//! message (with its sources, as the command line prints it).
+
+use std::error::Error as StdError;
+use std::io::Cursor;
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex};
+use std::time::Instant;
+
+use animcodec::describe;
+use animcodec::formats::{self, ReadOptions, WriteOptions};
+use animcodec::harness::{self, Sweep, SweepOptions, SweepSeries, Target};
+use animcodec::output::OutputPolicy;
+use codec_core::synth::{self as gen, SynthSize};
+use codec_core::{
+    Animation, AnimationCodec, CodecRegistry, Limits, ParamKind, ParamSet, ParamValue, StreamDecoder, Topology,
+};
+use metrics::{EdgeDifference, EvalOptions, StedParams};
+use numpy::{PyArray1, PyArray2, PyArray3, PyArrayMethods, PyReadonlyArray2, PyReadonlyArray3, PyUntypedArrayMethods};
+use pyo3::create_exception;
+use pyo3::exceptions::PyException;
+use pyo3::prelude::*;
+use pyo3::types::{PyBool, PyBytes, PyDict, PyFloat, PyInt, PyList, PyString, PyTuple};
+use pyo3::IntoPyObjectExt;
+use serde_json::{Map, Number, Value};
+
+create_exception!(
+    _native,
+    AnimcodecError,
+    PyException,
+    "An error of the animcodec library (bad input, invalid parameters, corrupt stream, I/O); the message is the \
+     Rust library's."
+);
+
+type BoxError = Box<dyn StdError + Send + Sync>;
+
+/// The error's message followed by each source not already part of it, on one line — the
+/// command line's `error:` line without the prefix.
+fn message(e: &(dyn StdError + 'static)) -> String {
+    let mut line = e.to_string();
+    let mut source = e.source();
+    while let Some(s) = source {
+        let text = match s.downcast_ref::<std::io::Error>() {
+            Some(io) => codec_core::error::io_reason(io),
+            None => s.to_string(),
+        };
+        if !line.contains(&text) {
+            line.push_str(": ");
+            line.push_str(&text);
+        }
+        source = s.source();
+    }
+    line.replace('\n', " ")
+}
+
+fn to_py<E: Into<BoxError>>(e: E) -> PyErr {
+    let e: BoxError = e.into();
+    AnimcodecError::new_err(message(e.as_ref()))
+}
+
+fn registry() -> &'static CodecRegistry {
+    static REGISTRY: std::sync::OnceLock<CodecRegistry> = std::sync::OnceLock::new();
+    REGISTRY.get_or_init(animcodec::registry)
+}
+
+// ---------------------------------------------------------------------------------------------
+// numpy ↔ Animation
+
+/// An animation from `positions[F, V, 3]` (float32) and `faces[T, 3]` (uint32), any memory
+/// layout. The positions are copied once: [`Animation`] owns its coordinates.
+fn animation_from(
+    positions: &PyReadonlyArray3<'_, f32>,
+    faces: &PyReadonlyArray2<'_, u32>,
+    fps: f32,
+) -> PyResult<Animation> {
+    let shape = positions.shape();
+    if shape[2] != 3 {
+        return Err(to_py(format!("positions must have shape (frames, vertices, 3); got {shape:?}")));
+    }
+    let fshape = faces.shape();
+    if fshape[1] != 3 {
+        return Err(to_py(format!("faces must have shape (triangles, 3); got {fshape:?}")));
+    }
+    // The fast path copies the contiguous buffer; any other layout (Fortran order, strides,
+    // unaligned buffers as Dask's deserialization can give) is copied element by element in
+    // logical (frame, vertex, axis) order. `as_slice` alone would also accept Fortran order.
+    if !positions.is_aligned() || !faces.is_aligned() {
+        // ndarray cannot read unaligned memory; the Python layer copies such arrays first.
+        return Err(to_py("positions and faces must be aligned arrays (np.require(a, requirements='A'))"));
+    }
+    let coords: Vec<f32> = match positions.as_slice() {
+        Ok(slice) if positions.is_c_contiguous() => slice.to_vec(),
+        _ => positions.as_array().iter().copied().collect(),
+    };
+    let tris: Vec<u32> = match faces.as_slice() {
+        Ok(slice) if faces.is_c_contiguous() => slice.to_vec(),
+        _ => faces.as_array().iter().copied().collect(),
+    };
+    let triangles: Vec<[u32; 3]> = tris.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+    let topology = Topology::new(shape[1], triangles).map_err(to_py)?;
+    Animation::new(topology, coords, fps).map_err(to_py)
+}
+
+/// `(positions[F, V, 3] float32, faces[T, 3] uint32, fps)`, moving the coordinates into numpy
+/// without a copy.
+fn animation_to_py<'py>(py: Python<'py>, animation: Animation) -> PyResult<Bound<'py, PyTuple>> {
+    let (f, v) = (animation.frame_count(), animation.vertex_count());
+    let (topology, positions, fps) = animation.into_parts();
+    let positions: Bound<'py, PyArray3<f32>> = PyArray1::from_vec(py, positions).reshape([f, v, 3])?;
+    let faces: Vec<u32> = topology.triangles().iter().flatten().copied().collect();
+    let t = topology.triangle_count();
+    let faces: Bound<'py, PyArray2<u32>> = PyArray1::from_vec(py, faces).reshape([t, 3])?;
+    PyTuple::new(py, [positions.into_any(), faces.into_any(), PyFloat::new(py, f64::from(fps)).into_any()])
+}
+
+// ---------------------------------------------------------------------------------------------
+// JSON ↔ Python (numbers convert exactly: f64 ↔ float, integers ↔ int)
+
+fn value_to_py(py: Python<'_>, value: &Value) -> PyResult<Py<PyAny>> {
+    Ok(match value {
+        Value::Null => py.None(),
+        Value::Bool(b) => b.into_py_any(py)?,
+        Value::Number(n) => {
+            if let Some(i) = n.as_i64() {
+                i.into_py_any(py)?
+            } else if let Some(u) = n.as_u64() {
+                u.into_py_any(py)?
+            } else {
+                n.as_f64().unwrap_or(f64::NAN).into_py_any(py)?
+            }
+        }
+        Value::String(s) => s.into_py_any(py)?,
+        Value::Array(items) => {
+            let list = PyList::empty(py);
+            for item in items {
+                list.append(value_to_py(py, item)?)?;
+            }
+            list.into_any().unbind()
+        }
+        Value::Object(map) => {
+            let dict = PyDict::new(py);
+            for (k, v) in map {
+                dict.set_item(k, value_to_py(py, v)?)?;
+            }
+            dict.into_any().unbind()
+        }
+    })
+}
+
+fn py_to_value(obj: &Bound<'_, PyAny>) -> PyResult<Value> {
+    if obj.is_none() {
+        Ok(Value::Null)
+    } else if obj.is_instance_of::<PyBool>() {
+        Ok(Value::Bool(obj.extract()?))
+    } else if obj.is_instance_of::<PyInt>() {
+        match obj.extract::<i64>() {
+            Ok(i) => Ok(Value::from(i)),
+            Err(_) => Ok(Value::from(obj.extract::<u64>()?)),
+        }
+    } else if obj.is_instance_of::<PyFloat>() {
+        let x: f64 = obj.extract()?;
+        Ok(Number::from_f64(x).map_or(Value::Null, Value::Number))
+    } else if obj.is_instance_of::<PyString>() {
+        Ok(Value::String(obj.extract()?))
+    } else if let Ok(dict) = obj.cast::<PyDict>() {
+        let mut map = Map::new();
+        for (k, v) in dict.iter() {
+            map.insert(k.extract::<String>()?, py_to_value(&v)?);
+        }
+        Ok(Value::Object(map))
+    } else if let Ok(list) = obj.cast::<PyList>() {
+        list.iter().map(|v| py_to_value(&v)).collect::<PyResult<Vec<_>>>().map(Value::Array)
+    } else if let Ok(tuple) = obj.cast::<PyTuple>() {
+        tuple.iter().map(|v| py_to_value(&v)).collect::<PyResult<Vec<_>>>().map(Value::Array)
+    } else {
+        Err(to_py(format!("cannot convert {} to JSON", obj.get_type().name()?)))
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// parameters and options
+
+/// `codec`'s defaults with the entries of `params` set (typed by each parameter's kind),
+/// validated. Errors name the codec and the parameter, with the allowed range.
+fn params_from(codec: &dyn AnimationCodec, params: Option<&Bound<'_, PyDict>>) -> PyResult<ParamSet> {
+    let specs = codec.param_specs();
+    let mut set = codec.default_params();
+    for (key, value) in params.into_iter().flat_map(|d| d.iter()) {
+        let key: String = key.extract()?;
+        let spec = codec_core::params::find_spec(codec.name(), &specs, &key).map_err(to_py)?;
+        let bad = || {
+            let shown = value.repr().map(|r| r.to_string()).unwrap_or_else(|_| "?".into());
+            to_py(format!("{}: parameter '{key}' = {shown} is not a {}", codec.name(), spec.kind))
+        };
+        let typed = match &spec.kind {
+            ParamKind::Bool => {
+                ParamValue::Bool(if value.is_instance_of::<PyBool>() { value.extract()? } else { return Err(bad()) })
+            }
+            ParamKind::Int { .. } => {
+                if value.is_instance_of::<PyBool>() || !value.is_instance_of::<PyInt>() {
+                    return Err(bad());
+                }
+                ParamValue::Int(value.extract().map_err(|_| bad())?)
+            }
+            ParamKind::Float { .. } => {
+                if value.is_instance_of::<PyBool>() {
+                    return Err(bad());
+                }
+                ParamValue::Float(value.extract::<f64>().map_err(|_| bad())?)
+            }
+            ParamKind::Choice(_) => {
+                let text: String = value.extract().map_err(|_| bad())?;
+                spec.parse(codec.name(), &text).map_err(to_py)?
+            }
+        };
+        set.set(&specs, spec.name, typed).map_err(to_py)?;
+    }
+    codec.validate(&set).map_err(to_py)?;
+    Ok(set)
+}
+
+fn dict_get<'py, T: FromPyObjectOwned<'py>>(d: Option<&Bound<'py, PyDict>>, key: &str) -> PyResult<Option<T>> {
+    match d.map(|d| d.get_item(key)).transpose()?.flatten() {
+        Some(v) if !v.is_none() => Ok(Some(v.extract::<T>().map_err(|e| {
+            let e: PyErr = e.into();
+            to_py(format!("eval option '{key}': {e}"))
+        })?)),
+        _ => Ok(None),
+    }
+}
+
+/// Metric options from a dict with the command line's `eval`/`sweep` flags: `sted` and
+/// `hausdorff` (compute them; default true), `sted_radius`, `sted_dt`, `sted_window`, `sted_c`,
+/// `sted_absolute`. Unknown keys are refused.
+fn eval_options(options: Option<&Bound<'_, PyDict>>) -> PyResult<EvalOptions> {
+    const KEYS: [&str; 7] = ["sted", "hausdorff", "sted_radius", "sted_dt", "sted_window", "sted_c", "sted_absolute"];
+    if let Some(d) = options {
+        for k in d.keys() {
+            let k: String = k.extract()?;
+            if !KEYS.contains(&k.as_str()) {
+                return Err(to_py(format!("unknown eval option '{k}' (options: {})", KEYS.join(", "))));
+            }
+        }
+    }
+    let d = StedParams::default();
+    let sted = StedParams {
+        ring_radius: dict_get(options, "sted_radius")?.unwrap_or(d.ring_radius),
+        dt: dict_get(options, "sted_dt")?.unwrap_or(d.dt),
+        speed_window: dict_get(options, "sted_window")?.unwrap_or(d.speed_window),
+        c: dict_get(options, "sted_c")?.unwrap_or(d.c),
+        spatial_difference: if dict_get(options, "sted_absolute")?.unwrap_or(false) {
+            EdgeDifference::Absolute
+        } else {
+            d.spatial_difference
+        },
+    };
+    sted.validate().map_err(to_py)?;
+    Ok(EvalOptions {
+        sted,
+        compute_sted: dict_get(options, "sted")?.unwrap_or(true),
+        compute_hausdorff: dict_get(options, "hausdorff")?.unwrap_or(true),
+    })
+}
+
+// ---------------------------------------------------------------------------------------------
+// inputs
+
+/// Loads an input as the command line does: `synth:NAME[:SIZE]`, an `.anim` stream (decoded),
+/// or any animation file the formats module reads.
+fn load_input(input: &str, topology: Option<PathBuf>, fps: Option<f32>) -> Result<Animation, BoxError> {
+    if let Some(spec) = input.strip_prefix("synth:") {
+        let (name, size) = match spec.split_once(':') {
+            Some((name, size)) => (name, SynthSize::from_name(size)?),
+            None => (spec, SynthSize::Small),
+        };
+        let animation = gen::by_name(name, size)?;
+        return Ok(match fps {
+            Some(fps) => {
+                let (topology, positions, _) = animation.into_parts();
+                Animation::new(topology, positions, fps)?
+            }
+            None => animation,
+        });
+    }
+    let path = Path::new(input);
+    if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("anim")) {
+        let file = std::fs::File::open(path).map_err(|e| codec_core::Error::io(format!("cannot open {input}"), e))?;
+        let decoder = StreamDecoder::new(std::io::BufReader::new(file), registry(), Limits::default())
+            .map_err(|e| format!("{input}: {}", message(&e)))?;
+        return Ok(decoder.decode_all().map_err(|e| format!("{input}: {}", message(&e)))?);
+    }
+    Ok(formats::read_animation(path, &ReadOptions { topology, frame_rate: fps })?)
+}
+
+/// Sweep jobs on one worker reload the same few inputs over and over: the last ones loaded
+/// stay in memory (keyed by input, topology and frame rate).
+type CacheKey = (String, Option<PathBuf>, Option<u32>);
+static INPUT_CACHE: Mutex<Vec<(CacheKey, Arc<Animation>)>> = Mutex::new(Vec::new());
+const INPUT_CACHE_ENTRIES: usize = 2;
+
+fn load_cached(input: &str, topology: Option<PathBuf>, fps: Option<f32>) -> Result<Arc<Animation>, BoxError> {
+    let key = (input.to_string(), topology.clone(), fps.map(f32::to_bits));
+    if let Some((_, a)) = INPUT_CACHE.lock().map_err(|_| "input cache poisoned")?.iter().find(|(k, _)| *k == key) {
+        return Ok(Arc::clone(a));
+    }
+    let animation = Arc::new(load_input(input, topology, fps)?);
+    let mut cache = INPUT_CACHE.lock().map_err(|_| "input cache poisoned")?;
+    cache.retain(|(k, _)| *k != key);
+    cache.insert(0, (key, Arc::clone(&animation)));
+    cache.truncate(INPUT_CACHE_ENTRIES);
+    Ok(animation)
+}
+
+// ---------------------------------------------------------------------------------------------
+// the functions
+
+/// Every registered codec: name, FourCC, stream version, summary, parameters (kind, default,
+/// range or choices, doc) and rate ladder — `animcodec list --json`.
+#[pyfunction]
+fn codecs(py: Python<'_>) -> PyResult<Py<PyAny>> {
+    let list: Vec<Value> = registry().iter().map(describe::codec_json).collect();
+    value_to_py(py, &Value::Array(list))
+}
+
+/// Encodes an animation into `.anim` container bytes.
+#[pyfunction]
+#[pyo3(signature = (positions, faces, codec, fps, params=None))]
+fn encode<'py>(
+    py: Python<'py>,
+    positions: PyReadonlyArray3<'py, f32>,
+    faces: PyReadonlyArray2<'py, u32>,
+    codec: &str,
+    fps: f32,
+    params: Option<&Bound<'py, PyDict>>,
+) -> PyResult<Bound<'py, PyBytes>> {
+    let codec = registry().by_name(codec).map_err(to_py)?;
+    let params = params_from(codec, params)?;
+    let animation = animation_from(&positions, &faces, fps)?;
+    let bytes = py.detach(|| codec_core::encode_animation(codec, &params, &animation)).map_err(to_py)?;
+    Ok(PyBytes::new(py, &bytes))
+}
+
+/// The smallest stream meeting `target` (`"kg=0.5"`, `"sted=0.02"`, …) of one codec (on its
+/// rate ladder, the other parameters from `params`) or of every codec (`codec="auto"`), as
+/// `animcodec encode --target` finds it. Returns `(bytes, summary dict)`.
+#[pyfunction]
+#[pyo3(signature = (positions, faces, codec, fps, target, refine=0, params=None))]
+#[allow(clippy::too_many_arguments)]
+fn encode_to_target<'py>(
+    py: Python<'py>,
+    positions: PyReadonlyArray3<'py, f32>,
+    faces: PyReadonlyArray2<'py, u32>,
+    codec: &str,
+    fps: f32,
+    target: &str,
+    refine: usize,
+    params: Option<&Bound<'py, PyDict>>,
+) -> PyResult<(Bound<'py, PyBytes>, Py<PyAny>)> {
+    let target: Target = target.parse().map_err(to_py)?;
+    let registry = registry();
+    let chosen = if codec == "auto" {
+        if params.is_some_and(|p| !p.is_empty()) {
+            return Err(to_py("parameters cannot be combined with codec='auto': parameters belong to one codec"));
+        }
+        None
+    } else {
+        let c = registry.by_name(codec).map_err(to_py)?;
+        let base = params_from(c, params)?;
+        let walked = c.rate_ladder(&base).param;
+        if params.is_some_and(|p| p.contains(walked).unwrap_or(false)) {
+            return Err(to_py(format!(
+                "{}: '{walked}' is the rate ladder's parameter, which the target {target} chooses; leave it out",
+                c.name()
+            )));
+        }
+        Some((c, base))
+    };
+    let animation = animation_from(&positions, &faces, fps)?;
+    let eval = EvalOptions::default();
+    let limits = Limits::default();
+    let (hit, others) = py
+        .detach(|| match chosen {
+            Some((c, base)) => harness::search_target(registry, c, &base, &animation, target, &eval, limits, refine)
+                .map(|h| (h, Vec::new())),
+            None => {
+                let all: Vec<&dyn AnimationCodec> = registry.iter().collect();
+                harness::search_target_auto(registry, &all, &animation, target, &eval, limits, refine)
+            }
+        })
+        .map_err(to_py)?;
+    let value_of = |p: &harness::Point| target.metric.value(&p.report);
+    let p = &hit.point;
+    let summary = serde_json::json!({
+        "codec": p.codec,
+        "params": harness::params_json(&p.params),
+        "target": { "metric": target.metric.name(), "value": target.value },
+        "reached": value_of(p),
+        "bytes": p.bytes,
+        "bpvf": p.bpvf,
+        "linear_fallback": hit.linear_fallback,
+        "tried": hit.tried.iter().map(|t| serde_json::json!({
+            "ladder_index": t.ladder_index,
+            "params": harness::params_json(&t.params),
+            "bytes": t.bytes,
+            "bpvf": t.bpvf,
+            "value": value_of(t),
+        })).collect::<Vec<_>>(),
+        "other_codecs": others.iter().map(|h| serde_json::json!({
+            "codec": h.point.codec,
+            "params": harness::params_json(&h.point.params),
+            "bytes": h.point.bytes,
+            "bpvf": h.point.bpvf,
+            "value": value_of(&h.point),
+        })).collect::<Vec<_>>(),
+    });
+    Ok((PyBytes::new(py, &hit.stream), value_to_py(py, &summary)?))
+}
+
+/// Decodes container bytes: `(positions[F, V, 3] float32, faces[T, 3] uint32, fps, codec)`.
+#[pyfunction]
+fn decode<'py>(py: Python<'py>, data: &[u8]) -> PyResult<(Bound<'py, PyTuple>, &'static str)> {
+    let (animation, codec) = py
+        .detach(|| -> Result<_, codec_core::Error> {
+            let decoder = StreamDecoder::new(data, registry(), Limits::default())?;
+            let codec = decoder.codec_name();
+            Ok((decoder.decode_all()?, codec))
+        })
+        .map_err(to_py)?;
+    Ok((animation_to_py(py, animation)?, codec))
+}
+
+/// Decodes frame `t` alone (through the index, from the nearest keyframe): `positions[V, 3]`.
+#[pyfunction]
+fn decode_frame<'py>(py: Python<'py>, data: &[u8], t: usize) -> PyResult<Bound<'py, PyArray2<f32>>> {
+    let frame = py
+        .detach(|| codec_core::decode_frame(&mut Cursor::new(data), registry(), Limits::default(), t))
+        .map_err(to_py)?;
+    let v = frame.len() / 3;
+    PyArray1::from_vec(py, frame).reshape([v, 3])
+}
+
+/// What a container holds, every checksum verified — `animcodec info --json`.
+#[pyfunction]
+fn info(py: Python<'_>, data: &[u8]) -> PyResult<Py<PyAny>> {
+    let (header, index) = describe::read_verified(&mut Cursor::new(data), Limits::default()).map_err(to_py)?;
+    value_to_py(py, &describe::info_json(registry(), &header, &index))
+}
+
+/// Every metric of `candidate` against `reference` (same faces, same frame rate) — the keys of
+/// `animcodec eval --json` except the file names, plus `eval_seconds`.
+#[pyfunction]
+#[pyo3(signature = (reference, candidate, faces, fps, options=None))]
+fn evaluate<'py>(
+    py: Python<'py>,
+    reference: PyReadonlyArray3<'py, f32>,
+    candidate: PyReadonlyArray3<'py, f32>,
+    faces: PyReadonlyArray2<'py, u32>,
+    fps: f32,
+    options: Option<&Bound<'py, PyDict>>,
+) -> PyResult<Py<PyAny>> {
+    let options = eval_options(options)?;
+    if reference.shape() != candidate.shape() {
+        return Err(to_py(format!(
+            "reference and candidate differ in shape: {:?} vs {:?} (frames, vertices, 3)",
+            reference.shape(),
+            candidate.shape()
+        )));
+    }
+    let reference = animation_from(&reference, &faces, fps)?;
+    let candidate = animation_from(&candidate, &faces, fps)?;
+    let (report, seconds) = py
+        .detach(|| {
+            let start = Instant::now();
+            metrics::evaluate(&reference, &candidate, &options).map(|r| (r, start.elapsed().as_secs_f64()))
+        })
+        .map_err(to_py)?;
+    let mut value = harness::report_json(&report);
+    value["eval_seconds"] = seconds.into();
+    value_to_py(py, &value)
+}
+
+/// Reads an animation file (or `synth:NAME[:SIZE]`, or an `.anim` stream, decoded):
+/// `(positions, faces, fps)`.
+#[pyfunction]
+#[pyo3(signature = (path, topology=None, fps=None))]
+fn load<'py>(
+    py: Python<'py>,
+    path: &str,
+    topology: Option<PathBuf>,
+    fps: Option<f32>,
+) -> PyResult<Bound<'py, PyTuple>> {
+    let animation = py.detach(|| load_input(path, topology, fps)).map_err(to_py)?;
+    animation_to_py(py, animation)
+}
+
+/// Writes an animation (format from the extension, as `animcodec decode -o` does); refuses
+/// to replace an existing file unless `force`. Returns the files written.
+#[pyfunction]
+#[pyo3(signature = (path, positions, faces, fps, force=false, topology_obj=true))]
+fn save<'py>(
+    py: Python<'py>,
+    path: PathBuf,
+    positions: PyReadonlyArray3<'py, f32>,
+    faces: PyReadonlyArray2<'py, u32>,
+    fps: f32,
+    force: bool,
+    topology_obj: bool,
+) -> PyResult<Vec<PathBuf>> {
+    let animation = animation_from(&positions, &faces, fps)?;
+    let options = WriteOptions { policy: OutputPolicy::new(force), topology_obj };
+    if !formats::obj::is_directory_target(&path) {
+        options.policy.check(&path).map_err(to_py)?;
+    }
+    py.detach(|| formats::write_animation_with(&path, &animation, &options)).map_err(to_py)
+}
+
+/// The series of a sweep: `[(codec, params dict or None), …]` → each codec on those
+/// parameters, labelled as the command line labels it; setting the walked parameter is refused.
+fn series_from<'r>(registry: &'r CodecRegistry, series: &Bound<'_, PyList>) -> PyResult<Vec<SweepSeries<'r>>> {
+    let mut out: Vec<SweepSeries<'r>> = Vec::new();
+    for item in series.iter() {
+        let (name, params): (String, Option<Bound<'_, PyDict>>) = item.extract()?;
+        let codec = registry.by_name(name.trim()).map_err(to_py)?;
+        let base = params_from(codec, params.as_ref())?;
+        let walked = codec.rate_ladder(&base).param;
+        if params.as_ref().is_some_and(|p| p.contains(walked).unwrap_or(false)) {
+            return Err(to_py(format!("{}: '{walked}' is the parameter the sweep walks; leave it out", codec.name())));
+        }
+        let entry = SweepSeries::with_base(codec, base).map_err(to_py)?;
+        if out.iter().any(|s| s.label == entry.label) {
+            return Err(to_py(format!("series '{}' is given twice", entry.label)));
+        }
+        out.push(entry);
+    }
+    Ok(out)
+}
+
+/// The jobs of a sweep, per series: `[{codec, series, params, ladder_param, steps: [ladder
+/// index, …]}, …]` — the ladder steps `animcodec sweep --points N` measures.
+#[pyfunction]
+#[pyo3(signature = (series, points=None))]
+fn sweep_plan(py: Python<'_>, series: &Bound<'_, PyList>, points: Option<usize>) -> PyResult<Py<PyAny>> {
+    let registry = registry();
+    let series = series_from(registry, series)?;
+    let plan: Vec<Value> = series
+        .iter()
+        .map(|s| {
+            let ladder = s.codec.rate_ladder(&s.base);
+            serde_json::json!({
+                "codec": s.codec.name(),
+                "series": s.label,
+                "params": harness::params_json(&s.base),
+                "ladder_param": ladder.param,
+                "steps": harness::ladder_indices(ladder.steps.len(), points),
+            })
+        })
+        .collect();
+    value_to_py(py, &Value::Array(plan))
+}
+
+/// One sweep job: series `(codec, params)` at ladder step `step` on `input` (a path or
+/// `synth:NAME[:SIZE]`, loaded once per worker process and kept) or on the animation
+/// `arrays = (positions, faces, fps)`. Returns `{"row": …, "vertices", "frames"}`; the row is
+/// what `animcodec sweep --json` writes for that point (the same harness function measures it).
+#[pyfunction]
+#[pyo3(signature = (input, codec, params, step, eval=None, topology=None, fps=None, arrays=None))]
+#[allow(clippy::too_many_arguments)]
+fn sweep_point<'py>(
+    py: Python<'py>,
+    input: &str,
+    codec: String,
+    params: Option<Bound<'py, PyDict>>,
+    step: usize,
+    eval: Option<&Bound<'py, PyDict>>,
+    topology: Option<PathBuf>,
+    fps: Option<f32>,
+    arrays: Option<(PyReadonlyArray3<'py, f32>, PyReadonlyArray2<'py, u32>, f32)>,
+) -> PyResult<Py<PyAny>> {
+    let registry = registry();
+    let list = PyList::new(py, [(codec, params)])?;
+    let series = series_from(registry, &list)?;
+    let options = SweepOptions { points: None, jobs: Some(1), eval: eval_options(eval)?, limits: Limits::default() };
+    let animation = match arrays {
+        Some((positions, faces, fps)) => Arc::new(animation_from(&positions, &faces, fps)?),
+        None => py.detach(|| load_cached(input, topology, fps)).map_err(to_py)?,
+    };
+    let point = py.detach(|| harness::sweep_point(registry, &series[0], step, &animation, &options)).map_err(to_py)?;
+    let value = serde_json::json!({
+        "row": harness::point_json(&point),
+        "vertices": animation.vertex_count(),
+        "frames": animation.frame_count(),
+    });
+    value_to_py(py, &value)
+}
+
+/// The command line's single-process sweep of one input (`animcodec sweep INPUT --json`, the
+/// same harness call): the sweep document as a dict. `jobs=1` runs the points one after the
+/// other, `None` on rayon's pool.
+#[pyfunction]
+#[pyo3(signature = (input, series, points=None, eval=None, jobs=Some(1), topology=None, fps=None))]
+#[allow(clippy::too_many_arguments)]
+fn sweep_local(
+    py: Python<'_>,
+    input: &str,
+    series: &Bound<'_, PyList>,
+    points: Option<usize>,
+    eval: Option<&Bound<'_, PyDict>>,
+    jobs: Option<usize>,
+    topology: Option<PathBuf>,
+    fps: Option<f32>,
+) -> PyResult<Py<PyAny>> {
+    let registry = registry();
+    let series = series_from(registry, series)?;
+    let options = SweepOptions { points, jobs, eval: eval_options(eval)?, limits: Limits::default() };
+    let (animation, result, seconds) = py
+        .detach(|| -> Result<_, BoxError> {
+            let animation = load_input(input, topology, fps)?;
+            let start = Instant::now();
+            let result = harness::sweep(registry, &series, &animation, &options, &|| {})?;
+            Ok((animation, result, start.elapsed().as_secs_f64()))
+        })
+        .map_err(to_py)?;
+    let mut value = harness::sweep_json(input, &animation, &options.eval, &result);
+    value["total_seconds"] = seconds.into();
+    value["jobs"] = jobs.map_or_else(|| "rayon".into(), |j| j.into());
+    value_to_py(py, &value)
+}
+
+/// Refuses outputs that exist (unless `force`) or are an input, before a long sweep — the
+/// command line's checks.
+#[pyfunction]
+#[pyo3(signature = (outputs, inputs, force=false))]
+fn check_outputs(outputs: Vec<PathBuf>, inputs: Vec<PathBuf>, force: bool) -> PyResult<()> {
+    let mut policy = OutputPolicy::new(force);
+    for input in &inputs {
+        policy = policy.with_input(input);
+    }
+    for path in &outputs {
+        policy.check(path).map_err(to_py)?;
+    }
+    Ok(())
+}
+
+/// Assembles gathered rows of one input into the command line's sweep document (rows sorted by
+/// series order then ladder index, failures, monotonicity) and writes the requested files with
+/// the command line's writers (`--json`, `--csv`, `--plot`). Returns the document.
+#[pyfunction]
+#[pyo3(signature = (input, vertices, frames, rows, failures, eval=None, total_seconds=None, jobs=None, json=None, csv=None, plot=None))]
+#[allow(clippy::too_many_arguments)]
+fn sweep_document(
+    py: Python<'_>,
+    input: &str,
+    vertices: usize,
+    frames: usize,
+    rows: &Bound<'_, PyList>,
+    failures: &Bound<'_, PyList>,
+    eval: Option<&Bound<'_, PyDict>>,
+    total_seconds: Option<f64>,
+    jobs: Option<&Bound<'_, PyAny>>,
+    json: Option<PathBuf>,
+    csv: Option<PathBuf>,
+    plot: Option<PathBuf>,
+) -> PyResult<Py<PyAny>> {
+    let registry = registry();
+    let eval = eval_options(eval)?;
+    let mut sweep = Sweep::default();
+    for row in rows.iter() {
+        let value = py_to_value(&row)?;
+        sweep.points.push(harness::point_from_row(registry, &value, &eval, (vertices, frames)).map_err(to_py)?);
+    }
+    for f in failures.iter() {
+        let f = py_to_value(&f)?;
+        let text = |k: &str| f.get(k).and_then(Value::as_str).unwrap_or_default().to_string();
+        let codec = registry.by_name(&text("codec")).map_err(to_py)?.name();
+        sweep.failures.push(harness::Failure {
+            codec,
+            series: text("series"),
+            ladder_index: f.get("ladder_index").and_then(Value::as_u64).unwrap_or(0) as usize,
+            message: text("error"),
+        });
+    }
+    let mut value = harness::sweep_json_sized(input, (vertices, frames), &eval, &sweep);
+    if let Some(s) = total_seconds {
+        value["total_seconds"] = s.into();
+    }
+    if let Some(j) = jobs {
+        value["jobs"] = py_to_value(j)?;
+    }
+    py.detach(|| -> Result<(), BoxError> {
+        if let Some(path) = &json {
+            harness::write_text(path, &(serde_json::to_string_pretty(&value)? + "\n"))?;
+        }
+        if let Some(path) = &csv {
+            harness::write_text(path, &harness::csv_text(&sweep.points))?;
+        }
+        if let Some(path) = &plot {
+            let title = format!("{input}: {frames} frames × {vertices} vertices");
+            harness::plot_svg(path, &title, &sweep.points)?;
+        }
+        Ok(())
+    })
+    .map_err(to_py)?;
+    value_to_py(py, &value)
+}
+
+/// The extension module.
+#[pymodule]
+fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add("AnimcodecError", m.py().get_type::<AnimcodecError>())?;
+    m.add_function(wrap_pyfunction!(codecs, m)?)?;
+    m.add_function(wrap_pyfunction!(encode, m)?)?;
+    m.add_function(wrap_pyfunction!(encode_to_target, m)?)?;
+    m.add_function(wrap_pyfunction!(decode, m)?)?;
+    m.add_function(wrap_pyfunction!(decode_frame, m)?)?;
+    m.add_function(wrap_pyfunction!(info, m)?)?;
+    m.add_function(wrap_pyfunction!(evaluate, m)?)?;
+    m.add_function(wrap_pyfunction!(load, m)?)?;
+    m.add_function(wrap_pyfunction!(save, m)?)?;
+    m.add_function(wrap_pyfunction!(sweep_plan, m)?)?;
+    m.add_function(wrap_pyfunction!(sweep_point, m)?)?;
+    m.add_function(wrap_pyfunction!(sweep_local, m)?)?;
+    m.add_function(wrap_pyfunction!(check_outputs, m)?)?;
+    m.add_function(wrap_pyfunction!(sweep_document, m)?)?;
+    Ok(())
+}

@@ -1,0 +1,133 @@
+"""Distributed sweeps: a LocalCluster with 2 workers gives the rows of the single-process sweep
+(the command line's), exactly."""
+
+import csv
+import io
+import json
+import subprocess
+import sys
+
+import pytest
+
+import animcodec
+
+distributed = pytest.importorskip("distributed", reason="dask[distributed] is not installed")
+
+INPUTS = ["synth:flag", "synth:tumble"]
+CODECS = ["quant-delta", "pca-aoi"]
+TIMINGS = {"encode_seconds", "decode_seconds"}
+
+
+def strip_timings(rows):
+    return [{k: v for k, v in r.items() if k not in TIMINGS} for r in rows]
+
+
+@pytest.fixture(scope="module")
+def client():
+    cluster = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None)
+    c = distributed.Client(cluster)
+    yield c
+    c.close()
+    cluster.close()
+
+
+@pytest.fixture(scope="module")
+def swept(client, tmp_path_factory):
+    out = tmp_path_factory.mktemp("sweep")
+    result = animcodec.sweep(INPUTS, CODECS, points=3, client=client, out_dir=str(out))
+    return result, out
+
+
+def test_two_workers_give_the_single_process_rows_exactly(swept, client):
+    result, _ = swept
+    assert result.workers == 2
+    assert result.jobs == len(INPUTS) * len(CODECS) * 3
+    assert len(client.scheduler_info()["workers"]) == 2
+    for name, doc in zip(INPUTS, result.documents):
+        local = animcodec.sweep_local(name, CODECS, points=3)
+        assert doc["input"] == local["input"] == name
+        assert len(doc["rows"]) == len(local["rows"]) == len(CODECS) * 3
+        for got, want in zip(doc["rows"], local["rows"]):
+            assert set(got) == set(want)
+            assert (got["codec"], got["ladder_index"]) == (want["codec"], want["ladder_index"])
+            assert got["bytes"] == want["bytes"]
+            assert got["bpvf"] == want["bpvf"]
+            assert got["kg"] == want["kg"]
+        assert strip_timings(doc["rows"]) == strip_timings(local["rows"])
+        for key in ("vertices", "frames", "eval_options", "failures", "monotone"):
+            assert doc[key] == local[key], key
+    # Both workers took part.
+    # (Tasks go to whichever worker is free; with 12 tasks of similar size both get some.)
+
+
+def test_rows_equal_the_command_line_sweep(swept, cli, tmp_path):
+    result, out = swept
+    for name, doc in zip(INPUTS, result.documents):
+        stem = name.replace(":", "-")
+        cli_json, cli_csv = tmp_path / f"{stem}.json", tmp_path / f"{stem}.csv"
+        cli("sweep", name, "-c", ",".join(CODECS), "--points", "3", "--jobs", "1", "--json", cli_json, "--csv", cli_csv)
+        expected = json.loads(cli_json.read_text())
+        assert set(doc) == set(expected)
+        assert strip_timings(doc["rows"]) == strip_timings(expected["rows"])
+        for key in ("input", "vertices", "frames", "eval_options", "failures", "monotone"):
+            assert doc[key] == expected[key], key
+        # The files written by the Dask sweep, by the command line's writers.
+        written = json.loads((out / f"{stem}.json").read_text())
+        assert strip_timings(written["rows"]) == strip_timings(expected["rows"])
+
+        def table(text):
+            return [{k: v for k, v in r.items() if k not in TIMINGS} for r in csv.DictReader(io.StringIO(text))]
+
+        assert table((out / f"{stem}.csv").read_text()) == table(cli_csv.read_text())
+        svg = (out / f"{stem}.svg").read_text()
+        assert svg.startswith("<svg") and "bpvf vs KG" in svg
+    corpus = json.loads((out / "corpus.json").read_text())
+    assert corpus["summary"]["jobs"] == result.jobs and corpus["summary"]["workers"] == 2
+
+
+def test_array_inputs_give_the_same_rows(client, swept, flag):
+    result, _ = swept
+    arrays = animcodec.sweep([("flag-arrays", flag)], CODECS, points=3, client=client)
+    assert strip_timings(arrays.documents[0]["rows"]) == strip_timings(result.documents[0]["rows"])
+
+
+def test_failures_are_reported_per_point(client):
+    result = animcodec.sweep(["synth:flag", "/nonexistent/x.pc2"], ["quant-delta"], points=2, client=client)
+    assert len(result.documents[0]["rows"]) == 2 and not result.documents[0]["failures"]
+    bad = result.documents[1]
+    assert not bad["rows"] and len(bad["failures"]) == 2
+    assert "/nonexistent/x.pc2" in bad["failures"][0]["error"]
+
+
+def test_bad_series_fail_before_any_work(client):
+    with pytest.raises(animcodec.AnimcodecError, match="walks"):
+        animcodec.sweep(["synth:flag"], ["quant-delta"], params={"bits": 8}, client=client)
+    with pytest.raises(animcodec.AnimcodecError, match="unknown codec"):
+        animcodec.sweep(["synth:flag"], ["nope"], client=client)
+
+
+def test_outputs_are_not_overwritten_without_force(client, tmp_path):
+    target = tmp_path / "r.json"
+    target.write_text("keep")
+    with pytest.raises(animcodec.AnimcodecError, match="exists|force"):
+        animcodec.sweep("synth:flag", ["quant-delta"], points=2, client=client, json=str(target))
+    assert target.read_text() == "keep"
+
+
+def test_module_entry_point_runs_a_corpus(client, tmp_path):
+    corpus = tmp_path / "corpus"
+    corpus.mkdir()
+    flag = animcodec.load("synth:flag")
+    animcodec.save(corpus / "flag.pc2", flag)
+    address = client.scheduler.address
+    out = tmp_path / "out"
+    proc = subprocess.run(
+        [sys.executable, "-m", "animcodec.sweep", str(corpus), "-c", "quant-delta", "--points", "2",
+         "--scheduler", address, "--out", str(out), "--no-progress"],
+        capture_output=True, text=True,
+    )
+    assert proc.returncode == 0, proc.stderr
+    assert "2 jobs on 2 workers" in proc.stdout
+    doc = json.loads((out / "flag.json").read_text())
+    local = animcodec.sweep_local(str(corpus / "flag.pc2"), ["quant-delta"], points=2)
+    assert strip_timings(doc["rows"]) == strip_timings(local["rows"])
