@@ -324,14 +324,23 @@ def evaluate(
     return report
 
 
-def load(path: PathLike, topology: Optional[PathLike] = None, fps: Optional[float] = None) -> Animation:
+def load(
+    path: PathLike, topology: Optional[PathLike] = None, fps: Optional[float] = None, animation: Optional[str] = None
+) -> Animation:
     """Reads an animation: an OBJ sequence (directory or ``*`` pattern), ``.obj``, ``.pc2``,
-    ``.mdd``, ``.gltf``/``.glb`` (morph targets), an ``.anim`` stream (decoded), or
+    ``.mdd``, ``.gltf``/``.glb`` (morph targets, node animation and skins: the whole scene
+    sampled into one vertex cache; ``animation`` picks one by name or index, default the
+    first), an ``.anim`` stream (decoded), or
     ``synth:NAME[:SIZE]`` (flag, cylinder, tumble, phases). A PC2/MDD cache takes its triangles
     from ``topology`` or the ``.obj`` of the same stem beside it; ``fps`` overrides the file's rate.
     """
     return _animation(
-        _native.load(os.fspath(path), None if topology is None else os.fspath(topology), None if fps is None else _fps(fps))
+        _native.load(
+            os.fspath(path),
+            None if topology is None else os.fspath(topology),
+            None if fps is None else _fps(fps),
+            None if animation is None else str(animation),
+        )
     )
 
 

@@ -274,7 +274,12 @@ fn eval_options(options: Option<&Bound<'_, PyDict>>) -> PyResult<EvalOptions> {
 
 /// Loads an input as the command line does: `synth:NAME[:SIZE]`, an `.anim` stream (decoded),
 /// or any animation file the formats module reads.
-fn load_input(input: &str, topology: Option<PathBuf>, fps: Option<f32>) -> Result<Animation, BoxError> {
+fn load_input(
+    input: &str,
+    topology: Option<PathBuf>,
+    fps: Option<f32>,
+    animation: Option<String>,
+) -> Result<Animation, BoxError> {
     if let Some(spec) = input.strip_prefix("synth:") {
         let (name, size) = match spec.split_once(':') {
             Some((name, size)) => (name, SynthSize::from_name(size)?),
@@ -296,7 +301,7 @@ fn load_input(input: &str, topology: Option<PathBuf>, fps: Option<f32>) -> Resul
             .map_err(|e| format!("{input}: {}", message(&e)))?;
         return Ok(decoder.decode_all().map_err(|e| format!("{input}: {}", message(&e)))?);
     }
-    Ok(formats::read_animation(path, &ReadOptions { topology, frame_rate: fps })?)
+    Ok(formats::read_animation(path, &ReadOptions { topology, frame_rate: fps, animation })?)
 }
 
 /// Sweep jobs on one worker reload the same few inputs over and over: the last ones loaded
@@ -310,7 +315,7 @@ fn load_cached(input: &str, topology: Option<PathBuf>, fps: Option<f32>) -> Resu
     if let Some((_, a)) = INPUT_CACHE.lock().map_err(|_| "input cache poisoned")?.iter().find(|(k, _)| *k == key) {
         return Ok(Arc::clone(a));
     }
-    let animation = Arc::new(load_input(input, topology, fps)?);
+    let animation = Arc::new(load_input(input, topology, fps, None)?);
     let mut cache = INPUT_CACHE.lock().map_err(|_| "input cache poisoned")?;
     cache.retain(|(k, _)| *k != key);
     cache.insert(0, (key, Arc::clone(&animation)));
@@ -489,14 +494,15 @@ fn evaluate<'py>(
 /// Reads an animation file (or `synth:NAME[:SIZE]`, or an `.anim` stream, decoded):
 /// `(positions, faces, fps)`.
 #[pyfunction]
-#[pyo3(signature = (path, topology=None, fps=None))]
+#[pyo3(signature = (path, topology=None, fps=None, animation=None))]
 fn load<'py>(
     py: Python<'py>,
     path: &str,
     topology: Option<PathBuf>,
     fps: Option<f32>,
+    animation: Option<String>,
 ) -> PyResult<Bound<'py, PyTuple>> {
-    let animation = py.detach(|| load_input(path, topology, fps)).map_err(to_py)?;
+    let animation = py.detach(|| load_input(path, topology, fps, animation)).map_err(to_py)?;
     animation_to_py(py, animation)
 }
 
@@ -621,7 +627,7 @@ fn sweep_local(
     let options = SweepOptions { points, jobs, eval: eval_options(eval)?, limits: Limits::default() };
     let (animation, result, seconds) = py
         .detach(|| -> Result<_, BoxError> {
-            let animation = load_input(input, topology, fps)?;
+            let animation = load_input(input, topology, fps, None)?;
             let start = Instant::now();
             let result = harness::sweep(registry, &series, &animation, &options, &|| {})?;
             Ok((animation, result, start.elapsed().as_secs_f64()))
