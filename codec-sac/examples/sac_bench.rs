@@ -172,11 +172,28 @@ fn rate_point(anim: &Animation, p: SacParams) -> codec_core::Result<()> {
     };
     let t = Instant::now();
     let mut dec = Sac.new_decoder(&info, &enc.config(), &Limits::default())?;
+    let t_setup = t.elapsed().as_secs_f64();
     let mut out = Vec::with_capacity(rec.len());
+    // Decoder stages: setup (topology, Poisson pattern), the first packet (I-frame + basis +
+    // rest factorization), then every later packet.
+    let mut per_packet = Vec::with_capacity(packets.len());
     for p in &packets {
+        let tp = Instant::now();
         out.extend(dec.decode_packet(&p.packet)?);
+        per_packet.push(tp.elapsed().as_secs_f64());
     }
     let t_dec = t.elapsed().as_secs_f64();
+    let later = &per_packet[1.min(per_packet.len())..];
+    let mut sorted = later.to_vec();
+    sorted.sort_by(f64::total_cmp);
+    println!(
+        "    decoder: setup {:.3}s, first packet (I-frame + basis) {:.3}s, later packets mean {:.2} ms, median {:.2} ms, max {:.2} ms",
+        t_setup,
+        per_packet.first().copied().unwrap_or(0.0),
+        1e3 * later.iter().sum::<f64>() / later.len().max(1) as f64,
+        1e3 * sorted.get(sorted.len() / 2).copied().unwrap_or(0.0),
+        1e3 * sorted.last().copied().unwrap_or(0.0),
+    );
     assert_eq!(out, rec, "decoder output differs from the encoder's reconstruction");
     let bpvf = bytes as f64 * 8.0 / (anim.vertex_count() * anim.frame_count()) as f64;
     println!(
@@ -243,6 +260,7 @@ fn main() {
     let dump = take("--dump-laplacian");
     let bits: u8 = take("--bits").and_then(|v| v.parse().ok()).unwrap_or(18);
     let skip_stages = take("--no-stages").is_some();
+    let refactor: u8 = take("--refactor").and_then(|v| v.parse().ok()).unwrap_or(1);
     let no_polar = take("--no-polar-at").map(|v| v.split(',').filter_map(|x| x.parse().ok()).collect::<Vec<u32>>());
     let names = if args.is_empty() { vec!["horse-gallop".to_string()] } else { args };
     let Some(root) = data_root() else { return };
@@ -269,12 +287,14 @@ fn main() {
             }
         }
         for &b in &bases {
-            if let Err(e) = rate_point(&anim, SacParams { bases: b, bits, ..Default::default() }) {
+            if let Err(e) = rate_point(&anim, SacParams { bases: b, bits, refactor, ..Default::default() }) {
                 println!("  bases {b}: {e}");
             }
         }
         for &b in no_polar.as_deref().unwrap_or(&[16, 100]) {
-            if let Err(e) = rate_point(&anim, SacParams { bases: b, bits, polar: false, ..Default::default() }) {
+            if let Err(e) =
+                rate_point(&anim, SacParams { bases: b, bits, polar: false, refactor, ..Default::default() })
+            {
                 println!("  bases {b} no polar: {e}");
             }
         }
