@@ -313,6 +313,37 @@ fn bytes_do_not_depend_on_the_thread_count() {
     assert_eq!(run(1), run(3));
 }
 
+/// The decoder derives the basis from the stream alone, so it must be bit-for-bit the same
+/// whatever the thread count (issue 14, item 4): the harmonics of a disconnected mesh (one
+/// Krylov component, several dense ones) and a whole decode, in pools of 1 and 3 threads.
+#[test]
+fn basis_and_decode_do_not_depend_on_the_thread_count() {
+    let anim = two_flags(5);
+    let tris: Vec<[usize; 3]> =
+        anim.triangles().iter().map(|t| [t[0] as usize, t[1] as usize, t[2] as usize]).collect();
+    let pos = to_v3(anim.frame(0));
+    let (one, _) = crate::geometry::tests::blob(4);
+    let blob_tris = crate::geometry::tests::blob(4).1;
+    let registry = CodecRegistry::new(vec![Box::new(Sac)]).unwrap();
+    let bytes = encode_animation_fed(&Sac, &params(SacParams { bases: 12, ..Default::default() }), &anim, false, 5)
+        .unwrap()
+        .bytes;
+    let run = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        pool.install(|| {
+            (
+                harmonics::harmonics_by_component(&pos, &tris, 12).unwrap().basis,
+                harmonics::harmonics(&one, &blob_tris, 30).unwrap().basis,
+                decode_animation(&bytes, &registry, Limits::default()).unwrap(),
+            )
+        })
+    };
+    let (a, b) = (run(1), run(3));
+    assert_eq!(a.0, b.0);
+    assert_eq!(a.1, b.1);
+    assert_eq!(a.2, b.2);
+}
+
 #[test]
 fn rate_ladder_streams_grow_on_synthetic_data() {
     for name in ["flag", "cylinder"] {
