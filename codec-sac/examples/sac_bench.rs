@@ -334,7 +334,7 @@ fn main() {
     let repeat: usize = take("--repeat").and_then(|v| v.parse().ok()).unwrap_or(2);
     let bits: u8 = take("--bits").and_then(|v| v.parse().ok()).unwrap_or(18);
     let skip_stages = take("--no-stages").is_some();
-    let refactor: u8 = take("--refactor").and_then(|v| v.parse().ok()).unwrap_or(1);
+    let refactor: u8 = take("--refactor").and_then(|v| v.parse().ok()).unwrap_or(SacParams::default().refactor);
     let no_polar = take("--no-polar-at").map(|v| v.split(',').filter_map(|x| x.parse().ok()).collect::<Vec<u32>>());
     let names = if args.is_empty() { vec!["horse-gallop".to_string()] } else { args };
     let Some(root) = data_root() else { return };
