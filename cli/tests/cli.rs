@@ -196,6 +196,25 @@ fn streamed_flag_encodes_to_the_same_bytes_as_the_whole_flag() {
     fails(&["encode", "synth:flag:20xtenx40", "-c", "quant-delta", "-o", &b], &["COLSxROWSxFRAMES"]);
 }
 
+/// Encoder notes (`FrameEncoder::notes`) reach the user: `warning:` lines in the text output,
+/// a `notes` array with `--json` (empty when there is nothing to say). sac's error guard at a
+/// tiny `max_error` refreshes one P-frame (its cap) and repairs the others, and says so (issue 14).
+#[test]
+fn encode_prints_the_encoders_warnings() {
+    let s = Scratch::new("encode-notes");
+    let out = s.path("flag.anim");
+    let e = ok_json(&["encode", "synth:flag:8x6x6", "-c", "quant-delta", "-o", &out, "--json"]);
+    assert_eq!(e["notes"], serde_json::json!([]));
+    let args = ["encode", "synth:flag:8x6x6", "-c", "sac", "-p", "bases=1", "-p", "max_error=1e-4", "-o", &out, "-f"];
+    let text = ok(&args);
+    assert!(text.contains("warning: sac: the error guard") && text.contains("repaired 4 of 5 P-frames"), "{text}");
+    let mut with_json = args.to_vec();
+    with_json.push("--json");
+    let e = ok_json(&with_json);
+    let notes = e["notes"].as_array().unwrap();
+    assert!(notes.len() == 2 && notes[1].as_str().unwrap().contains("repaired 4 of 5"), "{notes:?}");
+}
+
 #[test]
 fn demo_runs_quant_delta_on_every_synthetic_animation() {
     let text = ok(&["demo", "--size", "small", "--codecs", "quant-delta"]);

@@ -123,6 +123,14 @@ pub trait FrameEncoder: Send {
 
     /// Codes whatever is buffered and returns the last packets.
     fn finish(&mut self) -> Result<Vec<EncodedPacket>>;
+
+    /// Warnings about the stream just coded that its user should see (for example that an
+    /// error guard had to replace many frames), one sentence each, naming the codec. Read
+    /// after [`FrameEncoder::finish`]; the CLI prints them and `--json` lists them. Most
+    /// encoders have none (the default).
+    fn notes(&self) -> Vec<String> {
+        Vec::new()
+    }
 }
 
 /// A decoder made by [`AnimationCodec::new_decoder`]. Packets arrive in stream order; after a

@@ -108,7 +108,13 @@ impl<W: Write> StreamEncoder<W> {
     }
 
     /// Flushes the encoder, writes the index and returns the last packets and the sink.
-    pub fn finish(mut self) -> Result<(Vec<EncodedPacket>, W)> {
+    pub fn finish(self) -> Result<(Vec<EncodedPacket>, W)> {
+        self.finish_with_notes().map(|(packets, sink, _)| (packets, sink))
+    }
+
+    /// [`StreamEncoder::finish`], plus the encoder's warnings about the stream
+    /// ([`FrameEncoder::notes`]).
+    pub fn finish_with_notes(mut self) -> Result<(Vec<EncodedPacket>, W, Vec<String>)> {
         if self.frames_pushed != self.frame_count {
             return Err(Error::InvalidAnimation(format!(
                 "{} frames pushed, but the stream was declared with {}",
@@ -117,7 +123,8 @@ impl<W: Write> StreamEncoder<W> {
         }
         let packets = self.encoder.finish()?;
         let packets = self.write(packets)?;
-        Ok((packets, self.writer.finish()?))
+        let notes = self.encoder.notes();
+        Ok((packets, self.writer.finish()?, notes))
     }
 }
 

@@ -2,8 +2,9 @@
 matrices dumped by `sac_bench --dump-laplacian DIR` (same stiffness L and lumped mass M).
 
 usage: python3 eigsh_bench.py DIR NAME K
-Prints the solve time and the k smallest generalized eigenvalues' summary, so they can be
-compared with the faer shift-invert Krylov-Schur result printed by sac_bench in the same run.
+Prints the solve time and the k smallest generalized eigenvalues' summary, and writes all k
+eigenvalues (ascending, one per line) to DIR/NAME.K.eig.txt so sac_bench --eigen compares them
+with its own solver's, measured in the same run.
 """
 import sys
 import time
@@ -24,3 +25,4 @@ vals, vecs = eigsh(L, k=k, M=M, sigma=sigma, which="LM")
 dt = time.perf_counter() - t
 vals = np.sort(vals)
 print(f"  scipy eigsh shift-invert (k={k}): {dt:.3f} s; eigenvalues first {vals[0]:.3e} second {vals[1]:.3e} last {vals[-1]:.3e}")
+np.savetxt(f"{d}/{name}.{k}.eig.txt", vals, fmt="%.17e")

@@ -10,6 +10,11 @@
 //! `examples/eigsh_bench.py` (python3 + scipy) on the dumped matrices in the same run. The
 //! baseline `quant-delta` at 8/10/12 bits is measured first for context.
 //!
+//! `--eigen 100,250 --dump-laplacian DIR` (issue 14, item 4) only compares eigensolvers: for
+//! each count, sac's manifold harmonics of frame 0 and scipy's `eigsh` in shift-invert mode
+//! (ARPACK + SuperLU) on the very same dumped matrices, alternately, `--repeat` times each, and
+//! the largest relative difference of the eigenvalues.
+//!
 //! For each dataset: (1) per-frame time of every stage of the paper's outline (§3.7, the
 //! columns of its Table 1) on the closed loop at 100 bases; (2) rate points: stream bytes,
 //! bpvf, KG error (computed here: 100·‖A−Â‖_F / ‖A−E(A)‖_F, E(A) the per-frame centroid of the
@@ -172,11 +177,28 @@ fn rate_point(anim: &Animation, p: SacParams) -> codec_core::Result<()> {
     };
     let t = Instant::now();
     let mut dec = Sac.new_decoder(&info, &enc.config(), &Limits::default())?;
+    let t_setup = t.elapsed().as_secs_f64();
     let mut out = Vec::with_capacity(rec.len());
+    // Decoder stages: setup (topology, Poisson pattern), the first packet (I-frame + basis +
+    // rest factorization), then every later packet.
+    let mut per_packet = Vec::with_capacity(packets.len());
     for p in &packets {
+        let tp = Instant::now();
         out.extend(dec.decode_packet(&p.packet)?);
+        per_packet.push(tp.elapsed().as_secs_f64());
     }
     let t_dec = t.elapsed().as_secs_f64();
+    let later = &per_packet[1.min(per_packet.len())..];
+    let mut sorted = later.to_vec();
+    sorted.sort_by(f64::total_cmp);
+    println!(
+        "    decoder: setup {:.3}s, first packet (I-frame + basis) {:.3}s, later packets mean {:.2} ms, median {:.2} ms, max {:.2} ms",
+        t_setup,
+        per_packet.first().copied().unwrap_or(0.0),
+        1e3 * later.iter().sum::<f64>() / later.len().max(1) as f64,
+        1e3 * sorted.get(sorted.len() / 2).copied().unwrap_or(0.0),
+        1e3 * sorted.last().copied().unwrap_or(0.0),
+    );
     assert_eq!(out, rec, "decoder output differs from the encoder's reconstruction");
     let bpvf = bytes as f64 * 8.0 / (anim.vertex_count() * anim.frame_count()) as f64;
     println!(
@@ -228,6 +250,73 @@ fn dump_laplacian(anim: &Animation, dir: &Path, name: &str) -> std::io::Result<(
     Ok(())
 }
 
+/// Issue 14, item 4: sac's eigensolver against scipy's `eigsh` (shift-invert) on the same
+/// matrices, timed alternately in this run; eigenvalues compared to 1e-6 relative.
+fn eigen_comparison(anim: &Animation, name: &str, dir: &Path, counts: &[usize], repeat: usize) {
+    let tris: Vec<[usize; 3]> =
+        anim.triangles().iter().map(|t| [t[0] as usize, t[1] as usize, t[2] as usize]).collect();
+    let frame0 = to_v3(anim.frame(0));
+    dump_laplacian(anim, dir, name).expect("dump");
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/eigsh_bench.py");
+    for &k in counts {
+        let (mut ours, mut theirs) = (Vec::new(), Vec::new());
+        let mut values = Vec::new();
+        for _ in 0..repeat.max(1) {
+            let t = Instant::now();
+            let h = harmonics::harmonics_by_component(&frame0, &tris, k).expect("harmonics");
+            ours.push(t.elapsed().as_secs_f64());
+            values = h.eigenvalues;
+            let t = Instant::now();
+            let out = std::process::Command::new("python3").arg(&script).arg(dir).arg(name).arg(k.to_string()).output();
+            let wall = t.elapsed().as_secs_f64();
+            match out {
+                Ok(o) if o.status.success() => {
+                    let text = String::from_utf8_lossy(&o.stdout);
+                    // The script's own solve time (excludes python start-up and matrix reading).
+                    let solve = text
+                        .split("):")
+                        .nth(1)
+                        .and_then(|r| r.split_whitespace().next())
+                        .and_then(|x| x.parse::<f64>().ok())
+                        .unwrap_or(wall);
+                    theirs.push(solve);
+                }
+                Ok(o) => {
+                    println!("  scipy failed: {}", String::from_utf8_lossy(&o.stderr));
+                    return;
+                }
+                Err(e) => {
+                    println!("  scipy comparison skipped: {e}");
+                    return;
+                }
+            }
+        }
+        let reference: Vec<f64> = std::fs::read_to_string(dir.join(format!("{name}.{k}.eig.txt")))
+            .expect("eigenvalues")
+            .lines()
+            .filter_map(|l| l.trim().parse().ok())
+            .collect();
+        let scale = reference.last().copied().unwrap_or(1.0).abs().max(f64::MIN_POSITIVE);
+        let worst = values
+            .iter()
+            .zip(&reference)
+            .map(|(a, b)| (a - b).abs() / b.abs().max(1e-6 * scale))
+            .fold(0.0f64, f64::max);
+        let best = |v: &[f64]| v.iter().copied().fold(f64::INFINITY, f64::min);
+        println!(
+            "  eigen k={k}: sac {:.3} s (runs {:?}), scipy eigsh shift-invert {:.3} s (runs {:?}); ratio scipy/sac {:.2}; \
+             max relative eigenvalue difference {:.2e} over {} values",
+            best(&ours),
+            ours.iter().map(|x| (x * 1e3).round() / 1e3).collect::<Vec<_>>(),
+            best(&theirs),
+            theirs.iter().map(|x| (x * 1e3).round() / 1e3).collect::<Vec<_>>(),
+            best(&theirs) / best(&ours),
+            worst,
+            values.len().min(reference.len())
+        );
+    }
+}
+
 fn main() {
     let mut args: Vec<String> = std::env::args().skip(1).collect();
     let mut take = |flag: &str| -> Option<String> {
@@ -241,8 +330,11 @@ fn main() {
         .map(|v| v.split(',').filter_map(|x| x.parse().ok()).collect())
         .unwrap_or_else(|| vec![4, 16, 50, 100, 200]);
     let dump = take("--dump-laplacian");
+    let eigen: Option<Vec<usize>> = take("--eigen").map(|v| v.split(',').filter_map(|x| x.parse().ok()).collect());
+    let repeat: usize = take("--repeat").and_then(|v| v.parse().ok()).unwrap_or(2);
     let bits: u8 = take("--bits").and_then(|v| v.parse().ok()).unwrap_or(18);
     let skip_stages = take("--no-stages").is_some();
+    let refactor: u8 = take("--refactor").and_then(|v| v.parse().ok()).unwrap_or(SacParams::default().refactor);
     let no_polar = take("--no-polar-at").map(|v| v.split(',').filter_map(|x| x.parse().ok()).collect::<Vec<u32>>());
     let names = if args.is_empty() { vec!["horse-gallop".to_string()] } else { args };
     let Some(root) = data_root() else { return };
@@ -250,6 +342,11 @@ fn main() {
         let Some(anim) = load_named(&root, &name, max_frames) else { continue };
         let (n, f) = (anim.vertex_count(), anim.frame_count());
         println!("{name}: {n} vertices, {} triangles, {f} frames", anim.topology().triangle_count());
+        if let Some(counts) = &eigen {
+            let dir = dump.clone().unwrap_or_else(|| std::env::temp_dir().to_string_lossy().into_owned());
+            eigen_comparison(&anim, &name, Path::new(&dir), counts, repeat);
+            continue;
+        }
         if let Some(d) = &dump {
             dump_laplacian(&anim, Path::new(d), &name).expect("dump");
             // The independent solver, timed in this same run (needs python3 + scipy).
@@ -269,12 +366,14 @@ fn main() {
             }
         }
         for &b in &bases {
-            if let Err(e) = rate_point(&anim, SacParams { bases: b, bits, ..Default::default() }) {
+            if let Err(e) = rate_point(&anim, SacParams { bases: b, bits, refactor, ..Default::default() }) {
                 println!("  bases {b}: {e}");
             }
         }
         for &b in no_polar.as_deref().unwrap_or(&[16, 100]) {
-            if let Err(e) = rate_point(&anim, SacParams { bases: b, bits, polar: false, ..Default::default() }) {
+            if let Err(e) =
+                rate_point(&anim, SacParams { bases: b, bits, polar: false, refactor, ..Default::default() })
+            {
                 println!("  bases {b} no polar: {e}");
             }
         }

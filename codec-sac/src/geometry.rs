@@ -3,7 +3,10 @@
 
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::svd::{svd, svd_scratch, ComputeSvdVectors};
-use faer::sparse::linalg::cholesky::{factorize_symbolic_cholesky, LltRef, SymbolicCholesky, SymmetricOrdering};
+use faer::sparse::linalg::cholesky::{
+    factorize_symbolic_cholesky, CholeskySymbolicParams, LltRef, SymbolicCholesky, SymmetricOrdering,
+};
+use faer::sparse::linalg::SupernodalThreshold;
 use faer::sparse::{Argsort, Pair, SparseColMat, SymbolicSparseColMat};
 use faer::{Conj, Mat, Par, Side};
 
@@ -515,6 +518,276 @@ impl PoissonSystem {
     /// The pinned vertex of every component.
     pub fn pins(&self) -> &[usize] {
         &self.pins
+    }
+}
+
+/// One triangle's part of a [`ReducedPoisson`] factor.
+#[derive(Debug, Clone, Copy)]
+struct Element {
+    /// Reference area (the energy weight).
+    area: f64,
+    /// `g[c][p]`: coefficient of corner `p` (three vertices, then the fourth vertex) in
+    /// column `c` of the gradient `S = X V⁻¹` (Sumner & Popović 2004, Eq. 2).
+    g: [[f64; 4]; 3],
+    /// Reference tetrahedron frame inverse `V⁻¹`.
+    vi: M3,
+    /// Elimination factors `k[p][3] / k[3][3]` of the triangle's private fourth vertex.
+    e: [f64; 3],
+    /// Reduced 3 × 3 element matrix `k' = k_vv − k_v3 k_3v / k_33`.
+    reduced: [[f64; 3]; 3],
+}
+
+/// The Poisson system of paper Eq. 12 over the vertices only (stream version 3): each
+/// triangle's fourth vertex is private to it and is eliminated exactly (Schur complement), so
+/// the system has the mesh's vertex adjacency pattern (about a third of the unknowns of
+/// [`PoissonSystem`] and far less fill). This holds the pattern and its symbolic
+/// factorization; a [`PoissonFactor`] holds the numeric factor of one reference geometry.
+///
+/// Two references (parameter `poisson`):
+/// - **rest** (default): the paper measures the gradient misfit against the previous
+///   reconstruction `P`, `Σⱼ area_P ‖X V_P⁻¹ − J̃‖²`, whose matrix changes every frame.
+///   Since `V_P = G V_R` (`G` the gradient of `P` from the rest pose `R`), the same misfit
+///   is `(X V_R⁻¹ − J̃ G) G⁻¹`; dropping the `G⁻¹` weight gives `Σⱼ area_R ‖X V_R⁻¹ − J̃ G‖²`,
+///   whose matrix depends only on the rest pose: factored once per basis. Exact gradients are
+///   still reproduced exactly; inconsistent (truncated) ones are weighted differently.
+/// - **previous** (the paper): the factor of the previous reconstruction, every frame.
+pub struct ReducedPoisson {
+    tris: Vec<[usize; 3]>,
+    /// Unknown index of each vertex, `NONE` when pinned.
+    unknown: Vec<usize>,
+    unknowns: usize,
+    symbolic: SymbolicSparseColMat<usize>,
+    argsort: Argsort<usize>,
+    /// Per triangle, the value slots `(p, q)` (corner pairs with `unknown[p] <= unknown[q]`,
+    /// both free) in pattern order.
+    slots: Vec<(usize, usize, usize)>,
+    cholesky: SymbolicCholesky<usize>,
+}
+
+/// The numeric factor of a [`ReducedPoisson`] system for one reference geometry.
+pub struct PoissonFactor {
+    elements: Vec<Option<Element>>,
+    l_values: Vec<f64>,
+}
+
+/// Reusable buffers of [`ReducedPoisson::solve`].
+pub struct PoissonScratch {
+    rhs: Mat<f64>,
+    values: Vec<f64>,
+    stack: MemBuffer,
+}
+
+impl ReducedPoisson {
+    /// The pattern of the mesh with `pins` (one per connected component) held fixed.
+    pub fn new(n: usize, tris: &[[usize; 3]], pins: &[usize]) -> Result<Self> {
+        let err =
+            |step: &'static str, detail: String| Error::Numerical { context: NAME.into(), step: step.into(), detail };
+        let mut unknown = vec![0usize; n];
+        for &p in pins {
+            unknown[p] = NONE;
+        }
+        let mut next = 0;
+        for u in unknown.iter_mut() {
+            if *u != NONE {
+                *u = next;
+                next += 1;
+            }
+        }
+        let unknowns = next;
+        let mut pairs = Vec::with_capacity(tris.len() * 6 + unknowns);
+        let mut slots = Vec::with_capacity(tris.len() * 6);
+        for (j, t) in tris.iter().enumerate() {
+            for p in 0..3 {
+                for q in 0..3 {
+                    let (a, b) = (unknown[t[p]], unknown[t[q]]);
+                    if a != NONE && b != NONE && a <= b {
+                        pairs.push(Pair::new(a, b));
+                        slots.push((j, p, q));
+                    }
+                }
+            }
+        }
+        // Every free vertex gets a diagonal entry (a vertex only in degenerate triangles then
+        // fails the numeric factorization with a clear message instead of the symbolic one).
+        for u in 0..unknowns {
+            pairs.push(Pair::new(u, u));
+        }
+        let (symbolic, argsort) = SymbolicSparseColMat::try_new_from_indices(unknowns, unknowns, &pairs)
+            .map_err(|e| err("poisson pattern", codec_core::error::debug_in_words(&e)))?;
+        // Supernodal: measured faster than faer's automatic (simplicial) choice on these meshes.
+        let params = CholeskySymbolicParams {
+            supernodal_flop_ratio_threshold: SupernodalThreshold::FORCE_SUPERNODAL,
+            ..Default::default()
+        };
+        let cholesky = factorize_symbolic_cholesky(symbolic.as_ref(), Side::Upper, SymmetricOrdering::Amd, params)
+            .map_err(|e| err("poisson symbolic factorization", codec_core::error::debug_in_words(&e)))?;
+        Ok(Self { tris: tris.to_vec(), unknown, unknowns, symbolic, argsort, slots, cholesky })
+    }
+
+    /// Scratch for [`ReducedPoisson::factor`] and [`ReducedPoisson::solve`] (allocate once).
+    pub fn scratch(&self) -> PoissonScratch {
+        let req = self
+            .cholesky
+            .factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default())
+            .or(self.cholesky.solve_in_place_scratch::<f64>(3, Par::Seq));
+        PoissonScratch {
+            rhs: Mat::zeros(self.unknowns, 3),
+            values: Vec::with_capacity(self.slots.len() + self.unknowns),
+            stack: MemBuffer::new(req),
+        }
+    }
+
+    /// The numeric factor of the system whose reference geometry is `reference`, reusing
+    /// `into`'s storage when given.
+    pub fn factor(
+        &self,
+        reference: &[V3],
+        scratch: &mut PoissonScratch,
+        into: Option<PoissonFactor>,
+    ) -> Result<PoissonFactor> {
+        let err =
+            |step: &'static str, detail: String| Error::Numerical { context: NAME.into(), step: step.into(), detail };
+        let mut f = into.unwrap_or(PoissonFactor { elements: Vec::new(), l_values: Vec::new() });
+        f.elements.clear();
+        let tiny = degenerate_area(reference);
+        for &t in &self.tris {
+            let p = corners(reference, t);
+            let area = 0.5 * norm(cross(sub(p[1], p[0]), sub(p[2], p[0])));
+            let frame = if area.is_nan() || area <= tiny { None } else { tet_frame(p).and_then(|v| inverse(&v)) };
+            let Some(vi) = frame else {
+                f.elements.push(None);
+                continue;
+            };
+            let g: [[f64; 4]; 3] =
+                std::array::from_fn(|c| [-(vi[0][c] + vi[1][c] + vi[2][c]), vi[0][c], vi[1][c], vi[2][c]]);
+            let mut k = [[0.0f64; 4]; 4];
+            for gc in &g {
+                for p in 0..4 {
+                    for q in 0..4 {
+                        k[p][q] += area * gc[p] * gc[q];
+                    }
+                }
+            }
+            let e: [f64; 3] = std::array::from_fn(|p| k[p][3] / k[3][3]);
+            let reduced = std::array::from_fn(|p| std::array::from_fn(|q| k[p][q] - e[p] * k[3][q]));
+            f.elements.push(Some(Element { area, g, vi, e, reduced }));
+        }
+        let values = &mut scratch.values;
+        values.clear();
+        for &(j, p, q) in &self.slots {
+            values.push(f.elements[j].map_or(0.0, |el| el.reduced[p][q]));
+        }
+        values.extend(std::iter::repeat_n(0.0, self.unknowns));
+        if values.iter().any(|v| !v.is_finite()) {
+            return Err(err("poisson assembly", "non-finite system (extreme coordinates)".into()));
+        }
+        let a = SparseColMat::new_from_argsort(self.symbolic.clone(), &self.argsort, values)
+            .map_err(|e| err("poisson assembly", codec_core::error::debug_in_words(&e)))?;
+        f.l_values.resize(self.cholesky.len_val(), 0.0);
+        self.cholesky
+            .factorize_numeric_llt(
+                &mut f.l_values,
+                a.as_ref(),
+                Side::Upper,
+                Default::default(),
+                Par::Seq,
+                MemStack::new(&mut scratch.stack),
+                Default::default(),
+            )
+            .map_err(|e| {
+                err(
+                    "poisson numeric factorization",
+                    format!("{} (a vertex only in degenerate triangles?)", codec_core::error::debug_in_words(&e)),
+                )
+            })?;
+        Ok(f)
+    }
+
+    /// Positions whose gradients from the factor's reference `R` best match `J̃ⱼ Gⱼ`
+    /// (`Gⱼ` the gradient of `previous` from `R`; the identity, not computed, when
+    /// `previous_is_reference`), area-weighted with `R`'s areas; pinned vertices stay at
+    /// their `previous` positions. Writes `out` (`previous.len()` entries).
+    pub fn solve(
+        &self,
+        factor: &PoissonFactor,
+        previous: &[V3],
+        previous_is_reference: bool,
+        targets: &[M3],
+        scratch: &mut PoissonScratch,
+        out: &mut Vec<V3>,
+    ) -> Result<()> {
+        let rhs = &mut scratch.rhs;
+        rhs.fill(0.0);
+        for (j, t) in self.tris.iter().enumerate() {
+            let Some(el) = &factor.elements[j] else { continue };
+            let target = if previous_is_reference {
+                targets[j]
+            } else {
+                // G = V_P V_R⁻¹ (fourth vertex of P as in `tet_frame`, zero if P is degenerate).
+                let p = corners(previous, *t);
+                let e1 = sub(p[1], p[0]);
+                let e2 = sub(p[2], p[0]);
+                let nrm = cross(e1, e2);
+                let len = norm(nrm);
+                let e3 = if len > 0.0 {
+                    let s = 1.0 / len.sqrt();
+                    [nrm[0] * s, nrm[1] * s, nrm[2] * s]
+                } else {
+                    [0.0; 3]
+                };
+                let vp = [[e1[0], e2[0], e3[0]], [e1[1], e2[1], e3[1]], [e1[2], e2[2], e3[2]]];
+                mul(&targets[j], &mul(&vp, &el.vi))
+            };
+            // Element right-hand side r[p][axis] = Σ_c g[c][p] area T[axis][c], then the
+            // fourth vertex eliminated: r'[p] = r[p] − e[p] r[3].
+            let mut r = [[0.0f64; 3]; 4];
+            for (c, gc) in el.g.iter().enumerate() {
+                for axis in 0..3 {
+                    let w = el.area * target[axis][c];
+                    for (rp, &g) in r.iter_mut().zip(gc) {
+                        rp[axis] += g * w;
+                    }
+                }
+            }
+            for pp in 0..3 {
+                let u = self.unknown[t[pp]];
+                if u == NONE {
+                    continue;
+                }
+                for axis in 0..3 {
+                    let mut v = r[pp][axis] - el.e[pp] * r[3][axis];
+                    // Pinned corners move to the right-hand side.
+                    for q in 0..3 {
+                        if self.unknown[t[q]] == NONE {
+                            v -= el.reduced[pp][q] * previous[t[q]][axis];
+                        }
+                    }
+                    rhs[(u, axis)] += v;
+                }
+            }
+        }
+        LltRef::new(&self.cholesky, &factor.l_values).solve_in_place_with_conj(
+            Conj::No,
+            rhs.as_mut(),
+            Par::Seq,
+            MemStack::new(&mut scratch.stack),
+        );
+        out.clear();
+        out.extend_from_slice(previous);
+        for (v, o) in out.iter_mut().enumerate() {
+            let u = self.unknown[v];
+            if u != NONE {
+                *o = [rhs[(u, 0)], rhs[(u, 1)], rhs[(u, 2)]];
+            }
+        }
+        if out.iter().any(|p| !p.iter().all(|x| x.is_finite())) {
+            return Err(Error::Numerical {
+                context: NAME.into(),
+                step: "poisson solve".into(),
+                detail: "non-finite vertex positions".into(),
+            });
+        }
+        Ok(())
     }
 }
 

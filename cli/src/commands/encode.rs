@@ -83,7 +83,7 @@ pub fn run(args: &EncodeArgs, limits: Limits) -> CmdResult {
     // Written to a temporary file renamed into place when complete: a failure or an interruption
     // leaves whatever was at the output path before.
     let file = policy.create(&args.output)?;
-    let bytes =
+    let (bytes, notes) =
         encode_to_file(codec, &params, &source, (&topology, frame_count, frame_rate), file, args.feed as usize)?;
     let encode_seconds = start.elapsed().as_secs_f64();
 
@@ -110,6 +110,7 @@ pub fn run(args: &EncodeArgs, limits: Limits) -> CmdResult {
             "frame_rate": frame_rate,
             "read_seconds": read_seconds,
             "encode_seconds": encode_seconds,
+            "notes": notes,
         });
         if let (Some((report, seconds)), Value::Object(map)) = (&evaluation, &mut out) {
             map.insert("kg".into(), report.kg.into());
@@ -128,6 +129,9 @@ pub fn run(args: &EncodeArgs, limits: Limits) -> CmdResult {
         codec = codec.name(),
         out = args.output.display(),
     );
+    for n in &notes {
+        text.push_str(&format!("warning: {n}\n"));
+    }
     if let Some((r, seconds)) = &evaluation {
         let num = |x: Option<f64>| x.map_or_else(|| "n/a".to_string(), |x| format!("{x:.4e}"));
         text.push_str(&format!(
@@ -223,7 +227,7 @@ fn output_policy(args: &EncodeArgs) -> OutputPolicy {
 }
 
 /// Encodes `source` into `file`, feeding `feed` frames per call, and commits the file; returns
-/// the container size in bytes.
+/// the container size in bytes and the encoder's warnings ([`codec_core::FrameEncoder::notes`]).
 fn encode_to_file(
     codec: &dyn AnimationCodec,
     params: &ParamSet,
@@ -231,7 +235,7 @@ fn encode_to_file(
     (topology, frame_count, frame_rate): (&Topology, usize, f32),
     file: PendingFile,
     feed: usize,
-) -> CmdResult<u64> {
+) -> CmdResult<(u64, Vec<String>)> {
     let mut encoder = StreamEncoder::new(
         codec,
         params,
@@ -261,10 +265,10 @@ fn encode_to_file(
             }
         }
     }
-    let (_, sink) = encoder.finish()?;
+    let (_, sink, notes) = encoder.finish_with_notes()?;
     let count = sink.count;
     sink.inner.commit()?;
-    Ok(count)
+    Ok((count, notes))
 }
 
 /// Counts the bytes written through it.
