@@ -21,7 +21,7 @@ pub mod tensor;
 use std::time::Instant;
 
 use codec_core::bytes::{zigzag_decode, zigzag_encode, ByteReader, ByteWriter};
-use codec_core::toolkit::order::CausalGraph;
+use codec_core::toolkit::order::{self, CausalGraph};
 use codec_core::toolkit::predict::Predictor;
 use codec_core::{
     entropy, Animation, AnimationCodec, EncodedPacket, EncoderSetup, Error, ErrorBound, FourCc, FrameDecoder,
@@ -392,9 +392,13 @@ impl AnimationCodec for Hosvd {
                 detail: format!("stream version {} (this build decodes 1 and 2)", info.codec_version),
             });
         }
-        // Version 2 packets may use the toolkit coding, which needs the mesh's coding order.
-        let graph =
-            (info.codec_version >= 2).then(|| CausalGraph::mesh(info.vertex_count(), info.topology.triangles()));
+        // Version 2 packets may use the toolkit coding, which needs the mesh's coding order:
+        // built on the first packet that uses it, after checking its size against the limits.
+        let graph = if info.codec_version >= 2 {
+            MeshOrder::Pending(info.topology.triangles().to_vec())
+        } else {
+            MeshOrder::Unavailable
+        };
         Ok(Box::new(HosvdDecoder { k: info.vertex_count(), limits: *limits, graph }))
     }
 }
@@ -953,11 +957,33 @@ pub fn mesh_graph(p: &HosvdParams, topology: &Topology) -> CausalGraph {
     }
 }
 
+/// The decoder's mesh coding order: none in version 1 streams, built lazily in version 2.
+enum MeshOrder {
+    Unavailable,
+    Pending(Vec<[u32; 3]>),
+    Built(CausalGraph),
+}
+
 struct HosvdDecoder {
     k: usize,
     limits: Limits,
     /// Mesh coding order (stream version 2 only).
-    graph: Option<CausalGraph>,
+    graph: MeshOrder,
+}
+
+impl HosvdDecoder {
+    /// The mesh coding order, built on first use once its size passed the limits.
+    fn mesh_order(&mut self) -> Result<&CausalGraph> {
+        if let MeshOrder::Pending(triangles) = &self.graph {
+            let bytes = order::mesh_bytes(self.k, triangles.len());
+            self.limits.check_alloc(NAME, "mesh coding order", bytes)?;
+            self.graph = MeshOrder::Built(CausalGraph::mesh(self.k, triangles));
+        }
+        match &self.graph {
+            MeshOrder::Built(graph) => Ok(graph),
+            _ => Err(Error::malformed(NAME, "flags", "toolkit coding in a version 1 stream")),
+        }
+    }
 }
 
 impl FrameDecoder for HosvdDecoder {
@@ -968,7 +994,7 @@ impl FrameDecoder for HosvdDecoder {
         }
         let mut r = ByteReader::new(&packet.data, NAME);
         let flags = r.u8("flags")?;
-        let known = if self.graph.is_some() { 1 | FLAG_TOOLKIT } else { 1 };
+        let known = if matches!(self.graph, MeshOrder::Unavailable) { 1 } else { 1 | FLAG_TOOLKIT };
         if flags & !known != 0 {
             return Err(r.malformed("flags", format!("{flags:#04x} has unknown bits")));
         }
@@ -1035,10 +1061,7 @@ impl FrameDecoder for HosvdDecoder {
             }
             let bytes = r.length_prefixed("codes")?;
             r.expect_end("packet")?;
-            let graph = self
-                .graph
-                .as_ref()
-                .ok_or_else(|| Error::malformed(NAME, "flags", "toolkit coding in a version 1 stream"))?;
+            let graph = self.mesh_order()?;
             let (u1, u3, core) = coding::decode(bytes, graph, mesh_predictor, time_predictor, frames, v, f, &steps)?;
             let model = Model { k, frames, v, f, u1, u2, u3, core, transforms };
             return Ok(tensor::reconstruct(&model));

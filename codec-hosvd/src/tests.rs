@@ -452,3 +452,35 @@ fn toolkit_coding_is_smaller_than_the_paper_coding_at_a_similar_error() {
         run(HosvdParams { ss: 0.9, mesh_predictor, time_predictor, shaping, rdq, ..Default::default() });
     }
 }
+
+#[test]
+fn absurd_topology_builds_the_mesh_order_lazily_and_within_limits() {
+    // Half a million copies of one triangle on top of a small flag: the coding order used to
+    // take copies² steps, and the decoder built it for every version 2 stream up front.
+    let anim = flag(6, 5, 12, 1.0, 1.0);
+    let k = anim.vertex_count();
+    let mut triangles = anim.topology().triangles().to_vec();
+    triangles.extend(std::iter::repeat_n(triangles[0], 500_000));
+    let topology = Topology::new(k, triangles).unwrap();
+    let info = StreamInfo { fourcc: FOURCC, codec_version: 2, topology, frame_count: 12, frame_rate: 30.0 };
+    let packet = |data: Vec<u8>| Packet { first_frame: 0, frame_count: 12, keyframe: true, data };
+    let toolkit = HosvdParams { ss: 0.5, coding: Coding::Toolkit, ..Default::default() };
+    let paper = HosvdParams { coding: Coding::Paper, ..toolkit };
+    let encode = |p: &HosvdParams| encode_block(anim.positions(), k, p, &mesh_graph(p, &info.topology), true).unwrap();
+    let (tk, pp) = (encode(&toolkit), encode(&paper));
+
+    // Limits below the order's size: the paper coding never needs the order and decodes; the
+    // toolkit coding is refused by name.
+    let tight = Limits { max_alloc_bytes: 1 << 20, ..Limits::default() };
+    let mut dec = Hosvd.new_decoder(&info, &12u32.to_le_bytes(), &tight).unwrap();
+    assert_eq!(dec.decode_packet(&packet(pp.payload.clone())).unwrap(), pp.reconstruction.unwrap());
+    let e = dec.decode_packet(&packet(tk.payload.clone())).unwrap_err();
+    assert!(matches!(e, Error::AllocLimit { .. }), "{e}");
+    let msg = e.to_string();
+    assert!(msg.contains("hosvd") && msg.contains("mesh coding order"), "{msg}");
+
+    // Default limits: built once, and the decode matches the encoder's reconstruction.
+    let mut dec = Hosvd.new_decoder(&info, &12u32.to_le_bytes(), &Limits::default()).unwrap();
+    assert_eq!(dec.decode_packet(&packet(tk.payload.clone())).unwrap(), tk.reconstruction.clone().unwrap());
+    assert_eq!(dec.decode_packet(&packet(tk.payload)).unwrap(), tk.reconstruction.unwrap());
+}

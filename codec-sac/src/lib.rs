@@ -359,6 +359,13 @@ impl AnimationCodec for Sac {
         Ok(Box::new(SacEncoder::new(p, shared, setup.want_reconstruction)))
     }
     fn new_decoder(&self, info: &StreamInfo, config: &[u8], limits: &Limits) -> Result<Box<dyn FrameDecoder>> {
+        // The config layout depends on the version: check it before reading the config.
+        if !(1..=STREAM_VERSION).contains(&info.codec_version) {
+            return Err(Error::Unsupported {
+                context: NAME.into(),
+                detail: format!("stream version {} (this build decodes 1..={STREAM_VERSION})", info.codec_version),
+            });
+        }
         let mut r = ByteReader::new(config, NAME);
         let bits = r.u8("config.bits")?;
         let bases = r.u32("config.bases")?;
@@ -393,13 +400,6 @@ impl AnimationCodec for Sac {
         let m = info.topology.triangle_count() as u64;
         limits.check_alloc(NAME, "bases", (n + m) * (bases as u64).min(n) * 8)?;
         limits.check_alloc(NAME, "topology", (n + m) * 200)?;
-        if !(1..=STREAM_VERSION).contains(&info.codec_version) {
-            return Err(Error::malformed(
-                NAME,
-                "header",
-                format!("stream version {} is outside 1..={STREAM_VERSION}", info.codec_version),
-            ));
-        }
         let settings = Settings {
             bits,
             bases,

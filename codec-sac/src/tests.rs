@@ -506,3 +506,23 @@ fn ladder_is_monotone_under_large_elastic_deformation() {
     let (k, _) = last.unwrap();
     assert!(k < 0.2, "the last ladder step reaches only KG {k}");
 }
+
+/// An unknown stream version is named as such, whatever its config looks like (the config
+/// layout depends on the version, so it is not parsed first).
+#[test]
+fn unknown_stream_version_is_refused_before_the_config_is_read() {
+    let anim = two_flags(3);
+    for (version, config) in [(0u16, vec![12u8, 8, 0, 0, 0]), (4, vec![]), (99, vec![1, 2, 3, 4, 5, 6, 7, 8, 9])] {
+        let info = StreamInfo {
+            fourcc: Sac.fourcc(),
+            codec_version: version,
+            topology: anim.topology().clone(),
+            frame_count: anim.frame_count(),
+            frame_rate: 30.0,
+        };
+        let e = Sac.new_decoder(&info, &config, &Limits::default()).err().expect("unknown version accepted");
+        let msg = e.to_string();
+        assert!(matches!(e, Error::Unsupported { .. }), "{msg}");
+        assert!(msg.contains("sac") && msg.contains(&format!("stream version {version}")), "{msg}");
+    }
+}

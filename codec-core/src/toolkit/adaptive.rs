@@ -19,7 +19,8 @@
 //! real coder.
 //!
 //! The decoder treats its input as untrusted: the word count is checked by the caller against
-//! its own bounds, an exponent beyond [`MAX_EXPONENT`] is an error, and nothing panics on
+//! its own bounds, the unary exponent stops at [`MAX_EXPONENT`] (the encoder writes no
+//! terminating zero there, so longer runs of ones cannot be expressed), and nothing panics on
 //! garbage (a corrupted stream decodes to wrong integers or an error, which the caller's range
 //! checks catch).
 
