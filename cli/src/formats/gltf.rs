@@ -189,10 +189,14 @@ fn load_buffers(
 ) -> Result<Vec<BufferData>> {
     let limits = Limits::default();
     let mut buffers = Vec::with_capacity(document.buffers().len());
+    // Every buffer is held at once: their declared lengths are checked as one total (a file may
+    // declare many large fallback buffers, each zero-filled here).
+    let mut total = 0u64;
     for buffer in document.buffers() {
         let index = buffer.index();
         let declared = buffer.length();
-        limits.check_alloc("gltf", "buffers", declared as u64)?;
+        total = total.saturating_add(declared as u64);
+        limits.check_alloc("gltf", "buffers (total byteLength)", total)?;
         let data = match buffer.source() {
             // An EXT_meshopt_compression fallback buffer: filled by decoding the views below.
             ::gltf::buffer::Source::Bin if gltf_meshopt::is_fallback(raw, index) => vec![0; declared],
@@ -210,7 +214,7 @@ fn load_buffers(
         }
         buffers.push(BufferData(data));
     }
-    gltf_meshopt::decode_views(file, raw, &mut buffers)?;
+    gltf_meshopt::decode_views(file, raw, &mut buffers, &limits)?;
     Ok(buffers)
 }
 
@@ -1029,7 +1033,7 @@ mod tests {
             (Box::new(move |d| ext(d, view)["filter"] = json!("OCTAHEDRAL")), "filter OCTAHEDRAL"),
             (Box::new(move |d| ext(d, view)["byteStride"] = json!(6)), "byteStride 6"),
             (Box::new(move |d| ext(d, view)["count"] = json!(1u64 << 40)), "EXT_meshopt_compression"),
-            (Box::new(move |d| ext(d, view)["byteLength"] = json!(3)), "malformed"),
+            (Box::new(move |d| ext(d, view)["byteLength"] = json!(3)), "implausibly large"),
             (Box::new(move |d| d["bufferViews"][view]["byteOffset"] = json!(1u64 << 30)), "do not fit"),
         ];
         for (mutate, expected) in cases {
@@ -1056,6 +1060,150 @@ mod tests {
         let mut stripped = doc.clone();
         stripped["bufferViews"][view].as_object_mut().unwrap().remove("extensions");
         assert!(read(&stripped).is_ok());
+    }
+
+    /// One triangle mesh (accessor 0: positions, 1: indices) in a GLB with the given nodes/roots.
+    fn triangle_builder() -> (Builder, Value) {
+        let mut b = Builder::new();
+        let base = b.f32s(&[0., 0., 0., 1., 0., 0., 0., 1., 0.], "VEC3");
+        let idx = b.u16s(&[0, 1, 2]);
+        let meshes = json!([{"primitives": [{"attributes": {"POSITION": base}, "indices": idx}]}]);
+        (b, meshes)
+    }
+
+    fn parse_glb(b: &Builder, doc: &Value) -> Result<Animation> {
+        parse_gltf(&b.glb(doc), None, "t.glb", 30.0)
+    }
+
+    fn assert_fails(result: Result<Animation>, expected: &[&str]) {
+        let Err(e) = result else { panic!("expected an error naming {expected:?}") };
+        let e = e.to_string();
+        assert!(expected.iter().all(|x| e.contains(x)), "{e} (expected {expected:?})");
+    }
+
+    #[test]
+    fn scene_roots_that_are_descendants_play_each_mesh_once() {
+        // A chain 0 → 1 → … → N−1, each node moved by x + 1 and carrying the mesh, with every
+        // node listed as a scene root: each mesh instance is played once, in chain order (before
+        // the fix the walk visited N²/2 nodes and played node k k+1 times).
+        const N: usize = 1000;
+        let (b, meshes) = triangle_builder();
+        let nodes: Vec<Value> = (0..N)
+            .map(|k| {
+                let mut node = json!({"mesh": 0, "translation": [1, 0, 0]});
+                if k + 1 < N {
+                    node["children"] = json!([k + 1]);
+                }
+                node
+            })
+            .collect();
+        let roots: Vec<usize> = (0..N).collect();
+        let doc = b.scene_document(json!(nodes), json!(roots), meshes, json!([]), json!([]));
+        let a = parse_glb(&b, &doc).unwrap();
+        assert_eq!(a.vertex_count(), 3 * N);
+        for k in 0..N {
+            assert_eq!(a.vertex(0, 3 * k), [(k + 1) as f32, 0.0, 0.0], "instance {k}");
+        }
+    }
+
+    #[test]
+    fn absurd_morph_target_and_joint_set_counts_fail_before_reading() {
+        let (mut b, _) = triangle_builder();
+        let joints = b.joints(&[0; 12]);
+        let weights = b.f32s(&[1.0; 12], "VEC4");
+        let doc_with = |b: &Builder, attributes: Value, targets: Value| {
+            let meshes = json!([{"primitives": [{"attributes": attributes, "indices": 1, "targets": targets}]}]);
+            b.scene_document(json!([{"mesh": 0}]), json!([0]), meshes, json!([]), json!([]))
+        };
+        // Many targets all naming one accessor.
+        let targets: Vec<Value> = (0..5000).map(|_| json!({"POSITION": 0})).collect();
+        let doc = doc_with(&b, json!({"POSITION": 0}), json!(targets));
+        assert_fails(parse_glb(&b, &doc), &["t.glb", "targets", "5000", "4096"]);
+        // Nine JOINTS_n/WEIGHTS_n sets.
+        let mut attributes = json!({"POSITION": 0});
+        for s in 0..9 {
+            attributes[format!("JOINTS_{s}")] = json!(joints);
+            attributes[format!("WEIGHTS_{s}")] = json!(weights);
+        }
+        let doc = doc_with(&b, attributes, json!([]));
+        assert_fails(parse_glb(&b, &doc), &["t.glb", "JOINTS_n sets", "8"]);
+        // A vertex count over the limit is refused before the positions are read.
+        let mut doc = doc_with(&b, json!({"POSITION": 0}), json!([]));
+        doc["accessors"][0]["count"] = json!(20_000_000);
+        assert_fails(parse_glb(&b, &doc), &["t.glb", "vertex_count", "20000000"]);
+        // 2M vertices × 200 targets would be 4.8 GB of positions: refused before reading.
+        let targets: Vec<Value> = (0..200).map(|_| json!({"POSITION": 0})).collect();
+        let mut doc = doc_with(&b, json!({"POSITION": 0}), json!(targets));
+        doc["accessors"][0]["count"] = json!(2_000_000);
+        assert_fails(parse_glb(&b, &doc), &["t.glb", "mesh vertex data", "targets"]);
+    }
+
+    #[test]
+    fn overflowing_accessor_offsets_fail_by_name() {
+        let (b, meshes) = triangle_builder();
+        let mut doc = b.scene_document(json!([{"mesh": 0}]), json!([0]), meshes, json!([]), json!([]));
+        doc["bufferViews"][0]["byteOffset"] = json!(u64::MAX - 8);
+        doc["accessors"][0]["byteOffset"] = json!(16);
+        assert_fails(parse_glb(&b, &doc), &["t.glb", "POSITION", "byteOffset", "overflows"]);
+    }
+
+    #[test]
+    fn playback_work_is_bounded() {
+        // 4000 nodes animated over 300 000 s at 30 fps (9·10⁶ frames of 3 vertices):
+        // 3.6·10¹⁰ node transforms, refused before playing.
+        const N: usize = 4000;
+        let (mut b, meshes) = triangle_builder();
+        let input = b.f32s(&[0., 300_000.], "SCALAR");
+        let output = b.f32s(&[0., 0., 0., 1., 0., 0.], "VEC3");
+        let mut nodes: Vec<Value> = (0..N).map(|_| json!({})).collect();
+        nodes[0] = json!({"mesh": 0});
+        let animations = json!([{"samplers": [{"input": input, "output": output}],
+            "channels": [{"sampler": 0, "target": {"node": 0, "path": "translation"}}]}]);
+        let doc = b.scene_document(json!(nodes), json!([0]), meshes, json!([]), animations);
+        assert_fails(parse_glb(&b, &doc), &["t.glb", "playback work", "20000000000"]);
+    }
+
+    #[test]
+    fn meshopt_sizes_are_checked_before_decoding() {
+        use super::super::gltf_out::{encode_gltf, GltfLayout, GltfOptions};
+        let a = codec_core::synth::waving_flag(8, 5, 6);
+        let opts = GltfOptions { layout: GltfLayout::Frames, ..Default::default() };
+        let (text, _) = encode_gltf(&a, &opts, false).unwrap();
+        let doc: Value = serde_json::from_slice(&text).unwrap();
+        let read = |d: &Value| parse_gltf(&serde_json::to_vec(d).unwrap(), None, "m.gltf", a.frame_rate());
+        let view = (0..doc["bufferViews"].as_array().unwrap().len())
+            .find(|&i| doc["bufferViews"][i]["extensions"]["EXT_meshopt_compression"]["mode"] == "ATTRIBUTES")
+            .unwrap();
+        let ext = doc["bufferViews"][view]["extensions"]["EXT_meshopt_compression"].clone();
+        let target = doc["bufferViews"][view]["buffer"].as_u64().unwrap() as usize;
+        let stride = ext["byteStride"].as_u64().unwrap();
+        let encoded = ext["byteLength"].as_u64().unwrap();
+        // An output 65× the encoded size (more than the vertex codec can produce), with the view
+        // and the target buffer declared large enough to hold it.
+        let count = 65 * encoded / stride + 1;
+        let mut big = doc.clone();
+        big["bufferViews"][view]["extensions"]["EXT_meshopt_compression"]["count"] = json!(count);
+        big["bufferViews"][view]["byteLength"] = json!(count * stride);
+        big["bufferViews"][view]["byteOffset"] = json!(0);
+        let target_length = doc["buffers"][target]["byteLength"].as_u64().unwrap();
+        big["buffers"][target]["byteLength"] = json!(target_length.max(count * stride));
+        assert_fails(read(&big), &["m.gltf", "EXT_meshopt_compression", "implausibly large"]);
+        // An output that does not fit the target buffer is refused before decoding.
+        let count = target_length / stride + 1;
+        let mut outside = doc.clone();
+        outside["bufferViews"][view]["extensions"]["EXT_meshopt_compression"]["count"] = json!(count);
+        outside["bufferViews"][view]["byteLength"] = json!(count * stride);
+        outside["bufferViews"][view]["byteOffset"] = json!(0);
+        assert_fails(read(&outside), &["m.gltf", "EXT_meshopt_compression", "do not fit"]);
+        // Fallback buffers are counted as one total against the allocation limit.
+        let mut many = doc.clone();
+        let fallback = json!({"byteLength": 3u64 << 30, "extensions": {"EXT_meshopt_compression": {"fallback": true}}});
+        many["buffers"].as_array_mut().unwrap().extend([fallback.clone(), fallback]);
+        assert_fails(read(&many), &["buffers (total byteLength)"]);
+        // Mode INDICES is refused by name.
+        let mut indices = doc.clone();
+        indices["bufferViews"][view]["extensions"]["EXT_meshopt_compression"]["mode"] = json!("INDICES");
+        assert_fails(read(&indices), &["m.gltf", "mode INDICES is not supported"]);
     }
 
     #[test]

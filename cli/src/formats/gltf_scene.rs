@@ -55,12 +55,23 @@ fn limit(file: &str, field: &'static str, value: usize, limit: usize) -> Error {
 /// reader reads only `f32` positions); sparse integer accessors are refused.
 fn read_vec3(file: &str, field: &'static str, accessor: &::gltf::Accessor, buffers: &[BufferData]) -> Result<Vec<f32>> {
     let n = accessor.count();
+    let what = format!("accessor {}", accessor.index());
+    // The view's and the accessor's offsets come from the file: their sum may overflow.
+    let start = match accessor.view() {
+        Some(view) => view.offset().checked_add(accessor.offset()).ok_or_else(|| {
+            bad(
+                file,
+                field,
+                format!("{what}: byteOffset {} overflows past bufferView {}", accessor.offset(), view.index()),
+            )
+        })?,
+        None => 0,
+    };
     let get = |b: ::gltf::Buffer| buffers.get(b.index()).map(|d| &d.0[..]);
     if accessor.data_type() == DataType::F32 {
         let items = collect_exact(file, field, ::gltf::accessor::Iter::<[f32; 3]>::new(accessor.clone(), get), n)?;
         return Ok(items.concat());
     }
-    let what = format!("accessor {}", accessor.index());
     if accessor.sparse().is_some() {
         return Err(bad(file, field, format!("{what}: sparse quantized positions are not supported")));
     }
@@ -68,7 +79,6 @@ fn read_vec3(file: &str, field: &'static str, accessor: &::gltf::Accessor, buffe
     let size = accessor.data_type().size();
     let stride = view.stride().unwrap_or(3 * size);
     let data = buffers.get(view.buffer().index()).map(|d| &d.0[..]).unwrap_or(&[]);
-    let start = view.offset() + accessor.offset();
     let view_end = view.offset().saturating_add(view.length()).min(data.len());
     let needed = start.saturating_add(stride.saturating_mul(n - 1)).saturating_add(3 * size);
     if needed > view_end || stride < 3 * size {
@@ -97,14 +107,35 @@ fn read_vec3(file: &str, field: &'static str, accessor: &::gltf::Accessor, buffe
     Ok(out)
 }
 
+/// Most units of playback work (see [`bake`]): far above any real animation (10⁴ frames of a
+/// 10⁵-vertex mesh with 4 influences and 4 targets is 9·10⁹), far below a crafted file's
+/// 10⁷ frames × 10⁵ nodes.
+const MAX_BAKE_WORK: usize = 20_000_000_000;
+
+/// Most morph targets a mesh may have (each costs 12 bytes per vertex and work per frame).
+const MAX_MORPH_TARGETS: usize = 4096;
+/// Most `JOINTS_n`/`WEIGHTS_n` sets a primitive may have (4 influences each).
+const MAX_JOINT_SETS: usize = 8;
+
 /// Loads a mesh: every primitive, in order (primitive `k`'s vertices follow those of `0..k`).
 fn load_mesh(file: &str, mesh: &::gltf::Mesh, buffers: &[BufferData]) -> Result<MeshData> {
     let limits = Limits::default();
     let m = mesh.index();
     let first = mesh.primitives().next();
     let target_count = first.as_ref().map(|p| p.morph_targets().len()).unwrap_or(0);
-    let sets_of = |p: &::gltf::Primitive| (0..).take_while(|&s| p.get(&Semantic::Joints(s)).is_some()).count();
+    if target_count > MAX_MORPH_TARGETS {
+        return Err(limit(file, "targets", target_count, MAX_MORPH_TARGETS));
+    }
+    let sets_of = |p: &::gltf::Primitive| {
+        (0..).take_while(|&s| p.get(&Semantic::Joints(s)).is_some()).take(MAX_JOINT_SETS + 1).count()
+    };
     let sets = first.as_ref().map(sets_of).unwrap_or(0);
+    if sets > MAX_JOINT_SETS {
+        return Err(limit(file, "JOINTS_n sets", sets, MAX_JOINT_SETS));
+    }
+    // Bytes held per vertex once read: base and target positions (f32 × 3 each), and per
+    // influence a u16 joint and an f32 weight, plus the per-primitive staging of both.
+    let bytes_per_vertex = 12 * (1 + target_count) + 4 * sets * 12;
     let mut data = MeshData {
         base: Vec::new(),
         targets: vec![Vec::new(); target_count],
@@ -127,6 +158,20 @@ fn load_mesh(file: &str, mesh: &::gltf::Mesh, buffers: &[BufferData]) -> Result<
         let quantized = [DataType::F32, DataType::I8, DataType::U8, DataType::I16, DataType::U16];
         let n = check_accessor(file, "POSITION", &positions, Dimensions::Vec3, &quantized)?;
         let offset = data.vertex_count();
+        // Sizes are checked before anything is read: every target may name the same accessor.
+        let vertices = offset.saturating_add(n);
+        if vertices > limits.max_vertices {
+            return Err(limit(file, "vertex_count", vertices, limits.max_vertices));
+        }
+        let bytes = vertices.saturating_mul(bytes_per_vertex);
+        if bytes > limits.max_alloc_bytes {
+            return Err(limit(
+                file,
+                "mesh vertex data (POSITION, targets, JOINTS_n, WEIGHTS_n) bytes",
+                bytes,
+                limits.max_alloc_bytes,
+            ));
+        }
         if primitive.morph_targets().len() != target_count {
             return Err(bad(
                 file,
@@ -303,11 +348,15 @@ fn scene_mesh_nodes(document: &::gltf::Document, hierarchy: &Hierarchy) -> Vec<u
     };
     let nodes: Vec<::gltf::Node> = document.nodes().collect();
     let mut out = Vec::new();
-    // A root listed twice (invalid) is played once.
+    // A node reached twice (invalid: a root listed twice, or a root that is also a descendant of
+    // another root) is played once, at its first visit; this keeps the walk linear in the node
+    // count (a chain listing every node as a root would otherwise visit ~N²/2 nodes).
     let mut seen = vec![false; nodes.len()];
-    let roots: Vec<usize> = roots.into_iter().filter(|&r| !std::mem::replace(&mut seen[r], true)).collect();
     let mut stack: Vec<usize> = roots.into_iter().rev().collect();
     while let Some(n) = stack.pop() {
+        if std::mem::replace(&mut seen[n], true) {
+            continue;
+        }
         if nodes[n].mesh().is_some() {
             out.push(n);
         }
@@ -721,6 +770,24 @@ pub(super) fn bake(
         }
     };
     limits.check_alloc("gltf", "positions", (frames as u64) * (vertex_count as u64) * 12)?;
+    // The CPU work is bounded too (the output size alone does not bound it: many nodes or
+    // targets cost work every frame): one unit per node transform, channel sample, joint matrix
+    // and per vertex per morph target or skin influence.
+    let per_frame = instances.iter().fold(nodes.len().saturating_add(channels.len()), |sum, instance| {
+        let data = meshes[instance.mesh].as_ref().expect("loaded");
+        let joints = instance.skin.and_then(|s| skins[s].as_ref()).map_or(0, |skin| skin.joints.len());
+        let per_vertex = 1 + data.targets.len() + data.influences;
+        sum.saturating_add(data.vertex_count().saturating_mul(per_vertex)).saturating_add(joints)
+    });
+    let work = frames.saturating_mul(per_frame);
+    if work > MAX_BAKE_WORK {
+        return Err(limit(
+            file,
+            "playback work (frames × (nodes + channels + joints + vertices × (1 + targets + influences)))",
+            work,
+            MAX_BAKE_WORK,
+        ));
+    }
     let mut positions: Vec<f32> = Vec::with_capacity(frames * vertex_count * 3);
     let rest: Vec<Local> = nodes.iter().map(rest_transform).collect();
     let mut local = rest.clone();
