@@ -132,6 +132,28 @@ pub enum Error {
     },
 }
 
+/// The error's message followed by each `source()` not already part of it, on one line (an
+/// error wrapping an I/O error, for example, already prints its source; I/O sources are shown
+/// in plain words by [`io_reason`]). The command line's `error:` line and the Python
+/// package's exception text.
+pub fn message_with_sources(e: &(dyn std::error::Error + 'static)) -> String {
+    let mut line = e.to_string();
+    let mut source = e.source();
+    while let Some(s) = source {
+        let text = match s.downcast_ref::<std::io::Error>() {
+            Some(io) => io_reason(io),
+            None => s.to_string(),
+        };
+        if !line.contains(&text) {
+            line.push_str(": ");
+            line.push_str(&text);
+        }
+        source = s.source();
+    }
+    // A single line even if some message contains a newline.
+    line.replace('\n', " ")
+}
+
 /// The reason of an I/O error in plain words: "no such file or directory", "permission denied",
 /// or the error's own text without the OS error number.
 pub fn io_reason(e: &std::io::Error) -> String {

@@ -585,6 +585,24 @@ fn column(m: &[f64], rows: usize, cols: usize, c: usize) -> impl Iterator<Item =
     (0..rows).map(move |r| m[r * cols + c])
 }
 
+/// Version 1 codes of a row-major `rows × quantizers.len()` factor, column by column (one
+/// quantizer per column) as zigzag deltas down the column, starting from the code of 0;
+/// `reconstructed` receives the dequantized factor.
+fn delta_code_columns(quantizers: &[Quantizer], values: &[f64], rows: usize, reconstructed: &mut [f64]) -> Vec<u32> {
+    let cols = quantizers.len();
+    let mut codes = Vec::with_capacity(rows * cols);
+    for (i, q) in quantizers.iter().enumerate() {
+        let mut prev = q.quantize(0.0) as i64;
+        for r in 0..rows {
+            let c = q.quantize(values[r * cols + i] as f32);
+            codes.push(zigzag_encode(c as i64 - prev) as u32);
+            prev = c as i64;
+            reconstructed[r * cols + i] = q.dequantize(c) as f64;
+        }
+    }
+    codes
+}
+
 /// Version 1's coding of the operator: one `Quantizer` per column with the rule-of-thumb step,
 /// zigzag deltas, byte planes + zstd. Fills `m`'s factors and core and returns the per-column
 /// bounds of `‖δu1_i‖`, `‖δu3_l‖` and the bound of `‖δC‖` (from the quantizers' half steps).
@@ -619,26 +637,8 @@ fn paper_code(
     m.u1 = vec![0.0; k * v];
     m.u3 = vec![0.0; frames * f];
     m.core = vec![0.0; core.len()];
-    let mut codes1 = Vec::with_capacity(k * v);
-    for (i, q) in q1.iter().enumerate() {
-        let mut prev = q.quantize(0.0) as i64;
-        for r in 0..k {
-            let c = q.quantize(u1[r * v + i] as f32);
-            codes1.push(zigzag_encode(c as i64 - prev) as u32);
-            prev = c as i64;
-            m.u1[r * v + i] = q.dequantize(c) as f64;
-        }
-    }
-    let mut codes3 = Vec::with_capacity(frames * f);
-    for (l, q) in q3.iter().enumerate() {
-        let mut prev = q.quantize(0.0) as i64;
-        for r in 0..frames {
-            let c = q.quantize(u3[r * f + l] as f32);
-            codes3.push(zigzag_encode(c as i64 - prev) as u32);
-            prev = c as i64;
-            m.u3[r * f + l] = q.dequantize(c) as f64;
-        }
-    }
+    let codes1 = delta_code_columns(&q1, u1, k, &mut m.u1);
+    let codes3 = delta_code_columns(&q3, u3, frames, &mut m.u3);
     let zero = qc.quantize(0.0) as i64;
     let mut codesc = Vec::with_capacity(core.len());
     for (o, &c) in m.core.iter_mut().zip(core) {

@@ -96,6 +96,23 @@ pub fn tet_frame(p: [V3; 3]) -> Option<M3> {
     Some([[e1[0], e2[0], e3[0]], [e1[1], e2[1], e3[1]], [e1[2], e2[2], e3[2]]])
 }
 
+/// The tet frame of `p` with a zero fourth edge when the triangle is degenerate (its normal is
+/// zero) — what the deformation gradient `G = V_P V_R⁻¹` uses for a target triangle, where a
+/// degenerate target is still a valid (flat) deformation.
+pub(crate) fn tet_frame_or_flat(p: [V3; 3]) -> M3 {
+    let e1 = sub(p[1], p[0]);
+    let e2 = sub(p[2], p[0]);
+    let n = cross(e1, e2);
+    let len = norm(n);
+    let e3 = if len > 0.0 {
+        let s = 1.0 / len.sqrt();
+        [n[0] * s, n[1] * s, n[2] * s]
+    } else {
+        [0.0; 3]
+    };
+    [[e1[0], e2[0], e3[0]], [e1[1], e2[1], e3[1]], [e1[2], e2[2], e3[2]]]
+}
+
 /// Triangle corner positions.
 pub(crate) fn corners(pos: &[V3], t: [usize; 3]) -> [V3; 3] {
     [pos[t[0]], pos[t[1]], pos[t[2]]]
@@ -152,21 +169,7 @@ pub fn deformation_gradients(tris: &[[usize; 3]], reference: &[V3], target: &[V3
         .zip(frames)
         .map(|(&t, f)| match f {
             None => IDENTITY,
-            Some((vi, _)) => {
-                let p = corners(target, t);
-                let e1 = sub(p[1], p[0]);
-                let e2 = sub(p[2], p[0]);
-                let n = cross(e1, e2);
-                let len = norm(n);
-                let e3 = if len > 0.0 {
-                    let s = 1.0 / len.sqrt();
-                    [n[0] * s, n[1] * s, n[2] * s]
-                } else {
-                    [0.0; 3]
-                };
-                let x = [[e1[0], e2[0], e3[0]], [e1[1], e2[1], e3[1]], [e1[2], e2[2], e3[2]]];
-                mul(&x, &vi)
-            }
+            Some((vi, _)) => mul(&tet_frame_or_flat(corners(target, t)), &vi),
         })
         .collect()
 }
@@ -724,19 +727,7 @@ impl ReducedPoisson {
                 targets[j]
             } else {
                 // G = V_P V_R⁻¹ (fourth vertex of P as in `tet_frame`, zero if P is degenerate).
-                let p = corners(previous, *t);
-                let e1 = sub(p[1], p[0]);
-                let e2 = sub(p[2], p[0]);
-                let nrm = cross(e1, e2);
-                let len = norm(nrm);
-                let e3 = if len > 0.0 {
-                    let s = 1.0 / len.sqrt();
-                    [nrm[0] * s, nrm[1] * s, nrm[2] * s]
-                } else {
-                    [0.0; 3]
-                };
-                let vp = [[e1[0], e2[0], e3[0]], [e1[1], e2[1], e3[1]], [e1[2], e2[2], e3[2]]];
-                mul(&targets[j], &mul(&vp, &el.vi))
+                mul(&targets[j], &mul(&tet_frame_or_flat(corners(previous, *t)), &el.vi))
             };
             // Element right-hand side r[p][axis] = Σ_c g[c][p] area T[axis][c], then the
             // fourth vertex eliminated: r'[p] = r[p] − e[p] r[3].

@@ -44,20 +44,7 @@ type BoxError = Box<dyn StdError + Send + Sync>;
 /// The error's message followed by each source not already part of it, on one line — the
 /// command line's `error:` line without the prefix.
 fn message(e: &(dyn StdError + 'static)) -> String {
-    let mut line = e.to_string();
-    let mut source = e.source();
-    while let Some(s) = source {
-        let text = match s.downcast_ref::<std::io::Error>() {
-            Some(io) => codec_core::error::io_reason(io),
-            None => s.to_string(),
-        };
-        if !line.contains(&text) {
-            line.push_str(": ");
-            line.push_str(&text);
-        }
-        source = s.source();
-    }
-    line.replace('\n', " ")
+    codec_core::error::message_with_sources(e)
 }
 
 fn to_py<E: Into<BoxError>>(e: E) -> PyErr {

@@ -27,26 +27,9 @@ use serde_json::Value;
 pub type CmdResult<T = ()> = Result<T, Box<dyn StdError + Send + Sync>>;
 
 /// Prints `error: <message>` followed by each `source()` not already part of the message,
-/// on one line (codec-core's `Io` error, for example, already prints its source).
+/// on one line ([`codec_core::error::message_with_sources`]).
 pub fn report_error(e: &(dyn StdError + 'static)) {
-    let mut line = format!("error: {e}");
-    let mut source = e.source();
-    while let Some(s) = source {
-        // I/O errors are shown in plain words (codec_core::error::io_reason) by the error
-        // wrapping them.
-        let text = match s.downcast_ref::<std::io::Error>() {
-            Some(io) => codec_core::error::io_reason(io),
-            None => s.to_string(),
-        };
-        if !line.contains(&text) {
-            line.push_str(": ");
-            line.push_str(&text);
-        }
-        source = s.source();
-    }
-    // A single line even if some message contains a newline.
-    let line = line.replace('\n', " ");
-    let _ = writeln!(std::io::stderr(), "{line}");
+    let _ = writeln!(std::io::stderr(), "error: {}", codec_core::error::message_with_sources(e));
 }
 
 /// An error with what was being done (usually the file concerned) in front of it.
