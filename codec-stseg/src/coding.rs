@@ -125,6 +125,8 @@ struct Component<'g> {
     fields: Vec<Vec<f64>>,
     gain2: f64,
     reference_step: f64,
+    /// Noise shaping α along `graph` (encoder only; basis columns).
+    shaping: f64,
 }
 
 impl Component<'_> {
@@ -144,7 +146,7 @@ impl Component<'_> {
         let mut cost = CostModel::new(1);
         let mut err2 = 0.0;
         for field in &self.fields {
-            predict::quantize(self.graph, self.predictor, field, step, 0.0, codes, recon);
+            predict::quantize(self.graph, self.predictor, field, step, self.shaping, codes, recon);
             for p in 0..codes.len() {
                 cost.add(codes[p], 0, predict::neighbour_bucket(self.graph, codes, p));
             }
@@ -205,7 +207,7 @@ fn code_component(comp: &Component<'_>, step: f64, enc: &mut AdaptiveEncoder) ->
             if step == 0.0 {
                 return vec![0.0; field.len()];
             }
-            predict::quantize(comp.graph, comp.predictor, field, step, 0.0, &mut codes, &mut recon);
+            predict::quantize(comp.graph, comp.predictor, field, step, comp.shaping, &mut codes, &mut recon);
             for p in 0..codes.len() {
                 enc.encode(codes[p], comp.class, predict::neighbour_bucket(comp.graph, &codes, p));
             }
@@ -301,7 +303,15 @@ fn mean_components<'g>(
                 Centering::Frame => (time, pr.time, m.clone(), 3.0 * n as f64),
                 _ => (time, pr.time, m.clone(), n as f64),
             };
-            Component { class: CLASS_MEAN + c, graph, predictor, fields: vec![field], gain2, reference_step: 0.0 }
+            Component {
+                class: CLASS_MEAN + c,
+                graph,
+                predictor,
+                fields: vec![field],
+                gain2,
+                reference_step: 0.0,
+                shaping: 0.0,
+            }
         })
         .collect()
 }
@@ -361,6 +371,7 @@ pub(crate) fn encode_segment(
                 fields: vec![m.b[j].clone()],
                 gain2: m.a_norm2[j],
                 reference_step: 0.0,
+                shaping: 0.0,
             });
             kinds.push((g, 1, j));
         }
@@ -372,6 +383,7 @@ pub(crate) fn encode_segment(
                 fields: m.a[j].iter().map(|f| in_order(gg, f)).collect(),
                 gain2: 1.0,
                 reference_step: 0.0,
+                shaping: p.shaping,
             });
             kinds.push((g, 2, j));
         }
@@ -421,6 +433,7 @@ pub(crate) fn encode_segment(
                 fields: fitted[g][j].iter().map(|f| in_order(gg, f)).collect(),
                 gain2: b_hat[g][j].iter().map(|x| x * x).sum(),
                 reference_step: 0.0,
+                shaping: p.shaping,
             });
         }
     }

@@ -214,6 +214,10 @@ pub struct StsegParams {
     /// Toolkit coding: predictor of the trajectories (coefficient rows, per-frame means) in
     /// time. Default [`Predictor::Previous`].
     pub time_predictor: Predictor,
+    /// Toolkit coding: noise shaping `α` of the basis columns along the group's mesh order
+    /// (`toolkit::predict`: neighbouring vertices err alike, which STED rewards; encoder only,
+    /// the stream is unchanged). Default 0.
+    pub shaping: f64,
 }
 
 impl Default for StsegParams {
@@ -239,6 +243,7 @@ impl Default for StsegParams {
             quant: 0.25,
             mesh_predictor: Predictor::Average,
             time_predictor: Predictor::Previous,
+            shaping: 0.0,
         }
     }
 }
@@ -322,6 +327,13 @@ impl StsegParams {
                 d.time_predictor.name(),
                 "toolkit: predictor of coefficient and mean trajectories in time",
             ),
+            ParamSpec::float(
+                "shaping",
+                0.0,
+                0.95,
+                d.shaping,
+                "toolkit: noise shaping α of the basis along the mesh (encoder only)",
+            ),
         ]
     }
 
@@ -386,6 +398,7 @@ impl StsegParams {
                 .ok_or_else(|| Error::parameter(NAME, "mesh_predictor", "unknown predictor"))?,
             time_predictor: Predictor::from_name(p.choice("time_predictor")?)
                 .ok_or_else(|| Error::parameter(NAME, "time_predictor", "unknown predictor"))?,
+            shaping: p.float("shaping")?,
         };
         s.check_cross()?;
         Ok(s)
@@ -414,7 +427,8 @@ impl StsegParams {
             .with(&specs, "coding", ParamValue::Choice(self.coding.name()))?
             .with(&specs, "quant", ParamValue::Float(self.quant))?
             .with(&specs, "mesh_predictor", ParamValue::Choice(self.mesh_predictor.name()))?
-            .with(&specs, "time_predictor", ParamValue::Choice(self.time_predictor.name()))?;
+            .with(&specs, "time_predictor", ParamValue::Choice(self.time_predictor.name()))?
+            .with(&specs, "shaping", ParamValue::Float(self.shaping))?;
         self.check_cross()?;
         Ok(p)
     }

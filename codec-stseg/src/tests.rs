@@ -335,3 +335,31 @@ fn toolkit_coding_is_smaller_than_the_paper_coding_at_similar_error() {
     assert!(tk_bytes < paper_bytes, "toolkit {tk_bytes} bytes >= paper {paper_bytes}");
     assert!(tk_err <= 1.1 * paper_err, "toolkit error {tk_err} > 1.1 × paper {paper_err}");
 }
+
+/// `coding=paper` keeps version 2's packets: on the golden input its decoded frames hash to
+/// `tests/golden/stseg-v2.anim`'s entry in `hashes.txt` (FNV-1a 64, as `tests/tests/golden.rs`).
+#[test]
+fn paper_coding_reproduces_the_version_2_golden_output() {
+    let a = synth::waving_flag(8, 6, 16);
+    let ps = StsegParams { coding: Coding::Paper, ..Default::default() }.to_param_set().unwrap();
+    let enc = encode_animation_fed(&Stseg, &ps, &a, false, 16).unwrap();
+    let dec = decode_animation(&enc.bytes, &registry(), Limits::default()).unwrap();
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    let mut eat = |bytes: &[u8]| {
+        for &b in bytes {
+            h ^= b as u64;
+            h = h.wrapping_mul(0x0000_0100_0000_01b3);
+        }
+    };
+    eat(&(dec.frame_count() as u64).to_le_bytes());
+    eat(&(dec.vertex_count() as u64).to_le_bytes());
+    for t in dec.triangles() {
+        for i in t {
+            eat(&i.to_le_bytes());
+        }
+    }
+    for x in dec.positions() {
+        eat(&x.to_bits().to_le_bytes());
+    }
+    assert_eq!(format!("{h:016x}"), "5d097985a4c57b14");
+}
