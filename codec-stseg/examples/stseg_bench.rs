@@ -57,9 +57,14 @@ fn main() {
         let tris = read_obj_triangles(&dir.join(format!("{name}.obj"))).unwrap();
         let anim = Animation::new(Topology::new(v, tris).unwrap(), pos, 30.0).unwrap();
         let vf = (v * f) as f64;
-        // Optional overrides for parameter studies: STSEG_OMEGA_SEG, STSEG_GAMMA_MAX, STSEG_GAMMA_INIT.
+        // Optional overrides for parameter studies: STSEG_CODING, STSEG_OMEGA_SEG, STSEG_GAMMA_MAX, STSEG_GAMMA_INIT.
         let env = |k: &str| std::env::var(k).ok().and_then(|v| v.parse::<f64>().ok());
-        let mut base = StsegParams::default();
+        // The paper's coding unless STSEG_CODING=toolkit (the README's Fig. 8 table is the paper's).
+        let coding = match std::env::var("STSEG_CODING").as_deref() {
+            Ok("toolkit") => codec_stseg::Coding::Toolkit,
+            _ => codec_stseg::Coding::Paper,
+        };
+        let mut base = StsegParams { coding, ..StsegParams::default() };
         if let Some(x) = env("STSEG_OMEGA_SEG") {
             base.omega_seg = x;
         }

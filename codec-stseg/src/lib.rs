@@ -10,10 +10,12 @@
 //! every packet is a keyframe. See `README.md` for the stream layout.
 //! [`segment_animation`] exposes the segmentation (group labels and boundaries).
 
+mod coding;
 mod linalg;
 mod segment;
 
 use codec_core::bytes::{zigzag_decode, zigzag_encode, ByteReader, ByteWriter};
+use codec_core::toolkit::predict::Predictor;
 use codec_core::{
     entropy, Animation, AnimationCodec, EncodedPacket, EncoderSetup, Error, ErrorBound, FourCc, FrameDecoder,
     FrameEncoder, Limits, Packet, ParamSet, ParamSpec, ParamValue, Quantizer, RateLadder, Result, StreamInfo,
@@ -115,6 +117,46 @@ impl Detector {
     }
 }
 
+/// How a segment's PCA is coded (`coding` parameter).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Coding {
+    /// Stream version 3's coding (issue 15, `coding.rs`): per-vertex basis fields predicted
+    /// along each group's mesh order, mean and coefficient trajectories predicted in time,
+    /// one step per component by the equal-slope RD rule, context-adaptive arithmetic coding.
+    Toolkit,
+    /// The paper's coding (§4.4, §5.1): uniform `bits` / `coef_bits` quantizers, zigzag run
+    /// deltas, zstd — stream version 2's packets, bit for bit.
+    Paper,
+}
+
+impl Coding {
+    /// Parameter names, in stream-code order (code = index).
+    pub const NAMES: &'static [&'static str] = &["paper", "toolkit"];
+    /// The parameter name.
+    pub fn name(self) -> &'static str {
+        Self::NAMES[self.code() as usize]
+    }
+    /// Stream code (config byte of version 3).
+    pub fn code(self) -> u8 {
+        match self {
+            Self::Paper => 0,
+            Self::Toolkit => 1,
+        }
+    }
+    /// From a stream code.
+    pub fn from_code(c: u8) -> Option<Self> {
+        match c {
+            0 => Some(Self::Paper),
+            1 => Some(Self::Toolkit),
+            _ => None,
+        }
+    }
+    /// From a parameter name.
+    pub fn from_name(n: &str) -> Option<Self> {
+        Self::NAMES.iter().position(|&x| x == n).and_then(|i| Self::from_code(i as u8))
+    }
+}
+
 /// Typed parameters of `stseg` (names follow the paper's notation).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct StsegParams {
@@ -158,8 +200,24 @@ pub struct StsegParams {
     pub bits: u8,
     /// Bits of the PCA coefficients (orthonormal rows, values in [−1, 1]). Default 12.
     pub coef_bits: u8,
-    /// zstd level. Default 19.
+    /// zstd level (paper coding: everything; toolkit coding: the step table). Default 19.
     pub level: i32,
+    /// How the PCA is coded: [`Coding::Toolkit`] (default, stream version 3) or
+    /// [`Coding::Paper`] (version 2's bytes; what the paper-reproduction tables use).
+    pub coding: Coding,
+    /// Toolkit coding: RMS quantization error relative to the truncation error the PCA left
+    /// (budget `D = quant²·E_trunc` per segment). Default 0.25.
+    pub quant: f64,
+    /// Toolkit coding: predictor of the per-vertex fields (basis columns, `vertex` mean)
+    /// along each group's mesh order. Default [`Predictor::Average`].
+    pub mesh_predictor: Predictor,
+    /// Toolkit coding: predictor of the trajectories (coefficient rows, per-frame means) in
+    /// time. Default [`Predictor::Previous`].
+    pub time_predictor: Predictor,
+    /// Toolkit coding: noise shaping `α` of the basis columns along the group's mesh order
+    /// (`toolkit::predict`: neighbouring vertices err alike, which STED rewards; encoder only,
+    /// the stream is unchanged). Default 0.
+    pub shaping: f64,
 }
 
 impl Default for StsegParams {
@@ -181,6 +239,11 @@ impl Default for StsegParams {
             bits: 12,
             coef_bits: 12,
             level: 19,
+            coding: Coding::Toolkit,
+            quant: 0.25,
+            mesh_predictor: Predictor::Average,
+            time_predictor: Predictor::Previous,
+            shaping: 0.0,
         }
     }
 }
@@ -239,6 +302,38 @@ impl StsegParams {
             ParamSpec::int("bits", 6, 20, d.bits as i64, "bits of mean shapes and PCA bases"),
             ParamSpec::int("coef_bits", 6, 20, d.coef_bits as i64, "bits of PCA coefficients"),
             ParamSpec::int("level", 1, 22, d.level as i64, "zstd compression level"),
+            ParamSpec::choice(
+                "coding",
+                Coding::NAMES,
+                d.coding.name(),
+                "toolkit (prediction, RD steps, adaptive arithmetic coding; stream v3) or paper (bit depths + zstd)",
+            ),
+            ParamSpec::float(
+                "quant",
+                0.01,
+                4.0,
+                d.quant,
+                "toolkit: quantization RMS error target relative to the truncation error",
+            ),
+            ParamSpec::choice(
+                "mesh_predictor",
+                &Predictor::NAMES,
+                d.mesh_predictor.name(),
+                "toolkit: predictor of basis fields along the group's mesh order",
+            ),
+            ParamSpec::choice(
+                "time_predictor",
+                &Predictor::NAMES,
+                d.time_predictor.name(),
+                "toolkit: predictor of coefficient and mean trajectories in time",
+            ),
+            ParamSpec::float(
+                "shaping",
+                0.0,
+                0.95,
+                d.shaping,
+                "toolkit: noise shaping α of the basis along the mesh (encoder only)",
+            ),
         ]
     }
 
@@ -296,6 +391,14 @@ impl StsegParams {
             bits: p.int("bits")? as u8,
             coef_bits: p.int("coef_bits")? as u8,
             level: p.int("level")? as i32,
+            coding: Coding::from_name(p.choice("coding")?)
+                .ok_or_else(|| Error::parameter(NAME, "coding", "unknown coding"))?,
+            quant: p.float("quant")?,
+            mesh_predictor: Predictor::from_name(p.choice("mesh_predictor")?)
+                .ok_or_else(|| Error::parameter(NAME, "mesh_predictor", "unknown predictor"))?,
+            time_predictor: Predictor::from_name(p.choice("time_predictor")?)
+                .ok_or_else(|| Error::parameter(NAME, "time_predictor", "unknown predictor"))?,
+            shaping: p.float("shaping")?,
         };
         s.check_cross()?;
         Ok(s)
@@ -320,7 +423,12 @@ impl StsegParams {
             .with(&specs, "eta", ParamValue::Int(self.eta as i64))?
             .with(&specs, "bits", ParamValue::Int(self.bits as i64))?
             .with(&specs, "coef_bits", ParamValue::Int(self.coef_bits as i64))?
-            .with(&specs, "level", ParamValue::Int(self.level as i64))?;
+            .with(&specs, "level", ParamValue::Int(self.level as i64))?
+            .with(&specs, "coding", ParamValue::Choice(self.coding.name()))?
+            .with(&specs, "quant", ParamValue::Float(self.quant))?
+            .with(&specs, "mesh_predictor", ParamValue::Choice(self.mesh_predictor.name()))?
+            .with(&specs, "time_predictor", ParamValue::Choice(self.time_predictor.name()))?
+            .with(&specs, "shaping", ParamValue::Float(self.shaping))?;
         self.check_cross()?;
         Ok(p)
     }
@@ -344,7 +452,9 @@ impl AnimationCodec for Stseg {
     }
     fn stream_version(&self) -> u16 {
         // 2: config carries the centering; the mean is per frame for `centering = frame`.
-        2
+        // 3: config adds the coding (paper = version 2's packets, toolkit = `coding.rs`) and
+        // the toolkit's predictors.
+        3
     }
     fn summary(&self) -> &'static str {
         "spatio-temporal segmentation (initial cut, vertex groups, PC-count boundaries) + per-segment PCA"
@@ -366,7 +476,11 @@ impl AnimationCodec for Stseg {
     }
     fn error_bound(&self, params: &ParamSet, animation: &Animation) -> Result<ErrorBound> {
         let p = StsegParams::from_param_set(params)?;
-        Ok(ErrorBound { max_coordinate_error: None, relative_rms_error: relative_rms_bound(&p, animation) })
+        let bound = match p.coding {
+            Coding::Paper => relative_rms_bound(&p, animation),
+            Coding::Toolkit => toolkit_rms_bound(&p, animation),
+        };
+        Ok(ErrorBound { max_coordinate_error: None, relative_rms_error: bound })
     }
     fn new_encoder(&self, params: &ParamSet, setup: &EncoderSetup<'_>) -> Result<Box<dyn FrameEncoder>> {
         let p = StsegParams::from_param_set(params)?;
@@ -374,6 +488,7 @@ impl AnimationCodec for Stseg {
             params: p,
             segmenter: Segmenter::new(p, setup.topology),
             graph: MeshGraph::new(setup.topology),
+            decoder: StsegDecoder::for_params(&p, setup.topology),
             vertex_count: setup.topology.vertex_count(),
             total: setup.frame_count,
             want_reconstruction: setup.want_reconstruction,
@@ -382,10 +497,30 @@ impl AnimationCodec for Stseg {
         }))
     }
     fn new_decoder(&self, info: &StreamInfo, config: &[u8], limits: &Limits) -> Result<Box<dyn FrameDecoder>> {
+        if !(2..=3).contains(&info.codec_version) {
+            return Err(Error::Unsupported {
+                context: NAME.into(),
+                detail: format!("stream version {} (this build decodes 2 and 3)", info.codec_version),
+            });
+        }
         let mut r = ByteReader::new(config, NAME);
         let bits = r.u8("config.bits")?;
         let coef_bits = r.u8("config.coef_bits")?;
         let centering_code = r.u8("config.centering")?;
+        let (coding, predictors) = if info.codec_version >= 3 {
+            let c = r.u8("config.coding")?;
+            let coding =
+                Coding::from_code(c).ok_or_else(|| r.malformed("config.coding", format!("{c} is not 0..=1")))?;
+            let mut pred = |field| -> Result<Predictor> {
+                let c = r.u8(field)?;
+                Predictor::from_code(c).ok_or_else(|| r.malformed(field, format!("{c} is not 0..=3")))
+            };
+            let mesh = pred("config.mesh_predictor")?;
+            let time = pred("config.time_predictor")?;
+            (coding, coding::Predictors { mesh, time })
+        } else {
+            (Coding::Paper, coding::Predictors { mesh: Predictor::Zero, time: Predictor::Zero })
+        };
         r.expect_end("config")?;
         let centering = Centering::from_code(centering_code)
             .ok_or_else(|| r.malformed("config.centering", format!("{centering_code} is not 0..=3")))?;
@@ -394,7 +529,16 @@ impl AnimationCodec for Stseg {
                 return Err(r.malformed(field, format!("{b} is outside 6..=20")));
             }
         }
-        Ok(Box::new(StsegDecoder { bits, coef_bits, centering, vertex_count: info.vertex_count(), limits: *limits }))
+        Ok(Box::new(StsegDecoder {
+            bits,
+            coef_bits,
+            centering,
+            coding,
+            predictors,
+            vertex_count: info.vertex_count(),
+            limits: *limits,
+            graphs: coding::Graphs::new(info.vertex_count(), info.topology.triangles()),
+        }))
     }
 }
 
@@ -440,6 +584,37 @@ fn relative_rms_bound(p: &StsegParams, animation: &Animation) -> Option<f64> {
     Some(s * (trunc + delta + basis) + mean + rounding + 1e-12)
 }
 
+/// The declared relative RMS bound of the toolkit coding (README "Error bound"). Per group of a
+/// segment the error is at most `√E_tr + Σ_i √d_i` — the LS fit's residual is at most that of
+/// the unquantized basis with the quantized mean and coefficients, i.e. truncation + mean
+/// error + `Σ_j ‖A_j‖‖δB_j‖`, and the basis error adds `Σ_j ‖δA_j‖‖B̂_j‖` — where the `d_i` are
+/// the component distortions the RD rule keeps within `D = quant²·Σ max(E_tr, 10⁻⁴·(1−ω)E)`.
+/// With at most `N = 3 + 2T` components per group (Cauchy–Schwarz) and `(a+b)² ≤ 2a² + 2b²`,
+/// the squared error is ≤ `2(1 + N·quant²)·(1−ω)·ΣE`, and `ΣE` is bounded as in
+/// [`relative_rms_bound`]'s truncation term (a vertex in at most `G` extended groups).
+fn toolkit_rms_bound(p: &StsegParams, animation: &Animation) -> Option<f64> {
+    let t = p.max_segment() as f64;
+    let diag = animation.bounding_box_diagonal();
+    if diag <= 0.0 {
+        return Some(1e-12);
+    }
+    let (lo, hi) = animation.bounding_box();
+    let mag = lo.iter().chain(&hi).fold(0.0f64, |m, &x| m.max((x as f64).abs()));
+    let all_range =
+        (0..3).map(|c| hi[c] as f64).fold(f64::MIN, f64::max) - (0..3).map(|c| lo[c] as f64).fold(f64::MAX, f64::min);
+    let s = match p.centering {
+        Centering::Vertex | Centering::FrameAxis => 1.0,
+        Centering::Frame => 3f64.sqrt() * all_range / diag,
+        Centering::None => 3f64.sqrt() * mag / diag,
+    };
+    let n = 3.0 + 2.0 * t;
+    let trunc = ((1.0 - p.omega) * p.groups as f64 / 3.0).sqrt();
+    // A block below the negligible energy keeps no component: its whole centred energy is error.
+    let negligible = segment::NEGLIGIBLE_AMPLITUDE * (p.groups as f64).sqrt();
+    let rounding = 4.0 * mag * f32::EPSILON as f64 / diag;
+    Some(s * (trunc + negligible) * (2.0 * (1.0 + n * p.quant * p.quant)).sqrt() + rounding + 1e-12)
+}
+
 /// Fixed-size temporal blocks with a single vertex group: the segmentation of the paper's
 /// "Adapted PCA" baseline (§5.3.1), for comparisons with [`encode_with_segmentation`].
 pub fn fixed_block_segmentation(vertex_count: usize, frame_count: usize, block: usize) -> Segmentation {
@@ -474,6 +649,7 @@ pub fn encode_with_segmentation(
     let mut next = 0;
     let mut packets = Vec::new();
     let mut rec = Vec::with_capacity(animation.positions().len());
+    let mut dec = StsegDecoder::for_params(params, animation.topology());
     for seg in &segmentation.segments {
         if seg.first_frame != next
             || seg.frame_count == 0
@@ -490,14 +666,7 @@ pub fn encode_with_segmentation(
             ));
         }
         let block = &animation.positions()[next * n3..(next + seg.frame_count) * n3];
-        let data = encode_segment(params, &graph, seg, block)?;
-        let dec = StsegDecoder {
-            bits: params.bits,
-            coef_bits: params.coef_bits,
-            centering: params.centering,
-            vertex_count: v,
-            limits: Limits::default(),
-        };
+        let data = encode_segment(params, &graph, &mut dec.graphs, seg, block)?;
         rec.extend_from_slice(&dec.decode(&data, seg.frame_count)?);
         packets.push(Packet { first_frame: next as u32, frame_count: seg.frame_count as u32, keyframe: true, data });
         next += seg.frame_count;
@@ -516,6 +685,8 @@ struct StsegEncoder {
     params: StsegParams,
     segmenter: Segmenter,
     graph: MeshGraph,
+    /// Rebuilds the reconstruction; its coding orders are shared with the toolkit encoder.
+    decoder: StsegDecoder,
     vertex_count: usize,
     total: usize,
     want_reconstruction: bool,
@@ -529,19 +700,9 @@ impl StsegEncoder {
         let mut out = Vec::new();
         while let Some(seg) = self.segmenter.next(&self.pending, self.total - self.next_frame, self.next_frame)? {
             let block: Vec<f32> = self.pending.drain(..seg.frame_count * n3).collect();
-            let data = encode_segment(&self.params, &self.graph, &seg, &block)?;
-            let reconstruction = if self.want_reconstruction {
-                let dec = StsegDecoder {
-                    bits: self.params.bits,
-                    coef_bits: self.params.coef_bits,
-                    centering: self.params.centering,
-                    vertex_count: self.vertex_count,
-                    limits: Limits::default(),
-                };
-                Some(dec.decode(&data, seg.frame_count)?)
-            } else {
-                None
-            };
+            let data = encode_segment(&self.params, &self.graph, &mut self.decoder.graphs, &seg, &block)?;
+            let reconstruction =
+                if self.want_reconstruction { Some(self.decoder.decode(&data, seg.frame_count)?) } else { None };
             let packet = Packet {
                 first_frame: self.next_frame as u32,
                 frame_count: seg.frame_count as u32,
@@ -557,7 +718,8 @@ impl StsegEncoder {
 
 impl FrameEncoder for StsegEncoder {
     fn config(&self) -> Vec<u8> {
-        vec![self.params.bits, self.params.coef_bits, self.params.centering.code()]
+        let p = &self.params;
+        vec![p.bits, p.coef_bits, p.centering.code(), p.coding.code(), p.mesh_predictor.code(), p.time_predictor.code()]
     }
 
     fn push_frames(&mut self, frames: &[f32]) -> Result<Vec<EncodedPacket>> {
@@ -603,7 +765,7 @@ struct GroupCode {
 }
 
 /// Number of mean quantizers and mean values of one group of `n` vertices over `frames`.
-fn mean_layout(centering: Centering, n: usize, frames: usize) -> (usize, usize) {
+pub(crate) fn mean_layout(centering: Centering, n: usize, frames: usize) -> (usize, usize) {
     match centering {
         Centering::Vertex => (3, 3 * n),
         Centering::Frame => (1, frames),
@@ -615,7 +777,13 @@ fn mean_layout(centering: Centering, n: usize, frames: usize) -> (usize, usize) 
 /// The centred data matrix of a group (rows: vertex-major coordinates of `rows`, columns:
 /// frames) and the mean that was subtracted (per row for [`Centering::Vertex`], per frame for
 /// [`Centering::Frame`], empty for [`Centering::None`]).
-fn centred_block(centering: Centering, rows: &[u32], block: &[f32], n3: usize, frames: usize) -> (Mat<f64>, Vec<f64>) {
+pub(crate) fn centred_block(
+    centering: Centering,
+    rows: &[u32],
+    block: &[f32],
+    n3: usize,
+    frames: usize,
+) -> (Mat<f64>, Vec<f64>) {
     let x_at = |r: usize, t: usize| block[t * n3 + rows[r / 3] as usize * 3 + r % 3] as f64;
     let nr = rows.len() * 3;
     match centering {
@@ -657,6 +825,27 @@ fn group_pca(
     let negligible = (NEGLIGIBLE_AMPLITUDE * scale).powi(2) * (ext.len() * 3 * frames) as f64;
     let (vals, vecs) = sym_eig_desc(gram(xe.as_ref()).as_ref(), "segment PCA")?;
     Ok((pcs_for_persistence(&vals, p.omega, negligible).min(frames), vecs))
+}
+
+/// [`group_pca`] plus the truncation energy it leaves and the total energy of the η-extended,
+/// centred block (sums of the discarded and of all eigenvalues).
+pub(crate) fn group_pca_energy(
+    p: &StsegParams,
+    graph: &MeshGraph,
+    own: &[u32],
+    block: &[f32],
+    frames: usize,
+) -> Result<(usize, Mat<f64>, f64, f64)> {
+    let n3 = graph.vertex_count() * 3;
+    let ext = graph.grow_rings(own, p.eta as usize);
+    let (xe, _) = centred_block(p.centering, &ext, block, n3, frames);
+    let scale = frame_diagonal(&block[..n3]);
+    let negligible = (NEGLIGIBLE_AMPLITUDE * scale).powi(2) * (ext.len() * 3 * frames) as f64;
+    let (vals, vecs) = sym_eig_desc(gram(xe.as_ref()).as_ref(), "segment PCA")?;
+    let k = pcs_for_persistence(&vals, p.omega, negligible).min(frames);
+    let total: f64 = vals.iter().map(|x| x.max(0.0)).sum();
+    let trunc: f64 = vals[k.min(vals.len())..].iter().map(|x| x.max(0.0)).sum();
+    Ok((k, vecs, trunc, total))
 }
 
 /// PCA of one group in one segment with η-ring overlap, quantized.
@@ -863,8 +1052,22 @@ fn zstd_len(raw: &[u8]) -> usize {
     }
 }
 
-/// Packet payload of one segment (layout in README.md).
-fn encode_segment(p: &StsegParams, graph: &MeshGraph, seg: &Segment, block: &[f32]) -> Result<Vec<u8>> {
+/// Packet payload of one segment in the coding `p.coding` names (layouts in README.md).
+fn encode_segment(
+    p: &StsegParams,
+    graph: &MeshGraph,
+    graphs: &mut coding::Graphs,
+    seg: &Segment,
+    block: &[f32],
+) -> Result<Vec<u8>> {
+    match p.coding {
+        Coding::Paper => encode_segment_paper(p, graph, seg, block),
+        Coding::Toolkit => coding::encode_segment(p, graph, graphs, seg, block),
+    }
+}
+
+/// The paper coding's packet payload (stream version 2's layout).
+fn encode_segment_paper(p: &StsegParams, graph: &MeshGraph, seg: &Segment, block: &[f32]) -> Result<Vec<u8>> {
     let v = graph.vertex_count();
     let frames = seg.frame_count;
     let groups: Vec<Vec<u32>> = (0..seg.group_count)
@@ -897,12 +1100,30 @@ struct StsegDecoder {
     bits: u8,
     coef_bits: u8,
     centering: Centering,
+    coding: Coding,
+    predictors: coding::Predictors,
     vertex_count: usize,
     limits: Limits,
+    /// Coding orders of the toolkit coding (built on first use, after the limits check).
+    graphs: coding::Graphs,
 }
 
 impl StsegDecoder {
-    fn decode(&self, data: &[u8], frames: usize) -> Result<Vec<f32>> {
+    /// The decoder of the stream the encoder writes with `p` (for its reconstruction).
+    fn for_params(p: &StsegParams, topology: &codec_core::Topology) -> Self {
+        Self {
+            bits: p.bits,
+            coef_bits: p.coef_bits,
+            centering: p.centering,
+            coding: p.coding,
+            predictors: coding::Predictors { mesh: p.mesh_predictor, time: p.time_predictor },
+            vertex_count: topology.vertex_count(),
+            limits: Limits::default(),
+            graphs: coding::Graphs::new(topology.vertex_count(), topology.triangles()),
+        }
+    }
+
+    fn decode(&mut self, data: &[u8], frames: usize) -> Result<Vec<f32>> {
         let v = self.vertex_count;
         let mut r = ByteReader::new(data, NAME);
         let case = r.u8("case")?;
@@ -915,6 +1136,29 @@ impl StsegDecoder {
                 r.malformed("group_count", format!("{group_count} is outside 1..={}", MAX_GROUPS.min(v.max(1))))
             );
         }
+        let out = match self.coding {
+            Coding::Paper => self.decode_paper(&mut r, frames, group_count)?,
+            Coding::Toolkit => coding::decode_segment(
+                &mut r,
+                frames,
+                v,
+                self.centering,
+                self.predictors,
+                &mut self.graphs,
+                &self.limits,
+                group_count,
+            )?,
+        };
+        // Corrupt quantizer ranges or steps can overflow f32; say so here rather than emit infinities.
+        if out.iter().any(|x| !x.is_finite()) {
+            return Err(Error::malformed(NAME, "values", "decoded coordinates are not finite"));
+        }
+        Ok(out)
+    }
+
+    /// The paper coding's packet after its case and group count (stream version 2's layout).
+    fn decode_paper(&self, r: &mut ByteReader<'_>, frames: usize, group_count: usize) -> Result<Vec<f32>> {
+        let v = self.vertex_count;
         let max_k = frames.min(3 * v) as u64;
         let n_mean = mean_layout(self.centering, 0, 0).0;
         let mut ks = Vec::with_capacity(group_count);
@@ -931,7 +1175,7 @@ impl StsegDecoder {
             }
             let mut qs = Vec::with_capacity(n_mean + 2 * k);
             for i in 0..n_mean + 2 * k {
-                let q = Quantizer::read(&mut r, "quantizer")?;
+                let q = Quantizer::read(r, "quantizer")?;
                 let want = if i < n_mean + k { self.bits } else { self.coef_bits };
                 if q.bits() != want {
                     return Err(r.malformed("quantizer", format!("{} bits, stream config says {want}", q.bits())));
@@ -953,12 +1197,12 @@ impl StsegDecoder {
             return Err(Error::malformed(NAME, "labels", format!("{} bytes for {v} vertex labels", raw.len())));
         }
         let labels = &raw[..v];
-        let mut members: Vec<Vec<usize>> = vec![Vec::new(); group_count];
+        let mut members: Vec<Vec<u32>> = vec![Vec::new(); group_count];
         for (i, &l) in labels.iter().enumerate() {
             if l as usize >= group_count {
                 return Err(Error::malformed(NAME, "labels", format!("vertex {i}: group {l} of {group_count}")));
             }
-            members[l as usize].push(i);
+            members[l as usize].push(i as u32);
         }
         let count: usize = members
             .iter()
@@ -1014,28 +1258,42 @@ impl StsegDecoder {
             let b: Vec<Vec<f64>> = (0..k)
                 .map(|j| next_run(frames).into_iter().map(|q| qs[n_mean + k + j].dequantize(q) as f64).collect())
                 .collect();
-            for t in 0..frames {
-                for c in 0..3 {
-                    for (i, &vi) in own.iter().enumerate() {
-                        let mut x = match self.centering {
-                            Centering::Vertex => mean[c][i],
-                            Centering::Frame => mean[0][t],
-                            Centering::FrameAxis => mean[c][t],
-                            Centering::None => 0.0,
-                        };
-                        for j in 0..k {
-                            x += a[j][c][i] * b[j][t];
-                        }
-                        out[t * n3 + vi * 3 + c] = x as f32;
-                    }
-                }
-            }
-        }
-        // Corrupt quantizer ranges can overflow f32; say so here rather than emit infinities.
-        if out.iter().any(|x| !x.is_finite()) {
-            return Err(Error::malformed(NAME, "values", "decoded coordinates are not finite"));
+            reconstruct_group(self.centering, own, &mean, &a, &b, frames, n3, &mut out);
         }
         Ok(out)
+    }
+}
+
+/// Writes one group's `mean + Σ_j A_j·B_j` into `out` (frames × 3V), in f64 rounded to f32:
+/// `mean` per centering (vertex `[c][i]`, frame `[0][t]`, frame-axis `[c][t]`, none empty),
+/// `a[j][c][i]` over the group's vertices `own` (ascending), `b[j][t]`.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn reconstruct_group(
+    centering: Centering,
+    own: &[u32],
+    mean: &[Vec<f64>],
+    a: &[Vec<Vec<f64>>],
+    b: &[Vec<f64>],
+    frames: usize,
+    n3: usize,
+    out: &mut [f32],
+) {
+    let k = b.len();
+    for t in 0..frames {
+        for c in 0..3 {
+            for (i, &vi) in own.iter().enumerate() {
+                let mut x = match centering {
+                    Centering::Vertex => mean[c][i],
+                    Centering::Frame => mean[0][t],
+                    Centering::FrameAxis => mean[c][t],
+                    Centering::None => 0.0,
+                };
+                for j in 0..k {
+                    x += a[j][c][i] * b[j][t];
+                }
+                out[t * n3 + vi as usize * 3 + c] = x as f32;
+            }
+        }
     }
 }
 

@@ -126,16 +126,21 @@ fn corrupt_and_truncated_streams_error_without_panicking() {
         let _ = decode_animation(&b, &reg, Limits::default());
     }
     // The decoder itself, without the container's checksum, on garbage payloads.
-    let mut dec = StsegDecoder {
-        bits: 12,
-        coef_bits: 12,
-        centering: Centering::Frame,
-        vertex_count: anim.vertex_count(),
-        limits: Limits::default(),
-    };
-    for payload in [vec![], vec![2u8], vec![2, 200, 1], vec![9, 1, 0], vec![1, 1, 0xff, 0xff, 0xff, 0xff, 0x0f]] {
-        let p = Packet { first_frame: 0, frame_count: 10, keyframe: true, data: payload };
-        assert!(dec.decode_packet(&p).is_err());
+    for coding in [Coding::Paper, Coding::Toolkit] {
+        let params = StsegParams { centering: Centering::Frame, coding, ..Default::default() };
+        let mut dec = StsegDecoder::for_params(&params, anim.topology());
+        for payload in [
+            vec![],
+            vec![2u8],
+            vec![2, 200, 1],
+            vec![9, 1, 0],
+            vec![1, 1, 0xff, 0xff, 0xff, 0xff, 0x0f],
+            vec![1, 2, 1, 1, 3, 0, 0, 0],
+            vec![1, 1, 2, 0xff, 0xff, 0xff, 0xff, 0xff],
+        ] {
+            let p = Packet { first_frame: 0, frame_count: 10, keyframe: true, data: payload };
+            assert!(dec.decode_packet(&p).is_err());
+        }
     }
 }
 
@@ -222,10 +227,10 @@ fn bytes_do_not_depend_on_the_thread_count() {
 fn every_centering_round_trips_within_bound() {
     let (anim, _) = synth::phased_motion_sized(6, 6, 70);
     let reg = registry();
-    for name in Centering::NAMES {
+    for (name, coding) in Centering::NAMES.iter().flat_map(|n| [(n, Coding::Paper), (n, Coding::Toolkit)]) {
         let c = Centering::from_name(name).unwrap();
         assert_eq!(Centering::from_code(c.code()), Some(c));
-        let p = StsegParams { centering: c, ..Default::default() };
+        let p = StsegParams { centering: c, coding, ..Default::default() };
         let ps = p.to_param_set().unwrap();
         let enc = encode_animation_fed(&Stseg, &ps, &anim, true, 9).unwrap();
         let dec = decode_animation(&enc.bytes, &reg, Limits::default()).unwrap();
@@ -242,6 +247,14 @@ fn every_centering_round_trips_within_bound() {
         frame_rate: 30.0,
     };
     assert!(Stseg.new_decoder(&info, &[12, 12, 4], &Limits::default()).is_err());
+    // Version 3: coding and predictor codes are checked; version 2's 3-byte config still opens.
+    assert!(Stseg.new_decoder(&info, &[12, 12, 3, 1, 2, 1], &Limits::default()).is_ok());
+    assert!(Stseg.new_decoder(&info, &[12, 12, 3, 2, 2, 1], &Limits::default()).is_err());
+    assert!(Stseg.new_decoder(&info, &[12, 12, 3, 1, 4, 1], &Limits::default()).is_err());
+    let v2 = codec_core::StreamInfo { codec_version: 2, ..info.clone() };
+    assert!(Stseg.new_decoder(&v2, &[12, 12, 3], &Limits::default()).is_ok());
+    let v1 = codec_core::StreamInfo { codec_version: 1, ..info.clone() };
+    assert!(Stseg.new_decoder(&v1, &[12, 12, 3], &Limits::default()).is_err());
     assert!(Stseg.new_decoder(&info, &[12, 12], &Limits::default()).is_err());
 }
 
@@ -301,4 +314,52 @@ fn scanning_detector_finds_every_phase_change_at_every_size() {
         }
         assert_eq!(s.segments.iter().map(|x| x.frame_count).sum::<usize>(), anim.frame_count());
     }
+}
+
+/// Issue 15: at equal segmentation and ω the toolkit coding (prediction along the group's
+/// mesh and in time, RD steps, adaptive arithmetic coding) needs fewer bytes than the paper
+/// coding for no more than 10% more error, and the paper coding stays reachable by parameter.
+#[test]
+fn toolkit_coding_is_smaller_than_the_paper_coding_at_similar_error() {
+    let anim = synth::waving_flag(24, 16, 60);
+    let reg = registry();
+    let mut results = Vec::new();
+    for coding in [Coding::Paper, Coding::Toolkit] {
+        let ps = StsegParams { coding, omega: 0.999, ..Default::default() }.to_param_set().unwrap();
+        let enc = encode_animation_fed(&Stseg, &ps, &anim, true, 60).unwrap();
+        let dec = decode_animation(&enc.bytes, &reg, Limits::default()).unwrap();
+        assert_eq!(Some(&dec), enc.reconstruction.as_ref());
+        results.push((enc.bytes.len(), rel_rms(&anim, &dec)));
+    }
+    let ((paper_bytes, paper_err), (tk_bytes, tk_err)) = (results[0], results[1]);
+    assert!(tk_bytes < paper_bytes, "toolkit {tk_bytes} bytes >= paper {paper_bytes}");
+    assert!(tk_err <= 1.1 * paper_err, "toolkit error {tk_err} > 1.1 × paper {paper_err}");
+}
+
+/// `coding=paper` keeps version 2's packets: on the golden input its decoded frames hash to
+/// `tests/golden/stseg-v2.anim`'s entry in `hashes.txt` (FNV-1a 64, as `tests/tests/golden.rs`).
+#[test]
+fn paper_coding_reproduces_the_version_2_golden_output() {
+    let a = synth::waving_flag(8, 6, 16);
+    let ps = StsegParams { coding: Coding::Paper, ..Default::default() }.to_param_set().unwrap();
+    let enc = encode_animation_fed(&Stseg, &ps, &a, false, 16).unwrap();
+    let dec = decode_animation(&enc.bytes, &registry(), Limits::default()).unwrap();
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    let mut eat = |bytes: &[u8]| {
+        for &b in bytes {
+            h ^= b as u64;
+            h = h.wrapping_mul(0x0000_0100_0000_01b3);
+        }
+    };
+    eat(&(dec.frame_count() as u64).to_le_bytes());
+    eat(&(dec.vertex_count() as u64).to_le_bytes());
+    for t in dec.triangles() {
+        for i in t {
+            eat(&i.to_le_bytes());
+        }
+    }
+    for x in dec.positions() {
+        eat(&x.to_bits().to_le_bytes());
+    }
+    assert_eq!(format!("{h:016x}"), "5d097985a4c57b14");
 }
