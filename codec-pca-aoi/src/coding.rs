@@ -352,9 +352,6 @@ pub fn decode(
             f_hat[(i, feat_layout.natural(p))] = r;
         }
     }
-    if !dec.maybe_exhausted() {
-        return Err(Error::malformed(NAME, "cluster.codes", "coded bits left after the last value"));
-    }
     Ok((e_hat, f_hat))
 }
 

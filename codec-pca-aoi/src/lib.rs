@@ -857,6 +857,9 @@ fn toolkit_cluster(
         Resolved::Temporal => 0,
         Resolved::Spatial => 1,
     });
+    // The arithmetic-coded part has no length of its own: the frame count makes a packet
+    // whose header lost it fail instead of decoding garbage.
+    w.varint(d as u64);
     w.varint(coded.kept.len() as u64);
     for &m in means {
         w.f32(m);
@@ -1089,6 +1092,10 @@ impl PcaAoiDecoder {
     ) -> Result<()> {
         let mut r = ByteReader::new(payload, NAME);
         let domain = read_domain(&mut r)?;
+        let frames = r.varint("cluster.frames")?;
+        if frames != d as u64 {
+            return Err(r.malformed("cluster.frames", format!("{frames} frames, the packet holds {d}")));
+        }
         let n = verts.len();
         let (e_dim, m_dim) = match domain {
             Resolved::Temporal => (3 * d, n),

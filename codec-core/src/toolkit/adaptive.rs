@@ -277,13 +277,6 @@ impl AdaptiveDecoder {
         Ok(bit)
     }
 
-    /// Whether every coded bit may have been read: always true after decoding exactly what
-    /// the encoder coded; false when bits are left (a decoder that read fewer values than
-    /// were coded, e.g. from a wrong frame count, can reject the stream).
-    pub fn maybe_exhausted(&self) -> bool {
-        self.coder.maybe_exhausted()
-    }
-
     /// Decodes one integer in context (`class`, `bucket`), mirroring [`binarize`].
     pub fn decode(&mut self, class: usize, bucket: usize) -> Result<i32> {
         let ctx = self.models.context(class, bucket);
@@ -405,22 +398,6 @@ mod tests {
         for (i, &v) in values.iter().enumerate() {
             assert_eq!(dec.decode(i % 4, i % 9).unwrap(), v, "value {i}");
         }
-        assert!(dec.maybe_exhausted());
-    }
-
-    #[test]
-    fn exhaustion_tells_a_short_read() {
-        let values = laplacian(3000, 5.0, 9);
-        let mut enc = AdaptiveEncoder::new(1);
-        for &v in &values {
-            enc.encode(v, 0, 0);
-        }
-        let bytes = enc.finish();
-        let mut dec = AdaptiveDecoder::new(&bytes, 1, "t", "codes").unwrap();
-        for &v in &values[..2900] {
-            assert_eq!(dec.decode(0, 0).unwrap(), v);
-        }
-        assert!(!dec.maybe_exhausted(), "100 values left but the decoder looks exhausted");
     }
 
     #[test]
