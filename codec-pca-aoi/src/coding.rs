@@ -248,7 +248,14 @@ pub fn code(
             let largest = c.reference_step * 2f64.powi(OCTAVES_COARSER as i32);
             let mut grid = vec![0.0];
             let mut pts = vec![c.evaluate(0.0, &mut codes, &mut recon)];
+            // A component whose whole energy is below 1e-4 of the budget is dropped without
+            // trying steps (at most `2k·1e-4` of the budget in all; saves most of the
+            // encoder's time when `max_k` is far above the ranks kept).
+            let negligible = pts[0].distortion < 1e-4 * target;
             for s in rdq::step_grid(largest, (OCTAVES_COARSER + OCTAVES_FINER) * PER_OCTAVE + 1, PER_OCTAVE) {
+                if negligible {
+                    break;
+                }
                 let s = stored_step(s, floor);
                 let p = c.evaluate(s, &mut codes, &mut recon);
                 grid.push(s);

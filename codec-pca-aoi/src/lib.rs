@@ -109,7 +109,8 @@ pub struct PcaAoiParams {
     /// chooses which of the `max_k` components to keep and their steps. Default 1.
     pub kg: f64,
     /// Toolkit (svd, baoi): subspace size estimated per block, 1..=512 (capped per block at
-    /// `min(e, m)`); the RD rule keeps the components that pay for themselves. Default 64.
+    /// `min(e, m)`); the RD rule keeps the components that pay for themselves. Default 120
+    /// (= `3·block` at the default block: full rank, so any `kg` target is reachable).
     pub max_k: u32,
     /// Toolkit: predictor of vertex fields (features or spatial dictionaries) along the
     /// cluster's mesh. Default average.
@@ -140,7 +141,7 @@ impl Default for PcaAoiParams {
             level: 15,
             coding: Coding::Toolkit,
             kg: 1.0,
-            max_k: 64,
+            max_k: 120,
             mesh_predictor: Predictor::Average,
             time_predictor: Predictor::Previous,
             rdq: true,

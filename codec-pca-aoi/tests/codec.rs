@@ -354,3 +354,32 @@ fn bytes_do_not_depend_on_thread_count() {
     };
     assert!(encode(1) == encode(3));
 }
+
+#[test]
+fn paper_coding_reproduces_the_version_1_golden_packets_byte_for_byte() {
+    // tests/golden/pca-aoi-v1.anim was written by stream version 1 with default parameters
+    // from the golden input (tests/tests/golden.rs); `coding=paper` must write the same packets
+    // and, behind its coding byte 0, the same config.
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/golden/pca-aoi-v1.anim");
+    let Ok(bytes) = std::fs::read(&path) else {
+        eprintln!("SKIP: {} not found", path.display());
+        return;
+    };
+    let mut reader = codec_core::container::ContainerReader::new(&bytes[..], Limits::default()).unwrap();
+    let golden_config = reader.header().config.clone();
+    let mut golden = Vec::new();
+    while let Some(section) = reader.next_section() {
+        if let codec_core::container::Section::Packet(p) = section.unwrap() {
+            golden.push(p);
+        }
+    }
+    let anim = codec_core::synth::waving_flag(8, 6, 16);
+    let p = PcaAoiParams { coding: Coding::Paper, ..Default::default() };
+    let (config, packets, _) = setup_and_packets(&anim, &p);
+    assert_eq!(config[0], 0);
+    assert_eq!(config[1..], golden_config[..]);
+    assert_eq!(packets.len(), golden.len());
+    for (a, b) in packets.iter().zip(&golden) {
+        assert_eq!(a.data, b.data, "packet at frame {}", a.first_frame);
+    }
+}
