@@ -181,7 +181,7 @@ fn sweep_series_walk_ladders_on_their_own_base_parameters() {
         "--series",
         "pca-aoi:mode=qaoi",
         "--series",
-        "pca-aoi:mode=svd,block=10",
+        "pca-aoi:mode=svd,block=10,coding=paper",
         "--points",
         "2",
         "--no-sted",
@@ -198,11 +198,12 @@ fn sweep_series_walk_ladders_on_their_own_base_parameters() {
             "quant-delta[block=8]",
             "pca-aoi[mode=qaoi]",
             "pca-aoi[mode=qaoi]",
-            "pca-aoi[mode=svd,block=10]",
-            "pca-aoi[mode=svd,block=10]"
+            "pca-aoi[mode=svd,block=10,coding=paper]",
+            "pca-aoi[mode=svd,block=10,coding=paper]"
         ]
     );
-    // Each curve keeps its base and walks its own ladder: qaoi walks the error band, svd walks k.
+    // Each curve keeps its base and walks its own ladder: qaoi walks the error band, svd with
+    // the paper's coding walks k.
     assert!(rows[..2].iter().all(|r| r["params"]["block"] == 8), "{v}");
     assert!(rows[2..4].iter().all(|r| r["params"]["mode"] == "qaoi" && r["ladder_param"] == "eps_high"), "{v}");
     assert!(rows[4..].iter().all(|r| r["params"]["block"] == 10 && r["ladder_param"] == "k"), "{v}");

@@ -4,6 +4,7 @@
 //! cargo build --release -p codec-pca-aoi --example pca_bench
 //! target/release/examples/pca_bench table [DATA_DIR] [REPEATS]      # chicken-crossing + samba
 //! target/release/examples/pca_bench stream [FRAMES] [VERTICES] [BLOCK]  # peak RSS of a long stream
+//! target/release/examples/pca_bench speed [DATA_DIR] [NAME]    # decode vs memcpy, encode vs paper
 //! ```
 //!
 //! `table`: for each dataset and each configuration (svd, baoi, baoi tmax=2, baoi z=2, qaoi,
@@ -12,6 +13,13 @@
 //! KG computed here in f64, the dictionary-estimation time summed over blocks, and the
 //! speed-up over svd measured in the same run. Times are the median of REPEATS runs.
 //!
+//! `speed`: issue 15's speed check on one animation (default samba), all in one run: per
+//! subspace size `K`, the paper coding (`k = K`) and the toolkit coding (`max_k = K`, `kg`
+//! 0.05 so that the RD rule keeps nearly every component) — bpvf, KG, encode time (best of 2),
+//! decode time of all packets (best of 3) and a memcpy of the decoded frames (best of 5), as
+//! "decode speed / memcpy speed" and "encode / paper encode":
+//! `target/release/examples/pca_bench speed ../shared/data samba`.
+//!
 //! `stream`: pushes a synthetic animation of FRAMES × VERTICES frame by frame (10 frames per
 //! push, generated on the fly, never held whole) and reports the peak resident set size.
 
@@ -19,7 +27,7 @@ use std::time::{Duration, Instant};
 
 use codec_core::container::PACKET_OVERHEAD_BYTES;
 use codec_core::{AnimationCodec, EncoderSetup, FrameEncoder, Limits, StreamInfo, Topology};
-use codec_pca_aoi::{Method, Mode, PcaAoi, PcaAoiEncoder, PcaAoiParams};
+use codec_pca_aoi::{Coding, Method, Mode, PcaAoi, PcaAoiEncoder, PcaAoiParams};
 
 struct Data {
     name: String,
@@ -132,7 +140,7 @@ fn run(data: &Data, p: &PcaAoiParams) -> Run {
     let encode = start.elapsed();
     let info = StreamInfo {
         fourcc: PcaAoi.fourcc(),
-        codec_version: 1,
+        codec_version: PcaAoi.stream_version(),
         topology: data.topology.clone(),
         frame_count: data.frames,
         frame_rate: 30.0,
@@ -176,7 +184,8 @@ fn table(root: &str, repeats: usize) {
         let v = data.topology.vertex_count();
         for (bi, &block) in blocks.iter().enumerate() {
             println!("\n## {} — {v} vertices, {} frames, block d = {block}, k = {k}", data.name, data.frames);
-            let base = PcaAoiParams { block, k, drift: 0.0, ..Default::default() };
+            // The paper's coding (§4.1): this table reproduces the paper.
+            let base = PcaAoiParams { block, k, drift: 0.0, coding: Coding::Paper, ..Default::default() };
             let mut configs: Vec<(&str, PcaAoiParams)> = vec![
                 ("svd", PcaAoiParams { mode: Mode::Svd, ..base }),
                 ("baoi", base),
@@ -299,9 +308,87 @@ fn stream(frames: usize, vertices: usize, block: u32) {
     );
 }
 
+fn best_of(n: usize, mut f: impl FnMut()) -> f64 {
+    (0..n)
+        .map(|_| {
+            let t = Instant::now();
+            f();
+            t.elapsed().as_secs_f64()
+        })
+        .fold(f64::INFINITY, f64::min)
+}
+
+fn speed(root: &str, name: &str) {
+    let Some(data) = load(root, name) else { return };
+    let v = data.topology.vertex_count();
+    let setup = EncoderSetup {
+        topology: &data.topology,
+        frame_count: data.frames,
+        frame_rate: 30.0,
+        want_reconstruction: false,
+    };
+    let info = StreamInfo {
+        fourcc: PcaAoi.fourcc(),
+        codec_version: PcaAoi.stream_version(),
+        topology: data.topology.clone(),
+        frame_count: data.frames,
+        frame_rate: 30.0,
+    };
+    println!(
+        "## {name}: speed ({v} vertices x {} frames; decoded output {:.1} MB; {} rayon threads)\n",
+        data.frames,
+        data.positions.len() as f64 * 4.0 / 1e6,
+        rayon::current_num_threads()
+    );
+    println!("| K | coding | bpvf | KG | encode s | decode s | memcpy s | decode speed / memcpy speed | encode / paper encode |");
+    println!("|---|---|---|---|---|---|---|---|---|");
+    for big_k in [8u32, 32, 120] {
+        let mut paper_encode = f64::NAN;
+        for coding in [Coding::Paper, Coding::Toolkit] {
+            let p = PcaAoiParams { k: big_k, max_k: big_k, kg: 0.05, coding, ..Default::default() };
+            let mut packets = Vec::new();
+            let mut config = Vec::new();
+            let encode = best_of(2, || {
+                let mut enc = PcaAoiEncoder::new(&p, &setup).expect("encoder");
+                packets = enc.push_frames(&data.positions).expect("encode");
+                packets.extend(enc.finish().expect("encode"));
+                config = enc.config();
+            });
+            let mut out = Vec::new();
+            let decode = best_of(3, || {
+                let mut dec = PcaAoi.new_decoder(&info, &config, &Limits::default()).expect("decoder");
+                out = Vec::with_capacity(data.positions.len());
+                for p in &packets {
+                    out.extend(dec.decode_packet(&p.packet).expect("decode"));
+                }
+            });
+            let mut copy = vec![0.0f32; out.len()];
+            let memcpy = best_of(5, || {
+                copy.copy_from_slice(std::hint::black_box(&out));
+                std::hint::black_box(&copy);
+            });
+            if coding == Coding::Paper {
+                paper_encode = encode;
+            }
+            let bytes: usize = packets.iter().map(|p| p.packet.data.len() + PACKET_OVERHEAD_BYTES).sum();
+            println!(
+                "| {big_k} | {coding:?} | {:.3} | {:.3} | {encode:.3} | {decode:.4} | {memcpy:.5} | {:.2}% | {:.2} |",
+                bytes as f64 * 8.0 / (v * data.frames) as f64,
+                kg(v, &data.positions, &out),
+                100.0 * memcpy / decode,
+                encode / paper_encode,
+            );
+        }
+    }
+}
+
 fn main() {
     let args: Vec<String> = std::env::args().collect();
     match args.get(1).map(String::as_str) {
+        Some("speed") => {
+            let root = args.get(2).cloned().unwrap_or_else(|| "../shared/data".into());
+            speed(&root, args.get(3).map_or("samba", String::as_str));
+        }
         Some("stream") => {
             let frames = args.get(2).and_then(|s| s.parse().ok()).unwrap_or(5000);
             let vertices = args.get(3).and_then(|s| s.parse().ok()).unwrap_or(10_000);

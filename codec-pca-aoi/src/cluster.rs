@@ -77,6 +77,28 @@ pub fn partition(topology: &Topology, clusters: usize) -> Vec<Vec<u32>> {
     parts
 }
 
+/// Per cluster, the triangles with all three corners in it, renumbered to positions in the
+/// cluster's vertex list: the cluster's own mesh, from which its coding order is built
+/// (stream version 2). `O(V + T)`; corners outside `0..vertex_count` are ignored.
+pub fn local_meshes(triangles: &[[u32; 3]], vertex_count: usize, clusters: &[Vec<u32>]) -> Vec<Vec<[u32; 3]>> {
+    let mut home = vec![(u32::MAX, 0u32); vertex_count];
+    for (c, verts) in clusters.iter().enumerate() {
+        for (i, &v) in verts.iter().enumerate() {
+            if let Some(h) = home.get_mut(v as usize) {
+                *h = (c as u32, i as u32);
+            }
+        }
+    }
+    let mut out = vec![Vec::new(); clusters.len()];
+    for t in triangles {
+        let [a, b, c] = t.map(|v| home.get(v as usize).copied().unwrap_or((u32::MAX, 0)));
+        if a.0 != u32::MAX && a.0 == b.0 && b.0 == c.0 {
+            out[a.0 as usize].push([a.1, b.1, c.1]);
+        }
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -10,12 +10,15 @@
 //! README for the stream layout and every choice the paper leaves open.
 
 pub mod cluster;
+mod coding;
 pub mod dictionary;
 mod linalg;
 
 use std::time::Duration;
 
 use codec_core::bytes::{zigzag_decode, zigzag_encode, ByteReader, ByteWriter};
+use codec_core::toolkit::order::{self, CausalGraph};
+use codec_core::toolkit::predict::Predictor;
 use codec_core::{
     entropy, Animation, AnimationCodec, EncodedPacket, EncoderSetup, Error, ErrorBound, FourCc, FrameDecoder,
     FrameEncoder, Limits, Packet, ParamSet, ParamSpec, ParamValue, Quantizer, RateLadder, Result, StreamInfo, Topology,
@@ -23,6 +26,7 @@ use codec_core::{
 use faer::Mat;
 use rayon::prelude::*;
 
+use coding::Layout;
 use dictionary::{EstimatorSettings, Tracker};
 pub use dictionary::{Method, Mode};
 
@@ -41,6 +45,30 @@ pub enum Domain {
     Temporal,
     /// `A = Dᵀ D` (`n × n`): EigenShapes; dictionary rows are vertices.
     Spatial,
+}
+
+/// How dictionaries and features are coded (`coding` parameter).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Coding {
+    /// Stream version 2's coding (issue 15): prediction along the cluster's mesh and along
+    /// time, per-component steps by the equal-slope rule, adaptive arithmetic coding
+    /// (`coding.rs`).
+    Toolkit,
+    /// The paper's coding (§4.1): uniform quantization at `dict_bits` / `feat_bits`, byte
+    /// planes + zstd. Its packets are byte for byte version 1's.
+    Paper,
+}
+
+impl Coding {
+    /// Parameter names, in stream-code order (`paper` = 0, `toolkit` = 1).
+    pub const NAMES: [&'static str; 2] = ["paper", "toolkit"];
+
+    fn name(self) -> &'static str {
+        match self {
+            Self::Paper => "paper",
+            Self::Toolkit => "toolkit",
+        }
+    }
 }
 
 /// Typed parameters of `pca-aoi`.
@@ -71,8 +99,28 @@ pub struct PcaAoiParams {
     pub feat_bits: u8,
     /// Drift guard factor: 0 disables it, otherwise ≥ 1. Default 2.
     pub drift: f64,
-    /// zstd level, 1..=22. Default 15.
+    /// zstd level, 1..=22 (paper coding). Default 15.
     pub level: i32,
+    /// Coding of dictionaries and features: `toolkit` (stream version 2's, default) or
+    /// `paper` (§4.1's uniform bit depths + zstd, version 1's packets).
+    pub coding: Coding,
+    /// Toolkit: target error of every block (and cluster) as the KG measure does it, in
+    /// percent of the block's spread about the per-frame centroids, 0.001..=100. The RD rule
+    /// chooses which of the `max_k` components to keep and their steps. Default 1.
+    pub kg: f64,
+    /// Toolkit (svd, baoi): subspace size estimated per block, 1..=512 (capped per block at
+    /// `min(e, m)`); the RD rule keeps the components that pay for themselves. Default 120
+    /// (= `3·block` at the default block: full rank, so any `kg` target is reachable).
+    pub max_k: u32,
+    /// Toolkit: predictor of vertex fields (features or spatial dictionaries) along the
+    /// cluster's mesh. Default average.
+    pub mesh_predictor: Predictor,
+    /// Toolkit: predictor of trajectories (temporal dictionaries or spatial features) along
+    /// time. Default previous.
+    pub time_predictor: Predictor,
+    /// Toolkit: steps by the equal-slope rule (true) or equal distortion per entry (false,
+    /// for ablations). Default true.
+    pub rdq: bool,
 }
 
 impl Default for PcaAoiParams {
@@ -91,6 +139,12 @@ impl Default for PcaAoiParams {
             feat_bits: 12,
             drift: 2.0,
             level: 15,
+            coding: Coding::Toolkit,
+            kg: 1.0,
+            max_k: 120,
+            mesh_predictor: Predictor::Average,
+            time_predictor: Predictor::Previous,
+            rdq: true,
         }
     }
 }
@@ -168,7 +222,40 @@ impl PcaAoiParams {
                 d.drift,
                 "re-run SVD when an AOI block's residual exceeds drift x the last SVD block's (0 = off)",
             ),
-            ParamSpec::int("level", 1, 22, d.level as i64, "zstd compression level"),
+            ParamSpec::int("level", 1, 22, d.level as i64, "zstd compression level (paper coding)"),
+            ParamSpec::choice(
+                "coding",
+                &Coding::NAMES,
+                d.coding.name(),
+                "toolkit (prediction, RD steps, adaptive arithmetic coding) or paper (uniform bits + zstd)",
+            ),
+            ParamSpec::float(
+                "kg",
+                0.001,
+                100.0,
+                d.kg,
+                "toolkit: target error per block, KG in percent (RD rule picks components and steps)",
+            ),
+            ParamSpec::int(
+                "max_k",
+                1,
+                512,
+                d.max_k as i64,
+                "toolkit (svd, baoi): subspace size estimated per block; the RD rule keeps what pays",
+            ),
+            ParamSpec::choice(
+                "mesh_predictor",
+                &Predictor::NAMES,
+                d.mesh_predictor.name(),
+                "toolkit: predictor of vertex fields along the mesh",
+            ),
+            ParamSpec::choice(
+                "time_predictor",
+                &Predictor::NAMES,
+                d.time_predictor.name(),
+                "toolkit: predictor of trajectories along time (parallelogram = linear extrapolation)",
+            ),
+            ParamSpec::boolean("rdq", d.rdq, "toolkit: per-component steps by the equal-slope rule"),
         ]
     }
 
@@ -221,6 +308,12 @@ impl PcaAoiParams {
             feat_bits: p.int("feat_bits")? as u8,
             drift: p.float("drift")?,
             level: p.int("level")? as i32,
+            coding: if p.choice("coding")? == "paper" { Coding::Paper } else { Coding::Toolkit },
+            kg: p.float("kg")?,
+            max_k: p.int("max_k")? as u32,
+            mesh_predictor: predictor_param(p, "mesh_predictor")?,
+            time_predictor: predictor_param(p, "time_predictor")?,
+            rdq: p.bool("rdq")?,
         };
         s.check_cross()?;
         Ok(s)
@@ -242,7 +335,13 @@ impl PcaAoiParams {
             .with(&specs, "dict_bits", ParamValue::Int(self.dict_bits as i64))?
             .with(&specs, "feat_bits", ParamValue::Int(self.feat_bits as i64))?
             .with(&specs, "drift", ParamValue::Float(self.drift))?
-            .with(&specs, "level", ParamValue::Int(self.level as i64))?;
+            .with(&specs, "level", ParamValue::Int(self.level as i64))?
+            .with(&specs, "coding", ParamValue::Choice(self.coding.name()))?
+            .with(&specs, "kg", ParamValue::Float(self.kg))?
+            .with(&specs, "max_k", ParamValue::Int(self.max_k as i64))?
+            .with(&specs, "mesh_predictor", ParamValue::Choice(self.mesh_predictor.name()))?
+            .with(&specs, "time_predictor", ParamValue::Choice(self.time_predictor.name()))?
+            .with(&specs, "rdq", ParamValue::Bool(self.rdq))?;
         self.check_cross()?;
         Ok(set)
     }
@@ -250,7 +349,10 @@ impl PcaAoiParams {
     fn settings(&self) -> EstimatorSettings {
         EstimatorSettings {
             mode: self.mode,
-            k: self.k as usize,
+            k: match self.coding {
+                Coding::Paper => self.k as usize,
+                Coding::Toolkit => self.max_k as usize,
+            },
             z: self.z as usize,
             tmax: self.tmax as usize,
             eps_low: self.eps_low,
@@ -260,12 +362,29 @@ impl PcaAoiParams {
     }
 }
 
+fn predictor_param(p: &ParamSet, name: &'static str) -> Result<Predictor> {
+    let value = p.choice(name)?;
+    Predictor::from_name(value).ok_or_else(|| Error::parameter(NAME, name, format!("unknown predictor '{value}'")))
+}
+
 /// The rate ladder of `qaoi` streams: `eps_high` from large to small residuals (`k` is only
 /// QAOI's starting rank). Every step stays above the default `eps_low`.
 pub fn qaoi_rate_ladder() -> RateLadder {
     RateLadder {
         param: "eps_high",
         steps: [0.2, 0.1, 0.05, 0.03, 0.02, 0.01, 0.007, 0.005, 0.003].into_iter().map(ParamValue::Float).collect(),
+    }
+}
+
+/// The rate ladder of toolkit-coded streams (stream version 2's default): the target KG, from
+/// coarse to fine; the RD rule picks ranks and steps for each.
+pub fn toolkit_rate_ladder() -> RateLadder {
+    RateLadder {
+        param: "kg",
+        steps: [10.0, 6.0, 4.0, 3.0, 2.0, 1.5, 1.0, 0.7, 0.5, 0.35, 0.25, 0.17, 0.12, 0.08, 0.05]
+            .into_iter()
+            .map(ParamValue::Float)
+            .collect(),
     }
 }
 
@@ -281,7 +400,7 @@ impl AnimationCodec for PcaAoi {
         FourCc::new(b"PAOI")
     }
     fn stream_version(&self) -> u16 {
-        1
+        2
     }
     fn summary(&self) -> &'static str {
         "streaming block PCA; dictionaries tracked by adaptive orthogonal iterations (Lalos et al. 2017)"
@@ -289,10 +408,14 @@ impl AnimationCodec for PcaAoi {
     fn param_specs(&self) -> Vec<ParamSpec> {
         PcaAoiParams::specs()
     }
-    /// `k` for `svd` and `baoi`; the error band's upper edge for `qaoi`, whose rank follows it.
+    /// The error band's upper edge for `qaoi`, whose rank follows it; otherwise the target KG
+    /// for the toolkit coding (the RD rule picks ranks and steps) and `k` for the paper's.
     fn rate_ladder(&self, base: &ParamSet) -> RateLadder {
         if base.choice("mode").is_ok_and(|m| m == "qaoi") {
             return qaoi_rate_ladder();
+        }
+        if base.choice("coding").is_ok_and(|c| c == "toolkit") {
+            return toolkit_rate_ladder();
         }
         RateLadder {
             param: "k",
@@ -348,6 +471,16 @@ fn error_bound(p: &PcaAoiParams, animation: &Animation) -> ErrorBound {
         }
     }
     let coords = (animation.positions().len()) as f64;
+    let rounding = 3.0 * (max_abs + diag) * f32::EPSILON as f64;
+    if p.coding == Coding::Toolkit {
+        // The toolkit encoder keeps every cluster's block error below its spread about the
+        // stored means (it codes nothing rather than more, see `toolkit_cluster`); the spreads
+        // sum to at most the spread about each frame's centroid.
+        return ErrorBound {
+            max_coordinate_error: None,
+            relative_rms_error: Some(((centered / coords).sqrt() + rounding) / diag),
+        };
+    }
     let block = p.block as usize;
     let e_max = (3 * block).max(v) as f64;
     let k_max = match p.mode {
@@ -360,7 +493,6 @@ fn error_bound(p: &PcaAoiParams, animation: &Animation) -> ErrorBound {
     let grow = (1.0 + eps_d).powi(2);
     let projection = 1.0f64.max(grow - 1.0) * (centered / coords).sqrt();
     let features = grow * k_max.sqrt() * diag * (1.0 / levels(p.feat_bits) + 2.0 * eps32);
-    let rounding = 3.0 * (max_abs + diag) * eps32;
     ErrorBound { max_coordinate_error: None, relative_rms_error: Some((projection + features + rounding) / diag) }
 }
 
@@ -402,6 +534,8 @@ pub struct PcaAoiEncoder {
     settings: EstimatorSettings,
     vertex_count: usize,
     clusters: Vec<Vec<u32>>,
+    /// Per cluster, its mesh coding order (toolkit coding; empty chains for the paper's).
+    graphs: Vec<CausalGraph>,
     domains: Vec<Resolved>,
     trackers: Vec<Tracker>,
     pending: Vec<f32>,
@@ -426,11 +560,20 @@ impl PcaAoiEncoder {
                 Domain::Auto => Resolved::Spatial,
             })
             .collect();
+        let graphs = match params.coding {
+            Coding::Toolkit => cluster::local_meshes(topology.triangles(), topology.vertex_count(), &clusters)
+                .iter()
+                .zip(&clusters)
+                .map(|(triangles, verts)| CausalGraph::mesh(verts.len(), triangles))
+                .collect(),
+            Coding::Paper => clusters.iter().map(|_| CausalGraph::chain(0, false)).collect(),
+        };
         let mut enc = Self {
             params: *params,
             settings: params.settings(),
             vertex_count: topology.vertex_count(),
             trackers: vec![Tracker::new(); clusters.len()],
+            graphs,
             clusters,
             domains,
             pending: Vec::new(),
@@ -439,9 +582,16 @@ impl PcaAoiEncoder {
             stats: Vec::new(),
         };
         if setup.want_reconstruction {
+            let coding = match params.coding {
+                Coding::Paper => DecoderCoding::Paper { dict_bits: params.dict_bits, feat_bits: params.feat_bits },
+                Coding::Toolkit => DecoderCoding::Toolkit {
+                    mesh: params.mesh_predictor,
+                    time: params.time_predictor,
+                    meshes: MeshOrders::Built(enc.graphs.clone()),
+                },
+            };
             enc.reconstruct = Some(PcaAoiDecoder {
-                dict_bits: params.dict_bits,
-                feat_bits: params.feat_bits,
+                coding,
                 vertex_count: enc.vertex_count,
                 clusters: enc.clusters.clone(),
                 limits: Limits::default(),
@@ -466,22 +616,25 @@ impl PcaAoiEncoder {
         let settings = self.settings;
         let params = self.params;
         let v = self.vertex_count;
-        let results: Vec<Result<(Vec<u8>, dictionary::BlockDictionary)>> = self
+        let results: Vec<Result<(Vec<u8>, dictionary::BlockDictionary, usize)>> = self
             .clusters
             .par_iter()
             .zip(self.domains.par_iter())
             .zip(self.trackers.par_iter_mut())
-            .map(|((verts, &domain), tracker)| encode_cluster(frames, d, v, verts, domain, tracker, &settings, &params))
+            .zip(self.graphs.par_iter())
+            .map(|(((verts, &domain), tracker), graph)| {
+                encode_cluster(frames, d, v, verts, domain, tracker, graph, &settings, &params)
+            })
             .collect();
         let mut w = ByteWriter::new();
         for (c, r) in results.into_iter().enumerate() {
-            let (payload, dict) = r?;
+            let (payload, dict, k) = r?;
             w.length_prefixed(&payload);
             self.stats.push(BlockStats {
                 first_frame: self.next_frame,
                 frames: d as u32,
                 cluster: c,
-                k: dict.e.ncols(),
+                k,
                 residual: dict.residual,
                 method: dict.method,
                 iterations: dict.iterations,
@@ -504,8 +657,18 @@ impl PcaAoiEncoder {
 impl FrameEncoder for PcaAoiEncoder {
     fn config(&self) -> Vec<u8> {
         let mut w = ByteWriter::new();
-        w.u8(self.params.dict_bits);
-        w.u8(self.params.feat_bits);
+        match self.params.coding {
+            Coding::Paper => {
+                w.u8(CODING_PAPER);
+                w.u8(self.params.dict_bits);
+                w.u8(self.params.feat_bits);
+            }
+            Coding::Toolkit => {
+                w.u8(CODING_TOOLKIT);
+                w.u8(self.params.mesh_predictor.code());
+                w.u8(self.params.time_predictor.code());
+            }
+        }
         w.varint(self.clusters.len() as u64);
         w.into_vec()
     }
@@ -541,6 +704,10 @@ impl FrameEncoder for PcaAoiEncoder {
         Ok(vec![self.encode_block(&block)?])
     }
 }
+
+/// Stream version 2 config, first byte: the coding of every packet.
+const CODING_PAPER: u8 = 0;
+const CODING_TOOLKIT: u8 = 1;
 
 fn plane_count(bits: u8) -> usize {
     (bits as usize + 1).div_ceil(8)
@@ -581,11 +748,16 @@ fn encode_cluster(
     verts: &[u32],
     domain: Resolved,
     tracker: &mut Tracker,
+    graph: &CausalGraph,
     settings: &EstimatorSettings,
     params: &PcaAoiParams,
-) -> Result<(Vec<u8>, dictionary::BlockDictionary)> {
+) -> Result<(Vec<u8>, dictionary::BlockDictionary, usize)> {
     let (x, means) = block_matrix(frames, d, v, verts, domain);
     let dict = tracker.estimate(x.as_ref(), settings)?;
+    if params.coding == Coding::Toolkit {
+        let (payload, k) = toolkit_cluster(x.as_ref(), &means, &dict, domain, graph, d, params);
+        return Ok((payload, dict, k));
+    }
     let (e_dim, m_dim) = x.shape();
     let k = dict.e.ncols();
     // Dictionary: per-column uniform quantizers (§4.1, q_d bits).
@@ -641,13 +813,81 @@ fn encode_cluster(
         q.write(&mut w);
     }
     w.bytes(&entropy::compress(&raw, params.level));
-    Ok((w.into_vec(), dict))
+    Ok((w.into_vec(), dict, k))
+}
+
+/// The two layouts of a block: (dictionary columns, feature rows).
+fn layouts<'g>(domain: Resolved, mesh: &'g CausalGraph, time: &'g CausalGraph) -> (Layout<'g>, Layout<'g>) {
+    match domain {
+        Resolved::Temporal => (Layout::Time(time), Layout::Mesh(mesh)),
+        Resolved::Spatial => (Layout::Mesh(mesh), Layout::Time(time)),
+    }
+}
+
+/// Toolkit coding of one cluster's block (stream version 2, `coding.rs`); returns the payload
+/// and the number of components kept.
+fn toolkit_cluster(
+    x: faer::MatRef<'_, f64>,
+    means: &[f32],
+    dict: &dictionary::BlockDictionary,
+    domain: Resolved,
+    mesh: &CausalGraph,
+    d: usize,
+    params: &PcaAoiParams,
+) -> (Vec<u8>, usize) {
+    let time = CausalGraph::chain(d, params.time_predictor == Predictor::Parallelogram);
+    let (dict_layout, feat_layout) = layouts(domain, mesh, &time);
+    let settings = coding::Settings { mesh: params.mesh_predictor, time: params.time_predictor, rdq: params.rdq };
+    let f = linalg::mul(dict.e.transpose(), x);
+    let energy: f64 = (0..x.ncols()).map(|c| (0..x.nrows()).map(|r| x[(r, c)] * x[(r, c)]).sum::<f64>()).sum();
+    // Quantization error budget: what the KG target leaves after the truncation; when the
+    // estimated subspace alone misses the target, a quarter of the truncation error (relative
+    // RMS); never below 1e-6 of the block's spread (f32 output precision).
+    let truncation = energy * dict.residual * dict.residual;
+    let total = (params.kg / 100.0).powi(2) * energy;
+    let target = (total - truncation).max(0.0625 * truncation).max(1e-12 * energy);
+    let mut coded = coding::code(dict.e.as_ref(), f.as_ref(), x, dict_layout, feat_layout, &settings, target);
+    if coded.error2 > 0.99 * coded.energy2 && !coded.kept.is_empty() {
+        // Worse than the means alone (possible only with absurdly coarse steps): code nothing,
+        // which keeps the error bound (`error_bound`) honest.
+        let k0 = dict.e.as_ref().subcols(0, 0);
+        coded = coding::code(k0, f.as_ref().subrows(0, 0), x, dict_layout, feat_layout, &settings, target);
+    }
+    let mut w = ByteWriter::new();
+    w.u8(match domain {
+        Resolved::Temporal => 0,
+        Resolved::Spatial => 1,
+    });
+    // The arithmetic-coded part has no length of its own: the frame count makes a packet
+    // whose header lost it fail instead of decoding garbage.
+    w.varint(d as u64);
+    w.varint(coded.kept.len() as u64);
+    for &m in means {
+        w.f32(m);
+    }
+    for &s in &coded.steps {
+        w.f32(s);
+    }
+    w.bytes(&coded.bytes);
+    (w.into_vec(), coded.kept.len())
+}
+
+/// The clusters' mesh coding orders in the decoder: built on the first toolkit packet, after
+/// their size passed the limits.
+enum MeshOrders {
+    Pending(Vec<[u32; 3]>),
+    Built(Vec<CausalGraph>),
+}
+
+/// How the stream's packets are coded (from the config).
+enum DecoderCoding {
+    Paper { dict_bits: u8, feat_bits: u8 },
+    Toolkit { mesh: Predictor, time: Predictor, meshes: MeshOrders },
 }
 
 /// The decoder: every packet is decoded alone.
 pub struct PcaAoiDecoder {
-    dict_bits: u8,
-    feat_bits: u8,
+    coding: DecoderCoding,
     vertex_count: usize,
     clusters: Vec<Vec<u32>>,
     limits: Limits,
@@ -655,28 +895,72 @@ pub struct PcaAoiDecoder {
 
 impl PcaAoiDecoder {
     /// Reads the stream configuration (untrusted) and recomputes the clusters from the topology.
+    /// Version 1 configs are `dict_bits, feat_bits, clusters`; version 2 configs start with
+    /// the coding (0 = paper: then version 1's config; 1 = toolkit: mesh and time predictor
+    /// codes, clusters).
     pub fn new(info: &StreamInfo, config: &[u8], limits: &Limits) -> Result<Self> {
+        if !(1..=2).contains(&info.codec_version) {
+            return Err(Error::Unsupported {
+                context: NAME.into(),
+                detail: format!("stream version {} (this build decodes 1 and 2)", info.codec_version),
+            });
+        }
         let mut r = ByteReader::new(config, NAME);
-        let dict_bits = r.u8("config.dict_bits")?;
-        let feat_bits = r.u8("config.feat_bits")?;
+        let coding_code = if info.codec_version == 1 { CODING_PAPER } else { r.u8("config.coding")? };
+        let coding = match coding_code {
+            CODING_PAPER => {
+                let dict_bits = r.u8("config.dict_bits")?;
+                let feat_bits = r.u8("config.feat_bits")?;
+                for (field, bits) in [("config.dict_bits", dict_bits), ("config.feat_bits", feat_bits)] {
+                    if !(4..=24).contains(&bits) {
+                        return Err(r.malformed(field, format!("{bits} is outside 4..=24")));
+                    }
+                }
+                DecoderCoding::Paper { dict_bits, feat_bits }
+            }
+            CODING_TOOLKIT => {
+                let mut predictor = |field| {
+                    let code = r.u8(field)?;
+                    Predictor::from_code(code)
+                        .ok_or_else(|| Error::malformed(NAME, field, format!("predictor code {code} is outside 0..=3")))
+                };
+                let mesh = predictor("config.mesh_predictor")?;
+                let time = predictor("config.time_predictor")?;
+                DecoderCoding::Toolkit { mesh, time, meshes: MeshOrders::Pending(info.topology.triangles().to_vec()) }
+            }
+            x => return Err(r.malformed("config.coding", format!("{x} is neither 0 (paper) nor 1 (toolkit)"))),
+        };
         let v = info.vertex_count();
         let clusters = r.varint("config.clusters")?;
         r.expect_end("config")?;
-        for (field, bits) in [("config.dict_bits", dict_bits), ("config.feat_bits", feat_bits)] {
-            if !(4..=24).contains(&bits) {
-                return Err(r.malformed(field, format!("{bits} is outside 4..=24")));
-            }
-        }
         if clusters == 0 || clusters > v as u64 {
             return Err(r.malformed("config.clusters", format!("{clusters} is outside 1..={v}")));
         }
         Ok(Self {
-            dict_bits,
-            feat_bits,
+            coding,
             vertex_count: v,
             clusters: cluster::partition(&info.topology, clusters as usize),
             limits: *limits,
         })
+    }
+
+    /// Builds the clusters' mesh coding orders on first use, once their size passed the limits.
+    fn build_meshes(&mut self) -> Result<()> {
+        if let DecoderCoding::Toolkit { meshes, .. } = &mut self.coding {
+            if let MeshOrders::Pending(triangles) = meshes {
+                let local = cluster::local_meshes(triangles, self.vertex_count, &self.clusters);
+                let bytes = local
+                    .iter()
+                    .zip(&self.clusters)
+                    .map(|(t, c)| order::mesh_bytes(c.len(), t.len()))
+                    .fold(0u64, u64::saturating_add);
+                self.limits.check_alloc(NAME, "mesh coding order", bytes)?;
+                *meshes = MeshOrders::Built(
+                    local.iter().zip(&self.clusters).map(|(t, c)| CausalGraph::mesh(c.len(), t)).collect(),
+                );
+            }
+        }
+        Ok(())
     }
 
     /// The partition recomputed from a topology (exposed for tests).
@@ -684,42 +968,37 @@ impl PcaAoiDecoder {
         cluster::partition(topology, clusters)
     }
 
-    fn decode_cluster(&self, payload: &[u8], d: usize, verts: &[u32], out: &mut [f32]) -> Result<()> {
-        let mut r = ByteReader::new(payload, NAME);
-        let domain = match r.u8("cluster.domain")? {
-            0 => Resolved::Temporal,
-            1 => Resolved::Spatial,
-            x => return Err(r.malformed("cluster.domain", format!("{x} is neither 0 (temporal) nor 1 (spatial)"))),
+    fn decode_cluster(&self, payload: &[u8], d: usize, c: usize, out: &mut [f32]) -> Result<()> {
+        let verts = &self.clusters[c];
+        let (dict_bits, feat_bits) = match &self.coding {
+            DecoderCoding::Paper { dict_bits, feat_bits } => (*dict_bits, *feat_bits),
+            DecoderCoding::Toolkit { mesh, time, meshes } => {
+                let MeshOrders::Built(graphs) = meshes else {
+                    return Err(Error::malformed(NAME, "cluster", "mesh coding order not built"));
+                };
+                return self.decode_toolkit_cluster(payload, d, verts, &graphs[c], *mesh, *time, out);
+            }
         };
+        let mut r = ByteReader::new(payload, NAME);
+        let domain = read_domain(&mut r)?;
         let n = verts.len();
         let (e_dim, m_dim) = match domain {
             Resolved::Temporal => (3 * d, n),
             Resolved::Spatial => (n, 3 * d),
         };
         let k = r.varint_max("cluster.k", e_dim.min(m_dim) as u64)? as usize;
-        let means_bytes = r.take(3 * d * 4, "cluster.means")?;
-        let mut means = Vec::with_capacity(3 * d);
-        for b in means_bytes.chunks_exact(4) {
-            let m = f32::from_le_bytes([b[0], b[1], b[2], b[3]]);
-            if !m.is_finite() {
-                return Err(r.malformed("cluster.means", format!("{m} is not finite")));
-            }
-            means.push(m as f64);
-        }
+        let means = read_means(&mut r, d)?;
         let mut quantizers = Vec::with_capacity(2 * k);
         for i in 0..2 * k {
-            let (field, bits) = if i < k {
-                ("cluster.dict_quantizer", self.dict_bits)
-            } else {
-                ("cluster.feat_quantizer", self.feat_bits)
-            };
+            let (field, bits) =
+                if i < k { ("cluster.dict_quantizer", dict_bits) } else { ("cluster.feat_quantizer", feat_bits) };
             let q = Quantizer::read(&mut r, field)?;
             if q.bits() != bits {
                 return Err(r.malformed(field, format!("{} bits, stream config says {bits}", q.bits())));
             }
             quantizers.push(q);
         }
-        let (pd, pf) = (plane_count(self.dict_bits), plane_count(self.feat_bits));
+        let (pd, pf) = (plane_count(dict_bits), plane_count(feat_bits));
         let (nd, nf) = (e_dim * k, k * m_dim);
         let raw_len = nd * pd + nf * pf;
         self.limits.check_alloc(NAME, "cluster.codes", raw_len as u64)?;
@@ -773,8 +1052,21 @@ impl PcaAoiDecoder {
                 f_hat[(i, j)] = q.dequantize(c) as f64;
             }
         }
-        // Eq. 5: D̂ = E F, plus the stored means.
-        let x_hat = linalg::mul(e_hat.as_ref(), f_hat.as_ref());
+        self.write_cluster(e_hat.as_ref(), f_hat.as_ref(), &means, domain, verts, out);
+        Ok(())
+    }
+
+    /// Eq. 5: `D̂ = Ê F̂`, plus the stored means, into the packet's frames.
+    fn write_cluster(
+        &self,
+        e_hat: faer::MatRef<'_, f64>,
+        f_hat: faer::MatRef<'_, f64>,
+        means: &[f64],
+        domain: Resolved,
+        verts: &[u32],
+        out: &mut [f32],
+    ) {
+        let x_hat = linalg::mul(e_hat, f_hat);
         let v = self.vertex_count;
         for (j, &vert) in verts.iter().enumerate() {
             for (row, &mean) in means.iter().enumerate() {
@@ -785,8 +1077,75 @@ impl PcaAoiDecoder {
                 out[((row / 3) * v + vert as usize) * 3 + row % 3] = (value + mean) as f32;
             }
         }
+    }
+
+    /// Stream version 2's toolkit-coded cluster payload (see the README, "Stream layout").
+    #[allow(clippy::too_many_arguments)]
+    fn decode_toolkit_cluster(
+        &self,
+        payload: &[u8],
+        d: usize,
+        verts: &[u32],
+        mesh: &CausalGraph,
+        mesh_predictor: Predictor,
+        time_predictor: Predictor,
+        out: &mut [f32],
+    ) -> Result<()> {
+        let mut r = ByteReader::new(payload, NAME);
+        let domain = read_domain(&mut r)?;
+        let frames = r.varint("cluster.frames")?;
+        if frames != d as u64 {
+            return Err(r.malformed("cluster.frames", format!("{frames} frames, the packet holds {d}")));
+        }
+        let n = verts.len();
+        let (e_dim, m_dim) = match domain {
+            Resolved::Temporal => (3 * d, n),
+            Resolved::Spatial => (n, 3 * d),
+        };
+        let k = r.varint_max("cluster.k", e_dim.min(m_dim) as u64)? as usize;
+        let means = read_means(&mut r, d)?;
+        let mut steps = Vec::with_capacity(2 * k);
+        for i in 0..2 * k {
+            let field = if i < k { "cluster.dict_step" } else { "cluster.feat_step" };
+            let s = r.f32(field)?;
+            if !(s.is_finite() && s >= 0.0) {
+                return Err(r.malformed(field, format!("{s} is not a finite step ≥ 0")));
+            }
+            steps.push(s);
+        }
+        self.limits.check_alloc(NAME, "cluster.matrices", ((e_dim * k + k * m_dim + e_dim * m_dim) * 8) as u64)?;
+        self.limits.check_alloc(NAME, "frame chains", (d as u64).saturating_mul(64))?;
+        let time = CausalGraph::chain(d, time_predictor == Predictor::Parallelogram);
+        let (dict_layout, feat_layout) = layouts(domain, mesh, &time);
+        let settings = coding::Settings { mesh: mesh_predictor, time: time_predictor, rdq: true };
+        let bytes = r.take(r.remaining(), "cluster.codes")?;
+        let (e_hat, f_hat) = coding::decode(bytes, &steps, dict_layout, feat_layout, &settings)?;
+        self.write_cluster(e_hat.as_ref(), f_hat.as_ref(), &means, domain, verts, out);
         Ok(())
     }
+}
+
+/// The domain byte of a cluster payload.
+fn read_domain(r: &mut ByteReader<'_>) -> Result<Resolved> {
+    match r.u8("cluster.domain")? {
+        0 => Ok(Resolved::Temporal),
+        1 => Ok(Resolved::Spatial),
+        x => Err(r.malformed("cluster.domain", format!("{x} is neither 0 (temporal) nor 1 (spatial)"))),
+    }
+}
+
+/// The `3d` per-frame means of a cluster payload.
+fn read_means(r: &mut ByteReader<'_>, d: usize) -> Result<Vec<f64>> {
+    let means_bytes = r.take(3 * d * 4, "cluster.means")?;
+    let mut means = Vec::with_capacity(3 * d);
+    for b in means_bytes.chunks_exact(4) {
+        let m = f32::from_le_bytes([b[0], b[1], b[2], b[3]]);
+        if !m.is_finite() {
+            return Err(r.malformed("cluster.means", format!("{m} is not finite")));
+        }
+        means.push(m as f64);
+    }
+    Ok(means)
 }
 
 impl FrameDecoder for PcaAoiDecoder {
@@ -798,10 +1157,11 @@ impl FrameDecoder for PcaAoiDecoder {
         let len = d as u64 * self.vertex_count as u64 * 3;
         self.limits.check_alloc(NAME, "packet.frames", len * 4)?;
         let mut out = vec![0f32; len as usize];
+        self.build_meshes()?;
         let mut r = ByteReader::new(&packet.data, NAME);
-        for verts in &self.clusters {
+        for c in 0..self.clusters.len() {
             let payload = r.length_prefixed("cluster.payload")?;
-            self.decode_cluster(payload, d, verts, &mut out)?;
+            self.decode_cluster(payload, d, c, &mut out)?;
         }
         r.expect_end("packet")?;
         Ok(out)

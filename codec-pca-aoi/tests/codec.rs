@@ -6,7 +6,9 @@ use codec_core::{
     decode_animation, decode_frame, encode_animation_fed, Animation, AnimationCodec, CodecRegistry, EncoderSetup,
     FrameEncoder, Limits, Packet, StreamInfo, Topology,
 };
-use codec_pca_aoi::{qaoi_rate_ladder, Domain, Method, Mode, PcaAoi, PcaAoiEncoder, PcaAoiParams};
+use codec_pca_aoi::{
+    qaoi_rate_ladder, toolkit_rate_ladder, Coding, Domain, Method, Mode, PcaAoi, PcaAoiEncoder, PcaAoiParams,
+};
 
 /// A waving, drifting grid: smooth low-rank-ish motion plus a translation per frame.
 fn flag(cols: usize, rows: usize, frames: usize) -> Animation {
@@ -105,7 +107,14 @@ fn more_components_and_bits_reduce_error() {
         let bytes = encode_animation_fed(&PcaAoi, &p.to_param_set().unwrap(), &anim, false, 48).unwrap().bytes;
         (kg(&anim, &decode_animation(&bytes, &reg, Limits::default()).unwrap()), bytes.len())
     };
-    let base = PcaAoiParams { block: 12, mode: Mode::Svd, dict_bits: 16, feat_bits: 16, ..Default::default() };
+    let base = PcaAoiParams {
+        block: 12,
+        mode: Mode::Svd,
+        dict_bits: 16,
+        feat_bits: 16,
+        coding: Coding::Paper,
+        ..Default::default()
+    };
     let mut prev = (f64::INFINITY, 0);
     for k in [1, 2, 4, 8] {
         let (e, n) = err(PcaAoiParams { k, ..base });
@@ -115,6 +124,15 @@ fn more_components_and_bits_reduce_error() {
     // Full rank (k = 3·block) leaves only quantization error.
     let (full, _) = err(PcaAoiParams { k: 36, ..base });
     assert!(full < 0.05, "full-rank KG {full}");
+    // Toolkit coding: every block meets its KG target (within the estimate's slack), and a
+    // smaller target costs more bytes.
+    let mut prev = (f64::INFINITY, 0);
+    for target in [8.0, 4.0, 2.0, 1.0, 0.5, 0.25, 0.1] {
+        let (e, n) = err(PcaAoiParams { kg: target, block: 12, ..Default::default() });
+        assert!(e <= 1.05 * target, "kg target {target}: KG {e}");
+        assert!(e < prev.0 && n > prev.1, "kg target {target}: KG {e} bytes {n} vs {prev:?}");
+        prev = (e, n);
+    }
 }
 
 #[test]
@@ -143,10 +161,10 @@ fn setup_and_packets(anim: &Animation, p: &PcaAoiParams) -> (Vec<u8>, Vec<Packet
     (enc.config(), packets, enc)
 }
 
-fn info(anim: &Animation) -> StreamInfo {
+fn info(anim: &Animation, codec_version: u16) -> StreamInfo {
     StreamInfo {
         fourcc: PcaAoi.fourcc(),
-        codec_version: 1,
+        codec_version,
         topology: anim.topology().clone(),
         frame_count: anim.frame_count(),
         frame_rate: 30.0,
@@ -159,9 +177,11 @@ fn corrupt_packets_and_configs_error_without_panicking() {
     for p in [
         PcaAoiParams { block: 6, clusters: 2, ..Default::default() },
         PcaAoiParams { block: 6, domain: Domain::Spatial, ..Default::default() },
+        PcaAoiParams { block: 6, clusters: 2, coding: Coding::Paper, ..Default::default() },
+        PcaAoiParams { block: 6, domain: Domain::Spatial, coding: Coding::Paper, ..Default::default() },
     ] {
         let (config, packets, _) = setup_and_packets(&anim, &p);
-        let mut dec = PcaAoi.new_decoder(&info(&anim), &config, &Limits::default()).unwrap();
+        let mut dec = PcaAoi.new_decoder(&info(&anim, 2), &config, &Limits::default()).unwrap();
         let good = dec.decode_packet(&packets[0]).unwrap();
         let data = &packets[0].data;
         for cut in 0..data.len() {
@@ -187,15 +207,50 @@ fn corrupt_packets_and_configs_error_without_panicking() {
         let e = dec.decode_packet(&extra).unwrap_err().to_string();
         assert!(e.contains("pca-aoi"), "{e}");
     }
+    // Version 1 configs (dict_bits, feat_bits, clusters), then version 2's (coding first).
     for config in [vec![], vec![14], vec![3, 12, 1], vec![14, 12, 0], vec![14, 12, 200, 1], vec![14, 12, 1, 0]] {
-        let e = PcaAoi.new_decoder(&info(&anim), &config, &Limits::default()).err().expect("bad config accepted");
+        let e = PcaAoi.new_decoder(&info(&anim, 1), &config, &Limits::default()).err().expect("bad config accepted");
         assert!(e.to_string().contains("pca-aoi"), "{e}");
     }
-    // A tiny allocation limit is enforced before decoding.
-    let (config, packets, _) = setup_and_packets(&anim, &PcaAoiParams { block: 6, ..Default::default() });
-    let limits = Limits { max_alloc_bytes: 64, ..Limits::default() };
-    let mut dec = PcaAoi.new_decoder(&info(&anim), &config, &limits).unwrap();
-    assert!(dec.decode_packet(&packets[0]).is_err());
+    for config in [
+        vec![],
+        vec![2, 14, 12, 1],
+        vec![0, 3, 12, 1],
+        vec![0, 14, 12, 0],
+        vec![1, 2],
+        vec![1, 4, 1, 1],
+        vec![1, 2, 1, 0],
+        vec![1, 2, 1, 1, 0],
+    ] {
+        let e = PcaAoi.new_decoder(&info(&anim, 2), &config, &Limits::default()).err().expect("bad config accepted");
+        assert!(e.to_string().contains("pca-aoi"), "{e}");
+    }
+    for v in [0, 3] {
+        assert!(PcaAoi.new_decoder(&info(&anim, v), &[0, 14, 12, 1], &Limits::default()).is_err());
+    }
+    // A tiny allocation limit is enforced before decoding, for both codings.
+    for coding in [Coding::Toolkit, Coding::Paper] {
+        let (config, packets, _) = setup_and_packets(&anim, &PcaAoiParams { block: 6, coding, ..Default::default() });
+        let limits = Limits { max_alloc_bytes: 64, ..Limits::default() };
+        let mut dec = PcaAoi.new_decoder(&info(&anim, 2), &config, &limits).unwrap();
+        assert!(dec.decode_packet(&packets[0]).is_err());
+    }
+}
+
+#[test]
+fn paper_coding_packets_are_version_1_packets() {
+    // `coding=paper` writes version 1's packets inside a version 2 stream; its config is
+    // version 1's behind the coding byte 0, so a version 1 decoder setup decodes the same
+    // packets to the same frames.
+    let anim = flag(7, 6, 20);
+    let p = PcaAoiParams { block: 8, clusters: 2, coding: Coding::Paper, ..Default::default() };
+    let (config, packets, _) = setup_and_packets(&anim, &p);
+    assert_eq!(config[0], 0);
+    let mut v2 = PcaAoi.new_decoder(&info(&anim, 2), &config, &Limits::default()).unwrap();
+    let mut v1 = PcaAoi.new_decoder(&info(&anim, 1), &config[1..], &Limits::default()).unwrap();
+    for packet in &packets {
+        assert_eq!(v1.decode_packet(packet).unwrap(), v2.decode_packet(packet).unwrap());
+    }
 }
 
 /// A grid whose motion is simple, then rich (extra ripple modes), then simple again.
@@ -272,9 +327,16 @@ fn parameters_validate_with_ranges() {
     assert_eq!(PcaAoiParams::from_param_set(&p.to_param_set().unwrap()).unwrap(), p);
     let specs = PcaAoi.param_specs();
     let mut set = PcaAoi.default_params();
-    let qaoi = PcaAoiParams { mode: Mode::Qaoi, ..Default::default() }.to_param_set().unwrap();
+    let e = PcaAoiParams { kg: 0.0, ..Default::default() }.validate().unwrap_err().to_string();
+    assert!(e.contains("'kg'") && e.contains("0.001"), "{e}");
+    let e = PcaAoiParams { max_k: 0, ..Default::default() }.validate().unwrap_err().to_string();
+    assert!(e.contains("'max_k'") && e.contains("1..=512"), "{e}");
+    let qaoi = PcaAoiParams { mode: Mode::Qaoi, coding: Coding::Paper, ..Default::default() }.to_param_set().unwrap();
     assert_eq!(PcaAoi.rate_ladder(&qaoi), qaoi_rate_ladder());
-    for ladder in [PcaAoi.rate_ladder(&set), qaoi_rate_ladder()] {
+    assert_eq!(PcaAoi.rate_ladder(&set), toolkit_rate_ladder());
+    let paper = PcaAoiParams { coding: Coding::Paper, ..Default::default() }.to_param_set().unwrap();
+    assert_eq!(PcaAoi.rate_ladder(&paper).param, "k");
+    for ladder in [PcaAoi.rate_ladder(&set), qaoi_rate_ladder(), PcaAoi.rate_ladder(&paper)] {
         for step in ladder.steps {
             set.set(&specs, ladder.param, step).unwrap();
             PcaAoi.validate(&set).unwrap();
@@ -291,4 +353,33 @@ fn bytes_do_not_depend_on_thread_count() {
         pool.install(|| encode_animation_fed(&PcaAoi, &params, &anim, false, 24).unwrap().bytes)
     };
     assert!(encode(1) == encode(3));
+}
+
+#[test]
+fn paper_coding_reproduces_the_version_1_golden_packets_byte_for_byte() {
+    // tests/golden/pca-aoi-v1.anim was written by stream version 1 with default parameters
+    // from the golden input (tests/tests/golden.rs); `coding=paper` must write the same packets
+    // and, behind its coding byte 0, the same config.
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/golden/pca-aoi-v1.anim");
+    let Ok(bytes) = std::fs::read(&path) else {
+        eprintln!("SKIP: {} not found", path.display());
+        return;
+    };
+    let mut reader = codec_core::container::ContainerReader::new(&bytes[..], Limits::default()).unwrap();
+    let golden_config = reader.header().config.clone();
+    let mut golden = Vec::new();
+    while let Some(section) = reader.next_section() {
+        if let codec_core::container::Section::Packet(p) = section.unwrap() {
+            golden.push(p);
+        }
+    }
+    let anim = codec_core::synth::waving_flag(8, 6, 16);
+    let p = PcaAoiParams { coding: Coding::Paper, ..Default::default() };
+    let (config, packets, _) = setup_and_packets(&anim, &p);
+    assert_eq!(config[0], 0);
+    assert_eq!(config[1..], golden_config[..]);
+    assert_eq!(packets.len(), golden.len());
+    for (a, b) in packets.iter().zip(&golden) {
+        assert_eq!(a.data, b.data, "packet at frame {}", a.first_frame);
+    }
 }
