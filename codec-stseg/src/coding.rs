@@ -35,7 +35,9 @@ use rayon::prelude::*;
 
 use crate::linalg::{mul, sym_eig_desc};
 use crate::segment::{MeshGraph, Segment};
-use crate::{centred_block, group_pca_energy, mean_layout, reconstruct_group, Centering, StsegParams, NAME};
+use crate::{
+    centred_block, group_pca_energy, mean_layout, reconstruct_group, Centering, StsegParams, MAX_SEGMENT_FRAMES, NAME,
+};
 
 const CLASS_LABEL: usize = 0;
 const CLASS_MEAN: usize = 1;
@@ -183,7 +185,11 @@ fn allocate(comps: &[Component<'_>], target: f64) -> (Vec<f64>, Vec<f64>) {
                     let p = c.evaluate(s, &mut codes, &mut recon);
                     grid.push(s);
                     pts.push(p);
-                    if p.distortion < 1e-3 * target {
+                    // Stop once this component's error is a negligible share of the budget:
+                    // divided by the component count so that the finest points of all
+                    // components together stay below the target (else the allocation's
+                    // premise Σd ≤ D, which the error bound rests on, could fail).
+                    if p.distortion < 1e-3 * target / comps.len() as f64 {
                         break;
                     }
                 }
@@ -577,6 +583,17 @@ pub(crate) fn decode_segment(
     limits: &Limits,
     group_count: usize,
 ) -> Result<Vec<f32>> {
+    // Work amplification guard: a component whose steps are zero costs the stream almost
+    // nothing, yet reconstruction costs frames·3·n·k multiply-adds. Packets never hold more
+    // frames than `gamma_max` allows, so refusing longer ones bounds k, and with it the work
+    // per decoded value, by `MAX_SEGMENT_FRAMES`.
+    if frames > MAX_SEGMENT_FRAMES {
+        return Err(Error::malformed(
+            NAME,
+            "packet frames",
+            format!("{frames} exceeds the longest segment the encoder writes ({MAX_SEGMENT_FRAMES})"),
+        ));
+    }
     let max_k = frames.min(3 * v) as u64;
     let mut ks = Vec::with_capacity(group_count);
     for _ in 0..group_count {
@@ -666,6 +683,16 @@ pub(crate) fn decode_segment(
             a.push(f.iter().map(|x| from_order(gg, x)).collect::<Vec<_>>());
             at += 1;
         }
+        // A term with a zero step on either side is all zeros: skip it (same values up to the
+        // sign of an exact zero), so zero-step components cost no reconstruction work.
+        let (b_steps, a_steps) = steps[at - 2 * k..at].split_at(k);
+        let (a, b): (Vec<_>, Vec<_>) = a
+            .into_iter()
+            .zip(b)
+            .zip(a_steps.iter().zip(b_steps))
+            .filter(|(_, (&sa, &sb))| sa != 0.0 && sb != 0.0)
+            .map(|(term, _)| term)
+            .unzip();
         reconstruct_group(centering, own, &mean, &a, &b, frames, n3, &mut out);
     }
     Ok(out)

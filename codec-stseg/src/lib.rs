@@ -284,7 +284,7 @@ impl StsegParams {
             ParamSpec::int(
                 "gamma_max",
                 8,
-                1024,
+                MAX_SEGMENT_FRAMES as i64,
                 d.gamma_max as i64,
                 "maximal segment length γ_max (frames), ≥ gamma_init",
             ),
@@ -438,6 +438,10 @@ impl StsegParams {
         self.gamma_max.max(self.gamma_init) as usize
     }
 }
+
+/// Longest segment (packet) in frames: the upper end of `gamma_max`'s range. Decoders of
+/// toolkit-coded packets refuse longer ones (it bounds the reconstruction work per value).
+pub(crate) const MAX_SEGMENT_FRAMES: usize = 1024;
 
 /// The `stseg` codec.
 #[derive(Debug, Clone, Copy, Default)]

@@ -363,3 +363,44 @@ fn paper_coding_reproduces_the_version_2_golden_output() {
     }
     assert_eq!(format!("{h:016x}"), "5d097985a4c57b14");
 }
+
+/// Review finding (session 3): zero-step components cost a toolkit packet almost nothing, so
+/// the decoder refuses packets longer than any segment the encoder writes (bounding k and the
+/// reconstruction work per value), and real packets damaged past the container's checksum
+/// error or decode to finite values, never panic.
+#[test]
+fn toolkit_decoder_refuses_overlong_packets_and_survives_damaged_payloads() {
+    let (anim, _) = synth::phased_motion_sized(4, 5, 60);
+    let params = StsegParams { coding: Coding::Toolkit, ..Default::default() };
+    let mut dec = StsegDecoder::for_params(&params, anim.topology());
+    let long = Packet { first_frame: 0, frame_count: MAX_SEGMENT_FRAMES as u32 + 1, keyframe: true, data: vec![1, 1] };
+    let e = dec.decode_packet(&long).unwrap_err().to_string();
+    assert!(e.contains("stseg") && e.contains("packet frames") && e.contains("1024"), "{e}");
+
+    let ps = params.to_param_set().unwrap();
+    let enc = encode_animation_fed(&Stseg, &ps, &anim, false, 60).unwrap();
+    let mut reader = codec_core::container::ContainerReader::new(&enc.bytes[..], Limits::default()).unwrap();
+    let mut packets = Vec::new();
+    while let Some(section) = reader.next_section() {
+        if let codec_core::container::Section::Packet(p) = section.unwrap() {
+            packets.push(p);
+        }
+    }
+    assert!(!packets.is_empty());
+    for p in &packets {
+        assert!(dec.decode_packet(p).is_ok());
+        for cut in (0..p.data.len()).step_by(5) {
+            let q = Packet { data: p.data[..cut].to_vec(), ..p.clone() };
+            if let Ok(v) = dec.decode_packet(&q) {
+                assert!(v.iter().all(|x| x.is_finite()));
+            }
+        }
+        for i in (0..p.data.len()).step_by(3) {
+            let mut q = p.clone();
+            q.data[i] ^= 0x5A;
+            if let Ok(v) = dec.decode_packet(&q) {
+                assert!(v.iter().all(|x| x.is_finite()));
+            }
+        }
+    }
+}
