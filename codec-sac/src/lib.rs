@@ -96,9 +96,10 @@ pub struct SacParams {
     /// Poisson factorization schedule (issue 14), 0..=255: the system is factored at the
     /// previous reconstruction every `refactor` P-frames of an interval and reused in between
     /// (the targets are carried to the factor's reference, see [`geometry::ReducedPoisson`]);
-    /// 1 = every frame, exactly the paper's solve; 0 = never, the rest pose's factor. Default 4
-    /// (measured: KG +2–3 % against 1 on horse-gallop and samba at 100 bases, decoding about a
-    /// third faster; 0 costs +60–80 % KG; README).
+    /// 1 = every frame, exactly the paper's solve; 0 = never, the rest pose's factor. Default 8
+    /// (measured: KG +5 % against 1 on horse-gallop and samba at 100 bases; samba decodes in
+    /// 0.49× the time of the pre-issue-14 decoder, against 0.54× with 4; 0 costs +60–80 % KG;
+    /// README, issue-14 note session 3).
     pub refactor: u8,
 }
 
@@ -150,7 +151,7 @@ impl Default for SacParams {
             residual: 0.0,
             rate: 0,
             basis: BasisSource::Stream,
-            refactor: 4,
+            refactor: 8,
         }
     }
 }
