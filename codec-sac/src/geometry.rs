@@ -1,7 +1,7 @@
 //! Deformation gradients (Sumner & Popović 2004), polar decomposition, rotation log/exp maps
 //! and the least-squares Poisson reconstruction of vertex positions (paper §3.2, §3.3, §3.6).
 
-use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::linalg::svd::{svd, svd_scratch, ComputeSvdVectors};
 use faer::sparse::linalg::cholesky::{
     factorize_symbolic_cholesky, CholeskySymbolicParams, LltRef, SymbolicCholesky, SymmetricOrdering,
@@ -518,6 +518,19 @@ impl PoissonSystem {
         self.tris.len() * 10
     }
 
+    /// Bytes one [`PoissonSystem::solve`] allocates: the numeric Cholesky factor (the fill of
+    /// the symbolic factorization), its scratch, the right-hand side and the assembled values.
+    /// Known right after [`PoissonSystem::new`], before any numeric work, so a decoder can
+    /// refuse a topology whose fill exceeds its [`codec_core::Limits`].
+    pub fn solve_bytes(&self) -> u64 {
+        let req = self
+            .cholesky
+            .factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default())
+            .or(self.cholesky.solve_in_place_scratch::<f64>(3, Par::Seq));
+        let words = self.cholesky.len_val() as u64 + 3 * self.unknowns as u64 + self.argsort_len_hint() as u64;
+        words.saturating_mul(8).saturating_add(req.unaligned_bytes_required() as u64)
+    }
+
     /// The pinned vertex of every component.
     pub fn pins(&self) -> &[usize] {
         &self.pins
@@ -627,12 +640,26 @@ impl ReducedPoisson {
         Ok(Self { tris: tris.to_vec(), unknown, unknowns, symbolic, argsort, slots, cholesky })
     }
 
+    fn scratch_req(&self) -> StackReq {
+        self.cholesky
+            .factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default())
+            .or(self.cholesky.solve_in_place_scratch::<f64>(3, Par::Seq))
+    }
+
+    /// Bytes of one [`PoissonFactor`] (the fill of the symbolic factorization plus the
+    /// per-triangle elements) and one [`PoissonScratch`]. Known right after
+    /// [`ReducedPoisson::new`], before any numeric work, so a decoder can refuse a topology
+    /// whose fill exceeds its [`codec_core::Limits`] instead of attempting the allocation.
+    pub fn factor_and_scratch_bytes(&self) -> u64 {
+        let factor = (self.cholesky.len_val() as u64).saturating_mul(8)
+            + self.tris.len() as u64 * std::mem::size_of::<Option<Element>>() as u64;
+        let scratch = (3 * self.unknowns as u64 + (self.slots.len() + self.unknowns) as u64) * 8;
+        factor.saturating_add(scratch).saturating_add(self.scratch_req().unaligned_bytes_required() as u64)
+    }
+
     /// Scratch for [`ReducedPoisson::factor`] and [`ReducedPoisson::solve`] (allocate once).
     pub fn scratch(&self) -> PoissonScratch {
-        let req = self
-            .cholesky
-            .factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default())
-            .or(self.cholesky.solve_in_place_scratch::<f64>(3, Par::Seq));
+        let req = self.scratch_req();
         PoissonScratch {
             rhs: Mat::zeros(self.unknowns, 3),
             values: Vec::with_capacity(self.slots.len() + self.unknowns),

@@ -13,7 +13,7 @@ use faer::sparse::linalg::cholesky::{factorize_symbolic_cholesky, LltRef, Symbol
 use faer::sparse::{SparseColMat, Triplet};
 use faer::{Accum, Col, Conj, Mat, MatMut, MatRef, Par, Side};
 
-use codec_core::{Error, Result};
+use codec_core::{Error, Limits, Result};
 
 use crate::geometry::{corners, cross, dot, norm, sub, V3};
 use crate::NAME;
@@ -109,8 +109,15 @@ fn dense_eigen(
     sqrt_mass: &[f64],
     count: usize,
     sigma: f64,
+    limits: &Limits,
 ) -> Result<(Mat<f64>, Vec<f64>)> {
     let n = sqrt_mass.len();
+    // An n × n matrix, its eigenvectors and the decomposition's scratch, before allocating
+    // (`Limits` bounds each allocation).
+    let evd = self_adjoint_evd_scratch::<f64>(n, ComputeEigenvectors::Yes, Par::Seq, Default::default());
+    for bytes in [(n as u64).saturating_mul(n as u64).saturating_mul(8), evd.unaligned_bytes_required() as u64] {
+        limits.check_alloc(NAME, "dense eigensolver (n × n)", bytes)?;
+    }
     let mut a = Mat::<f64>::zeros(n, n);
     for t in trip {
         let v = t.val / (sqrt_mass[t.row] * sqrt_mass[t.col]);
@@ -121,8 +128,7 @@ fn dense_eigen(
     }
     let mut u = Mat::<f64>::zeros(n, n);
     let mut s = Col::<f64>::zeros(n);
-    let mut buf =
-        MemBuffer::new(self_adjoint_evd_scratch::<f64>(n, ComputeEigenvectors::Yes, Par::Seq, Default::default()));
+    let mut buf = MemBuffer::new(evd);
     self_adjoint_evd(
         a.as_ref(),
         s.as_mut().as_diagonal_mut(),
@@ -146,13 +152,22 @@ fn krylov_eigen(
     count: usize,
     sigma: f64,
     max_dim: usize,
+    limits: &Limits,
 ) -> Result<(Mat<f64>, Vec<f64>)> {
     let n = sqrt_mass.len();
     let cholesky = factorize_symbolic_cholesky(a.symbolic(), Side::Upper, SymmetricOrdering::Amd, Default::default())
         .map_err(|e| numerical("laplacian symbolic factorization", codec_core::error::debug_in_words(&e)))?;
+    // The fill is known now: refuse a topology whose factor exceeds the limits before any
+    // numeric allocation (a crafted, expander-like connectivity fills in almost densely).
+    let numeric_scratch = cholesky.factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default());
+    limits.check_alloc(
+        NAME,
+        "laplacian factor (sparse Cholesky fill)",
+        (cholesky.len_val() as u64).saturating_mul(8).saturating_add(numeric_scratch.unaligned_bytes_required() as u64),
+    )?;
     let mut values = vec![0.0; cholesky.len_val()];
     {
-        let mut buf = MemBuffer::new(cholesky.factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default()));
+        let mut buf = MemBuffer::new(numeric_scratch);
         cholesky
             .factorize_numeric_llt(
                 &mut values,
@@ -170,6 +185,19 @@ fn krylov_eigen(
     // vector in place of the last wanted one; the Rayleigh–Ritz step below removes it.
     let want = (count + (count / 10).max(8)).min(n);
     let params = PartialEigenParams { max_dim: max_dim.max(2 * want + 20).min(n - 1), ..Default::default() };
+    // Krylov–Schur's projection space (`max_dim` vectors of n) lives in its scratch; the
+    // returned vectors and the Rayleigh–Ritz step allocate n × want blocks and an SVD scratch.
+    // `Limits` bounds each allocation.
+    let krylov = partial_self_adjoint_eigen_scratch::<f64>(&op, want, Par::Seq, params);
+    let ritz_svd =
+        svd_scratch::<f64>(n, want, ComputeSvdVectors::Thin, ComputeSvdVectors::No, Par::Seq, Default::default());
+    for (what, bytes) in [
+        ("eigensolver workspace (Krylov vectors)", krylov.unaligned_bytes_required() as u64),
+        ("eigenvectors (n × wanted)", (n as u64).saturating_mul(want as u64).saturating_mul(8)),
+        ("eigensolver workspace (Rayleigh-Ritz)", ritz_svd.unaligned_bytes_required() as u64),
+    ] {
+        limits.check_alloc(NAME, what, bytes)?;
+    }
     let mut vecs = Mat::<f64>::zeros(n, want);
     let mut vals = vec![0.0f64; want];
     // xorshift start vector: fixed, and not an eigenvector (a constant would be one).
@@ -180,7 +208,7 @@ fn krylov_eigen(
         state ^= state << 17;
         (state >> 11) as f64 / (1u64 << 53) as f64 + 0.5
     });
-    let mut buf = MemBuffer::new(partial_self_adjoint_eigen_scratch::<f64>(&op, want, Par::Seq, params));
+    let mut buf = MemBuffer::new(krylov);
     let info = partial_self_adjoint_eigen(
         vecs.as_mut(),
         &mut vals,
@@ -273,12 +301,24 @@ pub struct Harmonics {
 /// sequentially, and each eigenvector's sign is chosen so that its largest-magnitude entry (the
 /// first one on exact ties) is positive: the same decoded frame always gives the same basis.
 pub fn harmonics(pos: &[V3], tris: &[[usize; 3]], count: usize) -> Result<Harmonics> {
-    harmonics_with(pos, tris, count, 0)
+    harmonics_within(pos, tris, count, &crate::UNLIMITED)
+}
+
+/// [`harmonics`], refusing with [`Error::AllocLimit`] (before allocating) a factor or an
+/// eigensolver workspace larger than `limits` allows: the decoder's entry point.
+pub fn harmonics_within(pos: &[V3], tris: &[[usize; 3]], count: usize, limits: &Limits) -> Result<Harmonics> {
+    harmonics_with(pos, tris, count, 0, limits)
 }
 
 /// [`harmonics`] with a dense solve whenever `n ≤ dense_up_to` (0 keeps stream version 1's
 /// rule: dense only when the Krylov space would reach `n`).
-fn harmonics_with(pos: &[V3], tris: &[[usize; 3]], count: usize, dense_up_to: usize) -> Result<Harmonics> {
+fn harmonics_with(
+    pos: &[V3],
+    tris: &[[usize; 3]],
+    count: usize,
+    dense_up_to: usize,
+    limits: &Limits,
+) -> Result<Harmonics> {
     let n = pos.len();
     let count = count.min(n);
     if n == 0 || count == 0 {
@@ -302,9 +342,9 @@ fn harmonics_with(pos: &[V3], tris: &[[usize; 3]], count: usize, dense_up_to: us
     // meshes (where a dense problem is cheap anyway) take the dense path.
     let max_dim = (2 * count + 20).max(64);
     let (sym_vecs, eigenvalues) = if max_dim + 1 >= n || n <= dense_up_to {
-        dense_eigen(&trip, &sqrt_mass, count, sigma)?
+        dense_eigen(&trip, &sqrt_mass, count, sigma, limits)?
     } else {
-        krylov_eigen(&a, &sqrt_mass, count, sigma, max_dim)?
+        krylov_eigen(&a, &sqrt_mass, count, sigma, max_dim, limits)?
     };
     let mut basis = Mat::<f64>::zeros(n, count);
     for k in 0..count {
@@ -341,10 +381,20 @@ fn harmonics_with(pos: &[V3], tris: &[[usize; 3]], count: usize, dense_up_to: us
 /// (lowest vertex first), then by position within the component; the order is deterministic.
 /// A connected mesh gives exactly [`harmonics`]' result.
 pub fn harmonics_by_component(pos: &[V3], tris: &[[usize; 3]], count: usize) -> Result<Harmonics> {
+    harmonics_by_component_within(pos, tris, count, &crate::UNLIMITED)
+}
+
+/// [`harmonics_by_component`] within `limits` (see [`harmonics_within`]).
+pub fn harmonics_by_component_within(
+    pos: &[V3],
+    tris: &[[usize; 3]],
+    count: usize,
+    limits: &Limits,
+) -> Result<Harmonics> {
     let n = pos.len();
     let (component, pins) = crate::geometry::components(n, tris);
     if pins.len() <= 1 {
-        return harmonics(pos, tris, count);
+        return harmonics_within(pos, tris, count, limits);
     }
     let nc = pins.len();
     let mut local = vec![0usize; n];
@@ -377,7 +427,7 @@ pub fn harmonics_by_component(pos: &[V3], tris: &[[usize; 3]], count: usize) -> 
             parts.push(None);
             continue;
         }
-        let h = harmonics_with(&lpos, &comp_tris[c], count.min(lpos.len()), DENSE_COMPONENT)?;
+        let h = harmonics_with(&lpos, &comp_tris[c], count.min(lpos.len()), DENSE_COMPONENT, limits)?;
         for (k, &l) in h.eigenvalues.iter().enumerate() {
             pairs.push((l, c, k));
         }
@@ -598,8 +648,8 @@ mod tests {
         }
         let a = SparseColMat::<usize, f64>::try_new_from_triplets(n, n, &trip).unwrap();
         let sqrt_mass: Vec<f64> = mass.iter().map(|m| m.sqrt()).collect();
-        let (vk, lk) = krylov_eigen(&a, &sqrt_mass, 30, sigma, 80).unwrap();
-        let (vd, ld) = dense_eigen(&trip, &sqrt_mass, 30, sigma).unwrap();
+        let (vk, lk) = krylov_eigen(&a, &sqrt_mass, 30, sigma, 80, &crate::UNLIMITED).unwrap();
+        let (vd, ld) = dense_eigen(&trip, &sqrt_mass, 30, sigma, &crate::UNLIMITED).unwrap();
         for k in 0..30 {
             assert!((lk[k] - ld[k]).abs() < 1e-8 * (1.0 + ld[k].abs()), "eigenvalue {k}: {} vs {}", lk[k], ld[k]);
         }

@@ -42,6 +42,11 @@ use crate::harmonics::Transfer;
 /// Codec name.
 pub const NAME: &str = "sac";
 
+/// The encoder's limits: it reads no untrusted stream, so its allocations are bounded only by
+/// the input it was given (the decoder uses the caller's [`Limits`]).
+pub(crate) const UNLIMITED: Limits =
+    Limits { max_vertices: usize::MAX, max_frames: usize::MAX, max_triangles: usize::MAX, max_alloc_bytes: usize::MAX };
+
 /// Stream version the encoder writes. Version 2 (issue 14) computes the manifold harmonics of
 /// a disconnected mesh one connected component at a time
 /// ([`harmonics::harmonics_by_component`]) and adds the residual layer to P-frames; version 1
@@ -91,9 +96,10 @@ pub struct SacParams {
     /// Poisson factorization schedule (issue 14), 0..=255: the system is factored at the
     /// previous reconstruction every `refactor` P-frames of an interval and reused in between
     /// (the targets are carried to the factor's reference, see [`geometry::ReducedPoisson`]);
-    /// 1 = every frame, exactly the paper's solve; 0 = never, the rest pose's factor. Default 4
-    /// (measured: KG +2–3 % against 1 on horse-gallop and samba at 100 bases, decoding about a
-    /// third faster; 0 costs +60–80 % KG; README).
+    /// 1 = every frame, exactly the paper's solve; 0 = never, the rest pose's factor. Default 8
+    /// (measured: KG +5 % against 1 on horse-gallop and samba at 100 bases; samba decodes in
+    /// 0.49× the time of the pre-issue-14 decoder, against 0.54× with 4; 0 costs +60–80 % KG;
+    /// README, issue-14 note session 3).
     pub refactor: u8,
 }
 
@@ -145,7 +151,7 @@ impl Default for SacParams {
             residual: 0.0,
             rate: 0,
             basis: BasisSource::Stream,
-            refactor: 4,
+            refactor: 8,
         }
     }
 }
@@ -346,6 +352,7 @@ impl AnimationCodec for Sac {
         let p = SacParams::from_param_set(params)?;
         let shared = Shared::new(
             setup.topology,
+            &UNLIMITED,
             Settings {
                 bits: p.bits,
                 bases: p.bases,
@@ -409,7 +416,7 @@ impl AnimationCodec for Sac {
             basis_per_keyframe,
             refactor,
         };
-        let shared = Shared::new(&info.topology, settings)?;
+        let shared = Shared::new(&info.topology, limits, settings)?;
         Ok(Box::new(SacDecoder { shared, limits: *limits, gop: None, state: None }))
     }
 }
@@ -472,6 +479,8 @@ struct Shared {
     /// Stream version 3: the vertex-only system (fourth vertices eliminated), either
     /// reference.
     reduced: Option<ReducedPoisson>,
+    /// Bounds on the basis computation's allocations (the decoder's; none on the encoder).
+    limits: Limits,
 }
 
 /// Everything derived from the rest pose (the decoded frame the basis is computed from): the
@@ -541,7 +550,10 @@ fn set_v3(out: &mut [V3], frame: &[f32]) {
 }
 
 impl Shared {
-    fn new(topology: &Topology, settings: Settings) -> Result<Self> {
+    /// The connectivity's state. The Poisson system's symbolic factorization fixes the size of
+    /// its numeric factor; a topology whose factor (plus scratch) exceeds `limits` is refused
+    /// here, before any numeric factorization allocates it.
+    fn new(topology: &Topology, limits: &Limits, settings: Settings) -> Result<Self> {
         let n = topology.vertex_count();
         let tris: Vec<[usize; 3]> = topology
             .triangles()
@@ -559,7 +571,14 @@ impl Shared {
             (false, false) => (Some(PoissonSystem::new(n, &tris, &pins)?), None),
             (false, true) => (None, Some(ReducedPoisson::new(n, &tris, &pins)?)),
         };
-        Ok(Self { settings, n, tris, component, component_sizes, poisson, reduced })
+        const WHAT: &str = "poisson factor (sparse Cholesky fill of the topology)";
+        if let Some(p) = &poisson {
+            limits.check_alloc(NAME, WHAT, p.solve_bytes())?;
+        }
+        if let Some(r) = &reduced {
+            limits.check_alloc(NAME, WHAT, r.factor_and_scratch_bytes())?;
+        }
+        Ok(Self { settings, n, tris, component, component_sizes, poisson, reduced, limits: *limits })
     }
 
     fn components(&self) -> usize {
@@ -587,9 +606,9 @@ impl Shared {
         let bases = self.settings.bases as usize;
         let result = (|| -> Result<BasisState> {
             let h = if v >= 2 {
-                harmonics::harmonics_by_component(&rest, &self.tris, bases)?
+                harmonics::harmonics_by_component_within(&rest, &self.tris, bases, &self.limits)?
             } else {
-                harmonics::harmonics(&rest, &self.tris, bases)?
+                harmonics::harmonics_within(&rest, &self.tris, bases, &self.limits)?
             };
             let mut s = BasisState {
                 rest_block: Vec::new(),

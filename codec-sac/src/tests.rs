@@ -142,7 +142,7 @@ fn error_guard_repairs_or_refreshes_and_says_so() {
         basis_per_keyframe: true,
         refactor: 1,
     };
-    let mut v2 = SacEncoder::new(p, Shared::new(anim.topology(), settings).unwrap(), true);
+    let mut v2 = SacEncoder::new(p, Shared::new(anim.topology(), &UNLIMITED, settings).unwrap(), true);
     let pk = v2.push_frames(anim.positions()).unwrap();
     assert!(kinds(&pk)[1..].iter().all(|&k| k == KIND_REFRESH), "{:?}", kinds(&pk));
     let notes = v2.notes();
@@ -394,7 +394,7 @@ fn packets_version(anim: &Animation, p: SacParams, version: u16) -> (Vec<u8>, Ve
         basis_per_keyframe: version < 3 || p.basis == BasisSource::Keyframe,
         refactor: p.refactor,
     };
-    let shared = Shared::new(anim.topology(), settings).unwrap();
+    let shared = Shared::new(anim.topology(), &UNLIMITED, settings).unwrap();
     let mut enc = SacEncoder::new(p, shared, true);
     let config = enc.config();
     (config, enc.push_frames(anim.positions()).unwrap())
@@ -525,4 +525,128 @@ fn unknown_stream_version_is_refused_before_the_config_is_read() {
         assert!(matches!(e, Error::Unsupported { .. }), "{msg}");
         assert!(msg.contains("sac") && msg.contains(&format!("stream version {version}")), "{msg}");
     }
+}
+
+/// A crafted topology whose vertex adjacency is an expander: every vertex in triangles with
+/// pseudo-random partners. Few vertices, but any elimination order fills its Cholesky factor
+/// in almost densely (a real surface mesh fills in like `n log n`).
+pub(crate) fn expander_topology(n: usize) -> Vec<[usize; 3]> {
+    let mut state = 0x2545_F491_4F6C_DD1Du64;
+    let mut next = || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        (state >> 11) as usize % n
+    };
+    let mut tris = Vec::with_capacity(2 * n);
+    for i in 0..2 * n {
+        let a = i % n;
+        let (mut b, mut c) = (next(), next());
+        while b == a {
+            b = next();
+        }
+        while c == a || c == b {
+            c = next();
+        }
+        tris.push([a, b, c]);
+    }
+    tris
+}
+
+fn grid_topology(cols: usize, rows: usize) -> Vec<[usize; 3]> {
+    let mut tris = Vec::new();
+    for r in 0..rows - 1 {
+        for c in 0..cols - 1 {
+            let v = r * cols + c;
+            tris.push([v, v + 1, v + cols]);
+            tris.push([v + 1, v + cols + 1, v + cols]);
+        }
+    }
+    tris
+}
+
+/// Issue 14 (session-2 review): the decoder checks the Poisson system's sparse Cholesky fill
+/// against its `Limits` right after the symbolic factorization, before any numeric factor or
+/// scratch is allocated. A crafted expander-like topology of 3000 vertices (≈ 24 MB of factor and scratch)
+/// is refused with an error naming the Poisson factor under an 8 MiB limit, in every stream
+/// version, while a surface-like grid of the same size is accepted under the same limit.
+#[test]
+fn crafted_high_fill_topology_is_refused_by_the_decoder_limits() {
+    let limits = Limits { max_alloc_bytes: 8 << 20, ..Limits::default() };
+    let n = 3000;
+    let topology = |n: usize, tris: &[[usize; 3]]| {
+        Topology::new(n, tris.iter().map(|t| [t[0] as u32, t[1] as u32, t[2] as u32]).collect()).unwrap()
+    };
+    let info = |topology: Topology, version: u16| StreamInfo {
+        fourcc: Sac.fourcc(),
+        codec_version: version,
+        topology,
+        frame_count: 2,
+        frame_rate: 30.0,
+    };
+    // Versions 1–2: bits, bases, polar, iframe_bits; version 3 adds basis and refactor.
+    let config = |version: u16| {
+        let mut c = vec![18u8, 16, 0, 0, 0, 1, 20];
+        if version >= 3 {
+            c.extend([0, 4]);
+        }
+        c
+    };
+    let expander = topology(n, &expander_topology(n));
+    let grid = topology(60 * 50, &grid_topology(60, 50));
+    for version in 1..=STREAM_VERSION {
+        assert!(
+            Sac.new_decoder(&info(grid.clone(), version), &config(version), &limits).is_ok(),
+            "version {version}: a 3000-vertex grid must fit in 8 MiB"
+        );
+        let e = Sac
+            .new_decoder(&info(expander.clone(), version), &config(version), &limits)
+            .err()
+            .expect("a high-fill topology was accepted");
+        let msg = e.to_string();
+        assert!(matches!(e, Error::AllocLimit { .. }), "version {version}: {msg}");
+        assert!(msg.contains("sac") && msg.contains("poisson factor"), "version {version}: {msg}");
+        // With the default limits (4 GiB) the same topology (≈ 24 MB) is accepted.
+        assert!(Sac.new_decoder(&info(expander.clone(), version), &config(version), &Limits::default()).is_ok());
+    }
+}
+
+/// The eigensolver checks its allocations against the limits before making them: the
+/// Laplacian factor's fill (after its symbolic factorization), the Krylov workspace
+/// (`max_dim` vectors plus the returned block and the Rayleigh–Ritz step) and the dense
+/// fallback's n × n matrices. Each is refused with an error naming it.
+#[test]
+fn eigensolver_allocations_are_checked_against_the_limits() {
+    let sphere = |n: usize| -> Vec<V3> {
+        (0..n)
+            .map(|i| {
+                let z = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
+                let a = i as f64 * 2.399_963;
+                let r = (1.0 - z * z).sqrt();
+                [r * a.cos(), r * a.sin(), z]
+            })
+            .collect()
+    };
+    let flat = |cols: usize, rows: usize| -> Vec<V3> {
+        (0..cols * rows).map(|v| [(v % cols) as f64, (v / cols) as f64, 0.01 * ((v * 7) % 5) as f64]).collect()
+    };
+    let expect = |r: Result<harmonics::Harmonics>, what: &str| {
+        let e = r.err().unwrap_or_else(|| panic!("{what}: accepted"));
+        let msg = e.to_string();
+        assert!(matches!(e, Error::AllocLimit { .. }) && msg.contains(what), "{msg}");
+    };
+    let tight = |bytes: usize| Limits { max_alloc_bytes: bytes, ..Limits::default() };
+    // The expander's Laplacian factor (≈ 22 MB) against 8 MiB.
+    let n = 3000;
+    expect(harmonics::harmonics_within(&sphere(n), &expander_topology(n), 16, &tight(8 << 20)), "laplacian factor");
+    // A 3000-vertex grid: its factor fits in 2 MiB, 100 bases' Krylov workspace (≈ 28 MB) does not.
+    let (pos, tris) = (flat(60, 50), grid_topology(60, 50));
+    expect(harmonics::harmonics_within(&pos, &tris, 100, &tight(2 << 20)), "eigensolver workspace");
+    assert!(harmonics::harmonics_within(&pos, &tris, 100, &tight(64 << 20)).is_ok());
+    // A 225-vertex grid at 120 bases takes the dense path: two 225 × 225 matrices and the
+    // decomposition's scratch (≈ 2 MB).
+    let (pos, tris) = (flat(15, 15), grid_topology(15, 15));
+    expect(harmonics::harmonics_within(&pos, &tris, 120, &tight(256 << 10)), "dense eigensolver");
+    expect(harmonics::harmonics_by_component_within(&pos, &tris, 120, &tight(256 << 10)), "dense eigensolver");
+    assert!(harmonics::harmonics_within(&pos, &tris, 120, &tight(8 << 20)).is_ok());
 }
