@@ -196,8 +196,11 @@ fn speed(a: &Animation, name: &str) {
     use codec_hosvd::Coding;
     let out_bytes = a.positions().len() * 4;
     println!("\n## {name}: speed (best of 3; decoded output {:.1} MB)\n", out_bytes as f64 / 1e6);
-    println!("| ss | coding | bpvf | KG | encode s | decode s | memcpy s | decode speed / memcpy speed | encode / paper encode |");
-    println!("|---|---|---|---|---|---|---|---|---|");
+    println!(
+        "| ss | coding | (v, f) | bpvf | KG | encode s | decode s | memcpy s | decode speed / memcpy speed | \
+         encode / paper encode | reconstruction s: plain loops / blocked 1 thread / blocked all threads |"
+    );
+    println!("|---|---|---|---|---|---|---|---|---|---|---|");
     let reg = CodecRegistry::new(vec![Box::new(Hosvd)]).unwrap();
     for ss in [0.95, 0.9, 0.8] {
         let mut paper_enc = 0.0;
@@ -219,8 +222,28 @@ fn speed(a: &Animation, name: &str) {
                 paper_enc = enc_s;
             }
             let e = errors(a, dec.positions());
+            // The reconstruction alone, on a model of the stream's dimensions (values do not
+            // change the time): the decoder's arithmetic without the entropy decoding.
+            let mut enc = HosvdEncoder::new(p, a.topology(), a.frame_count(), false);
+            enc.push_frames(a.positions()).unwrap();
+            enc.finish().unwrap();
+            let st = enc.stats()[0];
+            let model = dummy_model(a.vertex_count(), a.frame_count(), st.v, st.f);
+            let plain_s = best_of(2, || {
+                std::hint::black_box(codec_hosvd::tensor::reconstruct_reference(&model));
+            });
+            let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+            let fast1_s = best_of(3, || {
+                one.install(|| std::hint::black_box(codec_hosvd::tensor::reconstruct(&model)));
+            });
+            let fast_s = best_of(3, || {
+                std::hint::black_box(codec_hosvd::tensor::reconstruct(&model));
+            });
             println!(
-                "| {ss} | {coding:?} | {:.3} | {:.3} | {enc_s:.3} | {dec_s:.4} | {memcpy_s:.5} | {:.2}% | {:.2} |",
+                "| {ss} | {coding:?} | ({}, {}) | {:.3} | {:.3} | {enc_s:.3} | {dec_s:.4} | {memcpy_s:.5} | {:.2}% | {:.2} | \
+                 {plain_s:.4} / {fast1_s:.4} / {fast_s:.4} |",
+                st.v,
+                st.f,
                 bytes.len() as f64 * 8.0 / (a.vertex_count() * a.frame_count()) as f64,
                 e.kg,
                 100.0 * memcpy_s / dec_s,
@@ -230,8 +253,44 @@ fn speed(a: &Animation, name: &str) {
     }
 }
 
+fn dummy_model(k: usize, frames: usize, v: usize, f: usize) -> codec_hosvd::tensor::Model {
+    let val = |i: usize| ((i as f64) * 0.618_034).fract() - 0.5;
+    codec_hosvd::tensor::Model {
+        k,
+        frames,
+        v,
+        f,
+        u1: (0..k * v).map(val).collect(),
+        u2: [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
+        u3: (0..frames * f).map(val).collect(),
+        core: (0..v * 3 * f).map(val).collect(),
+        transforms: vec![
+            codec_hosvd::tensor::Affine { m: [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0], c: [0.0; 3] };
+            frames
+        ],
+    }
+}
+
 fn main() {
     let mut args = std::env::args().skip(1).peekable();
+    if args.peek().is_some_and(|a| a == "--kernel") {
+        // Reconstruction alone at samba's ss=0.9 dimensions (K, F, v, f) = (9971, 175, 50, 70).
+        let model = dummy_model(9971, 175, 50, 70);
+        let plain_s = best_of(2, || {
+            std::hint::black_box(codec_hosvd::tensor::reconstruct_reference(&model));
+        });
+        let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+        let fast1_s = best_of(5, || {
+            one.install(|| std::hint::black_box(codec_hosvd::tensor::reconstruct(&model)));
+        });
+        let fast_s = best_of(5, || {
+            std::hint::black_box(codec_hosvd::tensor::reconstruct(&model));
+        });
+        println!(
+            "reconstruction s: plain {plain_s:.4} / blocked 1 thread {fast1_s:.4} / blocked all threads {fast_s:.4}"
+        );
+        return;
+    }
     let speed_only = args.peek().is_some_and(|a| a == "--speed");
     if speed_only {
         args.next();

@@ -483,10 +483,48 @@ pub struct Model {
 }
 
 /// Eq. (10) then step 5 of Alg. 2: `T̃ = C ×₁ U1 ×₂ U2 ×₃ U3`, then each frame mapped back by
-/// its stored inverse transform. Plain loops in a fixed order (f64), so encoder and decoder
-/// produce identical bits.
+/// its stored inverse transform. Encoder and decoder produce identical bits, whatever the
+/// thread count: every output coordinate is one fixed-order f64 sum (see [`reconstruct_reference`],
+/// the plain loops this reproduces bit for bit).
+///
+/// Speed (issue 15 item 4): the last step, `X[t][k][j] = Σ_i U1[k][i]·D[t][j][i]`, is
+/// `F·K·3·v` multiply-adds and all of the decoder's arithmetic. It runs on blocks of
+/// [`LANES`] vertices whose `U1` rows are repacked lane-interleaved (a block is `v·LANES`
+/// contiguous values, L1-resident while every frame of a thread's range is reconstructed),
+/// with `3·LANES` accumulators updated in the same order `i = 0 … v−1` as the plain loop:
+/// vectorization across independent outputs, not a reordering of one output's sum, and
+/// separate multiply and add (Rust never contracts them into FMA), so the bits are those of
+/// the reference. Frames are split over rayon's threads (disjoint output ranges). On x86-64
+/// with AVX2 (runtime-detected by `pulp`) the kernel is compiled for 256-bit vectors.
 pub fn reconstruct(m: &Model) -> Vec<f32> {
-    let (k, frames, v, f) = (m.k, m.frames, m.v, m.f);
+    let (k, frames, v) = (m.k, m.frames, m.v);
+    let d = frame_loadings(m);
+    let mut out = vec![0.0f32; frames * k * 3];
+    if k == 0 || frames == 0 {
+        return out;
+    }
+    let packed = pack_lanes(&m.u1, k, v);
+    let transforms: Vec<([f64; 9], [f64; 3])> =
+        m.transforms.iter().map(|a| (a.m.map(|x| x as f64), a.c.map(|x| x as f64))).collect();
+    // Enough chunks to keep every thread busy; the split never changes a value.
+    let threads = rayon::current_num_threads().max(1);
+    let per_chunk = frames.div_ceil(threads * 2).max(1);
+    use rayon::prelude::*;
+    out.par_chunks_mut(per_chunk * k * 3).enumerate().for_each(|(c, o)| {
+        let t0 = c * per_chunk;
+        let job = KernelJob { packed: &packed, d: &d, transforms: &transforms, k, v, t0 };
+        job.run(o);
+    });
+    out
+}
+
+/// Vertices per block of the reconstruction kernel (four 256-bit vectors of f64).
+pub const LANES: usize = 16;
+
+/// `D[t][j][i] = Σ_l U3[t][l] Σ_j' U2[j][j'] C[i][j'][l]` (`F × 3 × v`): the per-frame
+/// loadings the `U1` rows are combined with. `O(v·f·(3 + F))`, small next to the last step.
+fn frame_loadings(m: &Model) -> Vec<f64> {
+    let (frames, v, f) = (m.frames, m.v, m.f);
     // C2[i][j][l] = Σ_j' U2[j][j'] C[i][j'][l]
     let mut c2 = vec![0.0f64; v * 3 * f];
     for i in 0..v {
@@ -507,6 +545,81 @@ pub fn reconstruct(m: &Model) -> Vec<f32> {
             }
         }
     }
+    d
+}
+
+/// `U1` (`K × v` row-major) as blocks of [`LANES`] vertices, each `v × LANES` (`[i][lane]`),
+/// the last block padded with zeros.
+fn pack_lanes(u1: &[f64], k: usize, v: usize) -> Vec<f64> {
+    let blocks = k.div_ceil(LANES);
+    let mut packed = vec![0.0f64; blocks * v * LANES];
+    for kk in 0..k {
+        let (b, lane) = (kk / LANES, kk % LANES);
+        for i in 0..v {
+            packed[(b * v + i) * LANES + lane] = u1[kk * v + i];
+        }
+    }
+    packed
+}
+
+/// One thread's share of the last reconstruction step: frames `t0 …` (as many as `out` holds).
+struct KernelJob<'a> {
+    packed: &'a [f64],
+    d: &'a [f64],
+    transforms: &'a [([f64; 9], [f64; 3])],
+    k: usize,
+    v: usize,
+    t0: usize,
+}
+
+impl KernelJob<'_> {
+    fn run(&self, out: &mut [f32]) {
+        // pulp compiles the inlined kernel for the best instruction set the CPU has
+        // (x86-64-v3 = AVX2 when present) and dispatches at run time, without unsafe here.
+        pulp::Arch::new().dispatch(|| self.run_portable(out));
+    }
+
+    #[inline(always)]
+    fn run_portable(&self, out: &mut [f32]) {
+        let (k, v) = (self.k, self.v);
+        let frames = out.len() / (3 * k);
+        for b in 0..k.div_ceil(LANES) {
+            let block = &self.packed[b * v * LANES..(b + 1) * v * LANES];
+            let first = b * LANES;
+            let n = LANES.min(k - first);
+            for tt in 0..frames {
+                let t = self.t0 + tt;
+                let dt = &self.d[t * 3 * v..(t + 1) * 3 * v];
+                // -0.0 is the start value of f64's `Sum` (so `-0.0 + p = p` exactly, as there).
+                // Three separate accumulator arrays (one per coordinate) stay in vector registers.
+                let (mut a0, mut a1, mut a2) = ([-0.0f64; LANES], [-0.0f64; LANES], [-0.0f64; LANES]);
+                let (d0, rest) = dt.split_at(v);
+                let (d1, d2) = rest.split_at(v);
+                for ((u, (&s0, &s1)), &s2) in block.chunks_exact(LANES).zip(d0.iter().zip(d1)).zip(d2) {
+                    for l in 0..LANES {
+                        a0[l] += u[l] * s0;
+                        a1[l] += u[l] * s1;
+                        a2[l] += u[l] * s2;
+                    }
+                }
+                let acc = [a0, a1, a2];
+                let (mm, cc) = &self.transforms[t];
+                let o = &mut out[(tt * k + first) * 3..(tt * k + first + n) * 3];
+                for (l, o) in o.chunks_exact_mut(3).enumerate() {
+                    for j in 0..3 {
+                        o[j] = (acc[0][l] * mm[j] + acc[1][l] * mm[3 + j] + acc[2][l] * mm[6 + j] + cc[j]) as f32;
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// The plain loops [`reconstruct`] reproduces bit for bit (kept as the reference its tests
+/// compare against).
+pub fn reconstruct_reference(m: &Model) -> Vec<f32> {
+    let (k, frames, v) = (m.k, m.frames, m.v);
+    let d = frame_loadings(m);
     let mut out = vec![0.0f32; frames * k * 3];
     for t in 0..frames {
         let a = &m.transforms[t];
