@@ -30,6 +30,14 @@ use coding::Layout;
 use dictionary::{EstimatorSettings, Tracker};
 pub use dictionary::{Method, Mode};
 
+/// Most spatial clusters a stream may declare (the upper end of `clusters`' range).
+pub(crate) const MAX_CLUSTERS: usize = 65536;
+/// Most frames per block (the upper end of `block`'s range); toolkit-coded packets longer
+/// than this are refused.
+pub(crate) const MAX_BLOCK: usize = 4096;
+/// Decoder memory per cluster beyond its mesh coding order (graph headers and vectors).
+const PER_CLUSTER_BYTES: u64 = 256;
+
 /// Codec name on the command line and in error messages.
 pub const NAME: &str = "pca-aoi";
 
@@ -183,7 +191,13 @@ impl PcaAoiParams {
                 d.k as i64,
                 "subspace size (svd, baoi); qaoi sizes its first block from the SVD spectrum",
             ),
-            ParamSpec::int("block", 1, 4096, d.block as i64, "frames per block; one self-contained packet per block"),
+            ParamSpec::int(
+                "block",
+                1,
+                MAX_BLOCK as i64,
+                d.block as i64,
+                "frames per block; one self-contained packet per block",
+            ),
             ParamSpec::int("z", 1, 16, d.z as i64, "power of A_i applied per orthogonal iteration"),
             ParamSpec::int("tmax", 1, 64, d.tmax as i64, "orthogonal iterations per block (baoi)"),
             ParamSpec::float(
@@ -209,7 +223,7 @@ impl PcaAoiParams {
             ParamSpec::int(
                 "clusters",
                 1,
-                65536,
+                MAX_CLUSTERS as i64,
                 d.clusters as i64,
                 "spatial clusters along connectivity, coded independently",
             ),
@@ -933,8 +947,11 @@ impl PcaAoiDecoder {
         let v = info.vertex_count();
         let clusters = r.varint("config.clusters")?;
         r.expect_end("config")?;
-        if clusters == 0 || clusters > v as u64 {
-            return Err(r.malformed("config.clusters", format!("{clusters} is outside 1..={v}")));
+        // The encoder writes at most MAX_CLUSTERS; more would only cost decoder memory (one
+        // cluster and, for toolkit packets, one coding order each) for a tiny config.
+        let most = (v as u64).min(MAX_CLUSTERS as u64);
+        if clusters == 0 || clusters > most {
+            return Err(r.malformed("config.clusters", format!("{clusters} is outside 1..={most}")));
         }
         Ok(Self {
             coding,
@@ -952,7 +969,8 @@ impl PcaAoiDecoder {
                 let bytes = local
                     .iter()
                     .zip(&self.clusters)
-                    .map(|(t, c)| order::mesh_bytes(c.len(), t.len()))
+                    // Plus a fixed per-cluster cost (graph headers and their vectors).
+                    .map(|(t, c)| order::mesh_bytes(c.len(), t.len()).saturating_add(PER_CLUSTER_BYTES))
                     .fold(0u64, u64::saturating_add);
                 self.limits.check_alloc(NAME, "mesh coding order", bytes)?;
                 *meshes = MeshOrders::Built(
@@ -1153,6 +1171,15 @@ impl FrameDecoder for PcaAoiDecoder {
         let d = packet.frame_count as usize;
         if d == 0 {
             return Err(Error::malformed(NAME, "packet.frame_count", "a packet holds at least one frame"));
+        }
+        // Packets never hold more frames than `block`'s range allows; refusing longer ones
+        // bounds the rank, and with it the reconstruction work per decoded value.
+        if d > MAX_BLOCK && matches!(self.coding, DecoderCoding::Toolkit { .. }) {
+            return Err(Error::malformed(
+                NAME,
+                "packet.frame_count",
+                format!("{d} exceeds the longest block the encoder writes ({MAX_BLOCK})"),
+            ));
         }
         let len = d as u64 * self.vertex_count as u64 * 3;
         self.limits.check_alloc(NAME, "packet.frames", len * 4)?;

@@ -361,10 +361,8 @@ fn paper_coding_reproduces_the_version_1_golden_packets_byte_for_byte() {
     // from the golden input (tests/tests/golden.rs); `coding=paper` must write the same packets
     // and, behind its coding byte 0, the same config.
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/golden/pca-aoi-v1.anim");
-    let Ok(bytes) = std::fs::read(&path) else {
-        eprintln!("SKIP: {} not found", path.display());
-        return;
-    };
+    // The golden file is committed: its absence is a failure, not a skip.
+    let bytes = std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
     let mut reader = codec_core::container::ContainerReader::new(&bytes[..], Limits::default()).unwrap();
     let golden_config = reader.header().config.clone();
     let mut golden = Vec::new();
@@ -382,4 +380,29 @@ fn paper_coding_reproduces_the_version_1_golden_packets_byte_for_byte() {
     for (a, b) in packets.iter().zip(&golden) {
         assert_eq!(a.data, b.data, "packet at frame {}", a.first_frame);
     }
+}
+
+/// Review finding (session 3): a tiny config must not make the decoder build one cluster (and
+/// one coding order) per vertex, and a toolkit packet longer than any block the encoder writes
+/// is refused before decoding (it would bound nothing on the rank and the work per value).
+#[test]
+fn cluster_count_and_packet_length_are_bounded_by_the_encoders_ranges() {
+    // 300 × 240 = 72 000 vertices: more than MAX_CLUSTERS (65 536).
+    let big = flag(300, 240, 1);
+    for (version, prefix) in [(1u16, vec![14u8, 12]), (2, vec![1u8, 2, 1])] {
+        let mut w = codec_core::bytes::ByteWriter::new();
+        for b in &prefix {
+            w.u8(*b);
+        }
+        w.varint(65_537);
+        let config = w.into_vec();
+        let e = PcaAoi.new_decoder(&info(&big, version), &config, &Limits::default()).err().expect("accepted");
+        assert!(e.to_string().contains("config.clusters") && e.to_string().contains("65536"), "{e}");
+    }
+    let anim = flag(6, 5, 12);
+    let (config, packets, _) = setup_and_packets(&anim, &PcaAoiParams { block: 6, ..Default::default() });
+    let mut dec = PcaAoi.new_decoder(&info(&anim, 2), &config, &Limits::default()).unwrap();
+    let long = Packet { frame_count: 4097, ..packets[0].clone() };
+    let e = dec.decode_packet(&long).unwrap_err().to_string();
+    assert!(e.contains("packet.frame_count") && e.contains("4096"), "{e}");
 }
