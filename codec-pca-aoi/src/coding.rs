@@ -14,7 +14,8 @@
 //! reconstructed earlier neighbours (Coddyac's idea for PCA coefficients); trajectories are
 //! quantized along time, per axis (`x`, `y`, `z` chains of `d` frames), predicted from the
 //! previous frame(s). One step per component comes from the equal-slope rule
-//! ([`rdq::allocate`]) over a grid of steps plus "dropped", with rates from the adaptive coder's
+//! (`rdq::allocate`'s λ search, run by `equal_slope` over lazily evaluated grids) over a grid
+//! of steps plus "dropped", with rates from the adaptive coder's
 //! cost model and distortions in the block's units: a feature row's error reaches `X̂` through
 //! an orthonormal column (gain 1), a dictionary column's error through its feature row (gain
 //! `‖F[j, :]‖`). All codes go through one context-adaptive binary arithmetic coder: class =
@@ -103,7 +104,6 @@ pub struct Settings {
 struct Component<'g> {
     layout: Layout<'g>,
     predictor: Predictor,
-    class: usize,
     /// Values in coding order.
     values: Vec<f64>,
     gain2: f64,
@@ -373,7 +373,6 @@ pub fn code(
         comps.push(Component {
             layout: dict_layout,
             predictor: predictor(&dict_layout),
-            class: j.min(CLASSES_PER_GROUP - 1),
             values: (0..e_dim).map(|p| e[(dict_layout.natural(p), j)]).collect(),
             gain2,
             reference_step: dict_ref / gain2.sqrt().max(1e-300),
@@ -383,7 +382,6 @@ pub fn code(
         comps.push(Component {
             layout: feat_layout,
             predictor: predictor(&feat_layout),
-            class: CLASSES_PER_GROUP + i.min(CLASSES_PER_GROUP - 1),
             values: (0..m_dim).map(|p| features[(i, feat_layout.natural(p))]).collect(),
             gain2: 1.0,
             reference_step: feat_ref,
@@ -413,7 +411,9 @@ pub fn code(
     for (slot, &j) in kept.iter().enumerate() {
         let c = &comps[j];
         quantize(c.layout, c.predictor, &c.values, steps[j], &mut codes, &mut recon);
-        encode_codes(&mut enc, c.layout, &codes, c.class);
+        // The decoder knows the kept components by their slot, not their index in the input
+        // dictionary: the class follows the slot (the kept set need not be a prefix).
+        encode_codes(&mut enc, c.layout, &codes, slot.min(CLASSES_PER_GROUP - 1));
         for (p, &r) in recon.iter().enumerate() {
             e_hat[(dict_layout.natural(p), slot)] = r;
         }
@@ -423,7 +423,7 @@ pub fn code(
         let c = &comps[k + j];
         let step = steps[k + j];
         quantize(c.layout, c.predictor, &c.values, step, &mut codes, &mut recon);
-        encode_codes(&mut enc, c.layout, &codes, c.class);
+        encode_codes(&mut enc, c.layout, &codes, CLASSES_PER_GROUP + slot.min(CLASSES_PER_GROUP - 1));
         for (p, &r) in recon.iter().enumerate() {
             f_hat[(slot, feat_layout.natural(p))] = r;
         }
@@ -520,4 +520,38 @@ fn component(
         return Err(Error::malformed(NAME, "cluster.codes", "a decoded value is not finite"));
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A kept set that is not a prefix (a middle component dropped) must decode to what the
+    /// encoder measured: the coder class follows the kept slot on both sides. More components
+    /// than classes, so the last ones share an adapted class (a class taken from the input index
+    /// instead of the slot then decodes garbage).
+    #[test]
+    fn a_dropped_middle_component_still_decodes_to_the_encoders_reconstruction() {
+        let (d1, d2, k) = (24, 10, CLASSES_PER_GROUP + 2);
+        let (e_dim, m_dim) = (3 * d1, 3 * d2);
+        // Orthonormal dictionary: unit coordinate columns.
+        let e = Mat::<f64>::from_fn(e_dim, k, |r, c| if r == 2 * c + 1 { 1.0 } else { 0.0 });
+        // Component 1 carries no energy: dropped, while components 0 and 2 are kept.
+        let scale: Vec<f64> = (0..k).map(|j| if j == 1 { 0.0 } else { 5.0 / (1.0 + j as f64) }).collect();
+        let features = Mat::<f64>::from_fn(k, m_dim, |r, c| scale[r] * ((c * (r + 2)) as f64 * 0.37).sin());
+        let x = linalg::mul(e.as_ref(), features.as_ref());
+        let dict_graph = CausalGraph::chain(d1, false);
+        let feat_graph = CausalGraph::chain(d2, false);
+        let settings = Settings { mesh: Predictor::Average, time: Predictor::Previous, rdq: true };
+        let (dl, fl) = (Layout::Time(&dict_graph), Layout::Time(&feat_graph));
+        let energy: f64 = (0..m_dim).map(|c| (0..e_dim).map(|r| x[(r, c)].powi(2)).sum::<f64>()).sum();
+        let coded = code(e.as_ref(), features.as_ref(), x.as_ref(), dl, fl, &settings, 1e-6 * energy);
+        assert_eq!(coded.kept.len(), k - 1);
+        assert!(!coded.kept.contains(&1));
+        let (e_hat, f_hat) = decode(&coded.bytes, &coded.steps, dl, fl, &settings).expect("decodes");
+        let y = linalg::mul(e_hat.as_ref(), f_hat.as_ref());
+        let err: f64 = (0..m_dim).map(|c| (0..e_dim).map(|r| (x[(r, c)] - y[(r, c)]).powi(2)).sum::<f64>()).sum();
+        assert!((err - coded.error2).abs() <= 1e-9 * energy, "decoded error {err}, encoder's {}", coded.error2);
+        assert!(err <= 1.05e-6 * energy, "error {err} over the budget");
+    }
 }
