@@ -368,10 +368,21 @@ async function mountReport(root, data, THREE, OrbitControls) {
     const xStep = x1 > 40 ? 10 : x1 > 10 ? 2 : 1;
     for (let x = 0; x <= x1; x += xStep) add('text', { x: X(x), y: H - M.b + 16, 'text-anchor': 'middle' }, String(x));
     add('text', { x: W / 2, y: H - 6, 'text-anchor': 'middle' }, 'bits per vertex per frame');
+    const seriesPoints = (c) => rows.filter((r) => (r.series || r.codec) === c).sort((a, b) => a.bpvf - b.bpvf);
+    // Every series' line first, then every point: a later series' line must not cover (and
+    // take the pointer from) an earlier series' points.
     codecs.forEach((c, ci) => {
-      const pts = rows.filter((r) => (r.series || r.codec) === c).sort((a, b) => a.bpvf - b.bpvf);
+      const pts = seriesPoints(c);
+      add('polyline', {
+        points: pts.map((r) => `${X(r.bpvf)},${Y(Math.log10(r[metric]))}`).join(' '),
+        fill: 'none',
+        stroke: palette[ci % palette.length],
+        'pointer-events': 'none',
+      });
+    });
+    codecs.forEach((c, ci) => {
+      const pts = seriesPoints(c);
       const color = palette[ci % palette.length];
-      add('polyline', { points: pts.map((r) => `${X(r.bpvf)},${Y(Math.log10(r[metric]))}`).join(' '), fill: 'none', stroke: color });
       for (const r of pts) {
         const dot = add('circle', { cx: X(r.bpvf), cy: Y(Math.log10(r[metric])), r: 4, fill: color, class: 'point' });
         dot.addEventListener('mouseenter', (ev) => {
