@@ -172,7 +172,7 @@ fn synth_encode_info_decode_round_trip_through_pc2() {
     let decoded = animcodec::formats::read_animation(Path::new(&dst), &opts).unwrap();
     let expected = codec_core::synth::by_name("flag", codec_core::synth::SynthSize::Small).unwrap();
     assert_eq!(original.positions(), expected.positions(), "PC2 stores f32 exactly");
-    assert_eq!(decoded.topology(), original.topology());
+    assert!(codec_core::connectivity::same_triangles(decoded.topology(), original.topology()));
     // The codec's own promise at the parameters used.
     let registry = animcodec::registry();
     let codec = registry.by_name("quant-delta").unwrap();

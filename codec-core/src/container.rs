@@ -21,7 +21,7 @@ use crate::error::{Error, Result};
 /// File magic: `ANIMCDC` then 0x1A (stops `type` on DOS, catches text-mode mangling).
 pub const MAGIC: [u8; 8] = *b"ANIMCDC\x1a";
 /// Container version written by this library.
-pub const CONTAINER_VERSION: u16 = 1;
+pub const CONTAINER_VERSION: u16 = 2;
 /// Tag opening every packet.
 pub const PACKET_TAG: [u8; 4] = *b"APKT";
 /// Tag opening the index.
@@ -120,9 +120,16 @@ impl IndexEntry {
     }
 }
 
-/// Codes a triangle list: per triangle, zigzag varints of the first index's delta from the
-/// previous triangle's first index and of the other two indices relative to the first; then zstd.
-pub fn encode_topology(topology: &Topology) -> Vec<u8> {
+/// Topology block method byte (container version 2): version 1's varint list + zstd.
+const TOPOLOGY_LIST: u8 = 0;
+/// Topology block method byte (container version 2): [`crate::connectivity`]'s adaptive
+/// arithmetic coding.
+const TOPOLOGY_CONNECTIVITY: u8 = 1;
+
+/// Container version 1's topology coding: per triangle, zigzag varints of the first index's
+/// delta from the previous triangle's first index and of the other two indices relative to
+/// the first; then zstd.
+pub fn encode_topology_list(topology: &Topology) -> Vec<u8> {
     let mut w = ByteWriter::new();
     let mut prev = 0i64;
     for t in topology.triangles() {
@@ -135,8 +142,51 @@ pub fn encode_topology(topology: &Topology) -> Vec<u8> {
     entropy::compress(w.as_slice(), entropy::DEFAULT_LEVEL)
 }
 
-/// Inverse of [`encode_topology`], checking every index against `vertex_count`.
-pub fn decode_topology(block: &[u8], vertex_count: usize, triangle_count: usize, limits: &Limits) -> Result<Topology> {
+/// Codes a triangle list exactly as container version 2 stores it: a method byte, then the
+/// smaller of [`crate::connectivity::encode`] (small for [`crate::connectivity::canonical_order`])
+/// and version 1's list coding.
+pub fn encode_topology(topology: &Topology) -> Vec<u8> {
+    let list = encode_topology_list(topology);
+    let (method, body) = match crate::connectivity::encode(topology) {
+        Some(c) if c.len() < list.len() => (TOPOLOGY_CONNECTIVITY, c),
+        _ => (TOPOLOGY_LIST, list),
+    };
+    let mut out = Vec::with_capacity(body.len() + 1);
+    out.push(method);
+    out.extend_from_slice(&body);
+    out
+}
+
+/// Inverse of [`encode_topology`] for `container_version` (1: the list coding alone; 2: the
+/// method byte first), checking every index against `vertex_count`.
+pub fn decode_topology(
+    block: &[u8],
+    container_version: u16,
+    vertex_count: usize,
+    triangle_count: usize,
+    limits: &Limits,
+) -> Result<Topology> {
+    if container_version < 2 {
+        return decode_topology_list(block, vertex_count, triangle_count, limits);
+    }
+    let (&method, body) =
+        block.split_first().ok_or_else(|| Error::malformed(CTX, "topology", "empty topology block"))?;
+    match method {
+        TOPOLOGY_LIST => decode_topology_list(body, vertex_count, triangle_count, limits),
+        TOPOLOGY_CONNECTIVITY => {
+            limits.check_alloc(CTX, "triangle_count", triangle_count as u64 * 12)?;
+            // Per-vertex neighbour lists of the connectivity decoder.
+            if triangle_count > 0 {
+                limits.check_alloc(CTX, "vertex_count", vertex_count as u64 * 24)?;
+            }
+            crate::connectivity::decode(body, vertex_count, triangle_count)
+        }
+        m => Err(Error::malformed(CTX, "topology", format!("unknown topology coding method {m}"))),
+    }
+}
+
+/// Container version 1's topology decoding (inverse of [`encode_topology_list`]).
+fn decode_topology_list(block: &[u8], vertex_count: usize, triangle_count: usize, limits: &Limits) -> Result<Topology> {
     // Each index takes at most 5 varint bytes for a 32-bit delta (zigzag of ±2^32 fits 5–6 bytes).
     let max_raw = triangle_count.saturating_mul(3 * 6);
     let raw = entropy::decompress(block, CTX, "topology", max_raw.min(limits.max_alloc_bytes))?;
@@ -376,7 +426,8 @@ impl<R: Read> ContainerReader<R> {
         if stored != computed {
             return Err(Error::Checksum { context: CTX.into(), field: "header".into(), stored, computed });
         }
-        let topology = decode_topology(&topo_block, vertex_count as usize, triangle_count as usize, &limits)?;
+        let topology =
+            decode_topology(&topo_block, container_version, vertex_count as usize, triangle_count as usize, &limits)?;
         let header_bytes = FIXED_HEADER_BYTES + 4 + config.len() + 4 + topo_block.len() + 4;
         let header = Header {
             container_version,

@@ -9,6 +9,7 @@
 pub mod animation;
 pub mod bytes;
 pub mod codec;
+pub mod connectivity;
 pub mod container;
 pub mod entropy;
 pub mod error;

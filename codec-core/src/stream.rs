@@ -15,6 +15,8 @@ pub struct StreamEncoder<W: Write> {
     codec: &'static str,
     encoder: Box<dyn FrameEncoder>,
     writer: ContainerWriter<W>,
+    /// The triangles as the stream stores them (canonical order).
+    topology: Topology,
     vertex_count: usize,
     frames_pushed: usize,
     frame_count: usize,
@@ -46,6 +48,11 @@ impl<W: Write> StreamEncoder<W> {
             return Err(Error::InvalidAnimation(format!("frame rate {frame_rate} is not a finite positive number")));
         }
         codec.validate(params)?;
+        // The stream stores the triangles in canonical order (each triangle with its
+        // orientation, `connectivity::canonical_order`), where the container codes them in a
+        // few bits each; the codec sees that same list, as its decoder will.
+        let canonical = crate::connectivity::canonical_order(topology);
+        let topology = &canonical;
         let setup = EncoderSetup { topology, frame_count, frame_rate, want_reconstruction };
         let encoder = codec.new_encoder(params, &setup)?;
         let writer = ContainerWriter::new(
@@ -62,9 +69,16 @@ impl<W: Write> StreamEncoder<W> {
             encoder,
             writer,
             vertex_count: topology.vertex_count(),
+            topology: canonical.clone(),
             frames_pushed: 0,
             frame_count,
         })
+    }
+
+    /// The triangle list the stream stores and its decoder returns: the input's triangles,
+    /// each with its orientation, in [`crate::connectivity::canonical_order`].
+    pub fn topology(&self) -> &Topology {
+        &self.topology
     }
 
     /// Pushes the next frames (frame-major, a whole number of frames), writes the packets
@@ -167,13 +181,11 @@ pub fn encode_animation_fed(
     for chunk in animation.positions().chunks(feed_frames.max(1) * per_frame) {
         keep(enc.push_frames(chunk)?);
     }
+    let topology = enc.topology().clone();
     let (last, bytes) = enc.finish()?;
     keep(last);
-    let reconstruction = if want_reconstruction {
-        Some(Animation::new(animation.topology().clone(), rec, animation.frame_rate())?)
-    } else {
-        None
-    };
+    let reconstruction =
+        if want_reconstruction { Some(Animation::new(topology, rec, animation.frame_rate())?) } else { None };
     Ok(Encoded { bytes, reconstruction })
 }
 

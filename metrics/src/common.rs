@@ -30,10 +30,19 @@ pub fn check_compatible(reference: &Animation, candidate: &Animation) -> Result<
             ct.len()
         )));
     }
-    if let Some(i) = rt.iter().zip(ct).position(|(a, b)| a != b) {
+    // A decoded stream keeps every oriented triangle but stores them in canonical order
+    // (`codec_core::connectivity`), so the comparison is of the triangle sets.
+    if rt != ct && !codec_core::connectivity::same_triangles(reference.topology(), candidate.topology()) {
+        let (rc, cc) = (
+            codec_core::connectivity::canonical_order(reference.topology()),
+            codec_core::connectivity::canonical_order(candidate.topology()),
+        );
+        let i = rc.triangles().iter().zip(cc.triangles()).position(|(a, b)| a != b).unwrap_or(0);
         return Err(Error::InvalidAnimation(format!(
-            "{CTX}: topology differs at triangle {i}: reference {:?}, candidate {:?}",
-            rt[i], ct[i]
+            "{CTX}: topology differs at triangle {i} in canonical order (smallest index first, sorted): \
+             reference {:?}, candidate {:?}",
+            rc.triangles()[i],
+            cc.triangles()[i]
         )));
     }
     Ok(())

@@ -179,7 +179,9 @@ fn measure(
     run.sted = metrics::sted(animation, &decoded, &metrics::StedParams::default()).ok().map(|s| s.sted);
 
     let reconstruction = encoded.reconstruction.ok_or("the encoder returned no reconstruction")?;
-    if decoded.topology() != animation.topology() || decoded.frame_count() != animation.frame_count() {
+    if !codec_core::connectivity::same_triangles(decoded.topology(), animation.topology())
+        || decoded.frame_count() != animation.frame_count()
+    {
         return Err("decoded topology or frame count differs from the input".into());
     }
     // Bit-exact: the encoder's closed loop must match what any decoder produces.

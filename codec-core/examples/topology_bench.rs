@@ -1,0 +1,84 @@
+//! Topology coding on real meshes: container version 1's list coding vs version 2's
+//! connectivity coding (bytes, bits per triangle, encode and decode time, same run).
+//!
+//! `cargo run --release -p codec-core --example topology_bench -- ../shared/data/*/*.obj`
+
+use std::time::Instant;
+
+use codec_core::connectivity::{canonical_order, decode, encode};
+use codec_core::container::encode_topology_list;
+use codec_core::Topology;
+
+fn load_obj(path: &str) -> Result<Topology, String> {
+    let text = std::fs::read_to_string(path).map_err(|e| format!("{path}: {e}"))?;
+    let mut vertices = 0usize;
+    let mut triangles = Vec::new();
+    for line in text.lines() {
+        let mut it = line.split_whitespace();
+        match it.next() {
+            Some("v") => vertices += 1,
+            Some("f") => {
+                let idx: Vec<u32> = it
+                    .map(|w| w.split('/').next().unwrap_or("").parse::<u32>().map(|i| i - 1))
+                    .collect::<Result<_, _>>()
+                    .map_err(|e| format!("{path}: face '{line}': {e}"))?;
+                // Fan-triangulate polygons.
+                for k in 1..idx.len().saturating_sub(1) {
+                    triangles.push([idx[0], idx[k], idx[k + 1]]);
+                }
+            }
+            _ => {}
+        }
+    }
+    Topology::new(vertices, triangles).map_err(|e| format!("{path}: {e}"))
+}
+
+fn best_of<T>(runs: usize, mut f: impl FnMut() -> T) -> (T, f64) {
+    let mut best = f64::INFINITY;
+    let mut out = None;
+    for _ in 0..runs {
+        let t = Instant::now();
+        out = Some(f());
+        best = best.min(t.elapsed().as_secs_f64());
+    }
+    (out.expect("runs > 0"), best)
+}
+
+fn main() {
+    let paths: Vec<String> = std::env::args().skip(1).collect();
+    if paths.is_empty() {
+        eprintln!("usage: topology_bench MESH.obj...");
+        std::process::exit(2);
+    }
+    println!("| mesh | triangles | v1 bytes | v1 bits/tri | v2 bytes | v2 bits/tri | v1/v2 | canonical order s | v2 encode s | v2 decode s | v1 encode s |");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|");
+    for path in &paths {
+        let topo = match load_obj(path) {
+            Ok(t) => t,
+            Err(e) => {
+                eprintln!("{e}");
+                std::process::exit(1);
+            }
+        };
+        let n = topo.triangle_count().max(1) as f64;
+        let (v1, t_v1) = best_of(3, || encode_topology_list(&topo));
+        let (canon, t_canon) = best_of(3, || canonical_order(&topo));
+        let (v2, t_enc) = best_of(3, || encode(&canon).expect("indices fit"));
+        let (back, t_dec) = best_of(3, || decode(&v2, canon.vertex_count(), canon.triangle_count()).expect("decodes"));
+        assert_eq!(back, canon, "round trip");
+        let name = std::path::Path::new(path).file_stem().map_or(path.clone(), |s| s.to_string_lossy().into_owned());
+        println!(
+            "| {name} | {} | {} | {:.2} | {} | {:.2} | {:.2}× | {:.4} | {:.4} | {:.4} | {:.4} |",
+            topo.triangle_count(),
+            v1.len(),
+            v1.len() as f64 * 8.0 / n,
+            v2.len(),
+            v2.len() as f64 * 8.0 / n,
+            v1.len() as f64 / v2.len().max(1) as f64,
+            t_canon,
+            t_enc,
+            t_dec,
+            t_v1
+        );
+    }
+}
