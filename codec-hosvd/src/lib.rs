@@ -15,6 +15,7 @@
 //! See `README.md` for the stream layout and every choice the paper leaves open.
 
 pub mod coding;
+pub mod motion;
 pub mod strategy;
 pub mod tensor;
 
@@ -40,6 +41,11 @@ const MAX_BITS: u8 = 30;
 
 /// Packet flag bit 1 (stream version 2): the operator is coded with the toolkit (`coding.rs`).
 const FLAG_TOOLKIT: u8 = 2;
+
+/// Packet flag bit 2 (stream version 3): the per-frame transforms are quantized and
+/// arithmetic coded (`motion.rs`) in a block after the codes, instead of raw `f32` in the side
+/// block. Written with the toolkit coding and `rigid`.
+const FLAG_MOTION: u8 = 4;
 
 /// Typed parameters of `hosvd`.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -352,7 +358,7 @@ impl AnimationCodec for Hosvd {
         FOURCC
     }
     fn stream_version(&self) -> u16 {
-        2
+        3
     }
     fn summary(&self) -> &'static str {
         "HO-SVD / Tucker (v, 3, f) truncation with affine motion removal (Romaszewski et al.)"
@@ -404,10 +410,10 @@ impl AnimationCodec for Hosvd {
         if block == 0 {
             return Err(r.malformed("config.block", "0 frames per block"));
         }
-        if !(1..=2).contains(&info.codec_version) {
+        if !(1..=3).contains(&info.codec_version) {
             return Err(Error::Unsupported {
                 context: NAME.into(),
-                detail: format!("stream version {} (this build decodes 1 and 2)", info.codec_version),
+                detail: format!("stream version {} (this build decodes 1 to 3)", info.codec_version),
             });
         }
         // Version 2 packets may use the toolkit coding, which needs the mesh's coding order:
@@ -417,7 +423,7 @@ impl AnimationCodec for Hosvd {
         } else {
             MeshOrder::Unavailable
         };
-        Ok(Box::new(HosvdDecoder { k: info.vertex_count(), limits: *limits, graph }))
+        Ok(Box::new(HosvdDecoder { k: info.vertex_count(), limits: *limits, graph, version: info.codec_version }))
     }
 }
 
@@ -525,6 +531,15 @@ fn row_major(m: &Mat<f64>) -> Vec<f64> {
         }
     }
     out
+}
+
+/// RMS distance of frame 0's vertices from their centroid (the translation step's scale).
+fn rms_radius(positions: &[f32], k: usize) -> f64 {
+    let frame = &positions[..(3 * k).min(positions.len())];
+    let n = (frame.len() / 3).max(1) as f64;
+    let mean: [f64; 3] = std::array::from_fn(|j| frame.chunks_exact(3).map(|p| p[j] as f64).sum::<f64>() / n);
+    let s: f64 = frame.chunks_exact(3).map(|p| (0..3).map(|j| (p[j] as f64 - mean[j]).powi(2)).sum::<f64>()).sum();
+    (s / n).sqrt()
 }
 
 fn normalise(positions: &[f32], k: usize, frames: usize, rigid: bool, affine: bool) -> (Vec<Affine>, Vec<f64>) {
@@ -719,7 +734,14 @@ pub fn encode_block(
 ) -> Result<EncodedBlock> {
     let frames = positions.len() / (3 * k);
     let start = Instant::now();
-    let (transforms, x) = normalise(positions, k, frames, p.rigid, p.affine);
+    // Stream version 3: with the toolkit coding the transforms are quantized in closed loop
+    // while the frames are normalised (`motion.rs`).
+    let mut motion_coder =
+        (p.rigid && p.coding == Coding::Toolkit).then(|| motion::MotionEncoder::new(rms_radius(positions, k)));
+    let (transforms, x) = match motion_coder.as_mut() {
+        Some(mc) => tensor::remove_affine_motion_with(positions, k, frames, p.affine, &mut |a, fb| mc.store(a, fb)),
+        None => normalise(positions, k, frames, p.rigid, p.affine),
+    };
     let t = Tensor::new(&x, k, frames);
     let edge2 = mean_squared_edge(&x, k, graph);
     drop(x);
@@ -801,7 +823,7 @@ pub fn encode_block(
     for i in 0..9 {
         side.f32(u2r[(i / 3, i % 3)] as f32);
     }
-    if p.rigid {
+    if p.rigid && motion_coder.is_none() {
         for a in &transforms {
             a.m.iter().chain(&a.c).for_each(|&x| side.f32(x));
         }
@@ -834,13 +856,16 @@ pub fn encode_block(
             for &step in &coded.steps {
                 side.f32(step);
             }
-            w.u8(p.rigid as u8 | FLAG_TOOLKIT);
+            w.u8(p.rigid as u8 | FLAG_TOOLKIT | if motion_coder.is_some() { FLAG_MOTION } else { 0 });
             w.varint(v as u64);
             w.varint(f as u64);
             w.u8(p.mesh_predictor.code());
             w.u8(p.time_predictor.code());
             w.length_prefixed(&entropy::compress(side.as_slice(), p.level));
             w.length_prefixed(&coded.bytes);
+            if let Some(mc) = motion_coder.take() {
+                w.length_prefixed(&mc.finish());
+            }
             m.u1 = coded.u1;
             m.u3 = coded.u3;
             m.core = coded.core;
@@ -1021,6 +1046,8 @@ struct HosvdDecoder {
     limits: Limits,
     /// Mesh coding order (stream version 2 only).
     graph: MeshOrder,
+    /// Stream version (3 allows [`FLAG_MOTION`]).
+    version: u16,
 }
 
 impl HosvdDecoder {
@@ -1046,12 +1073,20 @@ impl FrameDecoder for HosvdDecoder {
         }
         let mut r = ByteReader::new(&packet.data, NAME);
         let flags = r.u8("flags")?;
-        let known = if matches!(self.graph, MeshOrder::Unavailable) { 1 } else { 1 | FLAG_TOOLKIT };
+        let known = match (&self.graph, self.version) {
+            (MeshOrder::Unavailable, _) => 1,
+            (_, v) if v >= 3 => 1 | FLAG_TOOLKIT | FLAG_MOTION,
+            _ => 1 | FLAG_TOOLKIT,
+        };
         if flags & !known != 0 {
             return Err(r.malformed("flags", format!("{flags:#04x} has unknown bits")));
         }
         let rigid = flags & 1 == 1;
         let toolkit = flags & FLAG_TOOLKIT != 0;
+        let coded_motion = flags & FLAG_MOTION != 0;
+        if coded_motion && !(rigid && toolkit) {
+            return Err(r.malformed("flags", format!("{flags:#04x}: coded motion without rigid toolkit coding")));
+        }
         let vmax = k.min(3 * frames);
         let fmax = frames.min(3 * k);
         let v = r.varint("v")?;
@@ -1079,8 +1114,9 @@ impl FrameDecoder for HosvdDecoder {
         } else {
             (Predictor::Zero, Predictor::Zero)
         };
-        let side_len =
-            36 + if rigid { 48 * frames } else { 0 } + if toolkit { 4 * (2 * v + f) } else { 9 * (v + f + 1) };
+        let side_len = 36
+            + if rigid && !coded_motion { 48 * frames } else { 0 }
+            + if toolkit { 4 * (2 * v + f) } else { 9 * (v + f + 1) };
         self.limits.check_alloc(NAME, "side", side_len as u64)?;
         let side_block = r.length_prefixed("side")?;
         let side = entropy::decompress(side_block, NAME, "side", side_len)?;
@@ -1092,7 +1128,7 @@ impl FrameDecoder for HosvdDecoder {
         for x in &mut u2 {
             *x = s.finite_f32("u2")? as f64;
         }
-        let transforms = if rigid {
+        let transforms = if rigid && !coded_motion {
             let mut out = Vec::with_capacity(frames);
             for _ in 0..frames {
                 let mut a = Affine::IDENTITY;
@@ -1112,6 +1148,8 @@ impl FrameDecoder for HosvdDecoder {
                 return Err(Error::malformed(NAME, "steps", format!("negative step {bad}")));
             }
             let bytes = r.length_prefixed("codes")?;
+            let transforms =
+                if coded_motion { motion::decode(r.length_prefixed("motion")?, frames)? } else { transforms };
             r.expect_end("packet")?;
             let graph = self.mesh_order()?;
             let (u1, u3, core) = coding::decode(bytes, graph, mesh_predictor, time_predictor, frames, v, f, &steps)?;

@@ -40,7 +40,7 @@ impl Affine {
     }
 }
 
-fn mat3_inverse(a: &[f64; 9]) -> Option<[f64; 9]> {
+pub(crate) fn mat3_inverse(a: &[f64; 9]) -> Option<[f64; 9]> {
     let det =
         a[0] * (a[4] * a[8] - a[5] * a[7]) - a[1] * (a[3] * a[8] - a[5] * a[6]) + a[2] * (a[3] * a[7] - a[4] * a[6]);
     let norm = a.iter().map(|x| x * x).sum::<f64>().sqrt();
@@ -133,6 +133,27 @@ fn procrustes(h: &[f64; 9]) -> Option<[f64; 9]> {
 /// [`MAX_AFFINE_CONDITION`] use the best rotation instead, and translation only if even that
 /// fails.
 pub fn remove_affine_motion(p: &[f32], k: usize, frames: usize, affine: bool) -> (Vec<Affine>, Vec<f64>) {
+    remove_affine_motion_with(p, k, frames, affine, &mut |proposed, fallback| {
+        if mat3_inverse(&proposed.m.map(|v| v as f64)).is_some() {
+            proposed
+        } else {
+            fallback
+        }
+    })
+}
+
+/// [`remove_affine_motion`] with the stored transforms chosen by `store(proposed, fallback)`,
+/// called once per frame in order: e.g. a quantizer in closed loop over the frames
+/// ([`crate::motion`]). It returns the transform the decoder will use, whose linear part must
+/// be invertible; `fallback` (identity linear part, centroid shift) is for when `proposed`'s
+/// stored form is not.
+pub fn remove_affine_motion_with(
+    p: &[f32],
+    k: usize,
+    frames: usize,
+    affine: bool,
+    store: &mut dyn FnMut(Affine, Affine) -> Affine,
+) -> (Vec<Affine>, Vec<f64>) {
     let centroid = |t: usize| -> [f64; 3] {
         let mut s = [0.0f64; 3];
         for v in p[t * k * 3..(t + 1) * k * 3].chunks_exact(3) {
@@ -171,16 +192,12 @@ pub fn remove_affine_motion(p: &[f32], k: usize, frames: usize, affine: bool) ->
         // Inverse map: original = x·M + c with M = L⁻¹, c = μ_t − μ_0·M (fallback M = I).
         let m = linear.unwrap_or([1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]);
         let c: [f64; 3] = std::array::from_fn(|j| mut_t[j] - (0..3).map(|i| mu0[i] * m[i * 3 + j]).sum::<f64>());
-        let mut aff = Affine { m: m.map(|v| v as f32), c: c.map(|v| v as f32) };
-        // Forward map from the rounded inverse, so that decode(x) reproduces p up to the
-        // decomposition error alone.
-        let l = match mat3_inverse(&aff.m.map(|v| v as f64)) {
-            Some(l) => l,
-            None => {
-                aff = Affine { m: Affine::IDENTITY.m, c: std::array::from_fn(|j| (mut_t[j] - mu0[j]) as f32) };
-                [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]
-            }
-        };
+        let proposed = Affine { m: m.map(|v| v as f32), c: c.map(|v| v as f32) };
+        let fallback = Affine { m: Affine::IDENTITY.m, c: std::array::from_fn(|j| (mut_t[j] - mu0[j]) as f32) };
+        let aff = store(proposed, fallback);
+        // Forward map from the stored (rounded) inverse, so that decode(x) reproduces p up to
+        // the decomposition error alone.
+        let l = mat3_inverse(&aff.m.map(|v| v as f64)).unwrap_or([1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]);
         let cr: [f64; 3] = aff.c.map(|v| v as f64);
         for (dst, src) in x[t * k * 3..(t + 1) * k * 3].chunks_exact_mut(3).zip(frame.chunks_exact(3)) {
             let q = [src[0] as f64 - cr[0], src[1] as f64 - cr[1], src[2] as f64 - cr[2]];

@@ -248,7 +248,7 @@ fn temporal_blocks_are_independent_keyframes() {
 
 #[test]
 fn malformed_streams_give_errors_not_panics() {
-    for (coding, version) in [(Coding::Paper, 1u16), (Coding::Toolkit, 2)] {
+    for (coding, version) in [(Coding::Paper, 1u16), (Coding::Toolkit, 3)] {
         malformed_streams_case(coding, version);
     }
 }
@@ -295,12 +295,17 @@ fn malformed_streams_case(coding: Coding, codec_version: u16) {
     let mut small = Hosvd.new_decoder(&info, &12u32.to_le_bytes(), &tiny).unwrap();
     assert!(matches!(small.decode_packet(&packet(block.payload.clone())), Err(Error::AllocLimit { .. })));
     if coding == Coding::Toolkit {
+        // A version 2 stream cannot hold coded motion (flag bit 2, version 3).
+        info.codec_version = 2;
+        let mut v2 = Hosvd.new_decoder(&info, &12u32.to_le_bytes(), &Limits::default()).unwrap();
+        let e = v2.decode_packet(&packet(block.payload.clone())).unwrap_err().to_string();
+        assert!(e.contains("unknown bits"), "{e}");
         // A version 1 stream cannot hold a toolkit packet.
         info.codec_version = 1;
         let mut v1 = Hosvd.new_decoder(&info, &12u32.to_le_bytes(), &Limits::default()).unwrap();
         let e = v1.decode_packet(&packet(block.payload)).unwrap_err().to_string();
         assert!(e.contains("flags"), "{e}");
-        info.codec_version = 3;
+        info.codec_version = 4;
         assert!(Hosvd.new_decoder(&info, &12u32.to_le_bytes(), &Limits::default()).is_err());
     }
 }
@@ -462,7 +467,7 @@ fn absurd_topology_builds_the_mesh_order_lazily_and_within_limits() {
     let mut triangles = anim.topology().triangles().to_vec();
     triangles.extend(std::iter::repeat_n(triangles[0], 500_000));
     let topology = Topology::new(k, triangles).unwrap();
-    let info = StreamInfo { fourcc: FOURCC, codec_version: 2, topology, frame_count: 12, frame_rate: 30.0 };
+    let info = StreamInfo { fourcc: FOURCC, codec_version: 3, topology, frame_count: 12, frame_rate: 30.0 };
     let packet = |data: Vec<u8>| Packet { first_frame: 0, frame_count: 12, keyframe: true, data };
     let toolkit = HosvdParams { ss: 0.5, coding: Coding::Toolkit, ..Default::default() };
     let paper = HosvdParams { coding: Coding::Paper, ..toolkit };
