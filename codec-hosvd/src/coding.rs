@@ -48,6 +48,101 @@ pub struct Settings {
     /// far below 1: with `β > 0`, bits move to `U1`, errors get smoother over the surface —
     /// what STED measures — and noise shaping pays off.
     pub edge_weight: f64,
+    /// Decoder-side smoothing of the `U1` columns ([`Smoother`], stream version 3).
+    pub denoise: bool,
+}
+
+/// Smoothing strengths a column may get: iterations of `x ← (x + mean of its mesh
+/// neighbours) / 2` (Jacobi), indexed by the level byte in the stream.
+pub const SMOOTHING_ITERATIONS: [u8; 8] = [0, 1, 2, 3, 5, 8, 12, 20];
+
+/// Decoder-side denoising of the mode-1 factor columns (stream version 3, beyond the paper).
+///
+/// A column's quantization error is nearly white over the vertices while the column itself is
+/// smooth (the leading left singular vectors of the motion): a few steps of neighbour
+/// averaging remove much more noise than signal. The encoder measures, for every candidate
+/// step, the error after each strength in [`SMOOTHING_ITERATIONS`] and keeps the best (0 =
+/// none), so the equal-slope rule sees the smoothed error and chooses coarser steps; the
+/// decoder applies the chosen strength. White noise loses most of its edge differences —
+/// what STED measures — under averaging. Neighbours are the mesh's ([`CausalGraph::mesh`]
+/// edges, in coding positions); the arithmetic is the same in encoder and decoder, in a fixed
+/// order, so both get the same bits.
+pub struct Smoother {
+    start: Vec<u32>,
+    adjacent: Vec<u32>,
+}
+
+impl Smoother {
+    /// Adjacency of `graph`'s positions (each earlier-neighbour edge both ways).
+    pub fn new(graph: &CausalGraph) -> Self {
+        let n = graph.len();
+        let mut degree = vec![0u32; n + 1];
+        for p in 0..n {
+            for &q in graph.earlier(p) {
+                degree[p] += 1;
+                degree[q as usize] += 1;
+            }
+        }
+        let mut start = vec![0u32; n + 1];
+        for p in 0..n {
+            start[p + 1] = start[p] + degree[p];
+        }
+        let mut fill = start.clone();
+        let mut adjacent = vec![0u32; start[n] as usize];
+        for p in 0..n {
+            for &q in graph.earlier(p) {
+                adjacent[fill[p] as usize] = q;
+                fill[p] += 1;
+                adjacent[fill[q as usize] as usize] = p as u32;
+                fill[q as usize] += 1;
+            }
+        }
+        Self { start, adjacent }
+    }
+
+    /// One averaging step of `x` (position order) into `out`.
+    fn step(&self, x: &[f64], out: &mut [f64]) {
+        for p in 0..x.len() {
+            let nb = &self.adjacent[self.start[p] as usize..self.start[p + 1] as usize];
+            out[p] = if nb.is_empty() {
+                x[p]
+            } else {
+                let sum: f64 = nb.iter().map(|&q| x[q as usize]).sum();
+                0.5 * (x[p] + sum / nb.len() as f64)
+            };
+        }
+    }
+
+    /// `iterations` averaging steps of `x` in place (`tmp` is scratch).
+    fn smooth(&self, x: &mut Vec<f64>, iterations: usize, tmp: &mut Vec<f64>) {
+        tmp.resize(x.len(), 0.0);
+        for _ in 0..iterations {
+            self.step(x, tmp);
+            std::mem::swap(x, tmp);
+        }
+    }
+
+    /// Applies the stream's level per column to `u1` (`K × v` row-major, vertex order) given
+    /// the mesh order the smoother was built on. Unknown levels are an error.
+    pub fn apply_columns(&self, graph: &CausalGraph, u1: &mut [f64], v: usize, levels: &[u8]) -> Result<()> {
+        let (mut col, mut tmp) = (Vec::new(), Vec::new());
+        for (i, &level) in levels.iter().enumerate().take(v) {
+            let iterations = *SMOOTHING_ITERATIONS
+                .get(level as usize)
+                .ok_or_else(|| Error::malformed(NAME, "smoothing", format!("level {level} of column {i}, at most 7")))?
+                as usize;
+            if iterations == 0 {
+                continue;
+            }
+            col.clear();
+            col.extend(graph.order().iter().map(|&x| u1[x as usize * v + i]));
+            self.smooth(&mut col, iterations, &mut tmp);
+            for (p, &x) in graph.order().iter().enumerate() {
+                u1[x as usize * v + i] = col[p];
+            }
+        }
+        Ok(())
+    }
 }
 
 /// The unquantized operator, as the encoder has it.
@@ -93,6 +188,9 @@ pub struct Coded {
     pub dc: f64,
     /// Estimated bits of the chosen allocation (the cost model's).
     pub estimated_bits: f64,
+    /// Smoothing level per `U1` column (index into [`SMOOTHING_ITERATIONS`]); all 0 without
+    /// `denoise`.
+    pub smoothing: Vec<u8>,
 }
 
 #[derive(Clone, Copy, PartialEq, Eq)]
@@ -115,6 +213,8 @@ struct Component<'g> {
     gain2: f64,
     /// Version 1's step for this component (the grid's centre).
     reference_step: f64,
+    /// Decoder-side smoothing (U1 with `denoise` only).
+    smoother: Option<&'g Smoother>,
 }
 
 impl Component<'_> {
@@ -151,19 +251,52 @@ impl Component<'_> {
         (1.0 - self.edge_weight) * plain + self.edge_weight * edge * norm
     }
 
-    /// Rate (bits) and distortion (output units) at `step` (0 = dropped).
-    fn evaluate(&self, step: f64, codes: &mut Vec<i32>, recon: &mut Vec<f64>) -> RdPoint {
+    /// Rate (bits) and distortion (output units) at `step` (0 = dropped), and the smoothing
+    /// level that gave that distortion.
+    fn evaluate(&self, step: f64, codes: &mut Vec<i32>, recon: &mut Vec<f64>) -> (RdPoint, u8) {
         if step == 0.0 {
             recon.clear();
             recon.resize(self.values.len(), 0.0);
-            return RdPoint { rate: 0.0, distortion: self.gain2 * self.distortion(recon) };
+            return (RdPoint { rate: 0.0, distortion: self.gain2 * self.distortion(recon) }, 0);
         }
         predict::quantize(self.graph, self.predictor, &self.values, step, self.shaping, codes, recon);
         let mut cost = CostModel::new(1);
         for p in 0..codes.len() {
             cost.add(codes[p], 0, predict::neighbour_bucket(self.graph, codes, p));
         }
-        RdPoint { rate: cost.bits(), distortion: self.gain2 * self.distortion(recon) }
+        let (distortion, level) = self.best_smoothing(recon);
+        (RdPoint { rate: cost.bits(), distortion: self.gain2 * distortion }, level)
+    }
+
+    /// The smallest distortion over the smoothing levels (none without a smoother) and its
+    /// level; stops once two levels in a row got worse.
+    fn best_smoothing(&self, recon: &[f64]) -> (f64, u8) {
+        let mut best = (self.distortion(recon), 0u8);
+        let Some(sm) = self.smoother else { return best };
+        let (mut x, mut tmp) = (recon.to_vec(), Vec::new());
+        let (mut done, mut worse) = (0usize, 0);
+        for (level, &it) in SMOOTHING_ITERATIONS.iter().enumerate().skip(1) {
+            sm.smooth(&mut x, it as usize - done, &mut tmp);
+            done = it as usize;
+            let d = self.distortion(&x);
+            if d < best.0 {
+                best = (d, level as u8);
+                worse = 0;
+            } else {
+                worse += 1;
+                if worse == 2 {
+                    break;
+                }
+            }
+        }
+        best
+    }
+
+    /// Applies `level` to `recon` in place (U1 with a smoother).
+    fn apply_smoothing(&self, level: u8, recon: &mut Vec<f64>) {
+        if let (Some(sm), Some(&it)) = (self.smoother, SMOOTHING_ITERATIONS.get(level as usize)) {
+            sm.smooth(recon, it as usize, &mut Vec::new());
+        }
     }
 }
 
@@ -226,6 +359,7 @@ pub fn code(op: &Operator<'_>, mesh: &CausalGraph, settings: &Settings, target: 
     let mut comps = Vec::with_capacity(2 * v + f);
     let beta = settings.edge_weight;
     // Normalised edge energy of each U1 column (1 for white noise, ≪ 1 for smooth fields).
+    let smoother = settings.denoise.then(|| Smoother::new(mesh));
     let rho: Vec<f64> = (0..v)
         .map(|i| {
             let values: Vec<f64> = mesh.order().iter().map(|&x| op.u1[x as usize * v + i]).collect();
@@ -245,6 +379,7 @@ pub fn code(op: &Operator<'_>, mesh: &CausalGraph, settings: &Settings, target: 
             values,
             gain2: op.s1[i] * op.s1[i],
             reference_step,
+            smoother: smoother.as_ref(),
         });
     }
     for l in 0..f {
@@ -260,6 +395,7 @@ pub fn code(op: &Operator<'_>, mesh: &CausalGraph, settings: &Settings, target: 
             values,
             gain2: op.s3[l] * op.s3[l] * (1.0 - beta + beta * mixed_ratio(op, &rho, l)),
             reference_step,
+            smoother: None,
         });
     }
     for (i, r) in rho.iter().enumerate() {
@@ -275,26 +411,30 @@ pub fn code(op: &Operator<'_>, mesh: &CausalGraph, settings: &Settings, target: 
             values,
             gain2: 1.0 - beta + beta * r,
             reference_step,
+            smoother: None,
         });
     }
 
     // Steps: the equal-slope choice over a grid around the reference, or the reference.
     let (mut codes, mut recon) = (Vec::new(), Vec::new());
     let mut estimated_bits = 0.0;
-    let steps: Vec<f64> = if settings.rdq {
+    let (steps, levels): (Vec<f64>, Vec<u8>) = if settings.rdq {
         let mut grids = Vec::with_capacity(comps.len());
         let mut points = Vec::with_capacity(comps.len());
+        let mut level_grids = Vec::with_capacity(comps.len());
         for c in &comps {
             // Never finer than 2^-28 of the component's range (codes stay far inside 2^30).
             let floor = c.max_abs() * 2f64.powi(-28) + 1e-300;
             let largest = c.reference_step * 2f64.powi(OCTAVES_COARSER as i32);
             let mut grid = vec![0.0];
-            let mut pts = vec![c.evaluate(0.0, &mut codes, &mut recon)];
+            let mut pts = vec![c.evaluate(0.0, &mut codes, &mut recon).0];
+            let mut lv = vec![0u8];
             for s in rdq::step_grid(largest, (OCTAVES_COARSER + OCTAVES_FINER) * PER_OCTAVE + 1, PER_OCTAVE) {
                 let s = stored_step(s, floor);
-                let p = c.evaluate(s, &mut codes, &mut recon);
+                let (p, level) = c.evaluate(s, &mut codes, &mut recon);
                 grid.push(s);
                 pts.push(p);
+                lv.push(level);
                 // Finer steps cannot be chosen once this component's distortion is negligible.
                 if p.distortion < 1e-4 * target {
                     break;
@@ -302,12 +442,23 @@ pub fn code(op: &Operator<'_>, mesh: &CausalGraph, settings: &Settings, target: 
             }
             grids.push(grid);
             points.push(pts);
+            level_grids.push(lv);
         }
         let a = rdq::allocate(&points, target);
         estimated_bits = a.rate;
-        a.choice.iter().zip(&grids).map(|(&i, g)| g[i]).collect()
+        (
+            a.choice.iter().zip(&grids).map(|(&i, g)| g[i]).collect(),
+            a.choice.iter().zip(&level_grids).map(|(&i, l)| l[i]).collect(),
+        )
     } else {
-        comps.iter().map(|c| stored_step(c.reference_step, c.max_abs() * 2f64.powi(-28) + 1e-300)).collect()
+        let steps: Vec<f64> =
+            comps.iter().map(|c| stored_step(c.reference_step, c.max_abs() * 2f64.powi(-28) + 1e-300)).collect();
+        let levels = comps
+            .iter()
+            .zip(&steps)
+            .map(|(c, &s)| if c.smoother.is_some() { c.evaluate(s, &mut codes, &mut recon).1 } else { 0 })
+            .collect();
+        (steps, levels)
     };
 
     // Code every component at its step.
@@ -316,12 +467,13 @@ pub fn code(op: &Operator<'_>, mesh: &CausalGraph, settings: &Settings, target: 
     let mut u3 = vec![0.0; frames * f];
     let mut core = vec![0.0; op.core.len()];
     let (mut du1, mut du3, mut dc2) = (vec![0.0; v], vec![0.0; f], 0.0);
-    for (c, &step) in comps.iter().zip(&steps) {
+    for ((c, &step), &level) in comps.iter().zip(&steps).zip(&levels) {
         if step > 0.0 {
             predict::quantize(c.graph, c.predictor, &c.values, step, c.shaping, &mut codes, &mut recon);
             for p in 0..codes.len() {
                 enc.encode(codes[p], c.class(), predict::neighbour_bucket(c.graph, &codes, p));
             }
+            c.apply_smoothing(level, &mut recon);
         } else {
             recon.clear();
             recon.resize(c.values.len(), 0.0);
@@ -356,6 +508,7 @@ pub fn code(op: &Operator<'_>, mesh: &CausalGraph, settings: &Settings, target: 
         du3,
         dc: dc2.sqrt(),
         estimated_bits,
+        smoothing: levels[..v].to_vec(),
     }
 }
 

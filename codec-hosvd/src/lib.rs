@@ -47,6 +47,10 @@ const FLAG_TOOLKIT: u8 = 2;
 /// block. Written with the toolkit coding and `rigid`.
 const FLAG_MOTION: u8 = 4;
 
+/// Packet flag bit 3 (stream version 3): `v` smoothing levels of the `U1` columns follow the
+/// codes (and motion) block (`coding::Smoother`). Written with the toolkit coding and `denoise`.
+const FLAG_DENOISE: u8 = 8;
+
 /// Typed parameters of `hosvd`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct HosvdParams {
@@ -95,6 +99,10 @@ pub struct HosvdParams {
     /// changes) is dominated by per-vertex quantization noise, which `quant` sizes relative to
     /// the truncation error, so at low rates the noise reaches a large fraction of an edge.
     pub edge_noise: f64,
+    /// Toolkit (stream version 3): the decoder smooths each mode-1 factor column over the mesh
+    /// after dequantizing it, with a strength the encoder picks per column (`coding::Smoother`);
+    /// the RD rule sees the smoothed error, so it can choose coarser steps. Default true.
+    pub denoise: bool,
 }
 
 /// Coding of the quantized operator (`coding` parameter).
@@ -140,6 +148,7 @@ impl Default for HosvdParams {
             rdq: true,
             edge_weight: 0.0,
             edge_noise: 0.0,
+            denoise: true,
         }
     }
 }
@@ -256,6 +265,11 @@ impl HosvdParams {
                 d.edge_noise,
                 "cap on the quantization noise (RMS per coordinate) relative to the RMS edge length (0 = no cap)",
             ),
+            ParamSpec::boolean(
+                "denoise",
+                d.denoise,
+                "toolkit: decoder smooths each mode-1 factor column over the mesh, strength chosen per column (v3)",
+            ),
         ]
     }
 
@@ -306,6 +320,7 @@ impl HosvdParams {
             rdq: p.bool("rdq")?,
             edge_weight: p.float("edge_weight")?,
             edge_noise: p.float("edge_noise")?,
+            denoise: p.bool("denoise")?,
         };
         out.check_cross()?;
         Ok(out)
@@ -334,7 +349,8 @@ impl HosvdParams {
             .with(&specs, "shaping", ParamValue::Float(self.shaping))?
             .with(&specs, "rdq", ParamValue::Bool(self.rdq))?
             .with(&specs, "edge_weight", ParamValue::Float(self.edge_weight))?
-            .with(&specs, "edge_noise", ParamValue::Float(self.edge_noise))
+            .with(&specs, "edge_noise", ParamValue::Float(self.edge_noise))?
+            .with(&specs, "denoise", ParamValue::Bool(self.denoise))
     }
 }
 
@@ -851,12 +867,16 @@ pub fn encode_block(
                 shaping: p.shaping,
                 rdq: p.rdq,
                 edge_weight: p.edge_weight,
+                denoise: p.denoise,
             };
             let coded = coding::code(&op, graph, &settings, budget);
             for &step in &coded.steps {
                 side.f32(step);
             }
-            w.u8(p.rigid as u8 | FLAG_TOOLKIT | if motion_coder.is_some() { FLAG_MOTION } else { 0 });
+            w.u8(p.rigid as u8
+                | FLAG_TOOLKIT
+                | if motion_coder.is_some() { FLAG_MOTION } else { 0 }
+                | if p.denoise { FLAG_DENOISE } else { 0 });
             w.varint(v as u64);
             w.varint(f as u64);
             w.u8(p.mesh_predictor.code());
@@ -865,6 +885,9 @@ pub fn encode_block(
             w.length_prefixed(&coded.bytes);
             if let Some(mc) = motion_coder.take() {
                 w.length_prefixed(&mc.finish());
+            }
+            if p.denoise {
+                w.bytes(&coded.smoothing);
             }
             m.u1 = coded.u1;
             m.u3 = coded.u3;
@@ -1075,7 +1098,7 @@ impl FrameDecoder for HosvdDecoder {
         let flags = r.u8("flags")?;
         let known = match (&self.graph, self.version) {
             (MeshOrder::Unavailable, _) => 1,
-            (_, v) if v >= 3 => 1 | FLAG_TOOLKIT | FLAG_MOTION,
+            (_, v) if v >= 3 => 1 | FLAG_TOOLKIT | FLAG_MOTION | FLAG_DENOISE,
             _ => 1 | FLAG_TOOLKIT,
         };
         if flags & !known != 0 {
@@ -1086,6 +1109,10 @@ impl FrameDecoder for HosvdDecoder {
         let coded_motion = flags & FLAG_MOTION != 0;
         if coded_motion && !(rigid && toolkit) {
             return Err(r.malformed("flags", format!("{flags:#04x}: coded motion without rigid toolkit coding")));
+        }
+        let denoise = flags & FLAG_DENOISE != 0;
+        if denoise && !toolkit {
+            return Err(r.malformed("flags", format!("{flags:#04x}: denoising without toolkit coding")));
         }
         let vmax = k.min(3 * frames);
         let fmax = frames.min(3 * k);
@@ -1150,9 +1177,14 @@ impl FrameDecoder for HosvdDecoder {
             let bytes = r.length_prefixed("codes")?;
             let transforms =
                 if coded_motion { motion::decode(r.length_prefixed("motion")?, frames)? } else { transforms };
+            let smoothing = if denoise { Some(r.take(v, "smoothing")?.to_vec()) } else { None };
             r.expect_end("packet")?;
             let graph = self.mesh_order()?;
-            let (u1, u3, core) = coding::decode(bytes, graph, mesh_predictor, time_predictor, frames, v, f, &steps)?;
+            let (mut u1, u3, core) =
+                coding::decode(bytes, graph, mesh_predictor, time_predictor, frames, v, f, &steps)?;
+            if let Some(levels) = smoothing {
+                coding::Smoother::new(graph).apply_columns(graph, &mut u1, v, &levels)?;
+            }
             let model = Model { k, frames, v, f, u1, u2, u3, core, transforms };
             return Ok(tensor::reconstruct(&model));
         }

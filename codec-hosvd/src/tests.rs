@@ -532,3 +532,38 @@ fn fast_reconstruction_matches_the_reference_bit_for_bit() {
         }
     }
 }
+
+#[test]
+fn denoised_columns_decode_to_the_encoder_reconstruction() {
+    // Coarse steps: the encoder picks smoothing for some U1 column; the decoder applies the
+    // same levels bit for bit, and a level beyond the table is refused by name.
+    let anim = flag(12, 10, 20, 1.0, 1.0);
+    let k = anim.vertex_count();
+    let hp = HosvdParams { ss: 0.8, quant: 4.0, ..Default::default() };
+    let graph = mesh_graph(&hp, anim.topology());
+    let block = encode_block(anim.positions(), k, &hp, &graph, true).unwrap();
+    let flags = block.payload[0];
+    assert_eq!(flags & FLAG_DENOISE, FLAG_DENOISE);
+    let v = block.stats.v;
+    let levels = &block.payload[block.payload.len() - v..];
+    assert!(levels.iter().any(|&l| l > 0), "levels {levels:?}");
+    let info =
+        StreamInfo { fourcc: FOURCC, codec_version: 3, topology: anim.topology().clone(), frame_count: 20, frame_rate: 30.0 };
+    let mut dec = Hosvd.new_decoder(&info, &20u32.to_le_bytes(), &Limits::default()).unwrap();
+    let packet = |data: Vec<u8>| Packet { first_frame: 0, frame_count: 20, keyframe: true, data };
+    assert_eq!(dec.decode_packet(&packet(block.payload.clone())).unwrap(), block.reconstruction.clone().unwrap());
+    let mut bad = block.payload.clone();
+    let last = bad.len() - 1;
+    bad[last] = 8;
+    let e = dec.decode_packet(&packet(bad)).unwrap_err().to_string();
+    assert!(e.contains("smoothing") && e.contains("level 8"), "{e}");
+    // Without denoise: no flag, no level bytes; with it, the same budget buys a smaller
+    // payload (the RD rule saw the smoothed error and chose coarser steps).
+    let plain = HosvdParams { denoise: false, ..hp };
+    let b2 = encode_block(anim.positions(), k, &plain, &graph, true).unwrap();
+    assert_eq!(b2.payload[0] & FLAG_DENOISE, 0);
+    let err = |r: &[f32]| anim.positions().iter().zip(r).map(|(a, b)| ((a - b) as f64).powi(2)).sum::<f64>();
+    let (e1, e2) = (err(&block.reconstruction.unwrap()), err(&b2.reconstruction.unwrap()));
+    eprintln!("denoise: {} bytes, error² {e1:.3e}; plain: {} bytes, error² {e2:.3e}", block.payload.len(), b2.payload.len());
+    assert!(block.payload.len() < b2.payload.len() && e1 < 1.1 * e2);
+}
