@@ -547,8 +547,13 @@ fn denoised_columns_decode_to_the_encoder_reconstruction() {
     let v = block.stats.v;
     let levels = &block.payload[block.payload.len() - v..];
     assert!(levels.iter().any(|&l| l > 0), "levels {levels:?}");
-    let info =
-        StreamInfo { fourcc: FOURCC, codec_version: 3, topology: anim.topology().clone(), frame_count: 20, frame_rate: 30.0 };
+    let info = StreamInfo {
+        fourcc: FOURCC,
+        codec_version: 3,
+        topology: anim.topology().clone(),
+        frame_count: 20,
+        frame_rate: 30.0,
+    };
     let mut dec = Hosvd.new_decoder(&info, &20u32.to_le_bytes(), &Limits::default()).unwrap();
     let packet = |data: Vec<u8>| Packet { first_frame: 0, frame_count: 20, keyframe: true, data };
     assert_eq!(dec.decode_packet(&packet(block.payload.clone())).unwrap(), block.reconstruction.clone().unwrap());
@@ -564,6 +569,10 @@ fn denoised_columns_decode_to_the_encoder_reconstruction() {
     assert_eq!(b2.payload[0] & FLAG_DENOISE, 0);
     let err = |r: &[f32]| anim.positions().iter().zip(r).map(|(a, b)| ((a - b) as f64).powi(2)).sum::<f64>();
     let (e1, e2) = (err(&block.reconstruction.unwrap()), err(&b2.reconstruction.unwrap()));
-    eprintln!("denoise: {} bytes, error² {e1:.3e}; plain: {} bytes, error² {e2:.3e}", block.payload.len(), b2.payload.len());
+    eprintln!(
+        "denoise: {} bytes, error² {e1:.3e}; plain: {} bytes, error² {e2:.3e}",
+        block.payload.len(),
+        b2.payload.len()
+    );
     assert!(block.payload.len() < b2.payload.len() && e1 < 1.1 * e2);
 }
