@@ -120,6 +120,14 @@ fn fan_order(group: &[[u32; 3]], out: &mut Vec<[u32; 3]>) {
 /// the decoder linear time, not quadratic). Encoder and decoder apply the same rule.
 const MAX_KNOWN: usize = 32;
 
+/// Most bytes [`decode`] allocates besides the triangles: the neighbour lists (8 bytes per
+/// entry, at most 6 entries per triangle and [`MAX_KNOWN`] per vertex, doubled for growth)
+/// and their headers (24 bytes per vertex up to the largest index).
+pub fn decoder_bytes(vertex_count: usize, triangle_count: usize) -> u64 {
+    let entries = (6 * triangle_count as u64).min((MAX_KNOWN * vertex_count) as u64);
+    16 * entries + 24 * vertex_count as u64
+}
+
 /// True when `a` and `b` hold the same oriented triangles (as a multiset) over the same
 /// vertices, whatever their order and starting corners: what a decoded stream keeps of its
 /// input's topology.
@@ -141,11 +149,20 @@ struct Neighbours {
 }
 
 impl Neighbours {
-    fn new(vertex_count: usize) -> Self {
-        Self { lists: vec![Vec::new(); vertex_count] }
+    /// Empty; lists are allocated up to the largest index met (so a huge declared vertex
+    /// count with few triangles costs nothing).
+    fn new() -> Self {
+        Self { lists: Vec::new() }
+    }
+
+    fn list(&self, x: u32) -> &[(u32, u8)] {
+        self.lists.get(x as usize).map_or(&[], |l| l.as_slice())
     }
 
     fn mark(&mut self, x: u32, y: u32, flag: u8) {
+        if x as usize >= self.lists.len() {
+            self.lists.resize(x as usize + 1, Vec::new());
+        }
         let list = &mut self.lists[x as usize];
         match list.binary_search_by_key(&y, |e| e.0) {
             Ok(i) => list[i].1 |= flag,
@@ -170,7 +187,7 @@ impl Neighbours {
     }
 
     fn flags(&self, x: u32, y: u32) -> u8 {
-        let list = &self.lists[x as usize];
+        let list = self.list(x);
         list.binary_search_by_key(&y, |e| e.0).map_or(0, |i| list[i].1)
     }
 
@@ -179,7 +196,7 @@ impl Neighbours {
     /// `b → a` seen, `a → b` not), each tier ascending. Returns the first tier's length.
     fn second(&self, a: u32, out: &mut Vec<u32>) -> usize {
         out.clear();
-        let list = &self.lists[a as usize];
+        let list = self.list(a);
         out.extend(list.iter().filter(|e| e.0 > a && e.1 == IN).map(|e| e.0));
         let strong = out.len();
         out.extend(list.iter().filter(|e| e.0 > a && e.1 != IN).map(|e| e.0));
@@ -192,8 +209,7 @@ impl Neighbours {
     /// (all above `a`, not `b`). Returns the count of the first two tiers.
     fn third(&self, a: u32, b: u32, out: &mut Vec<u32>) -> usize {
         out.clear();
-        let la = &self.lists[a as usize];
-        let lb = &self.lists[b as usize];
+        let (la, lb) = (self.list(a), self.list(b));
         let mut all: Vec<u32> = la.iter().chain(lb.iter()).map(|e| e.0).filter(|&x| x > a && x != b).collect();
         all.sort_unstable();
         all.dedup();
@@ -234,7 +250,7 @@ fn third_bucket(common: usize, total: usize) -> usize {
 pub fn encode(topology: &Topology) -> Option<Vec<u8>> {
     let fits = |d: i64| d.unsigned_abs() <= MAX_MAGNITUDE as u64;
     let mut enc = AdaptiveEncoder::new(CLASSES);
-    let mut known = Neighbours::new(topology.vertex_count());
+    let mut known = Neighbours::new();
     let mut cand = Vec::new();
     let (mut prev_a, mut prev_c, mut prev_same) = (0u32, None::<u32>, false);
     for &[a, b, c] in topology.triangles() {
@@ -283,13 +299,31 @@ pub fn encode(topology: &Topology) -> Option<Vec<u8>> {
         prev_a = a;
         prev_c = Some(c);
     }
-    Some(enc.finish())
+    let bytes = enc.finish();
+    // The decoder refuses blocks claiming more triangles than this per byte (a few bytes
+    // must not expand into millions of triangles); a mesh this regular keeps the list coding.
+    (topology.triangle_count() <= max_triangles(bytes.len())).then_some(bytes)
+}
+
+/// Most triangles a connectivity block of `bytes` bytes may hold: 4096 per byte (0.002 bits
+/// per triangle; real meshes take 5–8 bits), plus 4096.
+pub fn max_triangles(bytes: usize) -> usize {
+    bytes.saturating_mul(4096).saturating_add(4096)
 }
 
 /// Inverse of [`encode`]: `triangle_count` triangles over `vertex_count` vertices, every
 /// index and candidate choice checked (a corrupt block is an error naming the triangle,
-/// never a panic). The caller has checked both counts against its limits.
+/// never a panic). The caller has checked both counts and [`decoder_bytes`] against its
+/// limits. More than [`max_triangles`] for the block's size is refused up front: past its
+/// data the range decoder reads zeros, so a tiny block could otherwise claim any count.
 pub fn decode(bytes: &[u8], vertex_count: usize, triangle_count: usize) -> Result<Topology> {
+    if triangle_count > max_triangles(bytes.len()) {
+        return Err(Error::malformed(
+            CTX,
+            FIELD,
+            format!("{triangle_count} triangles from {} bytes (at most 4096 per byte)", bytes.len()),
+        ));
+    }
     let mut dec = AdaptiveDecoder::new(bytes, CLASSES, CTX, FIELD)?;
     let bad = |t: usize, what: String| Error::malformed(CTX, FIELD, format!("triangle {t}: {what}"));
     let index = |t: usize, base: u32, delta: i32| -> Result<u32> {
@@ -307,7 +341,7 @@ pub fn decode(bytes: &[u8], vertex_count: usize, triangle_count: usize) -> Resul
         }
     };
     let mut triangles = Vec::with_capacity(triangle_count);
-    let mut known = Neighbours::new(vertex_count);
+    let mut known = Neighbours::new();
     let mut cand = Vec::new();
     let (mut prev_a, mut prev_c, mut prev_same) = (0u32, None::<u32>, false);
     for t in 0..triangle_count {
@@ -459,6 +493,13 @@ mod tests {
         }
         let _ = decode(&bytes, g.vertex_count(), g.triangle_count() * 3);
         assert!(decode(&bytes[..3], g.vertex_count(), 1).is_err(), "not whole words");
+        // An empty block cannot claim millions of triangles.
+        let e = decode(&[], g.vertex_count(), 5_000_000).unwrap_err().to_string();
+        assert!(e.contains("at most 4096 per byte"), "{e}");
+        // A declared vertex count far above the indices used allocates nothing for it.
+        let huge = Topology::new(u32::MAX as usize, g.triangles().to_vec()).unwrap();
+        let b = encode(&huge).unwrap();
+        assert_eq!(decode(&b, huge.vertex_count(), huge.triangle_count()).unwrap(), huge);
         // Fewer vertices than the indices need: named error.
         let e = decode(&bytes, 10, g.triangle_count()).unwrap_err().to_string();
         assert!(e.contains("topology") && e.contains("out of range"), "{e}");

@@ -147,7 +147,8 @@ pub fn encode_topology_list(topology: &Topology) -> Vec<u8> {
 /// and version 1's list coding.
 pub fn encode_topology(topology: &Topology) -> Vec<u8> {
     let list = encode_topology_list(topology);
-    let (method, body) = match crate::connectivity::encode(topology) {
+    let connectivity = (topology.triangle_count() > 0).then(|| crate::connectivity::encode(topology)).flatten();
+    let (method, body) = match connectivity {
         Some(c) if c.len() < list.len() => (TOPOLOGY_CONNECTIVITY, c),
         _ => (TOPOLOGY_LIST, list),
     };
@@ -175,9 +176,13 @@ pub fn decode_topology(
         TOPOLOGY_LIST => decode_topology_list(body, vertex_count, triangle_count, limits),
         TOPOLOGY_CONNECTIVITY => {
             limits.check_alloc(CTX, "triangle_count", triangle_count as u64 * 12)?;
-            // Per-vertex neighbour lists of the connectivity decoder.
+            // Neighbour lists of the connectivity decoder.
             if triangle_count > 0 {
-                limits.check_alloc(CTX, "vertex_count", vertex_count as u64 * 24)?;
+                limits.check_alloc(
+                    CTX,
+                    "vertex_count",
+                    crate::connectivity::decoder_bytes(vertex_count, triangle_count),
+                )?;
             }
             crate::connectivity::decode(body, vertex_count, triangle_count)
         }

@@ -112,10 +112,13 @@ struct Run {
     dec_s: f64,
 }
 
-/// Drives the public encoder into a container (exactly what `StreamEncoder` writes) so the
-/// per-block statistics are available, then decodes through the registry.
+/// Drives the public encoder into a container (what `StreamEncoder` writes: the topology in
+/// canonical order, given to both the encoder and the container) so the per-block statistics
+/// are available, then decodes through the registry.
 fn run(a: &Animation, p: &HosvdParams) -> Run {
     let t0 = Instant::now();
+    let canonical = codec_core::connectivity::canonical_order(a.topology());
+    let a = &Animation::new(canonical, a.positions().to_vec(), a.frame_rate()).expect("same animation");
     let mut enc = HosvdEncoder::new(*p, a.topology(), a.frame_count(), true);
     let mut w = ContainerWriter::new(
         Vec::new(),

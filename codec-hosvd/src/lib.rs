@@ -755,7 +755,9 @@ pub fn encode_block(
     let mut motion_coder =
         (p.rigid && p.coding == Coding::Toolkit).then(|| motion::MotionEncoder::new(rms_radius(positions, k)));
     let (transforms, x) = match motion_coder.as_mut() {
-        Some(mc) => tensor::remove_affine_motion_with(positions, k, frames, p.affine, &mut |a, fb| mc.store(a, fb)),
+        Some(mc) => {
+            tensor::remove_affine_motion_with(positions, k, frames, p.affine, &mut |a, fb, mu| mc.store(a, fb, mu))
+        }
         None => normalise(positions, k, frames, p.rigid, p.affine),
     };
     let t = Tensor::new(&x, k, frames);
@@ -793,7 +795,22 @@ pub fn encode_block(
         }
     };
     let search_seconds = search_start.elapsed().as_secs_f64();
-    let (v, f) = (choice.v, choice.f);
+    let (mut v, mut f) = (choice.v, choice.f);
+    // Not in the paper: when the chosen ranks already reproduce the tensor to the numerical
+    // floor (the quantization budget's floor, 1e-12‖X‖²; e.g. an exactly low-rank skinned
+    // animation), more rank buys nothing but coded near-zero columns: keep the smallest ranks
+    // that stay at the floor, so a smaller `ss` never gives a different stream for nothing.
+    if let (false, Some(s)) = (explicit, &spectrum) {
+        let floor = 1e-12 * t.norm2;
+        if s.truncation_error2(v, f) <= floor {
+            while v > 1 && s.truncation_error2(v - 1, f) <= floor {
+                v -= 1;
+            }
+            while f > 1 && s.truncation_error2(v, f - 1) <= floor {
+                f -= 1;
+            }
+        }
+    }
 
     let trunc_start = Instant::now();
     let mut tk = match &spectrum {
@@ -1165,6 +1182,9 @@ impl FrameDecoder for HosvdDecoder {
                 out.push(a);
             }
             out
+        } else if coded_motion {
+            // Decoded from the motion block below, after its size is checked.
+            Vec::new()
         } else {
             vec![Affine::IDENTITY; frames]
         };
@@ -1175,8 +1195,12 @@ impl FrameDecoder for HosvdDecoder {
                 return Err(Error::malformed(NAME, "steps", format!("negative step {bad}")));
             }
             let bytes = r.length_prefixed("codes")?;
-            let transforms =
-                if coded_motion { motion::decode(r.length_prefixed("motion")?, frames)? } else { transforms };
+            let transforms = if coded_motion {
+                self.limits.check_alloc(NAME, "motion", 48 * frames as u64)?;
+                motion::decode(r.length_prefixed("motion")?, frames)?
+            } else {
+                transforms
+            };
             let smoothing = if denoise { Some(r.take(v, "smoothing")?.to_vec()) } else { None };
             r.expect_end("packet")?;
             let graph = self.mesh_order()?;

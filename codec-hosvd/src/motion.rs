@@ -19,7 +19,7 @@
 use codec_core::toolkit::adaptive::{magnitude_bucket, AdaptiveDecoder, AdaptiveEncoder, MAX_MAGNITUDE};
 use codec_core::{Error, Result};
 
-use crate::tensor::{mat3_inverse, Affine};
+use crate::tensor::{mat3_inverse, Affine, Centroids};
 use crate::NAME;
 
 /// Entries per transform: 9 linear, 3 translation.
@@ -99,14 +99,25 @@ impl MotionEncoder {
         })
     }
 
-    /// Stores the next frame's transform: `proposed` quantized, or `fallback` when the
-    /// quantized linear part is not invertible. Returns what the decoder will rebuild.
-    pub fn store(&mut self, proposed: Affine, fallback: Affine) -> Affine {
+    /// Stores the next frame's transform: `proposed`'s linear part quantized (or
+    /// `fallback`'s, when the quantized one is not invertible), then the translation that
+    /// maps the centroids with the *quantized* linear part, `c = μ_t − μ_0·M̂`, quantized.
+    /// (Quantizing `proposed.c` instead would add `μ_0·(M − M̂)` to every frame: jitter that
+    /// grows with the model's distance from the origin.) Returns what the decoder rebuilds.
+    pub fn store(&mut self, proposed: Affine, fallback: Affine, centroids: Centroids) -> Affine {
         let pred = prediction(&self.history, &self.identity);
         let mut codes = self.quantize(&proposed, &pred);
         if mat3_inverse(&dequantize(&codes, &self.step).m.map(|v| v as f64)).is_none() {
             codes = self.quantize(&fallback, &pred);
         }
+        let m = dequantize(&codes, &self.step).m.map(|v| v as f64);
+        let (mu0, mut_) = (centroids.first, centroids.this);
+        let c = Affine {
+            m: [0.0; 9],
+            c: std::array::from_fn(|j| (mut_[j] - (0..3).map(|i| mu0[i] * m[i * 3 + j]).sum::<f64>()) as f32),
+        };
+        let c_codes = self.quantize(&c, &pred);
+        codes[9..].copy_from_slice(&c_codes[9..]);
         for i in 0..ENTRIES {
             let r = (codes[i] - pred[i]) as i32;
             self.coder.encode(r, i, magnitude_bucket(self.last[i].unsigned_abs() as u64, 1));
@@ -200,12 +211,18 @@ mod tests {
         let mut stored = Vec::new();
         for t in 0..frames {
             let a = rotation(t as f64 * 0.03);
-            let s = enc.store(a, Affine::IDENTITY);
+            // Centroids far from the origin: the stored transform still maps μ_0 to μ_t to
+            // within half a translation step (c follows the quantized linear part).
+            let mu0 = [100.0, -50.0, 30.0];
+            let mut_: [f64; 3] =
+                std::array::from_fn(|j| a.c[j] as f64 + (0..3).map(|i| mu0[i] * a.m[i * 3 + j] as f64).sum::<f64>());
+            let s = enc.store(a, Affine::IDENTITY, Centroids { first: mu0, this: mut_ });
             for (x, y) in a.m.iter().zip(&s.m) {
                 assert!(((x - y).abs() as f64) <= 0.5 * LINEAR_STEP as f64 + 1e-7);
             }
-            for (x, y) in a.c.iter().zip(&s.c) {
-                assert!(((x - y).abs() as f64) <= 0.5 * translation_step(2.0) as f64 + 1e-6);
+            for (j, &target) in mut_.iter().enumerate() {
+                let mapped = s.c[j] as f64 + (0..3).map(|i| mu0[i] * s.m[i * 3 + j] as f64).sum::<f64>();
+                assert!((mapped - target).abs() <= 0.5 * translation_step(2.0) as f64 + 1e-4, "{mapped} vs {target}");
             }
             stored.push(s);
         }
@@ -220,7 +237,7 @@ mod tests {
         let mut enc = MotionEncoder::new(1.0);
         let singular = Affine { m: [0.0; 9], c: [1.0, 2.0, 3.0] };
         let fb = Affine { m: Affine::IDENTITY.m, c: [0.5, 0.0, 0.0] };
-        let s = enc.store(singular, fb);
+        let s = enc.store(singular, fb, Centroids { first: [0.0; 3], this: [0.5, 0.0, 0.0] });
         assert_eq!(s, fb, "identity and this translation are exact at power-of-two steps");
         let block = enc.finish();
         assert_eq!(decode(&block, 1).unwrap(), vec![fb]);

@@ -133,7 +133,7 @@ fn procrustes(h: &[f64; 9]) -> Option<[f64; 9]> {
 /// [`MAX_AFFINE_CONDITION`] use the best rotation instead, and translation only if even that
 /// fails.
 pub fn remove_affine_motion(p: &[f32], k: usize, frames: usize, affine: bool) -> (Vec<Affine>, Vec<f64>) {
-    remove_affine_motion_with(p, k, frames, affine, &mut |proposed, fallback| {
+    remove_affine_motion_with(p, k, frames, affine, &mut |proposed, fallback, _| {
         if mat3_inverse(&proposed.m.map(|v| v as f64)).is_some() {
             proposed
         } else {
@@ -142,7 +142,17 @@ pub fn remove_affine_motion(p: &[f32], k: usize, frames: usize, affine: bool) ->
     })
 }
 
-/// [`remove_affine_motion`] with the stored transforms chosen by `store(proposed, fallback)`,
+/// Centroids of frame 0 and of the current frame, for a `store` that re-derives the
+/// translation from its own rounding of the linear part.
+#[derive(Debug, Clone, Copy)]
+pub struct Centroids {
+    /// `μ_0`.
+    pub first: [f64; 3],
+    /// `μ_t`.
+    pub this: [f64; 3],
+}
+
+/// [`remove_affine_motion`] with the stored transforms chosen by `store(proposed, fallback, centroids)`,
 /// called once per frame in order: e.g. a quantizer in closed loop over the frames
 /// ([`crate::motion`]). It returns the transform the decoder will use, whose linear part must
 /// be invertible; `fallback` (identity linear part, centroid shift) is for when `proposed`'s
@@ -152,7 +162,7 @@ pub fn remove_affine_motion_with(
     k: usize,
     frames: usize,
     affine: bool,
-    store: &mut dyn FnMut(Affine, Affine) -> Affine,
+    store: &mut dyn FnMut(Affine, Affine, Centroids) -> Affine,
 ) -> (Vec<Affine>, Vec<f64>) {
     let centroid = |t: usize| -> [f64; 3] {
         let mut s = [0.0f64; 3];
@@ -194,7 +204,7 @@ pub fn remove_affine_motion_with(
         let c: [f64; 3] = std::array::from_fn(|j| mut_t[j] - (0..3).map(|i| mu0[i] * m[i * 3 + j]).sum::<f64>());
         let proposed = Affine { m: m.map(|v| v as f32), c: c.map(|v| v as f32) };
         let fallback = Affine { m: Affine::IDENTITY.m, c: std::array::from_fn(|j| (mut_t[j] - mu0[j]) as f32) };
-        let aff = store(proposed, fallback);
+        let aff = store(proposed, fallback, Centroids { first: mu0, this: mut_t });
         // Forward map from the stored (rounded) inverse, so that decode(x) reproduces p up to
         // the decomposition error alone.
         let l = mat3_inverse(&aff.m.map(|v| v as f64)).unwrap_or([1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]);
