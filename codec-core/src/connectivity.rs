@@ -80,6 +80,9 @@ pub fn canonical_order(topology: &Topology) -> Topology {
     Topology::new(topology.vertex_count(), out).expect("same indices as a valid topology")
 }
 
+/// Largest group whose fan starts are searched (see [`fan_order`]).
+const FAN_SEARCH: usize = 64;
+
 /// Appends one group (triangles sharing their first, smallest index; sorted) in fan order:
 /// the next triangle is the first unused one whose second index is the previous third
 /// index, else (a new fan) the first unused one that no unused triangle precedes around the
@@ -87,9 +90,6 @@ pub fn canonical_order(topology: &Topology) -> Topology {
 /// Starting fans at their beginning instead of their smallest index saved 1.06 bits per
 /// triangle on horse-gallop (7.12 → 6.06). Per-second-index cursors; the start search is
 /// linear per fan and only done for groups of at most [`FAN_SEARCH`] triangles.
-/// Largest group whose fan starts are searched (see [`fan_order`]).
-const FAN_SEARCH: usize = 64;
-
 fn fan_order(group: &[[u32; 3]], out: &mut Vec<[u32; 3]>) {
     let mut used = vec![false; group.len()];
     // First position of each second index in the (sorted) group, advanced past used entries.
@@ -154,7 +154,7 @@ const MAX_KNOWN: usize = 32;
 /// entry, at most 6 entries per triangle and [`MAX_KNOWN`] per vertex, doubled for growth)
 /// and their headers (24 bytes per vertex up to the largest index).
 pub fn decoder_bytes(vertex_count: usize, triangle_count: usize) -> u64 {
-    let entries = (6 * triangle_count as u64).min((MAX_KNOWN * vertex_count) as u64);
+    let entries = (6 * triangle_count as u64).min(MAX_KNOWN as u64 * vertex_count as u64);
     16 * entries + 24 * vertex_count as u64
 }
 
