@@ -800,7 +800,8 @@ pub fn encode_block(
     // floor (the quantization budget's floor, 1e-12‖X‖²; e.g. an exactly low-rank skinned
     // animation), more rank buys nothing but coded near-zero columns: keep the smallest ranks
     // that stay at the floor, so a smaller `ss` never gives a different stream for nothing.
-    if let (false, Some(s)) = (explicit, &spectrum) {
+    // The paper coding keeps the paper's choice.
+    if let (false, Some(s), Coding::Toolkit) = (explicit, &spectrum, p.coding) {
         let floor = 1e-12 * t.norm2;
         if s.truncation_error2(v, f) <= floor {
             while v > 1 && s.truncation_error2(v - 1, f) <= floor {
