@@ -427,15 +427,7 @@ mod tests {
     use super::*;
 
     fn grid(n: u32) -> Topology {
-        let mut t = Vec::new();
-        for r in 0..n - 1 {
-            for c in 0..n - 1 {
-                let i = r * n + c;
-                t.push([i, i + 1, i + n]);
-                t.push([i + 1, i + n + 1, i + n]);
-            }
-        }
-        Topology::new((n * n) as usize, t).unwrap()
+        crate::synth::flag_topology(n as usize, n as usize)
     }
 
     /// A deterministic shuffle (xorshift) of triangle order and rotation.
