@@ -333,16 +333,6 @@ fn mixed_ratio(op: &Operator<'_>, rho: &[f64], l: usize) -> f64 {
     }
 }
 
-/// A step rounded to f32 (what the stream stores), never below `floor`.
-fn stored_step(step: f64, floor: f64) -> f64 {
-    let s = step.max(floor) as f32;
-    if s.is_finite() && s > 0.0 {
-        s as f64
-    } else {
-        f32::MAX as f64
-    }
-}
-
 /// Steps per octave and octaves below / above the reference step searched by the RD rule.
 const PER_OCTAVE: usize = 2;
 const OCTAVES_FINER: usize = 3;
@@ -424,13 +414,13 @@ pub fn code(op: &Operator<'_>, mesh: &CausalGraph, settings: &Settings, target: 
         let mut level_grids = Vec::with_capacity(comps.len());
         for c in &comps {
             // Never finer than 2^-28 of the component's range (codes stay far inside 2^30).
-            let floor = c.max_abs() * 2f64.powi(-28) + 1e-300;
+            let floor = rdq::step_floor(c.max_abs());
             let largest = c.reference_step * 2f64.powi(OCTAVES_COARSER as i32);
             let mut grid = vec![0.0];
             let mut pts = vec![c.evaluate(0.0, &mut codes, &mut recon).0];
             let mut lv = vec![0u8];
             for s in rdq::step_grid(largest, (OCTAVES_COARSER + OCTAVES_FINER) * PER_OCTAVE + 1, PER_OCTAVE) {
-                let s = stored_step(s, floor);
+                let s = rdq::stored_step(s, floor);
                 let (p, level) = c.evaluate(s, &mut codes, &mut recon);
                 grid.push(s);
                 pts.push(p);
@@ -452,7 +442,7 @@ pub fn code(op: &Operator<'_>, mesh: &CausalGraph, settings: &Settings, target: 
         )
     } else {
         let steps: Vec<f64> =
-            comps.iter().map(|c| stored_step(c.reference_step, c.max_abs() * 2f64.powi(-28) + 1e-300)).collect();
+            comps.iter().map(|c| rdq::stored_step(c.reference_step, rdq::step_floor(c.max_abs()))).collect();
         let levels = comps
             .iter()
             .zip(&steps)

@@ -24,7 +24,7 @@
 use codec_core::toolkit::adaptive::{AdaptiveDecoder, AdaptiveEncoder, CostModel};
 use codec_core::toolkit::order::CausalGraph;
 use codec_core::toolkit::predict::{self, Predictor};
-use codec_core::toolkit::rdq::RdPoint;
+use codec_core::toolkit::rdq::{self, RdPoint};
 use codec_core::{Error, Result};
 
 use faer::{Mat, MatRef};
@@ -168,17 +168,7 @@ fn encode_codes(enc: &mut AdaptiveEncoder, layout: Layout<'_>, codes: &[i32], cl
 
 /// The finest step used for `values`: 2^-28 of their range (codes stay far inside 2^30).
 fn floor_of(values: &[f64]) -> f64 {
-    values.iter().fold(0.0f64, |m, x| m.max(x.abs())) * 2f64.powi(-28) + 1e-300
-}
-
-/// A step rounded to f32 (what the stream stores), never below `floor`.
-fn stored_step(step: f64, floor: f64) -> f64 {
-    let s = step.max(floor) as f32;
-    if s.is_finite() && s > 0.0 {
-        s as f64
-    } else {
-        f32::MAX as f64
-    }
+    rdq::step_floor(values.iter().fold(0.0f64, |m, x| m.max(x.abs())))
 }
 
 /// Grid steps searched per component (the grid runs from `reference_step · 2^OCTAVES_COARSER`
@@ -220,7 +210,7 @@ impl<'c, 'g> StepSearch<'c, 'g> {
         if i == 0 {
             0.0
         } else {
-            stored_step(self.largest * (-((i - 1) as f64) / PER_OCTAVE as f64).exp2(), self.floor)
+            rdq::stored_step(self.largest * (-((i - 1) as f64) / PER_OCTAVE as f64).exp2(), self.floor)
         }
     }
 
@@ -394,7 +384,7 @@ pub fn code(
         let choice = equal_slope(&mut searches, target, &mut codes, &mut recon);
         searches.iter().zip(choice).map(|(s, i)| s.step(i)).collect()
     } else {
-        comps.iter().map(|c| stored_step(c.reference_step, c.floor())).collect()
+        comps.iter().map(|c| rdq::stored_step(c.reference_step, c.floor())).collect()
     };
     // A component pair is kept only when both its column and its row are coded: either alone
     // contributes nothing to `Ê F̂`.

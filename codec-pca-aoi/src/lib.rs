@@ -1000,10 +1000,7 @@ impl PcaAoiDecoder {
         let mut r = ByteReader::new(payload, NAME);
         let domain = read_domain(&mut r)?;
         let n = verts.len();
-        let (e_dim, m_dim) = match domain {
-            Resolved::Temporal => (3 * d, n),
-            Resolved::Spatial => (n, 3 * d),
-        };
+        let (e_dim, m_dim) = matrix_dims(domain, n, d);
         let k = r.varint_max("cluster.k", e_dim.min(m_dim) as u64)? as usize;
         let means = read_means(&mut r, d)?;
         let mut quantizers = Vec::with_capacity(2 * k);
@@ -1116,10 +1113,7 @@ impl PcaAoiDecoder {
             return Err(r.malformed("cluster.frames", format!("{frames} frames, the packet holds {d}")));
         }
         let n = verts.len();
-        let (e_dim, m_dim) = match domain {
-            Resolved::Temporal => (3 * d, n),
-            Resolved::Spatial => (n, 3 * d),
-        };
+        let (e_dim, m_dim) = matrix_dims(domain, n, d);
         let k = r.varint_max("cluster.k", e_dim.min(m_dim) as u64)? as usize;
         let means = read_means(&mut r, d)?;
         let mut steps = Vec::with_capacity(2 * k);
@@ -1144,6 +1138,15 @@ impl PcaAoiDecoder {
 }
 
 /// The domain byte of a cluster payload.
+/// The two dimensions of the data matrix of a cluster of `n` vertices over `d` frames in
+/// `domain`; the rank `k` is at most the smaller.
+fn matrix_dims(domain: Resolved, n: usize, d: usize) -> (usize, usize) {
+    match domain {
+        Resolved::Temporal => (3 * d, n),
+        Resolved::Spatial => (n, 3 * d),
+    }
+}
+
 fn read_domain(r: &mut ByteReader<'_>) -> Result<Resolved> {
     match r.u8("cluster.domain")? {
         0 => Ok(Resolved::Temporal),

@@ -158,16 +158,6 @@ impl Component<'_> {
     }
 }
 
-/// A step rounded to f32 (what the stream stores), never below `floor`.
-fn stored_step(step: f64, floor: f64) -> f64 {
-    let s = step.max(floor) as f32;
-    if s.is_finite() && s > 0.0 {
-        s as f64
-    } else {
-        f32::MAX as f64
-    }
-}
-
 /// Equal-slope steps of `comps` for a total distortion `target`; returns the steps and the
 /// distortion each leaves.
 fn allocate(comps: &[Component<'_>], target: f64) -> (Vec<f64>, Vec<f64>) {
@@ -175,13 +165,13 @@ fn allocate(comps: &[Component<'_>], target: f64) -> (Vec<f64>, Vec<f64>) {
         .par_iter()
         .map(|c| {
             let (mut codes, mut recon) = (Vec::new(), Vec::new());
-            let floor = c.max_abs() * 2f64.powi(-28) + 1e-300;
+            let floor = rdq::step_floor(c.max_abs());
             let largest = c.reference_step * 2f64.powi(OCTAVES_COARSER as i32);
             let mut grid = vec![0.0];
             let mut pts = vec![c.evaluate(0.0, &mut codes, &mut recon)];
             if pts[0].distortion > 0.0 {
                 for s in rdq::step_grid(largest, (OCTAVES_COARSER + OCTAVES_FINER) * PER_OCTAVE + 1, PER_OCTAVE) {
-                    let s = stored_step(s, floor);
+                    let s = rdq::stored_step(s, floor);
                     let p = c.evaluate(s, &mut codes, &mut recon);
                     grid.push(s);
                     pts.push(p);

@@ -822,13 +822,7 @@ fn group_pca(
     block: &[f32],
     frames: usize,
 ) -> Result<(usize, Mat<f64>)> {
-    let n3 = graph.vertex_count() * 3;
-    let ext = graph.grow_rings(own, p.eta as usize);
-    let (xe, _) = centred_block(p.centering, &ext, block, n3, frames);
-    let scale = frame_diagonal(&block[..n3]);
-    let negligible = (NEGLIGIBLE_AMPLITUDE * scale).powi(2) * (ext.len() * 3 * frames) as f64;
-    let (vals, vecs) = sym_eig_desc(gram(xe.as_ref()).as_ref(), "segment PCA")?;
-    Ok((pcs_for_persistence(&vals, p.omega, negligible).min(frames), vecs))
+    group_pca_energy(p, graph, own, block, frames).map(|(k, vecs, _, _)| (k, vecs))
 }
 
 /// [`group_pca`] plus the truncation energy it leaves and the total energy of the η-extended,

@@ -37,6 +37,23 @@ pub struct Allocation {
     pub distortion: f64,
 }
 
+/// Smallest step a component of largest magnitude `max_abs` is given: `2^-28` of its range
+/// (codes stay far inside the coders' 2^30), and never zero.
+pub fn step_floor(max_abs: f64) -> f64 {
+    max_abs * 2f64.powi(-28) + 1e-300
+}
+
+/// A step as streams store it: rounded to `f32`, never below `floor`; `f32::MAX` when the
+/// rounding overflows.
+pub fn stored_step(step: f64, floor: f64) -> f64 {
+    let s = step.max(floor) as f32;
+    if s.is_finite() && s > 0.0 {
+        s as f64
+    } else {
+        f32::MAX as f64
+    }
+}
+
 /// `count` steps from `largest` down by `2^(−1/per_octave)` each.
 pub fn step_grid(largest: f64, count: usize, per_octave: usize) -> Vec<f64> {
     (0..count).map(|j| largest * (-(j as f64) / per_octave.max(1) as f64).exp2()).collect()
