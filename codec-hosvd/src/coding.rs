@@ -22,6 +22,7 @@ use codec_core::toolkit::order::CausalGraph;
 use codec_core::toolkit::predict::{self, Predictor};
 use codec_core::toolkit::rdq::{self, RdPoint};
 use codec_core::{Error, Result};
+use rayon::prelude::*;
 
 use crate::NAME;
 
@@ -409,27 +410,37 @@ pub fn code(op: &Operator<'_>, mesh: &CausalGraph, settings: &Settings, target: 
     let (mut codes, mut recon) = (Vec::new(), Vec::new());
     let mut estimated_bits = 0.0;
     let (steps, levels): (Vec<f64>, Vec<u8>) = if settings.rdq {
+        // Components are independent: their grids are measured in parallel (each task with
+        // its own scratch) and collected in component order, so the choice does not depend on
+        // the thread count. This search is most of the toolkit encoder's time.
+        let measured: Vec<(Vec<f64>, Vec<RdPoint>, Vec<u8>)> = comps
+            .par_iter()
+            .map(|c| {
+                let (mut codes, mut recon) = (Vec::new(), Vec::new());
+                // Never finer than 2^-28 of the component's range (codes stay far inside 2^30).
+                let floor = rdq::step_floor(c.max_abs());
+                let largest = c.reference_step * 2f64.powi(OCTAVES_COARSER as i32);
+                let mut grid = vec![0.0];
+                let mut pts = vec![c.evaluate(0.0, &mut codes, &mut recon).0];
+                let mut lv = vec![0u8];
+                for s in rdq::step_grid(largest, (OCTAVES_COARSER + OCTAVES_FINER) * PER_OCTAVE + 1, PER_OCTAVE) {
+                    let s = rdq::stored_step(s, floor);
+                    let (p, level) = c.evaluate(s, &mut codes, &mut recon);
+                    grid.push(s);
+                    pts.push(p);
+                    lv.push(level);
+                    // Finer steps cannot be chosen once this component's distortion is negligible.
+                    if p.distortion < 1e-4 * target {
+                        break;
+                    }
+                }
+                (grid, pts, lv)
+            })
+            .collect();
         let mut grids = Vec::with_capacity(comps.len());
         let mut points = Vec::with_capacity(comps.len());
         let mut level_grids = Vec::with_capacity(comps.len());
-        for c in &comps {
-            // Never finer than 2^-28 of the component's range (codes stay far inside 2^30).
-            let floor = rdq::step_floor(c.max_abs());
-            let largest = c.reference_step * 2f64.powi(OCTAVES_COARSER as i32);
-            let mut grid = vec![0.0];
-            let mut pts = vec![c.evaluate(0.0, &mut codes, &mut recon).0];
-            let mut lv = vec![0u8];
-            for s in rdq::step_grid(largest, (OCTAVES_COARSER + OCTAVES_FINER) * PER_OCTAVE + 1, PER_OCTAVE) {
-                let s = rdq::stored_step(s, floor);
-                let (p, level) = c.evaluate(s, &mut codes, &mut recon);
-                grid.push(s);
-                pts.push(p);
-                lv.push(level);
-                // Finer steps cannot be chosen once this component's distortion is negligible.
-                if p.distortion < 1e-4 * target {
-                    break;
-                }
-            }
+        for (grid, pts, lv) in measured {
             grids.push(grid);
             points.push(pts);
             level_grids.push(lv);

@@ -28,6 +28,7 @@ use codec_core::toolkit::rdq::{self, RdPoint};
 use codec_core::{Error, Result};
 
 use faer::{Mat, MatRef};
+use rayon::prelude::*;
 
 use crate::{linalg, NAME};
 
@@ -253,18 +254,16 @@ impl<'c, 'g> StepSearch<'c, 'g> {
 /// over lazily evaluated grids: λ is bracketed by factors of 4 from the high-rate estimate at
 /// the reference steps, then bisected in log space; every component walks from its previous
 /// choice. Returns the chosen grid index per component.
-fn equal_slope(
-    searches: &mut [StepSearch<'_, '_>],
-    target: f64,
-    codes: &mut Vec<i32>,
-    recon: &mut Vec<f64>,
-) -> Vec<usize> {
-    let mut at = |lambda: f64, searches: &mut [StepSearch<'_, '_>]| -> (f64, Vec<usize>) {
-        let mut distortion = 0.0;
-        for s in searches.iter_mut() {
-            distortion += s.walk(lambda, codes, recon).distortion;
-        }
-        (distortion, searches.iter().map(|s| s.at).collect())
+fn equal_slope(searches: &mut [StepSearch<'_, '_>], target: f64) -> Vec<usize> {
+    // The components' walks are independent: done in parallel (each task with its own
+    // scratch), distortions summed in component order, so the result does not depend on the
+    // thread count.
+    let at = |lambda: f64, searches: &mut [StepSearch<'_, '_>]| -> (f64, Vec<usize>) {
+        let distortions: Vec<f64> = searches
+            .par_iter_mut()
+            .map_init(|| (Vec::new(), Vec::new()), |(codes, recon), s| s.walk(lambda, codes, recon).distortion)
+            .collect();
+        (distortions.iter().sum(), searches.iter().map(|s| s.at).collect())
     };
     // High-rate slope at the reference steps: D = n·g²Δ²/12 per component, dD/dR = −g²Δ²·ln2/6,
     // with n·g²Δ²/12 = target / (number of components).
@@ -381,7 +380,7 @@ pub fn code(
     let (mut codes, mut recon) = (Vec::new(), Vec::new());
     let steps: Vec<f64> = if settings.rdq {
         let mut searches: Vec<StepSearch<'_, '_>> = comps.iter().map(|c| StepSearch::new(c, target)).collect();
-        let choice = equal_slope(&mut searches, target, &mut codes, &mut recon);
+        let choice = equal_slope(&mut searches, target);
         searches.iter().zip(choice).map(|(s, i)| s.step(i)).collect()
     } else {
         comps.iter().map(|c| rdq::stored_step(c.reference_step, c.floor())).collect()
