@@ -16,11 +16,21 @@
 //! distortion per entry). All codes go through one context-adaptive arithmetic coder; the
 //! class is the component (its own adaptive models, up to [`CLASSES_PER_GROUP`] per group), the
 //! magnitude bucket comes from the codes of already coded neighbours.
+//!
+//! Stream version 4 (`regress`, beyond the paper): each `U1` column takes the predictor of
+//! fewest bits ([`ColumnMode`]): the stream's mesh predictor, the parallelogram, or (after the
+//! first column) a local linear regression on the leading columns over its coded two-ring
+//! neighbours ([`codec_core::toolkit::regress`]). The leading columns carry the rest geometry
+//! and, under piecewise-rigid motion, a later column is locally an affine function of them, so
+//! the regression predicts the geometric detail the neighbour average cannot. The rate search
+//! regresses on the unquantized leading columns (the decoded ones depend on steps not yet
+//! chosen); the final coding and the decoder on the decoded ones, before smoothing.
 
 use codec_core::toolkit::adaptive::{AdaptiveDecoder, AdaptiveEncoder, CostModel};
 use codec_core::toolkit::order::CausalGraph;
 use codec_core::toolkit::predict::{self, Predictor};
 use codec_core::toolkit::rdq::{self, RdPoint};
+use codec_core::toolkit::regress::{Fit, Neighbourhoods, Regression, MAX_REGRESSORS};
 use codec_core::{Error, Result};
 use rayon::prelude::*;
 
@@ -51,6 +61,33 @@ pub struct Settings {
     pub edge_weight: f64,
     /// Decoder-side smoothing of the `U1` columns ([`Smoother`], stream version 3).
     pub denoise: bool,
+    /// Per `U1` column, the predictor with the fewest bits among the mesh predictor, the
+    /// parallelogram and (after the first column) local regression on the leading columns
+    /// ([`codec_core::toolkit::regress`]); stream version 4, [`ColumnMode`].
+    pub regress: bool,
+}
+
+/// How a `U1` column is predicted (stream version 4: one byte per column).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ColumnMode {
+    /// The stream's mesh predictor.
+    Mesh = 0,
+    /// Local regression on the leading columns (not for column 0).
+    Regression = 1,
+    /// The parallelogram predictor.
+    Parallelogram = 2,
+}
+
+impl ColumnMode {
+    /// The mode of a stored byte for column `i`, if valid there.
+    pub fn from_byte(byte: u8, column: usize) -> Option<Self> {
+        match byte {
+            0 => Some(Self::Mesh),
+            1 if column > 0 => Some(Self::Regression),
+            2 => Some(Self::Parallelogram),
+            _ => None,
+        }
+    }
 }
 
 /// Smoothing strengths a column may get: iterations of `x ← (x + mean of its mesh
@@ -192,6 +229,8 @@ pub struct Coded {
     /// Smoothing level per `U1` column (index into [`SMOOTHING_ITERATIONS`]); all 0 without
     /// `denoise`.
     pub smoothing: Vec<u8>,
+    /// Per `U1` column, its [`ColumnMode`] byte (all 0 without `regress`).
+    pub modes: Vec<u8>,
 }
 
 #[derive(Clone, Copy, PartialEq, Eq)]
@@ -216,6 +255,21 @@ struct Component<'g> {
     reference_step: f64,
     /// Decoder-side smoothing (U1 with `denoise` only).
     smoother: Option<&'g Smoother>,
+    /// Try the other column modes (U1 with `regress` only).
+    modes: bool,
+    /// Regression on the leading columns, unquantized (U1 columns after the first, with
+    /// `regress` only): the rate search's stand-in for the decoded ones.
+    regression: Option<Regression<'g>>,
+}
+
+/// One measured grid point of a component.
+#[derive(Clone, Copy)]
+struct Evaluated {
+    point: RdPoint,
+    /// Smoothing level that gave the distortion.
+    level: u8,
+    /// The column mode that coded it (the one with the fewest bits).
+    mode: ColumnMode,
 }
 
 impl Component<'_> {
@@ -252,21 +306,57 @@ impl Component<'_> {
         (1.0 - self.edge_weight) * plain + self.edge_weight * edge * norm
     }
 
-    /// Rate (bits) and distortion (output units) at `step` (0 = dropped), and the smoothing
-    /// level that gave that distortion.
-    fn evaluate(&self, step: f64, codes: &mut Vec<i32>, recon: &mut Vec<f64>) -> (RdPoint, u8) {
+    /// Rate (bits) and distortion (output units) at `step` (0 = dropped), the smoothing level
+    /// that gave that distortion, and the column mode that coded it: with `modes`, the one of
+    /// fewest bits (ties to the earlier in [`ColumnMode`] order).
+    fn evaluate(&self, step: f64, codes: &mut Vec<i32>, recon: &mut Vec<f64>) -> Evaluated {
         if step == 0.0 {
             recon.clear();
             recon.resize(self.values.len(), 0.0);
-            return (RdPoint { rate: 0.0, distortion: self.gain2 * self.distortion(recon) }, 0);
+            let point = RdPoint { rate: 0.0, distortion: self.gain2 * self.distortion(recon) };
+            return Evaluated { point, level: 0, mode: ColumnMode::Mesh };
         }
         predict::quantize(self.graph, self.predictor, &self.values, step, self.shaping, codes, recon);
+        let mut rate = self.rate(codes);
+        let mut mode = ColumnMode::Mesh;
+        if self.modes {
+            let (mut c2, mut r2) = (Vec::new(), Vec::new());
+            let mut consider = |m: ColumnMode, c2: &mut Vec<i32>, r2: &mut Vec<f64>| {
+                let r = self.rate(c2);
+                if r < rate {
+                    (rate, mode) = (r, m);
+                    std::mem::swap(codes, c2);
+                    std::mem::swap(recon, r2);
+                }
+            };
+            if let Some(reg) = &self.regression {
+                reg.quantize(&self.values, step, &mut c2, &mut r2);
+                consider(ColumnMode::Regression, &mut c2, &mut r2);
+            }
+            if self.predictor != Predictor::Parallelogram {
+                predict::quantize(
+                    self.graph,
+                    Predictor::Parallelogram,
+                    &self.values,
+                    step,
+                    self.shaping,
+                    &mut c2,
+                    &mut r2,
+                );
+                consider(ColumnMode::Parallelogram, &mut c2, &mut r2);
+            }
+        }
+        let (distortion, level) = self.best_smoothing(recon);
+        Evaluated { point: RdPoint { rate, distortion: self.gain2 * distortion }, level, mode }
+    }
+
+    /// Bits of `codes` by the adaptive coder's cost model (one class, neighbour buckets).
+    fn rate(&self, codes: &[i32]) -> f64 {
         let mut cost = CostModel::new(1);
         for p in 0..codes.len() {
             cost.add(codes[p], 0, predict::neighbour_bucket(self.graph, codes, p));
         }
-        let (distortion, level) = self.best_smoothing(recon);
-        (RdPoint { rate: cost.bits(), distortion: self.gain2 * distortion }, level)
+        cost.bits()
     }
 
     /// The smallest distortion over the smoothing levels (none without a smoother) and its
@@ -357,9 +447,33 @@ pub fn code(op: &Operator<'_>, mesh: &CausalGraph, settings: &Settings, target: 
             edge_ratio(mesh, &values)
         })
         .collect();
+    // Regression (stream version 4): column i ≥ 1 on columns 0..min(i, MAX_REGRESSORS), here
+    // unquantized (the decoded ones are only known once the steps are chosen).
+    let leads = regression_leads(settings, v);
+    let lead_columns: Vec<Vec<f64>> =
+        (0..leads).map(|i| mesh.order().iter().map(|&x| op.u1[x as usize * v + i]).collect()).collect();
+    let lead_refs: Vec<&[f64]> = lead_columns.iter().map(|c| c.as_slice()).collect();
+    let hoods = (leads > 0).then(|| Neighbourhoods::new(mesh));
+    let fits: Vec<Fit> = match &hoods {
+        Some(h) => (1..=leads).map(|n| Fit::new(h, &lead_refs[..n])).collect(),
+        None => Vec::new(),
+    };
     for i in 0..v {
         let values: Vec<f64> = mesh.order().iter().map(|&x| op.u1[x as usize * v + i]).collect();
         let reference_step = (4.0 * target / (v * k) as f64).sqrt() / op.s1[i].max(1e-300);
+        let regression = match &hoods {
+            Some(hoods) if i > 0 => {
+                let n = i.min(leads);
+                Some(Regression {
+                    graph: mesh,
+                    fallback: settings.mesh,
+                    hoods,
+                    fit: &fits[n - 1],
+                    regressors: &lead_refs[..n],
+                })
+            }
+            _ => None,
+        };
         comps.push(Component {
             group: Group::U1,
             index: i,
@@ -371,6 +485,8 @@ pub fn code(op: &Operator<'_>, mesh: &CausalGraph, settings: &Settings, target: 
             gain2: op.s1[i] * op.s1[i],
             reference_step,
             smoother: smoother.as_ref(),
+            modes: settings.regress,
+            regression,
         });
     }
     for l in 0..f {
@@ -387,6 +503,8 @@ pub fn code(op: &Operator<'_>, mesh: &CausalGraph, settings: &Settings, target: 
             gain2: op.s3[l] * op.s3[l] * (1.0 - beta + beta * mixed_ratio(op, &rho, l)),
             reference_step,
             smoother: None,
+            modes: false,
+            regression: None,
         });
     }
     for (i, r) in rho.iter().enumerate() {
@@ -403,17 +521,19 @@ pub fn code(op: &Operator<'_>, mesh: &CausalGraph, settings: &Settings, target: 
             gain2: 1.0 - beta + beta * r,
             reference_step,
             smoother: None,
+            modes: false,
+            regression: None,
         });
     }
 
     // Steps: the equal-slope choice over a grid around the reference, or the reference.
     let (mut codes, mut recon) = (Vec::new(), Vec::new());
     let mut estimated_bits = 0.0;
-    let (steps, levels): (Vec<f64>, Vec<u8>) = if settings.rdq {
+    let (steps, levels, modes): (Vec<f64>, Vec<u8>, Vec<ColumnMode>) = if settings.rdq {
         // Components are independent: their grids are measured in parallel (each task with
         // its own scratch) and collected in component order, so the choice does not depend on
         // the thread count. This search is most of the toolkit encoder's time.
-        let measured: Vec<(Vec<f64>, Vec<RdPoint>, Vec<u8>)> = comps
+        let measured: Vec<(Vec<f64>, Vec<Evaluated>)> = comps
             .par_iter()
             .map(|c| {
                 let (mut codes, mut recon) = (Vec::new(), Vec::new());
@@ -421,45 +541,44 @@ pub fn code(op: &Operator<'_>, mesh: &CausalGraph, settings: &Settings, target: 
                 let floor = rdq::step_floor(c.max_abs());
                 let largest = c.reference_step * 2f64.powi(OCTAVES_COARSER as i32);
                 let mut grid = vec![0.0];
-                let mut pts = vec![c.evaluate(0.0, &mut codes, &mut recon).0];
-                let mut lv = vec![0u8];
+                let mut evaluated = vec![c.evaluate(0.0, &mut codes, &mut recon)];
                 for s in rdq::step_grid(largest, (OCTAVES_COARSER + OCTAVES_FINER) * PER_OCTAVE + 1, PER_OCTAVE) {
                     let s = rdq::stored_step(s, floor);
-                    let (p, level) = c.evaluate(s, &mut codes, &mut recon);
+                    let e = c.evaluate(s, &mut codes, &mut recon);
                     grid.push(s);
-                    pts.push(p);
-                    lv.push(level);
+                    evaluated.push(e);
                     // Finer steps cannot be chosen once this component's distortion is negligible.
-                    if p.distortion < 1e-4 * target {
+                    if e.point.distortion < 1e-4 * target {
                         break;
                     }
                 }
-                (grid, pts, lv)
+                (grid, evaluated)
             })
             .collect();
-        let mut grids = Vec::with_capacity(comps.len());
-        let mut points = Vec::with_capacity(comps.len());
-        let mut level_grids = Vec::with_capacity(comps.len());
-        for (grid, pts, lv) in measured {
-            grids.push(grid);
-            points.push(pts);
-            level_grids.push(lv);
-        }
+        let points: Vec<Vec<RdPoint>> = measured.iter().map(|(_, e)| e.iter().map(|e| e.point).collect()).collect();
         let a = rdq::allocate(&points, target);
         estimated_bits = a.rate;
+        let chosen: Vec<(f64, Evaluated)> = a.choice.iter().zip(&measured).map(|(&i, (g, e))| (g[i], e[i])).collect();
         (
-            a.choice.iter().zip(&grids).map(|(&i, g)| g[i]).collect(),
-            a.choice.iter().zip(&level_grids).map(|(&i, l)| l[i]).collect(),
+            chosen.iter().map(|c| c.0).collect(),
+            chosen.iter().map(|c| c.1.level).collect(),
+            chosen.iter().map(|c| c.1.mode).collect(),
         )
     } else {
         let steps: Vec<f64> =
             comps.iter().map(|c| rdq::stored_step(c.reference_step, rdq::step_floor(c.max_abs()))).collect();
-        let levels = comps
+        let evaluated: Vec<Evaluated> = comps
             .iter()
             .zip(&steps)
-            .map(|(c, &s)| if c.smoother.is_some() { c.evaluate(s, &mut codes, &mut recon).1 } else { 0 })
+            .map(|(c, &s)| {
+                if c.smoother.is_some() || c.modes {
+                    c.evaluate(s, &mut codes, &mut recon)
+                } else {
+                    Evaluated { point: RdPoint { rate: 0.0, distortion: 0.0 }, level: 0, mode: ColumnMode::Mesh }
+                }
+            })
             .collect();
-        (steps, levels)
+        (steps, evaluated.iter().map(|e| e.level).collect(), evaluated.iter().map(|e| e.mode).collect())
     };
 
     // Code every component at its step.
@@ -468,16 +587,37 @@ pub fn code(op: &Operator<'_>, mesh: &CausalGraph, settings: &Settings, target: 
     let mut u3 = vec![0.0; frames * f];
     let mut core = vec![0.0; op.core.len()];
     let (mut du1, mut du3, mut dc2) = (vec![0.0; v], vec![0.0; f], 0.0);
-    for ((c, &step), &level) in comps.iter().zip(&steps).zip(&levels) {
+    // The leading U1 columns as the decoder has them before smoothing: the regressors.
+    let mut decoded_leads: Vec<Vec<f64>> = Vec::with_capacity(leads);
+    let mut decoded_fits: Vec<Option<Fit>> = vec![None; leads];
+    for (((c, &step), &level), &mode) in comps.iter().zip(&steps).zip(&levels).zip(&modes) {
         if step > 0.0 {
-            predict::quantize(c.graph, c.predictor, &c.values, step, c.shaping, &mut codes, &mut recon);
+            match (&hoods, mode) {
+                (Some(hoods), ColumnMode::Regression) => {
+                    let n = c.index.min(leads);
+                    let refs: Vec<&[f64]> = decoded_leads[..n].iter().map(|x| x.as_slice()).collect();
+                    let fit = decoded_fits[n - 1].get_or_insert_with(|| Fit::new(hoods, &refs));
+                    let reg = Regression { graph: mesh, fallback: c.predictor, hoods, fit, regressors: &refs };
+                    reg.quantize(&c.values, step, &mut codes, &mut recon);
+                }
+                (_, ColumnMode::Parallelogram) => {
+                    let pred = Predictor::Parallelogram;
+                    predict::quantize(c.graph, pred, &c.values, step, c.shaping, &mut codes, &mut recon)
+                }
+                _ => predict::quantize(c.graph, c.predictor, &c.values, step, c.shaping, &mut codes, &mut recon),
+            }
             for p in 0..codes.len() {
                 enc.encode(codes[p], c.class(), predict::neighbour_bucket(c.graph, &codes, p));
             }
-            c.apply_smoothing(level, &mut recon);
         } else {
             recon.clear();
             recon.resize(c.values.len(), 0.0);
+        }
+        if c.group == Group::U1 && c.index < leads {
+            decoded_leads.push(recon.clone());
+        }
+        if step > 0.0 {
+            c.apply_smoothing(level, &mut recon);
         }
         let err2: f64 = c.values.iter().zip(&recon).map(|(x, r)| (x - r) * (x - r)).sum();
         match c.group {
@@ -510,6 +650,16 @@ pub fn code(op: &Operator<'_>, mesh: &CausalGraph, settings: &Settings, target: 
         dc: dc2.sqrt(),
         estimated_bits,
         smoothing: levels[..v].to_vec(),
+        modes: modes[..v].iter().map(|&m| m as u8).collect(),
+    }
+}
+
+/// Number of leading `U1` columns the others may be regressed on (0 without `regress`).
+fn regression_leads(settings: &Settings, v: usize) -> usize {
+    if settings.regress {
+        v.saturating_sub(1).min(MAX_REGRESSORS)
+    } else {
+        0
     }
 }
 
@@ -525,22 +675,58 @@ pub fn decode(
     v: usize,
     f: usize,
     steps: &[f32],
+    column_modes: Option<&[u8]>,
 ) -> Result<(Vec<f64>, Vec<f64>, Vec<f64>)> {
     let k = mesh.len();
     if steps.len() != 2 * v + f {
         return Err(Error::malformed(NAME, "steps", format!("{} steps, expected {}", steps.len(), 2 * v + f)));
     }
+    let modes: Vec<ColumnMode> = match column_modes {
+        Some(bytes) => {
+            if bytes.len() != v {
+                return Err(Error::malformed(NAME, "column modes", format!("{} bytes, expected {v}", bytes.len())));
+            }
+            let mode = |(i, &b): (usize, &u8)| {
+                ColumnMode::from_byte(b, i).ok_or_else(|| {
+                    Error::malformed(NAME, "column modes", format!("column {i}: mode {b} (0..=2; 1 not for column 0)"))
+                })
+            };
+            bytes.iter().enumerate().map(mode).collect::<Result<_>>()?
+        }
+        None => vec![ColumnMode::Mesh; v],
+    };
     let time = CausalGraph::chain(frames, time_predictor == Predictor::Parallelogram);
     let core_chain = CausalGraph::chain(3 * f, false);
     let mut dec = AdaptiveDecoder::new(bytes, GROUPS * CLASSES_PER_GROUP, NAME, "codes")?;
     let mut codes = Vec::new();
     let mut recon = Vec::new();
     let mut u1 = vec![0.0; k * v];
+    // Regression (version 4): the caller checked the neighbourhoods' size against its limits.
+    let leads = if modes.contains(&ColumnMode::Regression) { v.saturating_sub(1).min(MAX_REGRESSORS) } else { 0 };
+    let hoods = (leads > 0).then(|| Neighbourhoods::new(mesh));
+    let mut decoded_leads: Vec<Vec<f64>> = Vec::with_capacity(leads);
+    let mut fits: Vec<Option<Fit>> = vec![None; leads];
     for i in 0..v {
-        let r =
-            component(&mut dec, &mut codes, &mut recon, mesh, mesh_predictor, i.min(CLASSES_PER_GROUP - 1), steps[i])?;
+        let class = i.min(CLASSES_PER_GROUP - 1);
+        let r = match (&hoods, modes[i]) {
+            (Some(hoods), ColumnMode::Regression) => {
+                let n = i.min(leads);
+                let refs: Vec<&[f64]> = decoded_leads[..n].iter().map(|x| x.as_slice()).collect();
+                let fit = fits[n - 1].get_or_insert_with(|| Fit::new(hoods, &refs));
+                let reg = Regression { graph: mesh, fallback: mesh_predictor, hoods, fit, regressors: &refs };
+                component(&mut dec, &mut codes, &mut recon, mesh, mesh_predictor, Some(&reg), class, steps[i])?
+            }
+            (_, ColumnMode::Parallelogram) => {
+                let pred = Predictor::Parallelogram;
+                component(&mut dec, &mut codes, &mut recon, mesh, pred, None, class, steps[i])?
+            }
+            _ => component(&mut dec, &mut codes, &mut recon, mesh, mesh_predictor, None, class, steps[i])?,
+        };
         for (p, &x) in mesh.order().iter().enumerate() {
             u1[x as usize * v + i] = r[p];
+        }
+        if i < leads {
+            decoded_leads.push(r.to_vec());
         }
     }
     let mut u3 = vec![0.0; frames * f];
@@ -551,6 +737,7 @@ pub fn decode(
             &mut recon,
             &time,
             time_predictor,
+            None,
             CLASSES_PER_GROUP + l.min(CLASSES_PER_GROUP - 1),
             steps[v + l],
         )?;
@@ -566,6 +753,7 @@ pub fn decode(
             &mut recon,
             &core_chain,
             Predictor::Zero,
+            None,
             2 * CLASSES_PER_GROUP + i.min(CLASSES_PER_GROUP - 1),
             steps[v + f + i],
         )?;
@@ -575,12 +763,14 @@ pub fn decode(
 }
 
 /// Decodes one component's codes and reconstructs it (position order) into `recon`.
+#[allow(clippy::too_many_arguments)]
 fn component<'r>(
     dec: &mut AdaptiveDecoder,
     codes: &mut Vec<i32>,
     recon: &'r mut Vec<f64>,
     graph: &CausalGraph,
     predictor: Predictor,
+    regression: Option<&Regression<'_>>,
     class: usize,
     step: f32,
 ) -> Result<&'r [f64]> {
@@ -595,7 +785,10 @@ fn component<'r>(
         let bucket = predict::neighbour_bucket(graph, codes, p);
         codes[p] = dec.decode(class, bucket).map_err(|_| Error::malformed(NAME, "codes", "invalid range code"))?;
     }
-    predict::dequantize(graph, predictor, codes, step as f64, recon);
+    match regression {
+        Some(reg) => reg.dequantize(codes, step as f64, recon),
+        None => predict::dequantize(graph, predictor, codes, step as f64, recon),
+    }
     if recon.iter().any(|x| !x.is_finite()) {
         return Err(Error::malformed(NAME, "codes", "a decoded value is not finite"));
     }

@@ -24,6 +24,7 @@ use std::time::Instant;
 use codec_core::bytes::{zigzag_decode, zigzag_encode, ByteReader, ByteWriter};
 use codec_core::toolkit::order::{self, CausalGraph};
 use codec_core::toolkit::predict::Predictor;
+use codec_core::toolkit::regress::Neighbourhoods;
 use codec_core::{
     entropy, Animation, AnimationCodec, EncodedPacket, EncoderSetup, Error, ErrorBound, FourCc, FrameDecoder,
     FrameEncoder, Limits, Packet, ParamSet, ParamSpec, ParamValue, Quantizer, RateLadder, Result, StreamInfo, Topology,
@@ -50,6 +51,12 @@ const FLAG_MOTION: u8 = 4;
 /// Packet flag bit 3 (stream version 3): `v` smoothing levels of the `U1` columns follow the
 /// codes (and motion) block (`coding::Smoother`). Written with the toolkit coding and `denoise`.
 const FLAG_DENOISE: u8 = 8;
+
+/// Packet flag bit 4 (stream version 4): `v` bytes follow the smoothing levels (or the codes /
+/// motion block), each `U1` column's predictor (`coding::ColumnMode`: 0 the stream's mesh
+/// predictor, 1 local regression on the leading columns (`codec_core::toolkit::regress`),
+/// 2 parallelogram). Written with the toolkit coding and `regress`.
+const FLAG_REGRESS: u8 = 16;
 
 /// Typed parameters of `hosvd`.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -103,6 +110,11 @@ pub struct HosvdParams {
     /// after dequantizing it, with a strength the encoder picks per column (`coding::Smoother`);
     /// the RD rule sees the smoothed error, so it can choose coarser steps. Default true.
     pub denoise: bool,
+    /// Toolkit (stream version 4): each mode-1 factor column gets the predictor of fewest bits
+    /// among the mesh predictor, the parallelogram and (after the first column) a local linear
+    /// regression on the leading columns (up to 4) over its already coded two-ring neighbours.
+    /// Beyond the paper. Default true.
+    pub regress: bool,
 }
 
 /// Coding of the quantized operator (`coding` parameter).
@@ -149,6 +161,7 @@ impl Default for HosvdParams {
             edge_weight: 0.0,
             edge_noise: 0.0,
             denoise: true,
+            regress: true,
         }
     }
 }
@@ -270,6 +283,11 @@ impl HosvdParams {
                 d.denoise,
                 "toolkit: decoder smooths each mode-1 factor column over the mesh, strength chosen per column (v3)",
             ),
+            ParamSpec::boolean(
+                "regress",
+                d.regress,
+                "toolkit: per mode-1 factor column the cheapest of mesh predictor, parallelogram, local regression on the leading columns (v4)",
+            ),
         ]
     }
 
@@ -321,6 +339,7 @@ impl HosvdParams {
             edge_weight: p.float("edge_weight")?,
             edge_noise: p.float("edge_noise")?,
             denoise: p.bool("denoise")?,
+            regress: p.bool("regress")?,
         };
         out.check_cross()?;
         Ok(out)
@@ -350,7 +369,8 @@ impl HosvdParams {
             .with(&specs, "rdq", ParamValue::Bool(self.rdq))?
             .with(&specs, "edge_weight", ParamValue::Float(self.edge_weight))?
             .with(&specs, "edge_noise", ParamValue::Float(self.edge_noise))?
-            .with(&specs, "denoise", ParamValue::Bool(self.denoise))
+            .with(&specs, "denoise", ParamValue::Bool(self.denoise))?
+            .with(&specs, "regress", ParamValue::Bool(self.regress))
     }
 }
 
@@ -374,7 +394,7 @@ impl AnimationCodec for Hosvd {
         FOURCC
     }
     fn stream_version(&self) -> u16 {
-        3
+        4
     }
     fn summary(&self) -> &'static str {
         "HO-SVD / Tucker (v, 3, f) truncation with affine motion removal (Romaszewski et al.)"
@@ -426,10 +446,10 @@ impl AnimationCodec for Hosvd {
         if block == 0 {
             return Err(r.malformed("config.block", "0 frames per block"));
         }
-        if !(1..=3).contains(&info.codec_version) {
+        if !(1..=4).contains(&info.codec_version) {
             return Err(Error::Unsupported {
                 context: NAME.into(),
-                detail: format!("stream version {} (this build decodes 1 to 3)", info.codec_version),
+                detail: format!("stream version {} (this build decodes 1 to 4)", info.codec_version),
             });
         }
         // Version 2 packets may use the toolkit coding, which needs the mesh's coding order:
@@ -886,6 +906,7 @@ pub fn encode_block(
                 rdq: p.rdq,
                 edge_weight: p.edge_weight,
                 denoise: p.denoise,
+                regress: p.regress,
             };
             let coded = coding::code(&op, graph, &settings, budget);
             for &step in &coded.steps {
@@ -894,7 +915,8 @@ pub fn encode_block(
             w.u8(p.rigid as u8
                 | FLAG_TOOLKIT
                 | if motion_coder.is_some() { FLAG_MOTION } else { 0 }
-                | if p.denoise { FLAG_DENOISE } else { 0 });
+                | if p.denoise { FLAG_DENOISE } else { 0 }
+                | if p.regress { FLAG_REGRESS } else { 0 });
             w.varint(v as u64);
             w.varint(f as u64);
             w.u8(p.mesh_predictor.code());
@@ -906,6 +928,9 @@ pub fn encode_block(
             }
             if p.denoise {
                 w.bytes(&coded.smoothing);
+            }
+            if p.regress {
+                w.bytes(&coded.modes);
             }
             m.u1 = coded.u1;
             m.u3 = coded.u3;
@@ -1116,7 +1141,8 @@ impl FrameDecoder for HosvdDecoder {
         let flags = r.u8("flags")?;
         let known = match (&self.graph, self.version) {
             (MeshOrder::Unavailable, _) => 1,
-            (_, v) if v >= 3 => 1 | FLAG_TOOLKIT | FLAG_MOTION | FLAG_DENOISE,
+            (_, v) if v >= 4 => 1 | FLAG_TOOLKIT | FLAG_MOTION | FLAG_DENOISE | FLAG_REGRESS,
+            (_, 3) => 1 | FLAG_TOOLKIT | FLAG_MOTION | FLAG_DENOISE,
             _ => 1 | FLAG_TOOLKIT,
         };
         if flags & !known != 0 {
@@ -1131,6 +1157,10 @@ impl FrameDecoder for HosvdDecoder {
         let denoise = flags & FLAG_DENOISE != 0;
         if denoise && !toolkit {
             return Err(r.malformed("flags", format!("{flags:#04x}: denoising without toolkit coding")));
+        }
+        let regress = flags & FLAG_REGRESS != 0;
+        if regress && !toolkit {
+            return Err(r.malformed("flags", format!("{flags:#04x}: regression without toolkit coding")));
         }
         let vmax = k.min(3 * frames);
         let fmax = frames.min(3 * k);
@@ -1203,10 +1233,14 @@ impl FrameDecoder for HosvdDecoder {
                 transforms
             };
             let smoothing = if denoise { Some(r.take(v, "smoothing")?.to_vec()) } else { None };
+            let modes = if regress { Some(r.take(v, "column modes")?.to_vec()) } else { None };
             r.expect_end("packet")?;
+            if modes.as_ref().is_some_and(|x| x.contains(&(coding::ColumnMode::Regression as u8))) {
+                self.limits.check_alloc(NAME, "regression neighbourhoods", Neighbourhoods::bytes(k))?;
+            }
             let graph = self.mesh_order()?;
             let (mut u1, u3, core) =
-                coding::decode(bytes, graph, mesh_predictor, time_predictor, frames, v, f, &steps)?;
+                coding::decode(bytes, graph, mesh_predictor, time_predictor, frames, v, f, &steps, modes.as_deref())?;
             if let Some(levels) = smoothing {
                 coding::Smoother::new(graph).apply_columns(graph, &mut u1, v, &levels)?;
             }

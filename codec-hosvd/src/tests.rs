@@ -248,7 +248,7 @@ fn temporal_blocks_are_independent_keyframes() {
 
 #[test]
 fn malformed_streams_give_errors_not_panics() {
-    for (coding, version) in [(Coding::Paper, 1u16), (Coding::Toolkit, 3)] {
+    for (coding, version) in [(Coding::Paper, 1u16), (Coding::Toolkit, 4)] {
         malformed_streams_case(coding, version);
     }
 }
@@ -305,7 +305,8 @@ fn malformed_streams_case(coding: Coding, codec_version: u16) {
         let mut v1 = Hosvd.new_decoder(&info, &12u32.to_le_bytes(), &Limits::default()).unwrap();
         let e = v1.decode_packet(&packet(block.payload)).unwrap_err().to_string();
         assert!(e.contains("flags"), "{e}");
-        info.codec_version = 4;
+        // A version from the future is refused up front.
+        info.codec_version = 5;
         assert!(Hosvd.new_decoder(&info, &12u32.to_le_bytes(), &Limits::default()).is_err());
     }
 }
@@ -467,7 +468,7 @@ fn absurd_topology_builds_the_mesh_order_lazily_and_within_limits() {
     let mut triangles = anim.topology().triangles().to_vec();
     triangles.extend(std::iter::repeat_n(triangles[0], 500_000));
     let topology = Topology::new(k, triangles).unwrap();
-    let info = StreamInfo { fourcc: FOURCC, codec_version: 3, topology, frame_count: 12, frame_rate: 30.0 };
+    let info = StreamInfo { fourcc: FOURCC, codec_version: 4, topology, frame_count: 12, frame_rate: 30.0 };
     let packet = |data: Vec<u8>| Packet { first_frame: 0, frame_count: 12, keyframe: true, data };
     let toolkit = HosvdParams { ss: 0.5, coding: Coding::Toolkit, ..Default::default() };
     let paper = HosvdParams { coding: Coding::Paper, ..toolkit };
@@ -544,12 +545,14 @@ fn denoised_columns_decode_to_the_encoder_reconstruction() {
     let block = encode_block(anim.positions(), k, &hp, &graph, true).unwrap();
     let flags = block.payload[0];
     assert_eq!(flags & FLAG_DENOISE, FLAG_DENOISE);
+    // The levels, then (version 4, `regress`) one column-mode byte per column.
     let v = block.stats.v;
-    let levels = &block.payload[block.payload.len() - v..];
+    let n = block.payload.len();
+    let levels = &block.payload[n - 2 * v..n - v];
     assert!(levels.iter().any(|&l| l > 0), "levels {levels:?}");
     let info = StreamInfo {
         fourcc: FOURCC,
-        codec_version: 3,
+        codec_version: 4,
         topology: anim.topology().clone(),
         frame_count: 20,
         frame_rate: 30.0,
@@ -558,8 +561,7 @@ fn denoised_columns_decode_to_the_encoder_reconstruction() {
     let packet = |data: Vec<u8>| Packet { first_frame: 0, frame_count: 20, keyframe: true, data };
     assert_eq!(dec.decode_packet(&packet(block.payload.clone())).unwrap(), block.reconstruction.clone().unwrap());
     let mut bad = block.payload.clone();
-    let last = bad.len() - 1;
-    bad[last] = 8;
+    bad[n - v - 1] = 8;
     let e = dec.decode_packet(&packet(bad)).unwrap_err().to_string();
     assert!(e.contains("smoothing") && e.contains("level 8"), "{e}");
     // Without denoise: no flag, no level bytes; with it, the same budget buys a smaller
@@ -575,4 +577,52 @@ fn denoised_columns_decode_to_the_encoder_reconstruction() {
         b2.payload.len()
     );
     assert!(block.payload.len() < b2.payload.len() && e1 < 1.1 * e2);
+}
+
+#[test]
+fn column_modes_decode_to_the_encoder_reconstruction() {
+    // Version 4: per U1 column the cheapest of mesh predictor, parallelogram and regression on
+    // the leading columns. The decoder rebuilds the encoder's reconstruction bit for bit; bad
+    // mode bytes are refused by name; without `regress` no flag and no bytes.
+    let anim = flag(16, 12, 24, 1.0, 1.0);
+    let k = anim.vertex_count();
+    let hp = HosvdParams { ss: 0.6, rigid: false, quant: 0.05, ..Default::default() };
+    let graph = mesh_graph(&hp, anim.topology());
+    let block = encode_block(anim.positions(), k, &hp, &graph, true).unwrap();
+    assert_eq!(block.payload[0] & FLAG_REGRESS, FLAG_REGRESS);
+    let v = block.stats.v;
+    assert!(v >= 3, "v = {v}");
+    let n = block.payload.len();
+    let modes = block.payload[n - v..].to_vec();
+    assert_ne!(modes[0], 1, "column 0 is never regressed: {modes:?}");
+    assert!(modes.iter().all(|&m| m <= 2), "{modes:?}");
+    assert!(modes.contains(&1), "no column regressed on this input: {modes:?}");
+    let info = StreamInfo {
+        fourcc: FOURCC,
+        codec_version: 4,
+        topology: anim.topology().clone(),
+        frame_count: 24,
+        frame_rate: 30.0,
+    };
+    let mut dec = Hosvd.new_decoder(&info, &24u32.to_le_bytes(), &Limits::default()).unwrap();
+    let packet = |data: Vec<u8>| Packet { first_frame: 0, frame_count: 24, keyframe: true, data };
+    assert_eq!(dec.decode_packet(&packet(block.payload.clone())).unwrap(), block.reconstruction.clone().unwrap());
+    for (at, byte) in [(n - v, 1u8), (n - 1, 3), (n - 1, 255)] {
+        let mut bad = block.payload.clone();
+        bad[at] = byte;
+        let e = dec.decode_packet(&packet(bad)).unwrap_err().to_string();
+        assert!(e.contains("column modes") && e.contains(&format!("mode {byte}")), "{e}");
+    }
+    // A version 3 stream cannot carry the flag.
+    let v3 = StreamInfo { codec_version: 3, ..info.clone() };
+    let mut dec3 = Hosvd.new_decoder(&v3, &24u32.to_le_bytes(), &Limits::default()).unwrap();
+    let e = dec3.decode_packet(&packet(block.payload.clone())).unwrap_err().to_string();
+    assert!(e.contains("unknown bits"), "{e}");
+    // Without `regress`: no flag, no mode bytes, and more bits for the same budget.
+    let plain = HosvdParams { regress: false, ..hp };
+    let b2 = encode_block(anim.positions(), k, &plain, &graph, true).unwrap();
+    assert_eq!(b2.payload[0] & FLAG_REGRESS, 0);
+    assert_eq!(dec.decode_packet(&packet(b2.payload.clone())).unwrap(), b2.reconstruction.clone().unwrap());
+    eprintln!("modes {modes:?}: {} bytes; without: {} bytes", n, b2.payload.len());
+    assert!(n < b2.payload.len(), "{n} vs {}", b2.payload.len());
 }

@@ -12,7 +12,7 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use codec_core::container::ContainerReader;
-use codec_core::{decode_animation, encode_animation, synth, Animation, Limits};
+use codec_core::{decode_animation, encode_animation, synth, Animation, Limits, ParamValue};
 use conformance_tests::registry;
 
 fn golden_dir() -> PathBuf {
@@ -212,4 +212,44 @@ fn container_versions_keep_the_triangles() {
             v => panic!("{file}: container version {v}"),
         }
     }
+}
+
+/// hosvd stream version 4's column modes (regression on the leading `U1` columns,
+/// parallelogram): the default golden input is too small for the encoder to pick them, so a
+/// larger flag with fine quantization pins the regression decoder's arithmetic.
+/// `ANIMCODEC_WRITE_GOLDEN=1` writes `hosvd-v4-modes/hosvd-v4.anim` and its hash when missing.
+#[test]
+fn hosvd_v4_column_modes_golden() {
+    use codec_core::container::Section;
+    let registry = registry();
+    let codec = registry.by_name("hosvd").unwrap();
+    let dir = golden_dir().join("hosvd-v4-modes");
+    let (path, hash_path) = (dir.join("hosvd-v4.anim"), dir.join("hash.txt"));
+    let input = synth::waving_flag(16, 12, 24);
+    let specs = codec.param_specs();
+    let params = codec
+        .default_params()
+        .with(&specs, "rigid", ParamValue::Bool(false))
+        .and_then(|p| p.with(&specs, "ss", ParamValue::Float(0.6)))
+        .and_then(|p| p.with(&specs, "quant", ParamValue::Float(0.05)))
+        .unwrap();
+    if std::env::var_os("ANIMCODEC_WRITE_GOLDEN").is_some() && !path.exists() {
+        let bytes = encode_animation(codec, &params, &input).unwrap();
+        let decoded = decode_animation(&bytes, &registry, Limits::default()).unwrap();
+        std::fs::create_dir_all(&dir).unwrap();
+        std::fs::write(&path, &bytes).unwrap();
+        std::fs::write(&hash_path, format!("{}\n", frames_hash(&decoded))).unwrap();
+    }
+    let bytes = std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let hash = std::fs::read_to_string(&hash_path).unwrap_or_else(|e| panic!("{}: {e}", hash_path.display()));
+    let mut reader = ContainerReader::new(&bytes[..], Limits::default()).unwrap();
+    assert_eq!(reader.header().info.codec_version, 4);
+    // The packet's last v bytes are the column modes (flag bit 4): both new modes occur.
+    let Some(Ok(Section::Packet(packet))) = reader.next_section() else { panic!("no packet") };
+    assert_eq!(packet.data[0] & 16, 16, "column modes flag");
+    let v = packet.data[1] as usize; // varint, < 128 here
+    let modes = &packet.data[packet.data.len() - v..];
+    assert!(modes.contains(&1) && modes.contains(&2), "modes {modes:?}");
+    let decoded = decode_animation(&bytes, &registry, Limits::default()).unwrap();
+    assert_eq!(frames_hash(&decoded), hash.trim(), "hosvd v4 column modes decode to their golden frames");
 }

@@ -10,6 +10,9 @@
 //! - [`adaptive`]: context-adaptive binary arithmetic coding of the resulting integers on
 //!   `constriction`'s range coder, and a cost model for rate estimates.
 //! - [`rdq`]: per-component steps by the equal-slope (Lagrangian) rule for a target error.
+//! - [`regress`]: cross-component prediction — a field regressed locally (over causal two-ring
+//!   neighbourhoods) on fields already known everywhere, e.g. later mode-1 factor columns on
+//!   the leading ones.
 //!
 //! `codec-core/examples/toolkit_bench.rs` measures each piece's throughput.
 
@@ -17,3 +20,4 @@ pub mod adaptive;
 pub mod order;
 pub mod predict;
 pub mod rdq;
+pub mod regress;
