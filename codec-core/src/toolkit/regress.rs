@@ -11,14 +11,16 @@
 //! prototype, closed loop, zero-order entropy): the mode-1 factor's codes took 26% / 39% fewer
 //! bits than with the neighbour average (`docs/notes/issue-15.md`, session 5).
 //!
-//! The fit at position `p` uses the *neighbourhood* of `p`: the positions within two mesh rings
+//! The fit at position `p` uses the *neighbourhood* `N(p)`: the positions within two mesh rings
 //! coded before `p` ([`Neighbourhoods`], at most [`MAX_NEIGHBOURS`], the latest ones). The
-//! regressors (at most [`MAX_REGRESSORS`] fields, known everywhere: e.g. the factor's columns
-//! decoded before) are centred on the neighbourhood; the field's reconstructed values there
-//! give the right-hand side; the normal equations (with a small ridge, [`RIDGE`]) are solved
-//! by a Cholesky factor that depends on the regressors only, so [`Fit`] computes it once per
-//! position and every candidate step of a rate search reuses it. Too small a neighbourhood or a
-//! singular fit falls back to a [`Predictor`].
+//! regressors `r` (at most [`MAX_REGRESSORS`] fields known everywhere, e.g. the factor's
+//! columns decoded before) are centred on `N(p)`; least squares of the field `y` on them
+//! (intercept included, a small ridge [`RIDGE`]) predicts
+//! `ŷ_p = ȳ + (r_p − r̄)ᵀ G⁻¹ Σ_q (r_q − r̄)·y_q` — linear in the neighbours' values, because the
+//! centred regressors sum to zero. So [`Fit`] turns each position's fit into one weight per
+//! neighbour, `w_q = 1/|N| + (r_p − r̄)ᵀ G⁻¹ (r_q − r̄)`, once (it depends on the regressors
+//! only), and a prediction is a dot product, whatever the candidate step of a rate search. Too
+//! small a neighbourhood or a singular fit falls back to a [`Predictor`].
 //!
 //! Everything is plain `f64` arithmetic in a fixed order (no fused operations, no library
 //! functions), so the encoder and the decoder compute the same predictions bit for bit.
@@ -116,45 +118,46 @@ impl Neighbourhoods {
     }
 }
 
-/// The regressors' part of every position's fit: their neighbourhood means and the Cholesky
-/// factor of their centred Gram matrix (plus the ridge). Depends on the regressors only.
+/// Every position's prediction weights over its neighbourhood (see the module docs). Depends
+/// on the regressors only.
 #[derive(Debug, Clone)]
 pub struct Fit {
     k: usize,
     usable: Vec<bool>,
-    /// `k` means per position.
-    mean: Vec<f64>,
-    /// Lower-triangular `k × k` factor per position (row major).
-    chol: Vec<f64>,
+    /// One weight per neighbourhood entry (same layout as [`Neighbourhoods`]' lists).
+    weights: Vec<f64>,
 }
 
 impl Fit {
-    /// Fits for `regressors` (1..=[`MAX_REGRESSORS`] fields in position order, each at least
-    /// `hoods.len()` long). A position is usable when its neighbourhood has at least `k + 2`
-    /// entries and the factorization has positive pivots.
+    /// Weights for `regressors` (1..=[`MAX_REGRESSORS`] fields in position order, each at
+    /// least `hoods.len()` long). A position is usable when its neighbourhood has at least
+    /// `k + 2` entries, the Gram matrix's trace is finite and positive, the factorization has
+    /// positive pivots and every weight is finite.
     pub fn new(hoods: &Neighbourhoods, regressors: &[&[f64]]) -> Self {
         let k = regressors.len().clamp(1, MAX_REGRESSORS);
         let n = hoods.len();
-        let mut fit = Self { k, usable: vec![false; n], mean: vec![0.0; n * k], chol: vec![0.0; n * k * k] };
+        let mut fit = Self { k, usable: vec![false; n], weights: vec![0.0; hoods.list.len()] };
         if regressors.len() != k || regressors.iter().any(|r| r.len() < n) {
             return fit;
         }
         let mut gram = [0.0f64; MAX_REGRESSORS * MAX_REGRESSORS];
+        let mut l = [0.0f64; MAX_REGRESSORS * MAX_REGRESSORS];
+        let mut mean = [0.0f64; MAX_REGRESSORS];
+        let mut z = [0.0f64; MAX_REGRESSORS];
         for p in 0..n {
             let list = hoods.of(p);
             if list.len() < k + 2 {
                 continue;
             }
             let count = list.len() as f64;
-            let mean = &mut fit.mean[p * k..(p + 1) * k];
             for (j, r) in regressors.iter().enumerate() {
                 mean[j] = list.iter().map(|&q| r[q as usize]).sum::<f64>() / count;
             }
             for j in 0..k {
-                for l in 0..=j {
-                    let (rj, rl) = (regressors[j], regressors[l]);
-                    gram[j * k + l] =
-                        list.iter().map(|&q| (rj[q as usize] - mean[j]) * (rl[q as usize] - mean[l])).sum::<f64>();
+                for c in 0..=j {
+                    let (rj, rc) = (regressors[j], regressors[c]);
+                    gram[j * k + c] =
+                        list.iter().map(|&q| (rj[q as usize] - mean[j]) * (rc[q as usize] - mean[c])).sum::<f64>();
                 }
             }
             let trace: f64 = (0..k).map(|j| gram[j * k + j]).sum();
@@ -165,9 +168,9 @@ impl Fit {
             for j in 0..k {
                 gram[j * k + j] += ridge;
             }
-            let l = &mut fit.chol[p * k * k..(p + 1) * k * k];
+            // Cholesky factor L (lower, row major) of the ridged Gram matrix.
             let mut ok = true;
-            for j in 0..k {
+            'factor: for j in 0..k {
                 for c in 0..=j {
                     let mut s = gram[j * k + c];
                     for m in 0..c {
@@ -176,18 +179,41 @@ impl Fit {
                     if c == j {
                         if s.is_nan() || s <= 0.0 {
                             ok = false;
-                            break;
+                            break 'factor;
                         }
                         l[j * k + j] = s.sqrt();
                     } else {
                         l[j * k + c] = s / l[c * k + c];
                     }
                 }
-                if !ok {
-                    break;
-                }
             }
-            fit.usable[p] = ok;
+            if !ok {
+                continue;
+            }
+            // w_q = 1/|N| + Σ_j (r_p − r̄)_j · z_j, with L·Lᵀ·z = r_q − r̄.
+            let start = hoods.start[p] as usize;
+            for (e, &q) in list.iter().enumerate() {
+                for j in 0..k {
+                    let mut s = regressors[j][q as usize] - mean[j];
+                    for m in 0..j {
+                        s -= l[j * k + m] * z[m];
+                    }
+                    z[j] = s / l[j * k + j];
+                }
+                for j in (0..k).rev() {
+                    let mut s = z[j];
+                    for m in j + 1..k {
+                        s -= l[m * k + j] * z[m];
+                    }
+                    z[j] = s / l[j * k + j];
+                }
+                let mut w = 1.0 / count;
+                for j in 0..k {
+                    w += (regressors[j][p] - mean[j]) * z[j];
+                }
+                fit.weights[start + e] = w;
+            }
+            fit.usable[p] = fit.weights[start..start + list.len()].iter().all(|w| w.is_finite());
         }
         fit
     }
@@ -206,64 +232,34 @@ impl Fit {
     }
 }
 
-/// The predictor of one field: fallback [`Predictor`] along `graph`, the neighbourhoods, the fit
-/// and the regressors it was built from.
+/// The predictor of one field: fallback [`Predictor`] along `graph`, the neighbourhoods and the
+/// fit's weights.
 #[derive(Clone, Copy)]
 pub struct Regression<'a> {
     /// Order and neighbours of the fallback predictor.
     pub graph: &'a CausalGraph,
-    /// Where a position has no usable fit.
+    /// Where a position has no usable fit (or the weighted sum is not finite).
     pub fallback: Predictor,
     /// Neighbourhoods the fit was built on.
     pub hoods: &'a Neighbourhoods,
-    /// Fit of `regressors`.
+    /// The weights.
     pub fit: &'a Fit,
-    /// The fields regressed on (position order).
-    pub regressors: &'a [&'a [f64]],
 }
 
 impl Regression<'_> {
-    /// Prediction for position `p` from the reconstruction `recon` (valid below `p`).
+    /// Prediction for position `p` from the reconstruction `recon` (valid below `p`): the
+    /// weighted sum over the neighbourhood, in its order.
     #[inline]
     pub fn predict(&self, recon: &[f64], p: usize) -> f64 {
-        let fit = self.fit;
-        if !fit.usable[p] {
-            return predict::predict(self.graph, self.fallback, recon, p);
-        }
-        let k = fit.k;
-        let list = self.hoods.of(p);
-        let mean = &fit.mean[p * k..(p + 1) * k];
-        let l = &fit.chol[p * k * k..(p + 1) * k * k];
-        let y_mean = list.iter().map(|&q| recon[q as usize]).sum::<f64>() / list.len() as f64;
-        // Right-hand side Σ (r_j − r̄_j)(y − ȳ), then L·Lᵀ·b = t by two substitutions.
-        let mut b = [0.0f64; MAX_REGRESSORS];
-        for j in 0..k {
-            let r = self.regressors[j];
-            b[j] = list.iter().map(|&q| (r[q as usize] - mean[j]) * (recon[q as usize] - y_mean)).sum::<f64>();
-        }
-        for j in 0..k {
-            let mut s = b[j];
-            for m in 0..j {
-                s -= l[j * k + m] * b[m];
+        if self.fit.usable[p] {
+            let (a, b) = (self.hoods.start[p] as usize, self.hoods.start[p + 1] as usize);
+            let pred: f64 =
+                self.hoods.list[a..b].iter().zip(&self.fit.weights[a..b]).map(|(&q, &w)| w * recon[q as usize]).sum();
+            if pred.is_finite() {
+                return pred;
             }
-            b[j] = s / l[j * k + j];
         }
-        for j in (0..k).rev() {
-            let mut s = b[j];
-            for m in j + 1..k {
-                s -= l[m * k + j] * b[m];
-            }
-            b[j] = s / l[j * k + j];
-        }
-        let mut pred = y_mean;
-        for j in 0..k {
-            pred += b[j] * (self.regressors[j][p] - mean[j]);
-        }
-        if pred.is_finite() {
-            pred
-        } else {
-            y_mean
-        }
+        predict::predict(self.graph, self.fallback, recon, p)
     }
 
     /// Closed-loop quantization of `values` (position order) at `step > 0`, like
@@ -348,8 +344,7 @@ mod tests {
         let regs: Vec<&[f64]> = vec![&f[0], &f[1]];
         let fit = Fit::new(&hoods, &regs);
         assert!(fit.usable_share() > 0.8, "{}", fit.usable_share());
-        let reg =
-            Regression { graph: &graph, fallback: Predictor::Average, hoods: &hoods, fit: &fit, regressors: &regs };
+        let reg = Regression { graph: &graph, fallback: Predictor::Average, hoods: &hoods, fit: &fit };
         let step = 0.01;
         let (mut c_reg, mut r_reg, mut c_avg, mut r_avg) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
         reg.quantize(&f[2], step, &mut c_reg, &mut r_reg);
@@ -369,13 +364,7 @@ mod tests {
         for k in 1..=2 {
             let regs: Vec<&[f64]> = f[..k].iter().map(|v| v.as_slice()).collect();
             let fit = Fit::new(&hoods, &regs);
-            let reg = Regression {
-                graph: &graph,
-                fallback: Predictor::Parallelogram,
-                hoods: &hoods,
-                fit: &fit,
-                regressors: &regs,
-            };
+            let reg = Regression { graph: &graph, fallback: Predictor::Parallelogram, hoods: &hoods, fit: &fit };
             let (mut codes, mut recon, mut back) = (Vec::new(), Vec::new(), Vec::new());
             reg.quantize(&f[2], 0.003, &mut codes, &mut recon);
             reg.dequantize(&codes, 0.003, &mut back);
@@ -393,8 +382,7 @@ mod tests {
         let nan: Vec<f64> = (0..n).map(|p| if p == 5 { f64::NAN } else { p as f64 }).collect();
         for regs in [vec![constant.as_slice()], vec![huge.as_slice(), f[0].as_slice()], vec![nan.as_slice()]] {
             let fit = Fit::new(&hoods, &regs);
-            let reg =
-                Regression { graph: &graph, fallback: Predictor::Average, hoods: &hoods, fit: &fit, regressors: &regs };
+            let reg = Regression { graph: &graph, fallback: Predictor::Average, hoods: &hoods, fit: &fit };
             let (mut codes, mut recon, mut back) = (Vec::new(), Vec::new(), Vec::new());
             reg.quantize(&f[2], 0.01, &mut codes, &mut recon);
             reg.dequantize(&codes, 0.01, &mut back);
