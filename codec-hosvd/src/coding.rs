@@ -111,30 +111,10 @@ pub struct Smoother {
 }
 
 impl Smoother {
-    /// Adjacency of `graph`'s positions (each earlier-neighbour edge both ways).
+    /// Adjacency of `graph`'s positions (each earlier-neighbour edge both ways, in
+    /// [`CausalGraph::adjacency`]'s order, which the smoothing sums in).
     pub fn new(graph: &CausalGraph) -> Self {
-        let n = graph.len();
-        let mut degree = vec![0u32; n + 1];
-        for p in 0..n {
-            for &q in graph.earlier(p) {
-                degree[p] += 1;
-                degree[q as usize] += 1;
-            }
-        }
-        let mut start = vec![0u32; n + 1];
-        for p in 0..n {
-            start[p + 1] = start[p] + degree[p];
-        }
-        let mut fill = start.clone();
-        let mut adjacent = vec![0u32; start[n] as usize];
-        for p in 0..n {
-            for &q in graph.earlier(p) {
-                adjacent[fill[p] as usize] = q;
-                fill[p] += 1;
-                adjacent[fill[q as usize] as usize] = p as u32;
-                fill[q as usize] += 1;
-            }
-        }
+        let (start, adjacent) = graph.adjacency();
         Self { start, adjacent }
     }
 
@@ -594,14 +574,14 @@ pub fn code(op: &Operator<'_>, mesh: &CausalGraph, settings: &Settings, target: 
     let (mut du1, mut du3, mut dc2) = (vec![0.0; v], vec![0.0; f], 0.0);
     // The leading U1 columns as the decoder has them before smoothing: the regressors.
     let mut decoded_leads: Vec<Vec<f64>> = Vec::with_capacity(leads);
-    let mut decoded_fits: Vec<Option<Fit>> = vec![None; leads];
+    let mut decoded_fit: Option<(usize, Fit)> = None;
     for (((c, &step), &level), &mode) in comps.iter().zip(&steps).zip(&levels).zip(&modes) {
         if step > 0.0 {
             match (&hoods, mode) {
                 (Some(hoods), ColumnMode::Regression) => {
                     let n = c.index.min(leads);
                     let refs: Vec<&[f64]> = decoded_leads[..n].iter().map(|x| x.as_slice()).collect();
-                    let fit = decoded_fits[n - 1].get_or_insert_with(|| Fit::new(hoods, &refs));
+                    let fit = current_fit(&mut decoded_fit, n, hoods, &refs);
                     let reg = Regression { graph: mesh, fallback: c.predictor, hoods, fit };
                     reg.quantize(&c.values, step, &mut codes, &mut recon);
                 }
@@ -659,6 +639,15 @@ pub fn code(op: &Operator<'_>, mesh: &CausalGraph, settings: &Settings, target: 
     }
 }
 
+/// The fit on the first `n` decoded leading columns, built when `n` changes (columns come in
+/// order, so `n` never decreases and one fit is alive at a time).
+fn current_fit<'f>(slot: &'f mut Option<(usize, Fit)>, n: usize, hoods: &Neighbourhoods, refs: &[&[f64]]) -> &'f Fit {
+    if slot.as_ref().is_some_and(|(m, _)| *m != n) {
+        *slot = None; // dropped before the next is built
+    }
+    &slot.get_or_insert_with(|| (n, Fit::new(hoods, refs))).1
+}
+
 /// Number of leading `U1` columns the others may be regressed on (0 without `regress`).
 fn regression_leads(settings: &Settings, v: usize) -> usize {
     if settings.regress {
@@ -710,14 +699,14 @@ pub fn decode(
     let leads = if modes.contains(&ColumnMode::Regression) { v.saturating_sub(1).min(MAX_REGRESSORS) } else { 0 };
     let hoods = (leads > 0).then(|| Neighbourhoods::new(mesh));
     let mut decoded_leads: Vec<Vec<f64>> = Vec::with_capacity(leads);
-    let mut fits: Vec<Option<Fit>> = vec![None; leads];
+    let mut fit: Option<(usize, Fit)> = None;
     for i in 0..v {
         let class = i.min(CLASSES_PER_GROUP - 1);
         let r = match (&hoods, modes[i]) {
             (Some(hoods), ColumnMode::Regression) => {
                 let n = i.min(leads);
                 let refs: Vec<&[f64]> = decoded_leads[..n].iter().map(|x| x.as_slice()).collect();
-                let fit = fits[n - 1].get_or_insert_with(|| Fit::new(hoods, &refs));
+                let fit = current_fit(&mut fit, n, hoods, &refs);
                 let reg = Regression { graph: mesh, fallback: mesh_predictor, hoods, fit };
                 component(&mut dec, &mut codes, &mut recon, mesh, mesh_predictor, Some(&reg), class, steps[i])?
             }

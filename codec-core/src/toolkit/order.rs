@@ -163,6 +163,36 @@ impl CausalGraph {
         (t[0] != NONE).then_some(t)
     }
 
+    /// Every position's neighbours, both ways, as CSR `(start, list)`: for position `p`,
+    /// `list[start[p]..start[p + 1]]` holds its earlier neighbours as [`CausalGraph::earlier`]
+    /// lists them, then every later position that lists `p` as earlier, ascending. Codecs sum
+    /// over these lists in this order (hosvd's smoothing is bit exact in it).
+    pub fn adjacency(&self) -> (Vec<u32>, Vec<u32>) {
+        let n = self.len();
+        let mut degree = vec![0u32; n + 1];
+        for p in 0..n {
+            for &q in self.earlier(p) {
+                degree[p] += 1;
+                degree[q as usize] += 1;
+            }
+        }
+        let mut start = vec![0u32; n + 1];
+        for p in 0..n {
+            start[p + 1] = start[p] + degree[p];
+        }
+        let mut fill = start.clone();
+        let mut list = vec![0u32; start[n] as usize];
+        for p in 0..n {
+            for &q in self.earlier(p) {
+                list[fill[p] as usize] = q;
+                fill[p] += 1;
+                list[fill[q as usize] as usize] = p as u32;
+                fill[q as usize] += 1;
+            }
+        }
+        (start, list)
+    }
+
     /// Share of positions that have a parallelogram triple (a traversal quality figure).
     pub fn parallelogram_share(&self) -> f64 {
         if self.order.is_empty() {
@@ -273,6 +303,19 @@ fn find_parallelogram(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn adjacency_lists_earlier_then_later_neighbours() {
+        let g = CausalGraph::mesh(35, &grid(7, 5));
+        let (start, list) = g.adjacency();
+        assert_eq!(start.len(), g.len() + 1);
+        for p in 0..g.len() {
+            let nb = &list[start[p] as usize..start[p + 1] as usize];
+            let later: Vec<u32> =
+                (p + 1..g.len()).filter(|&q| g.earlier(q).contains(&(p as u32))).map(|q| q as u32).collect();
+            assert_eq!(nb, [g.earlier(p), &later[..]].concat(), "position {p}");
+        }
+    }
 
     /// A `w × h` grid of vertices split into triangles.
     pub(crate) fn grid(w: usize, h: usize) -> Vec<[u32; 3]> {

@@ -32,12 +32,16 @@ use super::predict::{self, Predictor, MAX_CODE};
 pub const MAX_REGRESSORS: usize = 4;
 /// Most neighbours of one position (the latest coded ones within two rings).
 pub const MAX_NEIGHBOURS: usize = 48;
+/// Most entries of one position's adjacency read when gathering a neighbourhood (the first, in
+/// [`CausalGraph::adjacency`] order): real meshes have far fewer, and a hub vertex of a
+/// hostile mesh (a fan of 10⁵ triangles) must not make the gathering quadratic.
+pub const RING_CAP: usize = 32;
 /// Ridge added to the centred Gram matrix's diagonal, relative to its mean diagonal entry:
 /// keeps nearly collinear neighbourhoods from extrapolating wildly.
 pub const RIDGE: f64 = 1e-6;
 
 /// Per position, the positions within two mesh rings coded before it (ascending, at most
-/// [`MAX_NEIGHBOURS`]: the latest).
+/// [`MAX_NEIGHBOURS`]: the latest). Each ring is read up to its first [`RING_CAP`] entries.
 #[derive(Debug, Clone)]
 pub struct Neighbourhoods {
     start: Vec<u32>,
@@ -48,29 +52,11 @@ impl Neighbourhoods {
     /// Built from `graph`'s earlier-neighbour lists (each edge seen both ways).
     pub fn new(graph: &CausalGraph) -> Self {
         let n = graph.len();
-        // Full adjacency in positions (CSR).
-        let mut degree = vec![0u32; n + 1];
-        for p in 0..n {
-            for &q in graph.earlier(p) {
-                degree[p] += 1;
-                degree[q as usize] += 1;
-            }
-        }
-        let mut adj_start = vec![0u32; n + 1];
-        for p in 0..n {
-            adj_start[p + 1] = adj_start[p] + degree[p];
-        }
-        let mut fill = adj_start.clone();
-        let mut adj = vec![0u32; adj_start[n] as usize];
-        for p in 0..n {
-            for &q in graph.earlier(p) {
-                adj[fill[p] as usize] = q;
-                fill[p] += 1;
-                adj[fill[q as usize] as usize] = p as u32;
-                fill[q as usize] += 1;
-            }
-        }
-        let ring = |p: usize| &adj[adj_start[p] as usize..adj_start[p + 1] as usize];
+        let (adj_start, adj) = graph.adjacency();
+        let ring = |p: usize| {
+            let (a, b) = (adj_start[p] as usize, adj_start[p + 1] as usize);
+            &adj[a..b.min(a + RING_CAP)]
+        };
         let mut mark = vec![u32::MAX; n];
         let mut start = Vec::with_capacity(n + 1);
         start.push(0u32);
@@ -94,12 +80,13 @@ impl Neighbourhoods {
         Self { start, list }
     }
 
-    /// Bytes [`Neighbourhoods::new`] and a [`Fit`] of [`MAX_REGRESSORS`] fields allocate for
-    /// `positions` positions, at most (for a decoder's limit check before building them).
+    /// Bytes [`Neighbourhoods::new`] and one [`Fit`] allocate for `positions` positions, at
+    /// most, besides the adjacency (twice the graph's earlier lists, which
+    /// [`super::order::mesh_bytes`] bounds): for a decoder's limit check before building them.
     pub fn bytes(positions: usize) -> u64 {
-        let per = (MAX_NEIGHBOURS * 4 + 8 * 3) as u64 // lists, offsets, adjacency
-            + (8 * (MAX_REGRESSORS + MAX_REGRESSORS * MAX_REGRESSORS) + 1) as u64; // one fit
-        (positions as u64).saturating_mul(per)
+        let hoods = MAX_NEIGHBOURS * 4 + 3 * 4; // lists; offsets, marks, adjacency offsets
+        let fit = MAX_NEIGHBOURS * 8 + 1; // weights, usable flag
+        (positions as u64).saturating_mul((hoods + fit) as u64)
     }
 
     /// Number of positions.
@@ -335,6 +322,20 @@ mod tests {
         // Interior vertices of a grid have 2-ring neighbours beyond the 1-ring.
         let wider = (0..graph.len()).filter(|&p| hoods.of(p).len() > graph.earlier(p).len()).count();
         assert!(wider > graph.len() / 2, "{wider} of {}", graph.len());
+    }
+
+    #[test]
+    fn a_hub_vertex_does_not_make_the_gathering_quadratic() {
+        // A fan of 100 000 triangles around vertex 0: every vertex neighbours the hub, whose
+        // ring is read up to RING_CAP entries only (uncapped this is ~10¹⁰ steps).
+        let n = 100_001u32;
+        let triangles: Vec<[u32; 3]> = (1..n - 1).map(|i| [0, i, i + 1]).collect();
+        let graph = CausalGraph::mesh(n as usize, &triangles);
+        let hoods = Neighbourhoods::new(&graph);
+        assert_eq!(hoods.len(), n as usize);
+        assert!((0..hoods.len()).all(|p| hoods.of(p).len() <= MAX_NEIGHBOURS));
+        // The rim vertices still see the hub and their rim neighbours.
+        assert!(hoods.of(hoods.len() - 1).len() >= 2);
     }
 
     #[test]
