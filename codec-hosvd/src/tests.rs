@@ -613,6 +613,15 @@ fn column_modes_decode_to_the_encoder_reconstruction() {
         let e = dec.decode_packet(&packet(bad)).unwrap_err().to_string();
         assert!(e.contains("column modes") && e.contains(&format!("mode {byte}")), "{e}");
     }
+    // Corrupt codes, steps and mode bytes reach the regression decoder: errors or wrong
+    // frames, never a panic (every 11th byte, three patterns; the last v bytes all).
+    for i in (0..n).filter(|&i| i % 11 == 0 || i >= n - v) {
+        for flip in [0xA5u8, 0x01, 0x80] {
+            let mut bad = block.payload.clone();
+            bad[i] ^= flip;
+            let _ = dec.decode_packet(&packet(bad));
+        }
+    }
     // A version 3 stream cannot carry the flag.
     let v3 = StreamInfo { codec_version: 3, ..info.clone() };
     let mut dec3 = Hosvd.new_decoder(&v3, &24u32.to_le_bytes(), &Limits::default()).unwrap();
