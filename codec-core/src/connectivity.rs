@@ -244,35 +244,26 @@ impl Neighbours {
         all.sort_unstable();
         all.dedup();
         let tier = |x: u32| {
-            let fb = self.flags(b, x);
-            let fa = self.flags(a, x);
-            let open_b = fb == IN;
-            let open_a = fa == OUT;
-            match (open_a, open_b) {
-                (true, true) => 0,
+            let (fa, fb) = (self.flags(a, x), self.flags(b, x));
+            match (fa == OUT, fb == IN) {
+                (true, true) => 0u8,
                 (true, false) | (false, true) => 1,
                 _ if fa != 0 && fb != 0 => 2,
                 _ => 3,
             }
         };
-        let mut strong = 0;
-        for t in 0..4 {
-            let before = out.len();
-            out.extend(all.iter().copied().filter(|&x| tier(x) == t));
-            if t < 2 {
-                strong += out.len() - before;
-            }
-        }
-        strong
+        // (tier, index) pairs sorted: tiers in order, each ascending.
+        let mut tiered: Vec<(u8, u32)> = all.iter().map(|&x| (tier(x), x)).collect();
+        tiered.sort_unstable();
+        out.extend(tiered.iter().map(|e| e.1));
+        tiered.iter().filter(|e| e.0 < 2).count()
     }
 }
 
-fn second_bucket(strong: usize, total: usize) -> usize {
+/// Context of a candidate index: the length of the candidates' first tiers (capped at 3) and
+/// whether other candidates follow.
+fn candidate_bucket(strong: usize, total: usize) -> usize {
     strong.min(3) * 2 + usize::from(total > strong)
-}
-
-fn third_bucket(common: usize, total: usize) -> usize {
-    common.min(3) * 2 + usize::from(total > common)
 }
 
 /// Codes `topology` exactly (see the module docs); `None` when a delta exceeds the coder's
@@ -301,7 +292,7 @@ pub fn encode(topology: &Topology) -> Option<Vec<u8>> {
                 enc.encode(
                     hit.map_or(0, |i| i as i32 + 1),
                     Class::SecondIndex as usize,
-                    second_bucket(strong, cand.len()),
+                    candidate_bucket(strong, cand.len()),
                 );
             }
             if hit.is_none() {
@@ -315,7 +306,11 @@ pub fn encode(topology: &Topology) -> Option<Vec<u8>> {
         let common = known.third(a, b, &mut cand);
         let hit = cand.iter().position(|&x| x == c);
         if !cand.is_empty() {
-            enc.encode(hit.map_or(0, |i| i as i32 + 1), Class::ThirdIndex as usize, third_bucket(common, cand.len()));
+            enc.encode(
+                hit.map_or(0, |i| i as i32 + 1),
+                Class::ThirdIndex as usize,
+                candidate_bucket(common, cand.len()),
+            );
         }
         if hit.is_none() {
             let dc = c as i64 - b as i64;
@@ -393,7 +388,7 @@ pub fn decode(bytes: &[u8], vertex_count: usize, triangle_count: usize) -> Resul
                 let hit = if cand.is_empty() {
                     None
                 } else {
-                    let code = dec.decode(Class::SecondIndex as usize, second_bucket(strong, cand.len()))?;
+                    let code = dec.decode(Class::SecondIndex as usize, candidate_bucket(strong, cand.len()))?;
                     pick(t, &cand, code, "second index")?
                 };
                 match hit {
@@ -406,7 +401,7 @@ pub fn decode(bytes: &[u8], vertex_count: usize, triangle_count: usize) -> Resul
         let hit = if cand.is_empty() {
             None
         } else {
-            let code = dec.decode(Class::ThirdIndex as usize, third_bucket(common, cand.len()))?;
+            let code = dec.decode(Class::ThirdIndex as usize, candidate_bucket(common, cand.len()))?;
             pick(t, &cand, code, "third index")?
         };
         let c = match hit {

@@ -1137,7 +1137,6 @@ impl PcaAoiDecoder {
     }
 }
 
-/// The domain byte of a cluster payload.
 /// The two dimensions of the data matrix of a cluster of `n` vertices over `d` frames in
 /// `domain`; the rank `k` is at most the smaller.
 fn matrix_dims(domain: Resolved, n: usize, d: usize) -> (usize, usize) {
@@ -1147,6 +1146,7 @@ fn matrix_dims(domain: Resolved, n: usize, d: usize) -> (usize, usize) {
     }
 }
 
+/// The domain byte of a cluster payload.
 fn read_domain(r: &mut ByteReader<'_>) -> Result<Resolved> {
     match r.u8("cluster.domain")? {
         0 => Ok(Resolved::Temporal),

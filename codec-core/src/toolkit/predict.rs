@@ -109,10 +109,17 @@ pub fn quantize(
                 target += shaping * err / list.len() as f64;
             }
         }
-        let code = ((target - pred) * inv).round().clamp(-(MAX_CODE as f64), MAX_CODE as f64) as i32;
-        codes[p] = code;
-        recon[p] = pred + code as f64 * step;
+        (codes[p], recon[p]) = quantize_one(target, pred, step, inv);
     }
+}
+
+/// One closed-loop quantization: the code of `target − pred` at `step` (`inv = 1 / step`),
+/// rounded half away from zero and clamped to ±[`MAX_CODE`], and the value it reconstructs.
+/// Every predictive quantizer of the toolkit rounds this way.
+#[inline]
+pub fn quantize_one(target: f64, pred: f64, step: f64, inv: f64) -> (i32, f64) {
+    let code = ((target - pred) * inv).round().clamp(-(MAX_CODE as f64), MAX_CODE as f64) as i32;
+    (code, pred + code as f64 * step)
 }
 
 /// The decoder's side of [`quantize`]: `recon` from `codes` (position order).

@@ -26,7 +26,7 @@
 //! functions), so the encoder and the decoder compute the same predictions bit for bit.
 
 use super::order::CausalGraph;
-use super::predict::{self, Predictor, MAX_CODE};
+use super::predict::{self, Predictor};
 
 /// Most regressor fields of one fit.
 pub const MAX_REGRESSORS: usize = 4;
@@ -259,10 +259,7 @@ impl Regression<'_> {
         recon.resize(n, 0.0);
         let inv = 1.0 / step;
         for p in 0..n {
-            let pred = self.predict(recon, p);
-            let code = ((values[p] - pred) * inv).round().clamp(-(MAX_CODE as f64), MAX_CODE as f64) as i32;
-            codes[p] = code;
-            recon[p] = pred + code as f64 * step;
+            (codes[p], recon[p]) = predict::quantize_one(values[p], self.predict(recon, p), step, inv);
         }
     }
 
