@@ -4,24 +4,12 @@ residual of each quantized column; STED's spatial part exact.
 
 usage: python3 meanrm.py NAME
 """
-import numpy as np, sys, scipy.sparse as sp
-import os
-SHARED=os.environ.get('ANIMCODEC_SHARED', os.path.join(os.path.dirname(os.path.abspath(__file__)), '..', '..', '..', '..', 'shared'))
-sys.path.insert(0, os.path.join(SHARED, 'peers'))
-from sted_np import sted_parts
-from anim import load_pc2, load_obj_faces
+import sys
+import numpy as np
+from common import load, mesh, H, hosvd, sted_parts
 name=sys.argv[1]
-A=load_pc2(f'{SHARED}/data/{name}/{name}.pc2'); A=np.asarray(A[0] if isinstance(A,tuple) else A,float)
-faces=np.asarray(load_obj_faces(f'{SHARED}/data/{name}/{name}.obj')); F,V,_=A.shape
-E=np.unique(np.sort(np.concatenate([faces[:,[0,1]],faces[:,[1,2]],faces[:,[2,0]]]),axis=1),axis=0)
-Adj=sp.coo_matrix((np.ones(2*len(E)),(np.r_[E[:,0],E[:,1]],np.r_[E[:,1],E[:,0]])),shape=(V,V)).tocsr()
-deg=np.asarray(Adj.sum(1)).ravel(); Lap=sp.identity(V)-sp.diags(1/np.maximum(deg,1))@Adj
-def H(q):
-    _,c=np.unique(q,return_counts=True); p=c/c.sum(); return -(c*np.log2(p)).sum()
-def hosvd(T,v,f):
-    U1=np.linalg.svd(T.reshape(V,-1),full_matrices=False)[0][:,:v]
-    U3=np.linalg.svd(T.transpose(2,0,1).reshape(F,-1),full_matrices=False)[0][:,:f]
-    C=np.einsum('vcf,vi,fl->icl',T,U1,U3); return U1,U3,C
+A,faces=load(name); F,V,_=A.shape
+E,Adj,deg,Lap=mesh(faces,V)
 def codeU1(U1,gain,scale):
     bits=0; U=np.zeros_like(U1)
     for i in range(U1.shape[1]):

@@ -4,24 +4,14 @@ bytes (rate proxy as in meanrm.py) at STED_s 0.045 / 0.05 / 0.06 per γ.
 
 usage: python3 relstep.py NAME V F   (e.g. horse-gallop 8 24; samba 14 40)
 """
-import numpy as np, sys, scipy.sparse as sp
-import os
-SHARED=os.environ.get('ANIMCODEC_SHARED', os.path.join(os.path.dirname(os.path.abspath(__file__)), '..', '..', '..', '..', 'shared'))
-sys.path.insert(0, os.path.join(SHARED, 'peers'))
-from sted_np import sted_parts
-from anim import load_pc2, load_obj_faces
+import sys
+import numpy as np
+from common import load, mesh, H, hosvd, sted_parts
 name=sys.argv[1]; v=int(sys.argv[2]); f=int(sys.argv[3])
-A=load_pc2(f'{SHARED}/data/{name}/{name}.pc2'); A=np.asarray(A[0] if isinstance(A,tuple) else A,float)
-faces=np.asarray(load_obj_faces(f'{SHARED}/data/{name}/{name}.obj')); F,V,_=A.shape
-E=np.unique(np.sort(np.concatenate([faces[:,[0,1]],faces[:,[1,2]],faces[:,[2,0]]]),axis=1),axis=0)
-Adj=sp.coo_matrix((np.ones(2*len(E)),(np.r_[E[:,0],E[:,1]],np.r_[E[:,1],E[:,0]])),shape=(V,V)).tocsr()
-deg=np.asarray(Adj.sum(1)).ravel(); Lap=sp.identity(V)-sp.diags(1/np.maximum(deg,1))@Adj
-def H(q):
-    _,c=np.unique(q,return_counts=True); p=c/c.sum(); return -(c*np.log2(p)).sum()
+A,faces=load(name); F,V,_=A.shape
+E,Adj,deg,Lap=mesh(faces,V)
 T=A.transpose(1,2,0)
-U1=np.linalg.svd(T.reshape(V,-1),full_matrices=False)[0][:,:v]
-U3=np.linalg.svd(T.transpose(2,0,1).reshape(F,-1),full_matrices=False)[0][:,:f]
-C=np.einsum('vcf,vi,fl->icl',T,U1,U3); gain=np.linalg.norm(C.reshape(v,-1),axis=1)
+U1,U3,C=hosvd(T,v,f); gain=np.linalg.norm(C.reshape(v,-1),axis=1)
 # per-vertex RMS incident edge length over frames
 L2=((A[:,E[:,0]]-A[:,E[:,1]])**2).sum(-1).mean(0)
 s=np.zeros(V); c=np.zeros(V); np.add.at(s,E[:,0],L2); np.add.at(s,E[:,1],L2); np.add.at(c,E[:,0],1); np.add.at(c,E[:,1],1)

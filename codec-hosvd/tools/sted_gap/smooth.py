@@ -4,31 +4,18 @@ equal quantization scale (A = per-vertex quantization, B = spectral coefficients
 
 usage: python3 smooth.py NAME V F NB SCALE [SCALE ...]   (e.g. horse-gallop 8 24 300 0.002 0.004)
 """
-import numpy as np, sys, time, scipy.sparse as sp, scipy.sparse.linalg as sla
-import os
-SHARED=os.environ.get('ANIMCODEC_SHARED', os.path.join(os.path.dirname(os.path.abspath(__file__)), '..', '..', '..', '..', 'shared'))
-sys.path.insert(0, os.path.join(SHARED, 'peers'))
-from sted_np import sted_parts
-from anim import load_pc2, load_obj_faces
+import sys, time
+import numpy as np, scipy.sparse as sp, scipy.sparse.linalg as sla
+from common import load, mesh, H, hosvd, sted_parts
 name=sys.argv[1]; v=int(sys.argv[2]); f=int(sys.argv[3]); NB=int(sys.argv[4])
-A=load_pc2(f'{SHARED}/data/{name}/{name}.pc2'); A=np.asarray(A[0] if isinstance(A,tuple) else A,float)
-faces=np.asarray(load_obj_faces(f'{SHARED}/data/{name}/{name}.obj'))
-F,V,_=A.shape
+A,faces=load(name); F,V,_=A.shape
 T=A.transpose(1,2,0)  # V x 3 x F
-U1=np.linalg.svd(T.reshape(V,3*F),full_matrices=False)[0][:,:v]
-U3=np.linalg.svd(T.transpose(2,0,1).reshape(F,3*V),full_matrices=False)[0][:,:f]
-C=np.einsum('vcf,vi,fl->icl',T,U1,U3)
+U1,U3,C=hosvd(T,v,f)
 def recon(U1q): return np.einsum('icl,vi,fl->fvc',C,U1q,U3)
 S0,_,_=sted_parts(A,recon(U1),faces); print("truncation STED_s %.4f"%S0)
-# mesh graph
-E=np.unique(np.sort(np.concatenate([faces[:,[0,1]],faces[:,[1,2]],faces[:,[2,0]]]),axis=1),axis=0)
-Adj=sp.coo_matrix((np.ones(2*len(E)),(np.r_[E[:,0],E[:,1]],np.r_[E[:,1],E[:,0]])),shape=(V,V)).tocsr()
-deg=np.asarray(Adj.sum(1)).ravel()
+E,Adj,deg,Lap=mesh(faces,V)
 gain=np.linalg.norm(C.reshape(v,-1),axis=1)
-def H(q):
-    _,c=np.unique(q,return_counts=True); p=c/c.sum(); return -(c*np.log2(p)).sum()
-# A: rate proxy of the codec's coding: residual of x minus mean of neighbours (noncausal proxy of prediction residual)
-Lap=sp.identity(V)-sp.diags(1/np.maximum(deg,1))@Adj
+# A: rate proxy of the codec's coding: entropy of the quantized neighbour-average residual
 def code_A(scale):
     bits=0; U=np.zeros_like(U1)
     for i in range(v):
