@@ -19,6 +19,7 @@ pub mod quant_delta;
 pub mod registry;
 pub mod stream;
 pub mod synth;
+pub mod testing;
 pub mod toolkit;
 
 pub use animation::{Animation, Topology};
