@@ -579,9 +579,14 @@ pub fn sweep_json_sized(input: &str, (vertices, frames): (usize, usize), eval: &
 /// elements by plotters' SVG backend, so no font files are needed (plotters is built without
 /// its `ttf` feature and estimates text sizes itself).
 pub fn plot_svg(path: &Path, title: &str, points: &[Point]) -> HResult<()> {
+    write_text(path, &plot_svg_text(title, points)?)
+}
+
+/// The SVG document [`plot_svg`] writes.
+pub fn plot_svg_text(title: &str, points: &[Point]) -> HResult<String> {
     let mut svg = String::new();
     draw_rd(&mut svg, title, points)?;
-    write_text(path, &svg)
+    Ok(svg)
 }
 
 type PanelData = Vec<(String, Vec<(f64, f64)>)>;

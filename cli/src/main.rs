@@ -348,14 +348,14 @@ pub struct StedArgs {
     #[arg(long, value_name = "R")]
     pub sted_radius: Option<u32>,
     /// STED time extent of one frame step, in units of the diameter of reference frame 0
-    /// (> 0; default 0.0003).
+    /// (1e-9 to 1e9; default 0.0003).
     #[arg(long, value_name = "DT")]
     pub sted_dt: Option<f64>,
     /// STED speed-averaging window: the reference speed at frame f is the mean over temporal
     /// edges f−K+1 … f+K (1..=1000; default 5).
     #[arg(long, value_name = "K")]
     pub sted_window: Option<u32>,
-    /// STED weight of the temporal part (≥ 0; default 9.144e-5).
+    /// STED weight of the temporal part (0 to 1e9; default 9.144e-5).
     #[arg(long, value_name = "C")]
     pub sted_c: Option<f64>,
     /// Use absolute relative edge differences in STED's spatial part (default signed, as the
@@ -501,8 +501,14 @@ pub struct DecodeArgs {
 
     /// Output animation: .pc2, .mdd, or an OBJ sequence: a directory (`DIR/frame_0000.obj`, …),
     /// a path ending in .obj with `{}` (frame number, 4+ digits) or `###` (frame number padded
-    /// to the run) in the file name, or a plain `NAME.obj` (`NAME_0000.obj`, …). Other frame
-    /// files of the same sequence already there are an error without --force, removed with it.
+    /// to the run) in the file name, or a plain `NAME.obj` (`NAME_0000.obj`, …). A sequence owns
+    /// only the files of its own name pattern: exactly its prefix (`frame_`, the text before
+    /// `{}`/`###`, or `NAME_`), a frame number of at least 4 digits (at least the run's length
+    /// for `###`) and its suffix (`.obj`), case included. Such files already there are an error
+    /// without --force; with it they are replaced, and those beyond the new frames removed. No
+    /// other file is touched: a directory holding any other .obj (which reading it back would
+    /// take as a frame) is refused. A .pc2/.mdd beside an existing STEM.obj of another mesh is
+    /// refused (reading the cache would pair that mesh's triangles): see --topology-obj.
     #[arg(short, long, value_name = "OUT")]
     pub output: PathBuf,
 
@@ -512,7 +518,9 @@ pub struct DecodeArgs {
     pub force: bool,
 
     /// With a .pc2/.mdd output: also write `STEM.obj` beside it (frame 0 and the triangles), so
-    /// the cache can be read back without --topology.
+    /// the cache can be read back without --topology (an existing STEM.obj needs --force).
+    /// Without it, an existing STEM.obj is left alone and must hold the decoded mesh (same
+    /// vertex count and triangles); otherwise the output is refused.
     #[arg(long)]
     pub topology_obj: bool,
 

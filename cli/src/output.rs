@@ -10,7 +10,13 @@
 //!   failed commands leave no partial file either.
 //! - [`OutputPolicy::check`] refuses an existing target unless overwriting is allowed (the
 //!   `-f/--force` convention of gzip and zstd), and refuses a target that is one of the
-//!   command's inputs even then.
+//!   command's inputs even then, or that is `-` (which means standard output only where a
+//!   command documents it, such as `--json -`; a file named `-` is written as `./-`).
+//! - [`OutputPolicy::check_all`] also refuses two outputs of one command naming the same file
+//!   in any spelling (`o.txt`, `./o.txt`, a symlink, a hard link), before any work starts.
+//! - A command with several outputs stages every one ([`OutputPolicy::create`]), validates
+//!   them, and renames them all together ([`commit_all`]): a failure before the renames leaves
+//!   every old file untouched.
 
 use std::fs::File;
 use std::io::{BufWriter, Write};
@@ -80,6 +86,12 @@ impl OutputPolicy {
     /// Checks that `path` may be written: it is not an input (or inside an input folder) and, unless
     /// overwriting is allowed, it does not exist.
     pub fn check(&self, path: &Path) -> Result<()> {
+        if path.as_os_str() == "-" {
+            return Err(refused(
+                path,
+                "'-' is standard output only where the help says so (--json -); write ./- for a file named '-'".into(),
+            ));
+        }
         if let Some(input) = self.inputs.iter().find(|i| same_or_inside(path, i)) {
             return Err(refused(
                 path,
@@ -99,6 +111,27 @@ impl OutputPolicy {
         }
         if !self.overwrite && std::fs::symlink_metadata(path).is_ok() {
             return Err(refused(path, "it already exists (use -f/--force to replace it)".into()));
+        }
+        Ok(())
+    }
+
+    /// Checks every output of one command (see [`check`](Self::check)) and that no two of them
+    /// are the same file, whatever the spelling: `o.txt` and `./o.txt`, a symlink and its
+    /// target, two hard links. Call it before any work starts.
+    pub fn check_all(&self, paths: &[&Path]) -> Result<()> {
+        for (i, path) in paths.iter().enumerate() {
+            self.check(path)?;
+            if is_special(path) {
+                continue; // `/dev/null` may take several outputs
+            }
+            if let Some(earlier) = paths[..i].iter().find(|earlier| same_target(earlier, path)) {
+                let why = if earlier.as_os_str() == path.as_os_str() {
+                    "it is given for two outputs of this command".to_owned()
+                } else {
+                    format!("it is the same file as the output {}", earlier.display())
+                };
+                return Err(refused(path, why));
+            }
         }
         Ok(())
     }
@@ -137,6 +170,33 @@ pub fn same_file(a: &Path, b: &Path) -> bool {
         (Ok(x), Ok(y)) => x == y,
         _ => false,
     }
+}
+
+/// True when writing `a` and writing `b` would write the same file: same existing file (by
+/// device and inode, so hard links match too) or, for files not yet there, the same name in the
+/// same folder once symlinks and `.`/`..` are resolved.
+fn same_target(a: &Path, b: &Path) -> bool {
+    fn identity(p: &Path) -> Option<(u64, u64)> {
+        use std::os::unix::fs::MetadataExt;
+        std::fs::metadata(p).ok().map(|m| (m.dev(), m.ino()))
+    }
+    fn resolved(p: &Path) -> Option<PathBuf> {
+        if let Ok(c) = std::fs::canonicalize(p) {
+            return Some(c);
+        }
+        let parent = match p.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d,
+            _ => Path::new("."),
+        };
+        Some(std::fs::canonicalize(parent).ok()?.join(p.file_name()?))
+    }
+    if a == b {
+        return true;
+    }
+    if let (Some(x), Some(y)) = (identity(a), identity(b)) {
+        return x == y;
+    }
+    matches!((resolved(a), resolved(b)), (Some(x), Some(y)) if x == y)
 }
 
 /// True when `path` is `input`, or lies inside `input` when that is a directory (or the
@@ -213,6 +273,14 @@ impl PendingFile {
     /// An I/O error naming the target.
     pub fn error(&self, e: std::io::Error) -> Error {
         Error::io(format!("writing {}", self.target.display()), e)
+    }
+
+    /// Flushes and syncs the content written so far, and returns the path holding it: the
+    /// temporary file (so the output can be read back and validated before it replaces
+    /// anything), or the target itself for a device or pipe. Nothing may be written after.
+    pub fn finish(&mut self) -> Result<&Path> {
+        self.finish_writing()?;
+        Ok(if self.temp.as_os_str().is_empty() { &self.target } else { &self.temp })
     }
 
     /// Flushes, syncs and renames the temporary file over the target.
@@ -328,5 +396,25 @@ mod tests {
         // So is anything inside an input folder.
         let frames = OutputPolicy::new(true).with_input(&dir.0);
         assert!(frames.check(&dir.path("new.obj")).unwrap_err().to_string().contains("inside the input folder"));
+    }
+
+    #[test]
+    fn one_file_is_never_two_outputs_and_dash_is_never_a_file() {
+        let dir = TempDir::new("check-all");
+        let (o, h, l) = (dir.path("o.txt"), dir.path("h.txt"), dir.path("l.txt"));
+        std::fs::write(&o, b"old").unwrap();
+        std::fs::hard_link(&o, &h).unwrap();
+        std::os::unix::fs::symlink(&o, &l).unwrap();
+        let policy = OutputPolicy::new(true);
+        let dotted = dir.0.join(".").join("o.txt");
+        let fresh = (dir.path("n.txt"), dir.0.join(".").join("n.txt"));
+        for (a, b) in [(&o, &o), (&o, &dotted), (&o, &h), (&l, &o), (&fresh.0, &fresh.1)] {
+            let e = policy.check_all(&[a, b]).unwrap_err().to_string();
+            assert!(e.contains("refusing to write") && e.contains(&*b.to_string_lossy()), "{e}");
+        }
+        policy.check_all(&[&o, &fresh.0]).unwrap();
+        policy.check_all(&[Path::new("/dev/null"), Path::new("/dev/null")]).unwrap();
+        let e = policy.check(Path::new("-")).unwrap_err().to_string();
+        assert!(e.contains("./-"), "{e}");
     }
 }

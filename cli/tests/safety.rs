@@ -1,6 +1,10 @@
 //! Issue 16: output safety (temporary file + rename, `--force`, inputs never overwritten,
 //! OBJ-sequence folders, placeholders), error messages (no panic text, no Debug values, the
 //! right words), and `info` verifying checksums. One test per reproducer of the issue.
+//! Issue 27 ("Files lost", "Other"): an OBJ sequence touches only its own name pattern, outputs
+//! are validated before they replace anything and committed together, two outputs on one path
+//! and `-` as a file are refused, a cache is never paired with another mesh's OBJ, and metric
+//! parameters giving NaN or infinity are refused.
 
 use std::path::Path;
 use std::process::{Command, Stdio};
@@ -134,7 +138,9 @@ fn decode_writes_the_topology_obj_only_when_asked() {
     ok(&["encode", "synth:flag", "-c", "quant-delta", "-o", &anim]);
     let obj = s.path("e.obj");
     std::fs::write(&obj, "v 0 0 0\n").unwrap();
-    ok(&["decode", &anim, "-o", &s.path("e.pc2")]);
+    // e.obj is not the decoded mesh, and a later read of e.pc2 would pair it: refused (issue 27).
+    fails(&["decode", &anim, "-o", &s.path("e.pc2"), "-f"], &["e.pc2", "e.obj", "--topology-obj"]);
+    assert!(!Path::new(&s.path("e.pc2")).exists());
     assert_eq!(std::fs::read_to_string(&obj).unwrap(), "v 0 0 0\n", "e.obj was never named: untouched");
     // Asked for, an existing companion is still not clobbered without --force.
     fails(&["decode", &anim, "-o", &s.path("e.mdd"), "--topology-obj"], &["e.obj", "--force"]);
@@ -352,4 +358,251 @@ fn hosvd_refuses_a_one_frame_animation_with_advice() {
     for codec in ["quant-delta", "pca-aoi", "sac", "stseg"] {
         ok(&["encode", one.to_str().unwrap(), "-c", codec, "-f", "-o", &out]);
     }
+}
+
+/// Runs the binary in `dir` (for relative spellings such as `./o.txt` and `-`).
+fn animcodec_in(dir: &Path, args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_animcodec")).current_dir(dir).args(args).output().unwrap()
+}
+
+/// Asserts a one-line clean error (exit 1, `error:` line, no panic text) mentioning `needles`.
+fn assert_clean_error(o: &std::process::Output, needles: &[&str]) {
+    let err = stderr(o);
+    assert_eq!(o.status.code(), Some(1), "expected exit 1: {err}");
+    assert!(!err.contains("panicked") && err.starts_with("error: ") && err.lines().count() == 1, "{err}");
+    for n in needles {
+        assert!(err.contains(n), "stderr does not mention '{n}': {err}");
+    }
+}
+
+/// Issue 27, files lost 1: `decode a.anim -o ./ -f` deleted every `*.obj` of the folder.
+#[test]
+fn an_obj_sequence_never_touches_files_outside_its_name_pattern() {
+    let s = Scratch::new("obj-pattern");
+    let anim = s.path("a.anim");
+    ok(&["encode", "synth:tumble", "-c", "quant-delta", "-o", &anim]);
+    let frames = codec_core::synth::SynthSize::Small.frames();
+    // Another animation (pcow.pc2 + its topology pcow.obj) and unrelated OBJ files.
+    ok(&["synth", "flag", "-o", &s.path("pcow.pc2")]);
+    let foreign = ["notes.obj", "README.OBJ"];
+    for f in foreign {
+        std::fs::write(s.0.join(f), format!("# {f}\n")).unwrap();
+    }
+    let before = |names: &[&str]| names.iter().map(|n| std::fs::read(s.0.join(n)).unwrap()).collect::<Vec<_>>();
+    let kept = ["notes.obj", "README.OBJ", "pcow.obj", "pcow.pc2", "a.anim"];
+    let snapshot = before(&kept);
+    // A folder target reads back every .obj in it: refused, even with --force, naming them.
+    for args in [vec!["decode", &anim, "-o", "./", "-f"], vec!["decode", &anim, "-o", "./"]] {
+        assert_clean_error(&animcodec_in(&s.0, &args), &["README.OBJ", "never removed", "frame_{}.obj"]);
+    }
+    assert_eq!(before(&kept), snapshot, "no file of another name was touched");
+    assert_eq!(names(&s.0).len(), kept.len(), "and no new file");
+    // A pattern in the same folder writes its frames beside them; a rerun with --force replaces
+    // its own frames and removes only its stale ones (a longer older run of the same pattern).
+    std::fs::write(s.0.join(format!("frame_{:04}.obj", frames + 3)), "stale").unwrap();
+    let near_misses = ["frame_12.obj", "Frame_0001.obj", "frame_0001.OBJ", "frame_0001.obj.bak", "frame_x0001.obj"];
+    for f in near_misses {
+        std::fs::write(s.0.join(f), "not ours").unwrap();
+    }
+    let pattern = s.path("frame_{}.obj");
+    let stale = format!("frame_{:04}.obj", frames + 3);
+    fails(&["decode", &anim, "-o", &pattern], &[&stale, "of this sequence", "--force"]);
+    ok(&["decode", &anim, "-o", &pattern, "-f"]);
+    ok(&["decode", &anim, "-o", &pattern, "-f"]);
+    assert!(!s.0.join(&stale).exists(), "the stale frame of this pattern is removed");
+    for f in near_misses {
+        assert_eq!(std::fs::read_to_string(s.0.join(f)).unwrap(), "not ours", "{f} is not of the pattern");
+    }
+    assert_eq!(before(&kept), snapshot);
+    let ours = names(&s.0).iter().filter(|n| n.starts_with("frame_") && n.ends_with(".obj") && n.len() == 14).count();
+    assert_eq!(ours, frames);
+    // A plain NAME.obj target (pcow.obj → pcow_0000.obj, …) never touches pcow.obj itself.
+    ok(&["decode", &anim, "-o", &s.path("pcow.obj"), "-f"]);
+    assert_eq!(before(&kept), snapshot, "the topology OBJ of pcow.pc2 is kept");
+    assert_eq!(names(&s.0).iter().filter(|n| n.starts_with("pcow_")).count(), frames);
+    // In a folder of its own, a folder target works as before.
+    ok(&["decode", &anim, "-o", &s.path("seq/")]);
+    assert_eq!(names(&s.0.join("seq")).len(), frames);
+    assert!(!has_temporary(&s.0));
+}
+
+/// Issue 27, files lost 2: a failed command had already replaced its output.
+#[test]
+fn a_failed_command_leaves_the_old_output_and_no_new_file() {
+    let s = Scratch::new("validated");
+    let input = s.path("flag.pc2");
+    ok(&["synth", "flag", "-o", &input]);
+    let (anim, glb) = (s.path("out.anim"), s.path("out.glb"));
+    for (out, args) in [
+        (&anim, vec!["encode", &input, "-c", "quant-delta", "--eval", "--sted-radius", "0", "-o", &anim]),
+        (&glb, vec!["export", &input, "-o", &glb, "--sted-radius", "0"]),
+        (&anim, vec!["encode", &input, "-c", "quant-delta", "--eval", "--sted-dt", "1e-300", "-o", &anim]),
+    ] {
+        for force in [true, false] {
+            let mut args = args.clone();
+            if force {
+                std::fs::write(out, "old").unwrap();
+                args.push("-f");
+            } else {
+                std::fs::remove_file(out).unwrap();
+            }
+            let o = animcodec(&args);
+            assert_clean_error(&o, &["sted"]);
+            if force {
+                assert_eq!(std::fs::read_to_string(out).unwrap(), "old", "{args:?}");
+            } else {
+                assert!(!Path::new(out).exists(), "{args:?} left a new file");
+            }
+        }
+    }
+    // An export whose read-back fails (a stream at 1e-45 fps: key times overflow) replaces
+    // nothing. If a frame-rate range check refuses such a stream up front, that is fine too.
+    let tiny = s.path("tiny.anim");
+    if animcodec(&["encode", &input, "-c", "quant-delta", "--fps", "1e-45", "-o", &tiny]).status.success() {
+        std::fs::write(&glb, "old").unwrap();
+        let o = animcodec(&["export", &tiny, "-o", &glb, "-f"]);
+        assert_clean_error(&o, &["out.glb"]);
+        assert_eq!(std::fs::read_to_string(&glb).unwrap(), "old");
+    }
+    assert!(!has_temporary(&s.0));
+}
+
+/// Issue 27, files lost 3: one command's outputs are replaced together or not at all.
+#[test]
+fn a_commands_outputs_are_committed_together_or_not_at_all() {
+    let s = Scratch::new("together");
+    let (json, csv, html) = (s.path("o.json"), s.path("o.csv"), s.path("r.html"));
+    for f in [&json, &csv] {
+        std::fs::write(f, "old").unwrap();
+    }
+    // The HTML report fails after the JSON and CSV are built (no such ladder point measured).
+    let args = ["sweep", "synth:tumble", "-c", "hosvd", "--points", "2", "--json", &json, "--csv", &csv];
+    let mut failing = args.to_vec();
+    failing.extend(["--html", &html, "--view-points", "hosvd:9", "-f"]);
+    assert_clean_error(&animcodec(&failing), &["hosvd:9"]);
+    for f in [&json, &csv] {
+        assert_eq!(std::fs::read_to_string(f).unwrap(), "old", "{f} was replaced by a failed run");
+    }
+    assert!(!Path::new(&html).exists() && !has_temporary(&s.0));
+    let mut good = args.to_vec();
+    good.push("-f");
+    ok(&good);
+    assert!(std::fs::read_to_string(&json).unwrap().starts_with('{'));
+    assert!(std::fs::read_to_string(&csv).unwrap().starts_with("codec,"));
+}
+
+/// Issue 27, files lost 3: `sweep … --json o.txt --csv o.txt` kept only the CSV.
+#[test]
+fn two_outputs_on_one_path_are_refused_in_any_spelling() {
+    let s = Scratch::new("one-path");
+    std::fs::write(s.0.join("o.txt"), "old").unwrap();
+    std::os::unix::fs::symlink("o.txt", s.0.join("link.txt")).unwrap();
+    std::fs::hard_link(s.0.join("o.txt"), s.0.join("hard.txt")).unwrap();
+    std::fs::create_dir(s.0.join("sub")).unwrap();
+    let sweep = |json: &str, csv: &str| {
+        animcodec_in(
+            &s.0,
+            &["sweep", "synth:tumble", "-c", "quant-delta", "--points", "1", "-f", "--json", json, "--csv", csv],
+        )
+    };
+    for (a, b) in [
+        ("o.txt", "o.txt"),
+        ("o.txt", "./o.txt"),
+        ("o.txt", "sub/../o.txt"),
+        ("link.txt", "o.txt"),
+        ("o.txt", "hard.txt"),
+        ("new.txt", "./new.txt"),
+    ] {
+        let start = Instant::now();
+        assert_clean_error(&sweep(a, b), &["refusing to write", b]);
+        assert!(start.elapsed() < Duration::from_secs(5), "refused before any work");
+    }
+    assert_eq!(std::fs::read_to_string(s.0.join("o.txt")).unwrap(), "old");
+    assert!(!s.0.join("new.txt").exists());
+    // inspect's two outputs likewise.
+    let o = animcodec_in(&s.0, &["inspect", "synth:tumble", "--json", "m.obj", "--mesh", "./m.obj"]);
+    assert_clean_error(&o, &["m.obj"]);
+    assert_eq!(names(&s.0), ["hard.txt", "link.txt", "o.txt", "sub"]);
+}
+
+/// Issue 27, other: `--csv -` wrote a file named `-`. `-` is stdout where the help says so
+/// (`--json -`), and refused as a file name everywhere else.
+#[test]
+fn a_dash_is_stdout_or_refused_never_a_file() {
+    let s = Scratch::new("dash");
+    ok(&["encode", "synth:tumble", "-c", "quant-delta", "-o", &s.path("a.anim")]);
+    for args in [
+        vec!["sweep", "synth:tumble", "-c", "quant-delta", "--points", "1", "--csv", "-"],
+        vec!["sweep", "synth:tumble", "-c", "quant-delta", "--points", "1", "--plot", "-"],
+        vec!["decode", "a.anim", "-o", "-"],
+        vec!["encode", "synth:tumble", "-c", "quant-delta", "-o", "-"],
+        vec!["view", "synth:tumble", "a.anim", "-o", "-"],
+    ] {
+        assert_clean_error(&animcodec_in(&s.0, &args), &["'-'", "./-"]);
+    }
+    let o = animcodec_in(&s.0, &["sweep", "synth:tumble", "-c", "quant-delta", "--points", "1", "--json", "-"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(serde_json::from_slice::<serde_json::Value>(&o.stdout).is_ok(), "--json - prints the JSON");
+    assert_eq!(names(&s.0), ["a.anim"], "no file named '-'");
+}
+
+/// Issue 27, other: `decode -o X.pc2` beside a stale `X.obj` of another mesh with the same
+/// vertex count paired the wrong triangles later, silently.
+#[test]
+fn a_cache_is_never_paired_with_another_meshs_obj() {
+    let s = Scratch::new("pairing");
+    let anim = s.path("a.anim");
+    ok(&["encode", "synth:flag", "-c", "quant-delta", "-o", &anim]);
+    // X.obj: the flag's vertices with other triangles.
+    ok(&["synth", "flag", "-o", &s.path("flag.pc2")]);
+    let flag_obj = std::fs::read_to_string(s.path("flag.obj")).unwrap();
+    let other: String =
+        flag_obj.lines().filter(|l| !l.starts_with("f ")).map(|l| format!("{l}\n")).collect::<String>() + "f 1 2 3\n";
+    std::fs::write(s.path("X.obj"), &other).unwrap();
+    for ext in ["pc2", "mdd"] {
+        let out = s.path(&format!("X.{ext}"));
+        assert_clean_error(
+            &animcodec(&["decode", &anim, "-o", &out, "-f"]),
+            &["X.obj", "other triangles", "--topology-obj"],
+        );
+        assert!(!Path::new(&out).exists());
+    }
+    assert_eq!(std::fs::read_to_string(s.path("X.obj")).unwrap(), other);
+    // Written with its topology, the pair is right; then the OBJ matches and needs no flag.
+    ok(&["decode", &anim, "-o", &s.path("X.pc2"), "--topology-obj", "-f"]);
+    ok(&["decode", &anim, "-o", &s.path("X.pc2"), "-f"]);
+    let back = animcodec::formats::read_animation(Path::new(&s.path("X.pc2")), &Default::default()).unwrap();
+    let flag = animcodec::formats::read_animation(Path::new(&s.path("flag.pc2")), &Default::default()).unwrap();
+    assert_eq!(back.triangles(), flag.triangles());
+}
+
+/// Issue 27, other: `eval --sted-dt 1e-300` gave STED NaN and `--sted-c 1e300` infinity.
+#[test]
+fn metric_parameters_giving_nan_or_infinity_are_refused_everywhere() {
+    let s = Scratch::new("sted-params");
+    let input = s.path("t.pc2");
+    ok(&["synth", "tumble", "-o", &input]);
+    let anim = s.path("t.anim");
+    ok(&["encode", &input, "-c", "quant-delta", "-o", &anim]);
+    for (flag, value, field) in
+        [("--sted-dt", "1e-300", "dt"), ("--sted-c", "1e300", "c"), ("--sted-dt", "1e300", "dt")]
+    {
+        let needles = ["sted", field, value];
+        fails(&["eval", &input, &anim, flag, value], &needles);
+        fails(&["sweep", &input, "-c", "quant-delta", "--points", "1", flag, value], &needles);
+        fails(&["view", &input, &anim, "-o", &s.path("v.html"), flag, value], &needles);
+        fails(&["export", &input, "-o", &s.path("e.glb"), flag, value], &needles);
+        fails(&["encode", &input, "-c", "quant-delta", "--eval", "-o", &s.path("e.anim"), flag, value], &needles);
+    }
+    // The library refuses them too (StedParams::validate, called by every metrics entry point).
+    let a = animcodec::formats::read_animation(Path::new(&input), &Default::default()).unwrap();
+    for p in [
+        metrics::StedParams { dt: 1e-300, ..Default::default() },
+        metrics::StedParams { c: 1e300, ..Default::default() },
+    ] {
+        let e = metrics::evaluate(&a, &a, &metrics::EvalOptions { sted: p, ..Default::default() }).unwrap_err();
+        assert!(e.to_string().contains("sted"), "{e}");
+        assert!(metrics::sted(&a, &a, &p).is_err());
+    }
+    assert_eq!(names(&s.0), ["t.anim", "t.obj", "t.pc2"], "no output of a refused command");
 }

@@ -46,12 +46,12 @@ pub struct StedParams {
     /// Default 1 (the tool's).
     pub ring_radius: u32,
     /// Time extent `dt` of one frame step in the temporal edges, in units of the diameter `D`
-    /// of reference frame 0; finite and > 0. Default 0.0003 (the tool's).
+    /// of reference frame 0; within [`DT_RANGE`](Self::DT_RANGE). Default 0.0003 (the tool's).
     pub dt: f64,
     /// Half-width `k` of the window over which the reference speed is averaged (temporal edges
     /// `f−k+1 … f+k`), 1..=1000. Default 5 (the tool's).
     pub speed_window: u32,
-    /// Weight `c` of the temporal part; finite and ≥ 0. Default 9.144e-5 (the tool's): the
+    /// Weight `c` of the temporal part; 0..=[`MAX_C`](Self::MAX_C). Default 9.144e-5 (the tool's): the
     /// temporal term then matters only when the spatial error is tiny.
     pub c: f64,
     /// Signed (the tool's, default) or absolute relative edge differences.
@@ -69,6 +69,12 @@ impl StedParams {
     pub const MAX_RING_RADIUS: u32 = 16;
     /// Largest accepted `speed_window`.
     pub const MAX_SPEED_WINDOW: u32 = 1000;
+    /// Accepted range of `dt` (units of the diameter `D`). Its square must stay a normal number:
+    /// every temporal edge is at least `dt` long, which keeps the reference speeds that divide
+    /// `T` above zero (at `dt = 1e-300`, `dt²` underflows to 0 and a still vertex gives 0/0).
+    pub const DT_RANGE: std::ops::RangeInclusive<f64> = 1e-9..=1e9;
+    /// Largest accepted `c`: `c²·T²` must stay finite (at `c = 1e300`, `c²` is infinite).
+    pub const MAX_C: f64 = 1e9;
 
     /// Checks every field, naming the offending one and its allowed range.
     pub fn validate(&self) -> Result<()> {
@@ -79,8 +85,12 @@ impl StedParams {
                 format!("{} is outside 1..={}", self.ring_radius, Self::MAX_RING_RADIUS),
             ));
         }
-        if !(self.dt.is_finite() && self.dt > 0.0) {
-            return Err(Error::parameter("sted", "dt", format!("{} is not a finite positive number", self.dt)));
+        if !Self::DT_RANGE.contains(&self.dt) {
+            return Err(Error::parameter(
+                "sted",
+                "dt",
+                format!("{:e} is outside {:e}..={:e}", self.dt, Self::DT_RANGE.start(), Self::DT_RANGE.end()),
+            ));
         }
         if !(1..=Self::MAX_SPEED_WINDOW).contains(&self.speed_window) {
             return Err(Error::parameter(
@@ -89,8 +99,8 @@ impl StedParams {
                 format!("{} is outside 1..={}", self.speed_window, Self::MAX_SPEED_WINDOW),
             ));
         }
-        if !(self.c.is_finite() && self.c >= 0.0) {
-            return Err(Error::parameter("sted", "c", format!("{} is not a finite non-negative number", self.c)));
+        if !(0.0..=Self::MAX_C).contains(&self.c) {
+            return Err(Error::parameter("sted", "c", format!("{:e} is outside 0..={:e}", self.c, Self::MAX_C)));
         }
         Ok(())
     }
@@ -647,6 +657,9 @@ mod tests {
             (StedParams { speed_window: 1001, ..Default::default() }, "speed_window"),
             (StedParams { c: -1.0, ..Default::default() }, "c"),
             (StedParams { c: f64::INFINITY, ..Default::default() }, "c"),
+            // Finite but giving NaN (dt² underflows) or infinity (c² overflows): issue 27.
+            (StedParams { dt: 1e-300, ..Default::default() }, "dt"),
+            (StedParams { c: 1e300, ..Default::default() }, "c"),
         ] {
             let e = sted(&r, &r, &p).unwrap_err().to_string();
             assert!(e.contains("sted: parameter") && e.contains(field), "{e}");

@@ -10,7 +10,7 @@ use super::{emit, emit_json, CmdResult, WithContext};
 
 /// Lists the animations of `path`, as text or JSON.
 pub fn run(path: &Path, as_json: bool) -> CmdResult {
-    let list = gltf::list_animations(path).context(|| path.display().to_string())?;
+    let list = gltf::list_animations(path).in_file(&path.display().to_string())?;
     if as_json {
         let rows: Vec<_> = list
             .iter()

@@ -33,9 +33,9 @@ pub fn run(args: &DecodeArgs, limits: Limits) -> CmdResult {
     let registry = animcodec::registry();
     let start = Instant::now();
     let name = || args.input.display().to_string();
-    let decoder = StreamDecoder::new(open(&args.input)?, &registry, limits).context(name)?;
+    let decoder = StreamDecoder::new(open(&args.input)?, &registry, limits).in_file(&name())?;
     let codec = decoder.codec_name();
-    let animation = decoder.decode_all().context(name)?;
+    let animation = decoder.decode_all().in_file(&name())?;
     let decode_seconds = start.elapsed().as_secs_f64();
 
     let write_start = Instant::now();

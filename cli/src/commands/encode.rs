@@ -8,12 +8,12 @@ use animcodec::harness::{self, Target, TargetHit};
 use animcodec::output::{OutputPolicy, PendingFile};
 use codec_core::params::find_spec;
 use codec_core::synth;
-use codec_core::{Animation, AnimationCodec, Limits, ParamSet, StreamEncoder, Topology};
+use codec_core::{Animation, AnimationCodec, Limits, ParamSet, StreamDecoder, StreamEncoder, Topology};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use metrics::{EvalOptions, MetricReport};
 use serde_json::{json, Map, Value};
 
-use super::eval::{load_any, sted_params};
+use super::eval::sted_params;
 use super::{bpvf, emit, emit_json, load_animation, param_json, raw_bytes, CmdResult, WithContext};
 use crate::EncodeArgs;
 
@@ -54,6 +54,9 @@ pub fn run(args: &EncodeArgs, limits: Limits) -> CmdResult {
     }
     // Mistyped arguments first, then the output, all before anything long happens.
     parse_streamed_flag(&args.input)?;
+    if args.eval {
+        sted_params(&args.sted)?;
+    }
     let policy = output_policy(args);
     if let Some(target) = args.target {
         return run_target(args, target, limits, &policy);
@@ -83,14 +86,17 @@ pub fn run(args: &EncodeArgs, limits: Limits) -> CmdResult {
     // Written to a temporary file renamed into place when complete: a failure or an interruption
     // leaves whatever was at the output path before.
     let file = policy.create(&args.output)?;
-    let (bytes, notes) =
+    let (mut file, bytes, notes) =
         encode_to_file(codec, &params, &source, (&topology, frame_count, frame_rate), file, args.feed as usize)?;
     let encode_seconds = start.elapsed().as_secs_f64();
 
     let (v, f, t) = (topology.vertex_count(), frame_count, topology.triangle_count());
     let rate = bpvf(bytes, v, f);
     let ratio = raw_bytes(v, f) as f64 / bytes as f64;
-    let evaluation = if args.eval { Some(evaluate_written(args, &source, limits)?) } else { None };
+    // --eval measures the stream as written, before it replaces anything: a failed measurement
+    // leaves the old output untouched and no new file.
+    let evaluation = if args.eval { Some(evaluate_written(args, &source, file.finish()?, limits)?) } else { None };
+    file.commit()?;
     if args.json {
         let mut p = Map::new();
         for (name, value) in params.iter() {
@@ -152,16 +158,24 @@ pub fn run(args: &EncodeArgs, limits: Limits) -> CmdResult {
     emit(&text)
 }
 
-/// `--eval`: decodes the stream just written (from the file, as any user would) and measures
-/// it against the input; returns the report and the seconds it took.
-fn evaluate_written(args: &EncodeArgs, source: &Source, limits: Limits) -> CmdResult<(MetricReport, f64)> {
+/// `--eval`: decodes the stream just written (from its file `written`, as any user would) and
+/// measures it against the input; returns the report and the seconds it took.
+fn evaluate_written(
+    args: &EncodeArgs,
+    source: &Source,
+    written: &std::path::Path,
+    limits: Limits,
+) -> CmdResult<(MetricReport, f64)> {
     let Source::Whole(input) = source else {
         return Err("--eval needs the input in memory, but synth:flag:COLSxROWSxFRAMES is generated frame by frame; \
                     write it to a file first (animcodec synth) or drop --eval"
             .into());
     };
     let start = Instant::now();
-    let decoded = load_any(&args.output.to_string_lossy(), &ReadOptions::default(), limits)?;
+    let registry = animcodec::registry();
+    let decoded = StreamDecoder::new(super::decode::open(written)?, &registry, limits)
+        .and_then(|d| d.decode_all())
+        .context(|| format!("decoding {} to measure it", args.output.display()))?;
     let options = EvalOptions { sted: sted_params(&args.sted)?, ..EvalOptions::default() };
     let report = metrics::evaluate(input, &decoded, &options)
         .context(|| format!("comparing {} with its decoded stream {}", args.input, args.output.display()))?;
@@ -226,8 +240,9 @@ fn output_policy(args: &EncodeArgs) -> OutputPolicy {
     policy
 }
 
-/// Encodes `source` into `file`, feeding `feed` frames per call, and commits the file; returns
-/// the container size in bytes and the encoder's warnings ([`codec_core::FrameEncoder::notes`]).
+/// Encodes `source` into `file`, feeding `feed` frames per call; returns the file (complete,
+/// not yet committed), the container size in bytes and the encoder's warnings
+/// ([`codec_core::FrameEncoder::notes`]).
 fn encode_to_file(
     codec: &dyn AnimationCodec,
     params: &ParamSet,
@@ -235,7 +250,7 @@ fn encode_to_file(
     (topology, frame_count, frame_rate): (&Topology, usize, f32),
     file: PendingFile,
     feed: usize,
-) -> CmdResult<(u64, Vec<String>)> {
+) -> CmdResult<(PendingFile, u64, Vec<String>)> {
     let mut encoder = StreamEncoder::new(
         codec,
         params,
@@ -266,9 +281,7 @@ fn encode_to_file(
         }
     }
     let (_, sink, notes) = encoder.finish_with_notes()?;
-    let count = sink.count;
-    sink.inner.commit()?;
-    Ok((count, notes))
+    Ok((sink.inner, sink.count, notes))
 }
 
 /// Counts the bytes written through it.

@@ -34,8 +34,8 @@ pub fn load_any(input: &str, options: &ReadOptions, limits: Limits) -> CmdResult
     if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("anim")) {
         let registry = animcodec::registry();
         let name = || input.to_string();
-        let decoder = StreamDecoder::new(open(path)?, &registry, limits).context(name)?;
-        return decoder.decode_all().context(name);
+        let decoder = StreamDecoder::new(open(path)?, &registry, limits).in_file(&name())?;
+        return decoder.decode_all().in_file(&name());
     }
     load_animation(input, options)
 }

@@ -29,6 +29,7 @@ pub fn run(args: &ExportArgs, limits: Limits) -> CmdResult {
         policy = policy.with_input(t);
     }
     policy.check(&args.output)?;
+    let eval = EvalOptions { sted: sted_params(&args.sted)?, compute_hausdorff: false, ..EvalOptions::default() };
     let read = ReadOptions { topology: args.topology.clone(), frame_rate: args.fps, animation: args.animation.clone() };
     let animation = load_any(&args.input, &read, limits)?;
     let layout = match args.layout.as_str() {
@@ -56,13 +57,13 @@ pub fn run(args: &ExportArgs, limits: Limits) -> CmdResult {
     let start = Instant::now();
     let (bytes, summary) = encode_gltf(&animation, &options, glb)?;
     let seconds = start.elapsed().as_secs_f64();
-    policy.write(&args.output, &bytes)?;
-    // What an engine plays: the written file read back by our own glTF reader.
+    // What an engine plays: the file's bytes read back by our own glTF reader and measured,
+    // before they replace anything (a file that fails either is never written).
     let played = gltf::parse_gltf(&bytes, None, &args.output.display().to_string(), animation.frame_rate())
-        .context(|| format!("reading back {}", args.output.display()))?;
-    let eval = EvalOptions { sted: sted_params(&args.sted)?, compute_hausdorff: false, ..EvalOptions::default() };
+        .context(|| "the glTF written does not read back".to_owned())?;
     let report = metrics::evaluate(&animation, &played, &eval)
         .context(|| format!("comparing {} with {} as played back", args.input, args.output.display()))?;
+    policy.write(&args.output, &bytes)?;
     let rate = bpvf(bytes.len() as u64, animation.vertex_count(), animation.frame_count());
     if args.json {
         return emit_json(&json!({

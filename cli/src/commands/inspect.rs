@@ -3,11 +3,12 @@
 //! the groups as vertex colours in a PLY or OBJ mesh any viewer opens.
 
 use std::fmt::Write as _;
+use std::io::Write as _;
 use std::path::Path;
 use std::time::Instant;
 
 use animcodec::formats::ReadOptions;
-use animcodec::output::OutputPolicy;
+use animcodec::output::{commit_all, OutputPolicy};
 use codec_core::{Animation, ParamSet};
 use codec_stseg::{segment_animation, BlockKind, Segment, Segmentation, StsegParams};
 use serde_json::{json, Map, Value};
@@ -59,9 +60,8 @@ pub fn run(args: &InspectArgs) -> CmdResult {
         policy = policy.with_input(t);
     }
     let json_file = args.json.as_deref().filter(|p| *p != Path::new("-"));
-    for path in [json_file, args.mesh.as_deref()].into_iter().flatten() {
-        policy.check(path)?;
-    }
+    let outputs: Vec<&Path> = [json_file, args.mesh.as_deref()].into_iter().flatten().collect();
+    policy.check_all(&outputs)?;
 
     let options = ReadOptions { topology: args.topology.clone(), frame_rate: None, animation: args.animation.clone() };
     let animation = load_animation(&args.input, &options)?;
@@ -82,12 +82,19 @@ pub fn run(args: &InspectArgs) -> CmdResult {
 
     let json_to_stdout = args.json.as_deref().is_some_and(|p| p == Path::new("-"));
     let mut notes = Vec::new();
+    let mut staged = Vec::new();
+    let mut stage = |path: &Path, text: &str| -> CmdResult {
+        let mut file = policy.create(path)?;
+        file.write_all(text.as_bytes()).map_err(|e| file.error(e))?;
+        staged.push(file);
+        Ok(())
+    };
     if let (Some(path), Some(format)) = (args.mesh.as_deref(), mesh_format) {
         let seg_index = segment_of(&segmentation, frame).ok_or_else(|| {
             format!("inspect: no segment contains frame {frame} (segments do not tile the animation)")
         })?;
         let text = mesh_text(&animation, &segmentation, frame, seg_index, format, &args.input);
-        policy.write(path, text.as_bytes())?;
+        stage(path, &text)?;
         let seg = &segmentation.segments[seg_index];
         notes.push(format!(
             "wrote {} (frame {frame}, segment {seg_index}: frames {}..{}, {} group{})",
@@ -103,10 +110,12 @@ pub fn run(args: &InspectArgs) -> CmdResult {
         if json_to_stdout {
             emit(&text)?;
         } else {
-            policy.write(path, text.as_bytes())?;
+            stage(path, &text)?;
             notes.push(format!("wrote {}", path.display()));
         }
     }
+    // Both outputs are staged first and renamed together: both are replaced, or neither.
+    commit_all(staged, &[])?;
     if !json_to_stdout {
         let mut out = summary(&args.input, &animation, &param_set, &segmentation, segment_seconds);
         for n in notes {

@@ -55,11 +55,26 @@ impl StdError for Context {
 pub trait WithContext<T> {
     /// Prefixes the error with `context()`.
     fn context(self, context: impl FnOnce() -> String) -> CmdResult<T>;
+
+    /// Prefixes the error with the file name `file`, unless its message already names it (the
+    /// readers name their file themselves: printed twice, it reads like two files).
+    fn in_file(self, file: &str) -> CmdResult<T>;
 }
 
 impl<T, E: Into<Box<dyn StdError + Send + Sync>>> WithContext<T> for Result<T, E> {
     fn context(self, context: impl FnOnce() -> String) -> CmdResult<T> {
         self.map_err(|e| Box::new(Context { context: context(), source: e.into() }) as _)
+    }
+
+    fn in_file(self, file: &str) -> CmdResult<T> {
+        self.map_err(|e| {
+            let e: Box<dyn StdError + Send + Sync> = e.into();
+            if codec_core::error::message_with_sources(e.as_ref()).contains(file) {
+                e
+            } else {
+                Box::new(Context { context: file.to_owned(), source: e }) as _
+            }
+        })
     }
 }
 

@@ -2,12 +2,13 @@
 //! a table and write JSON, CSV and an SVG rate-distortion plot.
 
 use std::fmt::Write as _;
-use std::io::IsTerminal;
+use std::io::{IsTerminal, Write as _};
+use std::path::Path;
 use std::time::Instant;
 
 use animcodec::formats::ReadOptions;
 use animcodec::harness::{self, monotone_report, Sweep, SweepOptions, SweepSeries};
-use animcodec::output::OutputPolicy;
+use animcodec::output::{commit_all, OutputPolicy};
 use animcodec::viewer;
 use codec_core::{AnimationCodec, CodecRegistry, Limits};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
@@ -32,9 +33,9 @@ pub fn run(args: &SweepArgs, limits: Limits) -> CmdResult {
         policy = policy.with_input(t);
     }
     let json_file = args.json.as_deref().filter(|p| p.as_os_str() != "-");
-    for path in [json_file, args.csv.as_deref(), args.plot.as_deref(), args.html.as_deref()].into_iter().flatten() {
-        policy.check(path)?;
-    }
+    let outputs: Vec<&Path> =
+        [json_file, args.csv.as_deref(), args.plot.as_deref(), args.html.as_deref()].into_iter().flatten().collect();
+    policy.check_all(&outputs)?;
     let registry = animcodec::registry();
     let series = sweep_series(&registry, args)?;
     // Checked before the (long) sweep: a typo should not cost it.
@@ -62,23 +63,33 @@ pub fn run(args: &SweepArgs, limits: Limits) -> CmdResult {
     bar.finish_and_clear();
 
     let to_stdout = args.json.as_deref().is_some_and(|p| p.as_os_str() == "-");
+    // Every output is built and staged under its temporary name first, then all are renamed
+    // together: a failure on the way leaves every old file untouched.
+    let mut staged = Vec::new();
+    let mut stage = |path: &Path, text: &str| -> CmdResult {
+        let mut file = policy.create(path)?;
+        file.write_all(text.as_bytes()).map_err(|e| file.error(e))?;
+        staged.push(file);
+        Ok(())
+    };
     if let Some(path) = args.json.as_ref().filter(|_| !to_stdout) {
         let mut value = harness::sweep_json(input, &animation, &eval, &result);
         value["total_seconds"] = seconds.into();
         value["jobs"] = options.jobs.map_or_else(|| "rayon".into(), |j| j.into());
-        harness::write_text(path, &(serde_json::to_string_pretty(&value)? + "\n"))?;
+        stage(path, &(serde_json::to_string_pretty(&value)? + "\n"))?;
     }
     if let Some(path) = &args.csv {
-        harness::write_text(path, &harness::csv_text(&result.points))?;
+        stage(path, &harness::csv_text(&result.points))?;
     }
     if let Some(path) = &args.plot {
         let title = format!("{input}: {} frames × {} vertices", animation.frame_count(), animation.vertex_count());
-        harness::plot_svg(path, &title, &result.points)?;
+        stage(path, &harness::plot_svg_text(&title, &result.points)?)?;
     }
     if let Some(path) = &args.html {
         let page = html_report(&registry, input, &animation, &eval, &result, &view_points, limits)?;
-        harness::write_text(path, &page)?;
+        stage(path, &page)?;
     }
+    commit_all(staged, &[])?;
     if to_stdout {
         let mut value = harness::sweep_json(input, &animation, &eval, &result);
         value["total_seconds"] = seconds.into();

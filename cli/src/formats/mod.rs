@@ -146,6 +146,8 @@ pub fn write_animation_with(path: &Path, animation: &Animation, options: &WriteO
     options.policy.check(path)?;
     if companion_obj {
         options.policy.check(&companion)?;
+    } else if matches!(extension(path).as_deref(), Some("pc2" | "mdd")) {
+        check_existing_companion(path, &companion, animation)?;
     }
     let mut files = vec![PendingFile::new(path)?];
     files[0].write_all(&bytes).map_err(|e| files[0].error(e))?;
@@ -165,6 +167,28 @@ pub fn write_animation_with(path: &Path, animation: &Animation, options: &WriteO
     let written = files.iter().map(|f| f.target().to_path_buf()).collect();
     commit_all(files, &[])?;
     Ok(written)
+}
+
+/// A cache written without its topology OBJ is read back with the `STEM.obj` beside it: when
+/// one is there, it must hold this animation's mesh, or a later read would silently pair
+/// another mesh's triangles (same vertex count) with these positions.
+fn check_existing_companion(cache: &Path, companion: &Path, animation: &Animation) -> Result<()> {
+    if std::fs::symlink_metadata(companion).is_err() {
+        return Ok(());
+    }
+    let why = match cache_topology(cache, Some(companion), animation.vertex_count()) {
+        Ok(topology) if topology.triangles() == animation.triangles() => return Ok(()),
+        Ok(_) => "holds other triangles".to_owned(),
+        Err(e) => format!("is not this animation's mesh ({e})"),
+    };
+    Err(crate::output::refused(
+        cache,
+        format!(
+            "{} beside it {why}, and a later read of the cache would pair it with these positions; \
+             write it with --topology-obj (with --force to replace it), or choose another name",
+            companion.display()
+        ),
+    ))
 }
 
 /// Lower-case extension of a path, if any.

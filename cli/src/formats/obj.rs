@@ -241,15 +241,20 @@ pub fn is_directory_target(path: &Path) -> bool {
 
 /// How the frames of a sequence are named.
 enum Naming {
-    /// `DIR/frame_0000.obj`, …: every other `*.obj` in `DIR` belongs to the sequence when read.
+    /// `DIR/frame_0000.obj`, …. Reading `DIR` back reads every `*.obj` in it, so other `.obj`
+    /// files there are refused (never removed).
     Directory(PathBuf),
-    /// A file name with `prefix`, the frame number (at least `width` digits) and `suffix`.
-    Template { dir: PathBuf, prefix: String, width: usize, suffix: String },
+    /// A file name with `prefix`, the frame number (`width` digits, more when needed) and
+    /// `suffix`; `min_width` is the fewest digits a frame of this name pattern has.
+    Template { dir: PathBuf, prefix: String, width: usize, min_width: usize, suffix: String },
 }
+
+/// Digits of a directory target's frame numbers (`frame_0000.obj`), and of `{}` and plain names.
+const MIN_FRAME_DIGITS: usize = 4;
 
 impl Naming {
     fn of(path: &Path, frames: usize) -> Naming {
-        let digits = frames.saturating_sub(1).to_string().len().max(4);
+        let digits = frames.saturating_sub(1).to_string().len().max(MIN_FRAME_DIGITS);
         if is_directory_target(path) {
             return Naming::Directory(path.to_path_buf());
         }
@@ -259,7 +264,13 @@ impl Naming {
         };
         let file = path.file_name().map(|f| f.to_string_lossy().into_owned()).unwrap_or_default();
         if let Some(at) = file.find("{}") {
-            return Naming::Template { dir, prefix: file[..at].into(), width: digits, suffix: file[at + 2..].into() };
+            return Naming::Template {
+                dir,
+                prefix: file[..at].into(),
+                width: digits,
+                min_width: MIN_FRAME_DIGITS,
+                suffix: file[at + 2..].into(),
+            };
         }
         if let Some(at) = file.find('#') {
             let run = file[at..].chars().take_while(|&c| c == '#').count();
@@ -267,12 +278,13 @@ impl Naming {
                 dir,
                 prefix: file[..at].into(),
                 width: run.max(frames.saturating_sub(1).to_string().len()),
+                min_width: run,
                 suffix: file[at + run..].into(),
             };
         }
         let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "frame".into());
         let ext = path.extension().map(|e| format!(".{}", e.to_string_lossy())).unwrap_or_else(|| ".obj".into());
-        Naming::Template { dir, prefix: format!("{stem}_"), width: digits, suffix: ext }
+        Naming::Template { dir, prefix: format!("{stem}_"), width: digits, min_width: MIN_FRAME_DIGITS, suffix: ext }
     }
 
     fn dir(&self) -> &Path {
@@ -284,22 +296,33 @@ impl Naming {
     fn file(&self, t: usize, frames: usize) -> PathBuf {
         match self {
             Naming::Directory(d) => {
-                let digits = frames.saturating_sub(1).to_string().len().max(4);
+                let digits = frames.saturating_sub(1).to_string().len().max(MIN_FRAME_DIGITS);
                 d.join(format!("frame_{t:0digits$}.obj"))
             }
-            Naming::Template { dir, prefix, width, suffix } => dir.join(format!("{prefix}{t:0width$}{suffix}")),
+            Naming::Template { dir, prefix, width, suffix, .. } => dir.join(format!("{prefix}{t:0width$}{suffix}")),
         }
     }
 
-    /// True when an existing file name would be read as a frame of this sequence.
+    /// True when an existing file name is of this sequence's name pattern: the prefix (`frame_`
+    /// for a directory), a frame number of at least the pattern's digits and the suffix
+    /// (`.obj`), matched exactly (case included). Only such files are replaced or removed.
     fn is_frame(&self, file_name: &str) -> bool {
-        match self {
-            Naming::Directory(_) => file_name.to_ascii_lowercase().ends_with(".obj"),
-            Naming::Template { prefix, suffix, .. } => file_name
-                .strip_prefix(prefix.as_str())
-                .and_then(|rest| rest.strip_suffix(suffix.as_str()))
-                .is_some_and(|digits| !digits.is_empty() && digits.bytes().all(|b| b.is_ascii_digit())),
-        }
+        let (prefix, min_width, suffix) = match self {
+            Naming::Directory(_) => ("frame_", MIN_FRAME_DIGITS, ".obj"),
+            Naming::Template { prefix, min_width, suffix, .. } => (prefix.as_str(), *min_width, suffix.as_str()),
+        };
+        file_name
+            .strip_prefix(prefix)
+            .and_then(|rest| rest.strip_suffix(suffix))
+            .is_some_and(|digits| digits.len() >= min_width && digits.bytes().all(|b| b.is_ascii_digit()))
+    }
+
+    /// True when reading the sequence back would also read `file_name`, though it is not of the
+    /// sequence's name pattern: any other `.obj` (any case) in a directory target.
+    fn would_be_read_with(&self, file_name: &str) -> bool {
+        matches!(self, Naming::Directory(_))
+            && file_name.to_ascii_lowercase().ends_with(".obj")
+            && !self.is_frame(file_name)
     }
 }
 
@@ -320,11 +343,16 @@ pub fn write_obj_sequence(path: &Path, animation: &Animation) -> Result<Vec<Path
 /// `DIR/stem.obj`. Frame numbers have at least 4 digits (`{}` and plain names), more when
 /// needed so that plain and natural order agree.
 ///
-/// Safety: files that would be read back as frames of the same sequence but are not written now
-/// (an older, longer sequence; any other `.obj` in a directory target) are stale. Unless the
-/// policy allows overwriting, existing frames or stale files make this an error and nothing is
-/// written; with overwriting, stale frames are removed. All frames are written to temporary
-/// files first and renamed into place together.
+/// Safety: a sequence owns only the files of its name pattern: the prefix (`frame_` in a
+/// directory target, the text before `{}`/`#` in a template, `stem_` for a plain name), a frame
+/// number of at least as many digits as the pattern gives (4 for a directory, `{}` and plain
+/// names; the run's length for `#`), and the suffix (`.obj`, or what follows the placeholder),
+/// matched exactly, case included. Files of that pattern not written now (an older, longer
+/// sequence) are stale. Unless the policy allows overwriting, existing or stale frames make this
+/// an error and nothing is written; with overwriting, stale frames are removed. No other file
+/// is ever replaced or removed: a directory target holding any other `.obj` (which reading the
+/// folder back would take as a frame) is refused even with overwriting. All frames are written
+/// to temporary files first and renamed into place together.
 pub fn write_obj_sequence_with(path: &Path, animation: &Animation, policy: &OutputPolicy) -> Result<Vec<PathBuf>> {
     let frames = animation.frame_count();
     let naming = Naming::of(path, frames);
@@ -338,14 +366,39 @@ pub fn write_obj_sequence_with(path: &Path, animation: &Animation, policy: &Outp
     let dir = naming.dir().to_path_buf();
     // Existing frame files (ours or stale), found before anything is created.
     let mut existing = Vec::new();
+    let mut foreign = Vec::new();
     if let Ok(entries) = std::fs::read_dir(&dir) {
         for entry in entries.flatten() {
             let file_name = entry.file_name().to_string_lossy().into_owned();
             let p = entry.path();
-            if p.is_file() && (naming.is_frame(&file_name) || files.iter().any(|f| f.file_name() == p.file_name())) {
+            if p.is_file() && naming.would_be_read_with(&file_name) {
+                foreign.push(p);
+            } else if p.is_file()
+                && (naming.is_frame(&file_name) || files.iter().any(|f| f.file_name() == p.file_name()))
+            {
                 existing.push(p);
             }
         }
+    }
+    if !foreign.is_empty() {
+        // Never removed, and never silently mixed into the sequence when it is read back.
+        super::sort_natural(&mut foreign);
+        let names: Vec<String> =
+            foreign.iter().take(3).map(|p| p.file_name().unwrap_or_default().to_string_lossy().into_owned()).collect();
+        return Err(crate::output::refused(
+            path,
+            format!(
+                "{} holds {} other .obj file{} ({}{}) that reading the folder back would take as frames; they \
+                 are never removed (even with --force): write to an empty folder, or name the frames with a \
+                 pattern such as {}",
+                dir.display(),
+                foreign.len(),
+                if foreign.len() == 1 { "" } else { "s" },
+                names.join(", "),
+                if foreign.len() > 3 { ", …" } else { "" },
+                dir.join("frame_{}.obj").display()
+            ),
+        ));
     }
     super::sort_natural(&mut existing);
     let stale: Vec<PathBuf> =
