@@ -102,8 +102,10 @@ fn eval_reproduces_the_sted_oracle() {
     let root = std::path::PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared"));
     let oracle = root.join("sted-oracle/sted-oracle.json");
     if !oracle.exists() {
-        println!("SKIP: {} not found", oracle.display());
-        return;
+        return codec_core::testing::skip(
+            "eval_reproduces_the_sted_oracle",
+            &format!("{} not found", oracle.display()),
+        );
     }
     let pairs: serde_json::Value = serde_json::from_slice(&std::fs::read(&oracle).unwrap()).unwrap();
     for pair in pairs.as_array().unwrap() {

@@ -169,10 +169,7 @@ fn run_browser(script: &Path, page: &str, shot: &Path, samples: Option<&Path>) -
 fn pages_work_in_headless_chromium() {
     let script = match browser() {
         Ok(s) => s,
-        Err(why) => {
-            println!("SKIP: browser test: {why}");
-            return;
-        }
+        Err(why) => return codec_core::testing::skip("pages_work_in_headless_chromium", &why),
     };
     let s = Scratch::new("browser");
     let (reference, half, left, right) = half_error_case(&s);

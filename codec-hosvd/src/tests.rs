@@ -348,31 +348,8 @@ fn rate_ladder_ends_are_ordered_in_size_and_error() {
     assert!(small.0 < large.0 && small.1 > large.1, "{small:?} vs {large:?}");
 }
 
-/// Real data when present (`../shared/data`, relative to the repository root); skipped otherwise.
-#[test]
-fn horse_gallop_round_trip_within_bound_if_data_present() {
-    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/horse-gallop");
-    let Ok(b) = std::fs::read(dir.join("horse-gallop.pc2")) else {
-        println!("SKIP: {} not found", dir.display());
-        return;
-    };
-    assert!(b.len() >= 32 && &b[..12] == b"POINTCACHE2\0");
-    let i32_at = |o: usize| i32::from_le_bytes(b[o..o + 4].try_into().unwrap()) as usize;
-    let (k, f) = (i32_at(16), i32_at(28));
-    let pos: Vec<f32> =
-        b[32..32 + k * f * 12].chunks_exact(4).map(|c| f32::from_le_bytes(c.try_into().unwrap())).collect();
-    // Connectivity does not matter to this codec; a single triangle keeps the test independent of the OBJ.
-    let anim = Animation::new(Topology::new(k, vec![[0, 1, 2]]).unwrap(), pos, 30.0).unwrap();
-    let p = params(HosvdParams { ss: 0.95, strategy: Strategy::Diagonal, ..Default::default() });
-    let enc = encode_animation_fed(&Hosvd, &p, &anim, true, 16).unwrap();
-    let dec = decode_animation(&enc.bytes, &registry(), Limits::default()).unwrap();
-    assert_eq!(Some(&dec), enc.reconstruction.as_ref());
-    let bound = Hosvd.error_bound(&p, &anim).unwrap();
-    let err = frob_error(anim.positions(), dec.positions());
-    assert!(err <= bound.max_coordinate_error.unwrap(), "{err} > {bound:?}");
-    // ss = 0.95 of the float model: the real stream is smaller still.
-    assert!((enc.bytes.len() as f64) < 0.05 * (k * f * 12) as f64, "{} bytes", enc.bytes.len());
-}
+// The real-data round trip (horse-gallop on its real mesh) is in `tests/tests/real_data.rs`,
+// where the OBJ reader is.
 
 #[test]
 fn degenerate_inputs_round_trip() {

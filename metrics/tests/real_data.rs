@@ -1,5 +1,6 @@
 //! Checks on a real animation (horse-gallop, first frames) when `../shared/data` is present;
-//! skipped with a message otherwise.
+//! otherwise a visible skip (`codec_core::testing::skip`, a failure under CI's
+//! `ANIMCODEC_REQUIRE_ALL=1`).
 
 #[path = "../examples/support/readers.rs"]
 mod readers;
@@ -11,11 +12,12 @@ use metrics::{displacement_stats, evaluate, point_triangle_distance, vertex_to_s
 
 const FRAMES: usize = 6;
 
-fn load() -> Option<Animation> {
+/// The animation, or `None` after a [`codec_core::testing::skip`] of `test` when it is absent.
+fn load(test: &str) -> Option<Animation> {
     let prefix = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/data/horse-gallop/horse-gallop"));
     let pc2 = prefix.with_extension("pc2");
     if !pc2.exists() {
-        println!("SKIP: {} not found", pc2.display());
+        codec_core::testing::skip(test, &format!("{} not found", pc2.display()));
         return None;
     }
     let (v, f, p) = readers::read_pc2(&pc2).unwrap();
@@ -37,7 +39,7 @@ fn perturb(a: &Animation) -> Animation {
 
 #[test]
 fn real_mesh_report_is_consistent() {
-    let Some(a) = load() else { return };
+    let Some(a) = load("real_mesh_report_is_consistent") else { return };
     let b = perturb(&a);
     let r = evaluate(&a, &b, &EvalOptions::default()).unwrap();
     let d = displacement_stats(&a, &b).unwrap();
@@ -51,7 +53,7 @@ fn real_mesh_report_is_consistent() {
 
 #[test]
 fn real_mesh_surface_distance_matches_brute_force() {
-    let Some(a) = load() else { return };
+    let Some(a) = load("real_mesh_surface_distance_matches_brute_force") else { return };
     let b = perturb(&a);
     let (from, to) = (b.frame(FRAMES - 1), a.frame(FRAMES - 1));
     let fast = vertex_to_surface_distances(from, to, a.triangles()).unwrap();

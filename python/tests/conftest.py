@@ -9,6 +9,36 @@ import pytest
 
 REPO = Path(__file__).resolve().parents[2]
 
+# The Rust tests' rule (codec_core::testing::skip): a skipped test says why, and with
+# ANIMCODEC_REQUIRE_ALL set to anything but 0 (CI sets it) a skip is a failure.
+REQUIRE_ALL_VAR = "ANIMCODEC_REQUIRE_ALL"
+
+
+def _skips_fail():
+    value = os.environ.get(REQUIRE_ALL_VAR)
+    return value is not None and value != "0"
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_makereport(item, call):
+    outcome = yield
+    report = outcome.get_result()
+    if report.skipped and _skips_fail() and not hasattr(report, "wasxfail"):
+        reason = report.longrepr[2] if isinstance(report.longrepr, tuple) else str(report.longrepr)
+        report.outcome = "failed"
+        report.longrepr = f"{item.nodeid}: would skip ({reason}), and {REQUIRE_ALL_VAR} is set: every test must run"
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_make_collect_report(collector):
+    # A module-level skip (pytest.importorskip at import time) is reported at collection.
+    outcome = yield
+    report = outcome.get_result()
+    if report.skipped and _skips_fail():
+        reason = report.longrepr[2] if isinstance(report.longrepr, tuple) else str(report.longrepr)
+        report.outcome = "failed"
+        report.longrepr = f"{report.nodeid}: would skip ({reason}), and {REQUIRE_ALL_VAR} is set: every test must run"
+
 
 def _cli_binary():
     """The `animcodec` binary: $ANIMCODEC_BIN, else one built in the repository's target
