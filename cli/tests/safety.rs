@@ -461,8 +461,13 @@ fn a_failed_command_leaves_the_old_output_and_no_new_file() {
     if animcodec(&["encode", &input, "-c", "quant-delta", "--fps", "1e-45", "-o", &tiny]).status.success() {
         std::fs::write(&glb, "old").unwrap();
         let o = animcodec(&["export", &tiny, "-o", &glb, "-f"]);
-        assert_clean_error(&o, &["out.glb"]);
+        assert_clean_error(&o, &["out.glb", "does not read back"]);
         assert_eq!(std::fs::read_to_string(&glb).unwrap(), "old");
+        // decode to a glTF reads it back too before writing it.
+        let o = animcodec(&["decode", &tiny, "-o", &glb, "-f"]);
+        assert_clean_error(&o, &["out.glb", "does not read back"]);
+        assert_eq!(std::fs::read_to_string(&glb).unwrap(), "old");
+        assert_eq!(stderr(&o).matches("out.glb").count(), 1, "the file is named once");
     }
     assert!(!has_temporary(&s.0));
 }

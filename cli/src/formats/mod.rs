@@ -130,7 +130,9 @@ pub fn write_animation_with(path: &Path, animation: &Animation, options: &WriteO
         Some("pc2") => (pc2::encode_pc2(animation)?, options.topology_obj),
         Some("mdd") => (mdd::encode_mdd(animation)?, options.topology_obj),
         Some(ext @ ("glb" | "gltf")) => {
-            (gltf_out::encode_gltf(animation, &gltf_out::GltfOptions::default(), ext == "glb")?.0, false)
+            let bytes = gltf_out::encode_gltf(animation, &gltf_out::GltfOptions::default(), ext == "glb")?.0;
+            check_reads_back(path, &bytes, animation)?;
+            (bytes, false)
         }
         _ => {
             return Err(Error::Unsupported {
@@ -167,6 +169,25 @@ pub fn write_animation_with(path: &Path, animation: &Animation, options: &WriteO
     let written = files.iter().map(|f| f.target().to_path_buf()).collect();
     commit_all(files, &[])?;
     Ok(written)
+}
+
+/// A glTF about to be written must read back (with our reader) as an animation of the same
+/// frames and vertices: a file that does not is never written.
+fn check_reads_back(path: &Path, bytes: &[u8], animation: &Animation) -> Result<()> {
+    let back = gltf::parse_gltf(bytes, None, &name(path), animation.frame_rate())
+        .map_err(|e| Error::InvalidAnimation(format!("the glTF written does not read back: {e}")))?;
+    let (want, got) = ((animation.frame_count(), animation.vertex_count()), (back.frame_count(), back.vertex_count()));
+    if want != got {
+        return Err(Error::InvalidAnimation(format!(
+            "{}: the glTF written reads back as {} frames × {} vertices instead of {} × {}",
+            name(path),
+            got.0,
+            got.1,
+            want.0,
+            want.1
+        )));
+    }
+    Ok(())
 }
 
 /// A cache written without its topology OBJ is read back with the `STEM.obj` beside it: when
