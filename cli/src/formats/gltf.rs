@@ -125,8 +125,7 @@ impl Budget {
         if held > self.limit {
             return Err(Error::LimitExceeded {
                 context: self.file.clone().into(),
-                field: format!("memory the read would hold, with {what} (a total budget: raise it with --max-memory)")
-                    .into(),
+                field: format!("total memory of the read, {what} included (--max-memory raises it)").into(),
                 value: held,
                 limit: self.limit,
             });

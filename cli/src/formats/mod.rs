@@ -79,7 +79,7 @@ pub fn check_frame_rate(fps: f32) -> Result<f32> {
         Ok(fps)
     } else {
         Err(Error::InvalidAnimation(format!(
-            "frame rate {fps} is outside the supported range {}..={} frames per second",
+            "frame rate {fps:e} is outside the supported range {}..={} frames per second",
             FRAME_RATE_RANGE.start(),
             FRAME_RATE_RANGE.end()
         )))
