@@ -1534,6 +1534,47 @@ mod tests {
         assert_fails(parse_glb(&b, &doc), &["t.glb", "playback work", "20000000000"]);
     }
 
+    /// Mode INDICES (meshoptimizer's index sequence codec): the writer's plain index view
+    /// re-encoded as an index sequence into a fallback buffer reads back the same triangles.
+    #[test]
+    fn meshopt_indices_mode_is_read() {
+        use super::super::gltf_out::{encode_gltf, GltfLayout, GltfOptions};
+        let a = codec_core::synth::waving_flag(8, 5, 6);
+        let opts = GltfOptions { layout: GltfLayout::Frames, ..Default::default() };
+        let (text, _) = encode_gltf(&a, &opts, false).unwrap();
+        let mut doc: Value = serde_json::from_slice(&text).unwrap();
+        let read = |d: &Value| parse_gltf(&serde_json::to_vec(d).unwrap(), None, "m.gltf", a.frame_rate());
+        let expected = read(&doc).unwrap();
+        let indices = doc["meshes"][0]["primitives"][0]["indices"].as_u64().unwrap() as usize;
+        let view = doc["accessors"][indices]["bufferView"].as_u64().unwrap() as usize;
+        let stride = if doc["accessors"][indices]["componentType"] == 5125 { 4 } else { 2 };
+        let flat: Vec<u32> = expected.triangles().iter().flatten().copied().collect();
+        let sequence = gltf_meshopt::encode_index_sequence(&flat);
+        let uri = doc["buffers"][0]["uri"].as_str().unwrap().to_owned();
+        let (prefix, data) = uri.split_once(";base64,").unwrap();
+        let mut bytes = base64::engine::general_purpose::STANDARD.decode(data).unwrap();
+        bytes.resize(bytes.len().next_multiple_of(4), 0);
+        let offset = bytes.len();
+        bytes.extend(&sequence);
+        let encoded = base64::engine::general_purpose::STANDARD.encode(&bytes);
+        doc["buffers"][0]["uri"] = json!(format!("{prefix};base64,{encoded}"));
+        doc["buffers"][0]["byteLength"] = json!(bytes.len());
+        let size = flat.len() * stride;
+        let fallback = doc["buffers"].as_array().unwrap().len();
+        doc["buffers"].as_array_mut().unwrap().push(
+            json!({"byteLength": size.next_multiple_of(4), "extensions": {"EXT_meshopt_compression": {"fallback": true}}}),
+        );
+        doc["bufferViews"][view] = json!({"buffer": fallback, "byteOffset": 0, "byteLength": size,
+            "extensions": {"EXT_meshopt_compression": {"buffer": 0, "byteOffset": offset,
+                "byteLength": sequence.len(), "byteStride": stride, "count": flat.len(), "mode": "INDICES"}}});
+        let back = read(&doc).unwrap();
+        assert_eq!(back.triangles(), expected.triangles());
+        assert_eq!(back.positions(), expected.positions());
+        // A truncated sequence is an error naming the view.
+        doc["bufferViews"][view]["extensions"]["EXT_meshopt_compression"]["byteLength"] = json!(sequence.len() - 1);
+        assert_fails(read(&doc), &["m.gltf", &format!("bufferView {view}"), "INDICES data malformed"]);
+    }
+
     #[test]
     fn meshopt_sizes_are_checked_before_decoding() {
         use super::super::gltf_out::{encode_gltf, GltfLayout, GltfOptions};

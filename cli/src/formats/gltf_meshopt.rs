@@ -377,34 +377,35 @@ fn decode_index_sequence(data: &[u8], count: usize) -> std::result::Result<Vec<u
 }
 
 #[cfg(test)]
+/// Encodes an index sequence as meshoptimizer's `encodeIndexSequence` does (version 1):
+/// the baseline is the one the previous index used, or the other one when it is closer.
+pub(super) fn encode_index_sequence(indices: &[u32]) -> Vec<u8> {
+    let mut out = vec![0xd1];
+    let mut last = [0u32; 2];
+    let mut current = 0usize;
+    for &index in indices {
+        let d0 = index.wrapping_sub(last[current]) as i32;
+        let d1 = index.wrapping_sub(last[current ^ 1]) as i32;
+        if d1.unsigned_abs() < d0.unsigned_abs() {
+            current ^= 1;
+        }
+        let d = index.wrapping_sub(last[current]) as i32;
+        let zigzag = ((d << 1) ^ (d >> 31)) as u32;
+        let mut v = (zigzag << 1) | current as u32;
+        while v >= 128 {
+            out.push((v as u8 & 127) | 128);
+            v >>= 7;
+        }
+        out.push(v as u8);
+        last[current] = index;
+    }
+    out.extend([0; 4]);
+    out
+}
+
+#[cfg(test)]
 mod tests {
     use super::*;
-
-    /// Encodes an index sequence as meshoptimizer's `encodeIndexSequence` does (version 1):
-    /// the baseline is the one the previous index used, or the other one when it is closer.
-    fn encode_index_sequence(indices: &[u32]) -> Vec<u8> {
-        let mut out = vec![0xd1];
-        let mut last = [0u32; 2];
-        let mut current = 0usize;
-        for &index in indices {
-            let d0 = index.wrapping_sub(last[current]) as i32;
-            let d1 = index.wrapping_sub(last[current ^ 1]) as i32;
-            if d1.unsigned_abs() < d0.unsigned_abs() {
-                current ^= 1;
-            }
-            let d = index.wrapping_sub(last[current]) as i32;
-            let zigzag = ((d << 1) ^ (d >> 31)) as u32;
-            let mut v = (zigzag << 1) | current as u32;
-            while v >= 128 {
-                out.push((v as u8 & 127) | 128);
-                v >>= 7;
-            }
-            out.push(v as u8);
-            last[current] = index;
-        }
-        out.extend([0; 4]);
-        out
-    }
 
     #[test]
     fn index_sequences_round_trip_and_malformed_ones_fail() {
