@@ -612,12 +612,21 @@ pub struct DemoArgs {
 
 fn main() -> ExitCode {
     animcodec::output::install_signal_cleanup();
+    // No panic text ever reaches the terminal: the library turns the panics it can meet (inside
+    // the gltf crate) into errors, which are reported below; any other panic is a bug, reported
+    // as one short line instead of a backtrace.
+    std::panic::set_hook(Box::new(|_| {}));
     let cli = Cli::parse();
-    match run(cli) {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
+    match std::panic::catch_unwind(std::panic::AssertUnwindSafe(move || run(cli))) {
+        Ok(Ok(())) => ExitCode::SUCCESS,
+        Ok(Err(e)) => {
             commands::report_error(e.as_ref());
             ExitCode::from(1)
+        }
+        Err(_) => {
+            let line = b"error: internal error (a bug in animcodec); please report the command that caused it\n";
+            let _ = std::io::Write::write_all(&mut std::io::stderr(), line);
+            ExitCode::from(101)
         }
     }
 }
@@ -630,6 +639,10 @@ fn run(cli: Cli) -> commands::CmdResult {
             .map_err(|e| format!("cannot set up {n} worker threads: {e}"))?;
     }
     let limits = commands::limits(cli.global.max_memory);
+    if let Some(bytes) = cli.global.max_memory {
+        // The glTF reader's total budget (its default is 1 GiB).
+        animcodec::formats::gltf::set_default_memory_budget(bytes);
+    }
     match cli.command {
         Command::List(a) => commands::list::run(&a),
         Command::Encode(a) => commands::encode::run(&a, limits),

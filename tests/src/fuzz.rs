@@ -256,6 +256,17 @@ pub fn seeds() -> Vec<(String, String, Vec<u8>)> {
         b"v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nf 1/1 2//1 3/1/1 -1\n".to_vec(),
     ));
     out.push(("read_gltf".into(), "morph-triangle".into(), seed_gltf()));
+    // glTF as animcodec's writer makes it (KHR_mesh_quantization, EXT_meshopt_compression
+    // ATTRIBUTES/TRIANGLES, morph targets; rigid motion as node animation): the reader's
+    // meshopt, quantization and accessor-layout checks (issue 27).
+    let flag = synth::waving_flag(4, 3, 5);
+    let writer = animcodec::formats::gltf_out::GltfOptions::default();
+    let rigid = animcodec::formats::gltf_out::GltfOptions { rigid: Some(true), ..writer.clone() };
+    for (name, options) in [("meshopt-basis", writer), ("meshopt-rigid", rigid)] {
+        if let Ok((glb, _)) = animcodec::formats::gltf_out::encode_gltf(&flag, &options, true) {
+            out.push(("read_gltf".into(), name.into(), glb));
+        }
+    }
     out
 }
 

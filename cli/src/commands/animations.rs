@@ -36,7 +36,7 @@ pub fn run(path: &Path, as_json: bool) -> CmdResult {
         text.push_str(&format!(
             "{:>3}  {:<16} {:>3} channels  {:.4}–{:.4} s ({:.4} s)  {}  [{}]\n",
             a.index,
-            a.name.as_deref().unwrap_or("(unnamed)"),
+            a.name.as_deref().map_or_else(|| "(unnamed)".to_string(), gltf::printable),
             a.channels,
             a.start,
             a.end,

@@ -78,11 +78,15 @@ impl<T, E: Into<Box<dyn StdError + Send + Sync>>> WithContext<T> for Result<T, E
     }
 }
 
-/// Parses a frame rate for `--fps`: a finite positive number.
+/// Parses a frame rate for `--fps`: a number in [`formats::FRAME_RATE_RANGE`].
 pub fn parse_fps(text: &str) -> Result<f32, String> {
     match text.trim().parse::<f32>() {
-        Ok(f) if f.is_finite() && f > 0.0 => Ok(f),
-        _ => Err(format!("'{text}' is not a finite positive frame rate")),
+        Ok(f) if formats::FRAME_RATE_RANGE.contains(&f) => Ok(f),
+        _ => Err(format!(
+            "'{text}' is not a frame rate in {}..={} frames per second",
+            formats::FRAME_RATE_RANGE.start(),
+            formats::FRAME_RATE_RANGE.end()
+        )),
     }
 }
 
@@ -204,7 +208,8 @@ mod tests {
         assert!(parse_bytes("99999999999999999999T").is_err());
         assert!(parse_bytes("16777216T").is_err());
         assert_eq!(parse_fps("24"), Ok(24.0));
-        for bad in ["0", "-3", "nan", "inf", "x"] {
+        assert_eq!(parse_fps("1e4"), Ok(1e4));
+        for bad in ["0", "-3", "nan", "inf", "x", "1e-45", "1e5", "0.0009"] {
             assert!(parse_fps(bad).is_err(), "{bad}");
         }
     }

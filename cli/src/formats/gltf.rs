@@ -24,35 +24,58 @@
 //! - **Sampling**: from the first to the last key time over all channels,
 //!   `floor(duration × fps) + 1` frames at `t₀ + k / fps`. `fps`: the caller's, else the rate
 //!   animcodec's writer stores in the animation's `extras`, else the rate of the key grid when
-//!   every key lies on one (RobotExpressive: 24, Horse: 10), else 30. Interpolation: `STEP`,
+//!   every key lies on one (RobotExpressive: 24, Horse: 10), else 30. Every rate lies in
+//!   [`super::FRAME_RATE_RANGE`]; keys on a grid faster than its top (10⁴ fps), or an animation
+//!   that spans less than one frame at the file's own rate, are refused by name rather than
+//!   collapsed to one frame. Interpolation: `STEP`,
 //!   `LINEAR` (rotations: slerp along the short arc), and `CUBICSPLINE` evaluated with the
 //!   Hermite formula (spec Appendix C), rotations normalized ([`super::gltf_anim`]). Before
 //!   its first key a channel holds its first value, after its last key its last value.
 //! - Arithmetic in `f64`, positions rounded to `f32` once at the end.
-//! - Images are never loaded (only buffers), so textures in unsupported formats do not matter.
-//! - **Buffers** are loaded here, not by `gltf::import_buffers`: the crate's `import` feature
-//!   also compiles an image decoder this reader never uses, and its loader panics on a
-//!   malformed percent-encoded URI. Supported: the GLB `BIN` chunk, `data:` URIs in base64, and
-//!   relative or `file:` paths (only with a `base` directory). Each buffer must hold at least its
-//!   declared `byteLength`; the declared length is checked against [`Limits`] before reading.
 //!
-//! Every accessor is checked (type, component type, count, range) before the `gltf` reader is
-//! used, because the reader panics on some invalid combinations; joint indices, inverse bind
-//! matrix counts and the node hierarchy (one parent per node, no cycles) are checked too. As a
-//! last line of defence the whole parse runs under `catch_unwind` and a panic inside the crate
-//! becomes an error.
+//! What is read, and what is refused (issue 27: a reader that reads geometry and stays in its
+//! folder):
+//! - **Only geometry.** Materials, textures, images and samplers are dropped from the JSON
+//!   before the `gltf` crate sees it, so texture formats and their extensions never matter.
+//!   `asset.version` must be 2.x. A required extension is accepted when it is implemented here
+//!   (`KHR_mesh_quantization`, `EXT_meshopt_compression` with every mode and filter), or when it
+//!   only describes appearance ([`APPEARANCE_PREFIXES`]: materials, textures, lights,
+//!   metadata); any other (Draco, GPU instancing, animation pointers, unknown names) is refused
+//!   by name, since it may change the geometry.
+//! - **Buffers** are loaded here, not by `gltf::import_buffers` (whose loader follows any
+//!   path and panics on a malformed percent-encoded URI), and only those an accessor used for
+//!   geometry (positions, morph targets, joints and weights, indices, inverse bind matrices,
+//!   animation samplers) reads. Sources: the GLB `BIN` chunk, base64 `data:` URIs, and relative
+//!   paths inside the glTF file's own folder (or below it): no absolute path, no `..`, no
+//!   symbolic link leading out, regular files only (no FIFO or device), each file's size
+//!   checked against its `byteLength` and the memory budget before a byte is read, and only
+//!   `byteLength` bytes read.
+//! - **Memory**: everything the read holds (buffers, mesh data, the baked positions and
+//!   triangles) is counted against one budget ([`GltfSelection::memory_budget`], else the
+//!   process default [`set_default_memory_budget`] — the binary's `--max-memory` — else
+//!   [`DEFAULT_MEMORY_BUDGET`]) before it is allocated, so a scene of 20 000 instances of one
+//!   mesh is refused in milliseconds instead of baking gigabytes.
+//! - **Accessors**: every accessor is checked before the `gltf` crate's readers see it: type,
+//!   component type (8/16-bit positions only with `KHR_mesh_quantization`), count, byteStride
+//!   at least the element size, byte ranges inside the view and the view inside its buffer,
+//!   sparse indices increasing and in range; joint indices, inverse bind matrix counts and the
+//!   node hierarchy (one parent per node, no cycles) are checked too. As a last line of
+//!   defence the whole parse runs under `catch_unwind` and a panic inside the crate becomes an
+//!   error (the binary installs a silent panic hook, so no panic text reaches the terminal).
 
 use std::panic::{catch_unwind, AssertUnwindSafe};
-use std::path::Path;
+use std::path::{Component, Path};
+use std::sync::atomic::{AtomicU64, Ordering};
 
 use ::gltf::accessor::{DataType, Dimensions};
 use ::gltf::Accessor;
 use base64::Engine as _;
 use codec_core::{Animation, Error, Limits, Result};
+use serde_json::Value;
 
 use super::gltf_meshopt;
 use super::gltf_scene::{self, Selection};
-use super::{name, read_file};
+use super::{check_frame_rate, name, read_file};
 
 pub use super::gltf_scene::AnimationInfo;
 
@@ -63,10 +86,57 @@ pub struct GltfSelection {
     pub animation: Option<String>,
     /// Sampling rate. `None`: the file's own (see the module docs).
     pub frame_rate: Option<f32>,
+    /// Most bytes the read may hold in total (buffers, mesh data, baked positions). `None`:
+    /// the process default ([`set_default_memory_budget`], else [`DEFAULT_MEMORY_BUDGET`]).
+    pub memory_budget: Option<u64>,
+}
+
+/// Memory a glTF read may hold when neither the caller nor the process sets a budget: 1 GiB,
+/// far above any real animated character (RobotExpressive baked at 24 fps: 5 MB) and far
+/// below the 3 GB a 20 000-instance scene asks for.
+pub const DEFAULT_MEMORY_BUDGET: u64 = 1 << 30;
+
+static PROCESS_MEMORY_BUDGET: AtomicU64 = AtomicU64::new(DEFAULT_MEMORY_BUDGET);
+
+/// Sets the memory budget of every later read that names none (the binary's `--max-memory`).
+pub fn set_default_memory_budget(bytes: u64) {
+    PROCESS_MEMORY_BUDGET.store(bytes, Ordering::Relaxed);
+}
+
+/// Bytes held by one read, counted against its budget before each allocation.
+pub(super) struct Budget {
+    file: String,
+    limit: u64,
+    held: u64,
+}
+
+impl Budget {
+    fn new(file: &str, limit: Option<u64>) -> Self {
+        Self {
+            file: file.to_owned(),
+            limit: limit.unwrap_or_else(|| PROCESS_MEMORY_BUDGET.load(Ordering::Relaxed)),
+            held: 0,
+        }
+    }
+
+    /// Counts `bytes` more (for `what`), or fails naming the total and the budget.
+    pub(super) fn take(&mut self, what: &str, bytes: u64) -> Result<()> {
+        let held = self.held.saturating_add(bytes);
+        if held > self.limit {
+            return Err(Error::LimitExceeded {
+                context: self.file.clone().into(),
+                field: format!("total memory of the read, {what} included (--max-memory raises it)").into(),
+                value: held,
+                limit: self.limit,
+            });
+        }
+        self.held = held;
+        Ok(())
+    }
 }
 
 /// Reads a `.gltf` or `.glb` file's scene played back as `selection` says. External buffers of
-/// a `.gltf` are resolved relative to the file's directory.
+/// a `.gltf` are resolved relative to the file's directory (and must lie inside it).
 pub fn read_gltf(path: &Path, selection: &GltfSelection) -> Result<Animation> {
     let bytes = read_file(path)?;
     let base = path.parent().map(|p| if p.as_os_str().is_empty() { Path::new(".") } else { p });
@@ -77,22 +147,21 @@ pub fn read_gltf(path: &Path, selection: &GltfSelection) -> Result<Animation> {
 /// external buffer URIs (`None`: only embedded and data-URI buffers work); `file` names the
 /// source in errors.
 pub fn parse_gltf(bytes: &[u8], base: Option<&Path>, file: &str, frame_rate: f32) -> Result<Animation> {
-    parse_gltf_with(bytes, base, file, &GltfSelection { animation: None, frame_rate: Some(frame_rate) })
+    parse_gltf_with(bytes, base, file, &GltfSelection { frame_rate: Some(frame_rate), ..Default::default() })
 }
 
 /// Parses glTF JSON or GLB bytes as `selection` says (see [`parse_gltf`]).
 pub fn parse_gltf_with(bytes: &[u8], base: Option<&Path>, file: &str, selection: &GltfSelection) -> Result<Animation> {
     if let Some(fps) = selection.frame_rate {
-        if !(fps.is_finite() && fps > 0.0) {
-            return Err(Error::InvalidAnimation(format!("frame rate {fps} is not a finite positive number")));
-        }
+        check_frame_rate(fps)?;
     }
     guarded(file, || {
+        let mut budget = Budget::new(file, selection.memory_budget);
         let (document, blob, raw) = parse_document(bytes, file)?;
-        let buffers = load_buffers(file, &document, base, blob, &raw)?;
+        let buffers = load_buffers(file, &document, base, blob, &raw, &mut budget)?;
         let wanted =
             Selection { animation: selection.animation.as_deref(), frame_rate: selection.frame_rate.map(f64::from) };
-        gltf_scene::bake(file, &document, &buffers, Some(&raw), &wanted)
+        gltf_scene::bake(file, &document, &buffers, &raw, &wanted, &mut budget)
     })
 }
 
@@ -102,14 +171,41 @@ pub fn list_animations(path: &Path) -> Result<Vec<AnimationInfo>> {
     let base = path.parent().map(|p| if p.as_os_str().is_empty() { Path::new(".") } else { p });
     let file = name(path);
     guarded(&file, || {
+        let mut budget = Budget::new(&file, None);
         let (document, blob, raw) = parse_document(&bytes, &file)?;
-        let buffers = load_buffers(&file, &document, base, blob, &raw)?;
+        let buffers = load_buffers(&file, &document, base, blob, &raw, &mut budget)?;
         gltf_scene::list(&file, &document, &buffers)
     })
 }
 
+/// `text` with every control character (ANSI escapes, newlines) written as a Rust-style escape
+/// (`\u{1b}`, `\n`), for printing names taken from a file on a terminal.
+pub fn printable(text: &str) -> String {
+    text.chars().map(|c| if c.is_control() { c.escape_default().to_string() } else { c.to_string() }).collect()
+}
+
 /// Extensions read here rather than by the `gltf` crate.
-const SUPPORTED_EXTENSIONS: [&str; 2] = ["KHR_mesh_quantization", gltf_meshopt::EXTENSION];
+const SUPPORTED_EXTENSIONS: [&str; 2] = [KHR_MESH_QUANTIZATION, gltf_meshopt::EXTENSION];
+
+/// The extension that allows 8/16-bit integer positions (and morph target displacements).
+pub(super) const KHR_MESH_QUANTIZATION: &str = "KHR_mesh_quantization";
+
+/// Prefixes of the extension families that describe appearance or metadata only (materials,
+/// textures and their formats, lights, XMP): never a reason to refuse a file for its geometry,
+/// even when required (`gltfpack -tc` requires `KHR_texture_basisu`).
+pub const APPEARANCE_PREFIXES: [&str; 11] = [
+    "KHR_materials_",
+    "KHR_texture_",
+    "EXT_texture_",
+    "MSFT_texture_",
+    "KHR_lights_",
+    "EXT_lights_",
+    "KHR_xmp",
+    "EXT_materials_",
+    "ADOBE_materials_",
+    "MSFT_packing_",
+    "KHR_techniques_webgl",
+];
 
 /// Runs `parse` with a panic inside the `gltf` crate turned into an error.
 fn guarded<T>(file: &str, parse: impl FnOnce() -> Result<T>) -> Result<T> {
@@ -124,13 +220,15 @@ pub(super) fn bad(file: &str, field: &'static str, detail: impl Into<String>) ->
 }
 
 /// Checks an accessor before handing it to the `gltf` reader: dimensions, component type,
-/// non-zero counts (the reader computes `count - 1`), and the vertex limit. Returns the count.
+/// non-zero counts (the reader computes `count - 1`), the vertex limit, and its byte layout
+/// ([`check_layout`]). Returns the count.
 pub(super) fn check_accessor(
     file: &str,
     field: &'static str,
     accessor: &Accessor,
     dims: Dimensions,
     types: &[DataType],
+    buffers: &[BufferData],
 ) -> Result<usize> {
     let what = format!("accessor {}", accessor.index());
     if accessor.dimensions() != dims {
@@ -158,7 +256,113 @@ pub(super) fn check_accessor(
             limit: (limits.max_triangles * 3) as u64,
         });
     }
+    check_layout(file, field, accessor, buffers)?;
     Ok(accessor.count())
+}
+
+/// The bytes `[start, start + stride·(count−1) + element)` of a view, checked: `stride` at
+/// least the element, the range inside the view, the view inside its (loaded) buffer. `what`
+/// names the accessor (and part) in errors.
+#[allow(clippy::too_many_arguments)]
+fn check_range(
+    file: &str,
+    field: &'static str,
+    what: &str,
+    view: &::gltf::buffer::View,
+    offset: usize,
+    count: usize,
+    element: usize,
+    buffers: &[BufferData],
+) -> Result<()> {
+    let v = view.index();
+    let stride = view.stride().unwrap_or(element);
+    if stride < element {
+        return Err(bad(
+            file,
+            field,
+            format!("{what}: bufferView {v} has byteStride {stride}, smaller than the {element}-byte element"),
+        ));
+    }
+    let held = buffers.get(view.buffer().index()).map_or(0, |b| b.0.len());
+    let view_end = view.offset().checked_add(view.length());
+    if view_end.is_none_or(|end| end > held) {
+        return Err(bad(
+            file,
+            field,
+            format!(
+                "{what}: bufferView {v} (byteOffset {}, byteLength {}) overflows or lies outside buffer {} ({held} bytes)",
+                view.offset(),
+                view.length(),
+                view.buffer().index()
+            ),
+        ));
+    }
+    let end = stride
+        .checked_mul(count.saturating_sub(1))
+        .and_then(|x| x.checked_add(element))
+        .and_then(|x| x.checked_add(offset));
+    match end {
+        Some(end) if end <= view.length() => Ok(()),
+        _ => Err(bad(
+            file,
+            field,
+            format!(
+                "{what}: {count} elements of {element} bytes at byteOffset {offset}, byteStride {stride} overflow \
+                 bufferView {v} (byteLength {})",
+                view.length()
+            ),
+        )),
+    }
+}
+
+/// Checks an accessor's bytes (see [`check_range`]) and its sparse block: indices of an index
+/// component type, strictly increasing and below the accessor's count, values in range.
+fn check_layout(file: &str, field: &'static str, accessor: &Accessor, buffers: &[BufferData]) -> Result<()> {
+    let what = format!("accessor {}", accessor.index());
+    let element = accessor.size();
+    let count = accessor.count();
+    if let Some(view) = accessor.view() {
+        check_range(file, field, &what, &view, accessor.offset(), count, element, buffers)?;
+    }
+    let Some(sparse) = accessor.sparse() else { return Ok(()) };
+    let n = sparse.count();
+    if n > count {
+        return Err(bad(file, field, format!("{what}: a sparse block of {n} for {count} elements")));
+    }
+    let indices = sparse.indices();
+    let index_size = match indices.index_type() {
+        ::gltf::accessor::sparse::IndexType::U8 => 1,
+        ::gltf::accessor::sparse::IndexType::U16 => 2,
+        ::gltf::accessor::sparse::IndexType::U32 => 4,
+    };
+    let index_view = indices.view();
+    let at = format!("{what} sparse indices");
+    // Sparse index and value views are tightly packed (spec: no byteStride); the crate reads
+    // them with the view's stride when one is given, so that stride is checked as well.
+    check_range(file, field, &at, &index_view, indices.offset(), n, index_size, buffers)?;
+    let values = sparse.values();
+    let at_values = format!("{what} sparse values");
+    check_range(file, field, &at_values, &values.view(), values.offset(), n, element, buffers)?;
+    let data = &buffers[index_view.buffer().index()].0;
+    let stride = index_view.stride().unwrap_or(index_size);
+    let start = index_view.offset() + indices.offset();
+    let mut previous: Option<u64> = None;
+    for k in 0..n {
+        let b = &data[start + k * stride..start + k * stride + index_size];
+        let index = match index_size {
+            1 => u64::from(b[0]),
+            2 => u64::from(u16::from_le_bytes([b[0], b[1]])),
+            _ => u64::from(u32::from_le_bytes([b[0], b[1], b[2], b[3]])),
+        };
+        if index >= count as u64 {
+            return Err(bad(file, field, format!("{at}: index {k} is {index}, out of range for {count} elements")));
+        }
+        if previous.is_some_and(|p| index <= p) {
+            return Err(bad(file, field, format!("{at}: index {k} ({index}) does not increase")));
+        }
+        previous = Some(index);
+    }
+    Ok(())
 }
 
 /// Collects exactly `count` items from a reader, or fails (the reader yields fewer items when the
@@ -176,27 +380,84 @@ pub(super) fn collect_exact<T>(
     Ok(items)
 }
 
-/// The bytes of one glTF buffer.
+/// The bytes of one glTF buffer (empty when no geometry accessor reads it).
 pub(super) struct BufferData(pub(super) Vec<u8>);
 
-/// Loads every buffer of `document` (see the module docs for the sources accepted).
+/// Which buffer views and buffers reading geometry may touch: the views of every accessor a
+/// mesh primitive uses for `POSITION`, `JOINTS_n`, `WEIGHTS_n`, its indices or a morph target's
+/// `POSITION`, a skin's inverse bind matrices, or an animation sampler (sparse index and value
+/// views included), their buffers, and for a meshopt-compressed view its compressed source.
+fn geometry_views(root: &::gltf::json::Root, raw: &Value) -> (Vec<bool>, Vec<bool>) {
+    use ::gltf::json::mesh::Semantic;
+    use ::gltf::json::validation::Checked;
+    let mut accessors = vec![false; root.accessors.len()];
+    let mut mark = |a: usize| {
+        if let Some(x) = accessors.get_mut(a) {
+            *x = true;
+        }
+    };
+    for primitive in root.meshes.iter().flat_map(|m| &m.primitives) {
+        for (semantic, accessor) in &primitive.attributes {
+            if matches!(semantic, Checked::Valid(Semantic::Positions | Semantic::Joints(_) | Semantic::Weights(_))) {
+                mark(accessor.value());
+            }
+        }
+        primitive.indices.iter().for_each(|a| mark(a.value()));
+        for target in primitive.targets.iter().flatten() {
+            target.positions.iter().for_each(|a| mark(a.value()));
+        }
+    }
+    root.skins.iter().filter_map(|s| s.inverse_bind_matrices).for_each(|a| mark(a.value()));
+    for sampler in root.animations.iter().flat_map(|a| &a.samplers) {
+        mark(sampler.input.value());
+        mark(sampler.output.value());
+    }
+    let mut views = vec![false; root.buffer_views.len()];
+    for accessor in root.accessors.iter().zip(&accessors).filter(|(_, used)| **used).map(|(a, _)| a) {
+        let sparse = accessor.sparse.iter().flat_map(|s| [s.indices.buffer_view, s.values.buffer_view]);
+        for v in accessor.buffer_view.into_iter().chain(sparse) {
+            if let Some(x) = views.get_mut(v.value()) {
+                *x = true;
+            }
+        }
+    }
+    let mut buffers = vec![false; root.buffers.len()];
+    for (v, view) in root.buffer_views.iter().enumerate().filter(|(v, _)| views[*v]) {
+        let compressed = raw
+            .pointer(&format!("/bufferViews/{v}/extensions/{}/buffer", gltf_meshopt::EXTENSION))
+            .and_then(Value::as_u64);
+        for b in std::iter::once(view.buffer.value()).chain(compressed.map(|b| b as usize)) {
+            if let Some(x) = buffers.get_mut(b) {
+                *x = true;
+            }
+        }
+    }
+    (views, buffers)
+}
+
+/// Loads every buffer geometry reading uses (see the module docs for the sources accepted);
+/// the others stay empty and are never opened.
 fn load_buffers(
     file: &str,
     document: &::gltf::Document,
     base: Option<&Path>,
     mut blob: Option<Vec<u8>>,
-    raw: &serde_json::Value,
+    raw: &Value,
+    budget: &mut Budget,
 ) -> Result<Vec<BufferData>> {
     let limits = Limits::default();
+    let (used_views, used_buffers) = geometry_views(document.as_json(), raw);
     let mut buffers = Vec::with_capacity(document.buffers().len());
-    // Every buffer is held at once: their declared lengths are checked as one total (a file may
-    // declare many large fallback buffers, each zero-filled here).
-    let mut total = 0u64;
     for buffer in document.buffers() {
         let index = buffer.index();
         let declared = buffer.length();
-        total = total.saturating_add(declared as u64);
-        limits.check_alloc("gltf", "buffers (total byteLength)", total)?;
+        if !used_buffers[index] {
+            buffers.push(BufferData(Vec::new()));
+            continue;
+        }
+        // Every buffer is held at once: their declared lengths count as one total.
+        budget.take("the buffers' byteLength", declared as u64)?;
+        limits.check_alloc("gltf", "buffers", declared as u64)?;
         let data = match buffer.source() {
             // An EXT_meshopt_compression fallback buffer: filled by decoding the views below.
             ::gltf::buffer::Source::Bin if gltf_meshopt::is_fallback(raw, index) => vec![0; declared],
@@ -214,11 +475,12 @@ fn load_buffers(
         }
         buffers.push(BufferData(data));
     }
-    gltf_meshopt::decode_views(file, raw, &mut buffers, &limits)?;
+    gltf_meshopt::decode_views(file, raw, &mut buffers, &used_views, &limits)?;
     Ok(buffers)
 }
 
-/// Reads a buffer URI: `data:[type];base64,...`, `file:PATH`, or a percent-encoded relative path.
+/// Reads a buffer URI: `data:[type];base64,...`, or a percent-encoded relative path inside
+/// `base` (see [`read_external`]).
 fn read_uri(
     file: &str,
     index: usize,
@@ -239,29 +501,137 @@ fn read_uri(
             .decode(payload)
             .map_err(|e| fail(format!("invalid base64 in data URI ({e})")));
     }
-    let path = match uri.strip_prefix("file://").or_else(|| uri.strip_prefix("file:")) {
-        Some(path) => path.to_owned(),
-        None if uri.contains(':') => return Err(fail(format!("unsupported URI scheme in '{uri}'"))),
-        None => percent_encoding::percent_decode_str(uri)
-            .decode_utf8()
-            .map_err(|_| fail(format!("URI '{uri}' is not valid percent-encoded UTF-8")))?
-            .into_owned(),
+    if uri.contains(':') {
+        // `file:` URIs name absolute paths; other schemes (http:, …) are not fetched.
+        return Err(fail(format!(
+            "unsupported URI scheme in '{}' (only relative paths and data: URIs)",
+            printable(uri)
+        )));
+    }
+    let path = percent_encoding::percent_decode_str(uri)
+        .decode_utf8()
+        .map_err(|_| fail(format!("URI '{}' is not valid percent-encoded UTF-8", printable(uri))))?
+        .into_owned();
+    let base =
+        base.ok_or_else(|| fail(format!("external file '{}' but no directory to resolve it in", printable(&path))))?;
+    read_external(base, &path, declared).map_err(|detail| fail(format!("'{}': {detail}", printable(&path))))
+}
+
+/// Reads the first `declared` bytes of `relative` inside `folder`: a relative path of plain
+/// components (no root, no `..`), which after resolving symbolic links still lies inside the
+/// folder, names a regular file (not a FIFO, device or directory: those could block or never
+/// end) and holds at least `declared` bytes. The file is checked before it is opened and the
+/// opened handle again (same file, still regular), so a swap in between is noticed; only a
+/// FIFO swapped in during that instant could still block the open.
+fn read_external(folder: &Path, relative: &str, declared: usize) -> std::result::Result<Vec<u8>, String> {
+    let path = Path::new(relative);
+    let plain = path.components().all(|c| matches!(c, Component::Normal(_) | Component::CurDir));
+    if relative.is_empty() || !plain {
+        return Err(
+            "not a relative path inside the glTF file's folder (absolute paths and '..' are not followed)".into()
+        );
+    }
+    let folder = folder.canonicalize().map_err(|e| format!("cannot resolve the glTF file's folder: {e}"))?;
+    let real = folder.join(path).canonicalize().map_err(|e| format!("cannot open: {e}"))?;
+    if !real.starts_with(&folder) {
+        return Err("leads outside the glTF file's folder (through a symbolic link)".into());
+    }
+    let meta = std::fs::metadata(&real).map_err(|e| format!("cannot open: {e}"))?;
+    if !meta.is_file() {
+        return Err("not a regular file".into());
+    }
+    if meta.len() < declared as u64 {
+        return Err(format!("holds {} bytes but the buffer declares byteLength {declared}", meta.len()));
+    }
+    let opened = std::fs::File::open(&real).map_err(|e| format!("cannot open: {e}"))?;
+    let now = opened.metadata().map_err(|e| format!("cannot open: {e}"))?;
+    #[cfg(unix)]
+    let same = {
+        use std::os::unix::fs::MetadataExt;
+        now.dev() == meta.dev() && now.ino() == meta.ino()
     };
-    let base = base.ok_or_else(|| fail(format!("external file '{path}' but no directory to resolve it in")))?;
-    let full = base.join(&path);
-    // Only the declared length is used (already checked against the limits), so a longer file
-    // is read no further than that.
-    let opened = std::fs::File::open(&full).map_err(|e| fail(format!("cannot open '{}': {e}", full.display())))?;
+    #[cfg(not(unix))]
+    let same = true;
+    if !(now.is_file() && same) {
+        return Err("changed while being opened".into());
+    }
     let mut data = Vec::with_capacity(declared);
     std::io::Read::read_to_end(&mut std::io::Read::take(opened, declared as u64), &mut data)
-        .map_err(|e| fail(format!("cannot read '{}': {e}", full.display())))?;
+        .map_err(|e| format!("cannot read: {e}"))?;
     Ok(data)
 }
 
-/// Splits a GLB (or takes glTF JSON), deserializes the JSON, checks every index in it
+/// `asset.version` must be 2.x (and `asset.minVersion`, when given, 2.0): a glTF 3 file may
+/// mean anything.
+fn check_version(file: &str, raw: &Value) -> Result<()> {
+    let major =
+        |v: &str| v.split_once('.').filter(|(_, minor)| minor.parse::<u32>().is_ok()).map(|(m, _)| m.to_owned());
+    let version = raw.pointer("/asset/version").and_then(Value::as_str);
+    match version {
+        None => return Err(bad(file, "asset.version", "missing (a glTF 2.0 file says \"2.0\")")),
+        Some(v) if major(v).as_deref() != Some("2") => {
+            return Err(bad(file, "asset.version", format!("'{}' is not 2.x; only glTF 2 is read", printable(v))))
+        }
+        Some(_) => {}
+    }
+    if let Some(min) = raw.pointer("/asset/minVersion") {
+        if min.as_str() != Some("2.0") {
+            return Err(bad(file, "asset.minVersion", format!("{min} is not 2.0; only glTF 2.0 is read")));
+        }
+    }
+    Ok(())
+}
+
+/// Every required extension must be implemented here or describe appearance only (see the
+/// module docs); the others are refused by name.
+fn check_required_extensions(file: &str, raw: &Value) -> Result<()> {
+    let Some(required) = raw.get("extensionsRequired") else { return Ok(()) };
+    let list = required.as_array().ok_or_else(|| bad(file, "extensionsRequired", "not an array"))?;
+    for name in list {
+        let name = name.as_str().ok_or_else(|| bad(file, "extensionsRequired", format!("{name} is not a name")))?;
+        let appearance = APPEARANCE_PREFIXES.iter().any(|p| name.starts_with(p));
+        if !(SUPPORTED_EXTENSIONS.contains(&name) || appearance) {
+            return Err(Error::Unsupported {
+                context: file.to_owned().into(),
+                detail: format!(
+                    "the file requires extension {}, which may change the geometry and is not supported \
+                     (supported: {}; appearance-only extensions are ignored)",
+                    printable(name),
+                    SUPPORTED_EXTENSIONS.join(", ")
+                ),
+            });
+        }
+    }
+    Ok(())
+}
+
+/// The document without what this reader never uses and the `gltf` crate would validate:
+/// materials, textures, images, samplers (and the primitives' material references). Texture
+/// extensions such as `KHR_texture_basisu` move a texture's `source` into the extension, which
+/// the crate's own schema would refuse.
+fn geometry_only(raw: &Value) -> Value {
+    let mut v = raw.clone();
+    if let Some(root) = v.as_object_mut() {
+        for key in ["materials", "textures", "images", "samplers"] {
+            root.remove(key);
+        }
+        root.remove("extensionsRequired");
+    }
+    for mesh in v.get_mut("meshes").and_then(Value::as_array_mut).into_iter().flatten() {
+        for primitive in mesh.get_mut("primitives").and_then(Value::as_array_mut).into_iter().flatten() {
+            if let Some(p) = primitive.as_object_mut() {
+                p.remove("material");
+            }
+        }
+    }
+    v
+}
+
+/// Splits a GLB (or takes glTF JSON), checks its version and required extensions, drops what
+/// is not geometry ([`geometry_only`]), deserializes it, checks every index in it
 /// ([`check_indices`]) and only then lets the `gltf` crate validate it (its validation indexes
 /// arrays unchecked in places: a `POSITION` accessor index out of range panics there).
-fn parse_document(bytes: &[u8], file: &str) -> Result<(::gltf::Document, Option<Vec<u8>>, serde_json::Value)> {
+fn parse_document(bytes: &[u8], file: &str) -> Result<(::gltf::Document, Option<Vec<u8>>, Value)> {
     let (json, blob) = if bytes.starts_with(b"glTF") {
         // The crate computes `length - 12` unchecked (an overflow panic, found by fuzzing).
         let declared = bytes.get(8..12).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]));
@@ -281,13 +651,12 @@ fn parse_document(bytes: &[u8], file: &str) -> Result<(::gltf::Document, Option<
     } else {
         (bytes.to_vec(), None)
     };
-    let mut root: ::gltf::json::Root =
-        ::gltf::json::deserialize::from_slice(&json).map_err(|e| bad(file, "gltf", e.to_string()))?;
+    let raw: Value = serde_json::from_slice(&json).map_err(|e| bad(file, "gltf", e.to_string()))?;
+    check_version(file, &raw)?;
+    check_required_extensions(file, &raw)?;
+    let root: ::gltf::json::Root =
+        serde_json::from_value(geometry_only(&raw)).map_err(|e| bad(file, "gltf", e.to_string()))?;
     check_indices(file, &root)?;
-    // The extensions this reader implements itself (the crate refuses to load files requiring
-    // them); their data is read from the raw JSON, which keeps every extension object.
-    root.extensions_required.retain(|e| !SUPPORTED_EXTENSIONS.contains(&e.as_str()));
-    let raw: serde_json::Value = serde_json::from_slice(&json).map_err(|e| bad(file, "gltf", e.to_string()))?;
     let document = ::gltf::Document::from_json(root).map_err(|e| bad(file, "gltf", e.to_string()))?;
     Ok((document, blob, raw))
 }
@@ -846,7 +1215,8 @@ mod tests {
         let (b, doc) = two_bone_skin();
         let glb = b.glb(&doc);
         let read = |fps: f32| {
-            let selection = GltfSelection { animation: Some("Bend".into()), frame_rate: Some(fps) };
+            let selection =
+                GltfSelection { animation: Some("Bend".into()), frame_rate: Some(fps), ..Default::default() };
             parse_gltf_with(&glb, None, "skin.glb", &selection).unwrap()
         };
         let a = read(1.0);
@@ -873,7 +1243,7 @@ mod tests {
         // v2: (1.5, 1, 0) turned by 22.5°, + (0, 1, 0) + (0, 0, 0.5).
         assert_close(a.vertex(1, 5), [1.5 * c - s, 1.5 * s + c + 1.0, 0.5], "v2 at t = 0.25");
         // The same file picked by index, and by default (the first animation).
-        let by_index = GltfSelection { animation: Some("0".into()), frame_rate: Some(1.0) };
+        let by_index = GltfSelection { animation: Some("0".into()), frame_rate: Some(1.0), ..Default::default() };
         assert_eq!(parse_gltf_with(&glb, None, "skin.glb", &by_index).unwrap().positions(), read(1.0).positions());
         // Default rate: the keys' own (1 s apart → 1 fps).
         let own = parse_gltf_with(&glb, None, "skin.glb", &GltfSelection::default()).unwrap();
@@ -899,7 +1269,7 @@ mod tests {
             "channels": [{"sampler": 0, "target": {"node": 0, "path": "translation"}},
                          {"sampler": 1, "target": {"node": 0, "path": "rotation"}}]}]);
         let doc = b.scene_document(nodes, json!([0]), meshes, json!([]), animations);
-        let selection = GltfSelection { animation: None, frame_rate: Some(2.0) };
+        let selection = GltfSelection { animation: None, frame_rate: Some(2.0), ..Default::default() };
         let a = parse_gltf_with(&b.glb(&doc), None, "node.glb", &selection).unwrap();
         assert_eq!(a.frame_count(), 5);
         // Hermite with zero tangents at s: h00·q0 + h01·q1, normalized.
@@ -981,10 +1351,10 @@ mod tests {
             parse_gltf(&b.glb(&doc), None, "pad.glb", 1.0).unwrap().positions()
         );
         // Animations by name: a missing one lists what the file has.
-        let selection = GltfSelection { animation: Some("Jump".into()), frame_rate: None };
+        let selection = GltfSelection { animation: Some("Jump".into()), ..Default::default() };
         let e = parse_gltf_with(&b.glb(&doc), None, "skin.glb", &selection).unwrap_err().to_string();
         assert!(e.contains("no animation named or numbered 'Jump'") && e.contains("0 'Bend'"), "{e}");
-        let selection = GltfSelection { animation: Some("3".into()), frame_rate: None };
+        let selection = GltfSelection { animation: Some("3".into()), ..Default::default() };
         assert!(parse_gltf_with(&b.glb(&doc), None, "skin.glb", &selection).is_err());
     }
 
@@ -1030,7 +1400,8 @@ mod tests {
             (Box::new(move |d| ext(d, view)["buffer"] = json!(7)), "buffer 7"),
             (Box::new(move |d| ext(d, view)["byteLength"] = json!(1u64 << 40)), "outside buffer"),
             (Box::new(move |d| ext(d, view)["mode"] = json!("WIGGLE")), "unknown mode"),
-            (Box::new(move |d| ext(d, view)["filter"] = json!("OCTAHEDRAL")), "filter OCTAHEDRAL"),
+            (Box::new(move |d| ext(d, view)["filter"] = json!("SPIRAL")), "unknown filter"),
+            (Box::new(move |d| ext(d, view)["filter"] = json!(3)), "filter is not a string"),
             (Box::new(move |d| ext(d, view)["byteStride"] = json!(6)), "byteStride 6"),
             (Box::new(move |d| ext(d, view)["count"] = json!(1u64 << 40)), "EXT_meshopt_compression"),
             (Box::new(move |d| ext(d, view)["byteLength"] = json!(3)), "implausibly large"),
@@ -1163,6 +1534,47 @@ mod tests {
         assert_fails(parse_glb(&b, &doc), &["t.glb", "playback work", "20000000000"]);
     }
 
+    /// Mode INDICES (meshoptimizer's index sequence codec): the writer's plain index view
+    /// re-encoded as an index sequence into a fallback buffer reads back the same triangles.
+    #[test]
+    fn meshopt_indices_mode_is_read() {
+        use super::super::gltf_out::{encode_gltf, GltfLayout, GltfOptions};
+        let a = codec_core::synth::waving_flag(8, 5, 6);
+        let opts = GltfOptions { layout: GltfLayout::Frames, ..Default::default() };
+        let (text, _) = encode_gltf(&a, &opts, false).unwrap();
+        let mut doc: Value = serde_json::from_slice(&text).unwrap();
+        let read = |d: &Value| parse_gltf(&serde_json::to_vec(d).unwrap(), None, "m.gltf", a.frame_rate());
+        let expected = read(&doc).unwrap();
+        let indices = doc["meshes"][0]["primitives"][0]["indices"].as_u64().unwrap() as usize;
+        let view = doc["accessors"][indices]["bufferView"].as_u64().unwrap() as usize;
+        let stride = if doc["accessors"][indices]["componentType"] == 5125 { 4 } else { 2 };
+        let flat: Vec<u32> = expected.triangles().iter().flatten().copied().collect();
+        let sequence = gltf_meshopt::encode_index_sequence(&flat);
+        let uri = doc["buffers"][0]["uri"].as_str().unwrap().to_owned();
+        let (prefix, data) = uri.split_once(";base64,").unwrap();
+        let mut bytes = base64::engine::general_purpose::STANDARD.decode(data).unwrap();
+        bytes.resize(bytes.len().next_multiple_of(4), 0);
+        let offset = bytes.len();
+        bytes.extend(&sequence);
+        let encoded = base64::engine::general_purpose::STANDARD.encode(&bytes);
+        doc["buffers"][0]["uri"] = json!(format!("{prefix};base64,{encoded}"));
+        doc["buffers"][0]["byteLength"] = json!(bytes.len());
+        let size = flat.len() * stride;
+        let fallback = doc["buffers"].as_array().unwrap().len();
+        doc["buffers"].as_array_mut().unwrap().push(
+            json!({"byteLength": size.next_multiple_of(4), "extensions": {"EXT_meshopt_compression": {"fallback": true}}}),
+        );
+        doc["bufferViews"][view] = json!({"buffer": fallback, "byteOffset": 0, "byteLength": size,
+            "extensions": {"EXT_meshopt_compression": {"buffer": 0, "byteOffset": offset,
+                "byteLength": sequence.len(), "byteStride": stride, "count": flat.len(), "mode": "INDICES"}}});
+        let back = read(&doc).unwrap();
+        assert_eq!(back.triangles(), expected.triangles());
+        assert_eq!(back.positions(), expected.positions());
+        // A truncated sequence is an error naming the view.
+        doc["bufferViews"][view]["extensions"]["EXT_meshopt_compression"]["byteLength"] = json!(sequence.len() - 1);
+        assert_fails(read(&doc), &["m.gltf", &format!("bufferView {view}"), "INDICES data malformed"]);
+    }
+
     #[test]
     fn meshopt_sizes_are_checked_before_decoding() {
         use super::super::gltf_out::{encode_gltf, GltfLayout, GltfOptions};
@@ -1195,15 +1607,18 @@ mod tests {
         outside["bufferViews"][view]["byteLength"] = json!(count * stride);
         outside["bufferViews"][view]["byteOffset"] = json!(0);
         assert_fails(read(&outside), &["m.gltf", "EXT_meshopt_compression", "do not fit"]);
-        // Fallback buffers are counted as one total against the allocation limit.
+        // Fallback buffers no geometry view uses are never allocated; a used one counts
+        // against the read's memory budget before it is.
         let mut many = doc.clone();
         let fallback = json!({"byteLength": 3u64 << 30, "extensions": {"EXT_meshopt_compression": {"fallback": true}}});
         many["buffers"].as_array_mut().unwrap().extend([fallback.clone(), fallback]);
-        assert_fails(read(&many), &["buffers (total byteLength)"]);
-        // Mode INDICES is refused by name.
+        assert!(read(&many).is_ok());
+        many["buffers"][target]["byteLength"] = json!(3u64 << 30);
+        assert_fails(read(&many), &["m.gltf", "memory", "buffers' byteLength"]);
+        // Mode INDICES on a vertex view (its byteStride is not an index size) is refused by name.
         let mut indices = doc.clone();
         indices["bufferViews"][view]["extensions"]["EXT_meshopt_compression"]["mode"] = json!("INDICES");
-        assert_fails(read(&indices), &["m.gltf", "mode INDICES is not supported"]);
+        assert_fails(read(&indices), &["m.gltf", "INDICES with byteStride"]);
     }
 
     #[test]

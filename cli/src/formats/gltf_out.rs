@@ -453,6 +453,16 @@ pub fn encode_gltf(animation: &Animation, options: &GltfOptions, glb: bool) -> R
             format!("{} is not a finite positive KG (%)", options.target_kg),
         ));
     }
+    // Keys sit at frame / fps seconds: outside the range they overflow or collapse in f32
+    // (1e-45 fps put frame 1 at +inf s, an invalid file).
+    super::check_frame_rate(animation.frame_rate()).map_err(|e| match e {
+        Error::InvalidAnimation(msg) => Error::parameter(
+            "glTF export",
+            "frame rate",
+            format!("{msg}: its keys (frame / fps seconds) would not be valid glTF times"),
+        ),
+        other => other,
+    })?;
     let full = animation;
     let (morphs, motion, local) = match options.layout {
         GltfLayout::Frames => (frame_morphs(full), None, None),

@@ -9,9 +9,9 @@ use ::gltf::mesh::Mode;
 use ::gltf::Semantic;
 use codec_core::{Animation, Error, Limits, Result};
 
-use super::gltf::{bad, check_accessor, collect_exact, BufferData};
+use super::gltf::{bad, check_accessor, collect_exact, printable, Budget, BufferData, KHR_MESH_QUANTIZATION};
 use super::gltf_anim::{self, Mat4, Track, IDENTITY};
-use super::in_file;
+use super::{in_file, FRAME_RATE_RANGE};
 
 /// Frame rate when neither the caller, the file's `extras` nor a regular key grid gives one.
 const FALLBACK_FPS: f64 = 30.0;
@@ -118,7 +118,9 @@ const MAX_MORPH_TARGETS: usize = 4096;
 const MAX_JOINT_SETS: usize = 8;
 
 /// Loads a mesh: every primitive, in order (primitive `k`'s vertices follow those of `0..k`).
-fn load_mesh(file: &str, mesh: &::gltf::Mesh, buffers: &[BufferData]) -> Result<MeshData> {
+/// `quantization`: the file uses `KHR_mesh_quantization` (8/16-bit positions and displacements
+/// allowed; without it the core spec allows only `f32`).
+fn load_mesh(file: &str, mesh: &::gltf::Mesh, buffers: &[BufferData], quantization: bool) -> Result<MeshData> {
     let limits = Limits::default();
     let m = mesh.index();
     let first = mesh.primitives().next();
@@ -155,11 +157,27 @@ fn load_mesh(file: &str, mesh: &::gltf::Mesh, buffers: &[BufferData]) -> Result<
         let positions = primitive
             .get(&Semantic::Positions)
             .ok_or_else(|| bad(file, "POSITION", format!("mesh {m} primitive {p} has no POSITION")))?;
-        let quantized = [DataType::F32, DataType::I8, DataType::U8, DataType::I16, DataType::U16];
-        let n = check_accessor(file, "POSITION", &positions, Dimensions::Vec3, &quantized)?;
+        let quantized: &[DataType] = if quantization {
+            &[DataType::F32, DataType::I8, DataType::U8, DataType::I16, DataType::U16]
+        } else {
+            &[DataType::F32]
+        };
+        if !quantized.contains(&positions.data_type()) {
+            return Err(bad(
+                file,
+                "POSITION",
+                format!(
+                    "mesh {m} primitive {p}: accessor {} has component type {:?}; integer positions need \
+                     {KHR_MESH_QUANTIZATION} in extensionsUsed",
+                    positions.index(),
+                    positions.data_type()
+                ),
+            ));
+        }
         let offset = data.vertex_count();
-        // Sizes are checked before anything is read: every target may name the same accessor.
-        let vertices = offset.saturating_add(n);
+        // Sizes are checked before anything is read (or its layout checked): every target may
+        // name the same accessor.
+        let vertices = offset.saturating_add(positions.count());
         if vertices > limits.max_vertices {
             return Err(limit(file, "vertex_count", vertices, limits.max_vertices));
         }
@@ -172,6 +190,7 @@ fn load_mesh(file: &str, mesh: &::gltf::Mesh, buffers: &[BufferData]) -> Result<
                 limits.max_alloc_bytes,
             ));
         }
+        let n = check_accessor(file, "POSITION", &positions, Dimensions::Vec3, quantized, buffers)?;
         if primitive.morph_targets().len() != target_count {
             return Err(bad(
                 file,
@@ -184,7 +203,7 @@ fn load_mesh(file: &str, mesh: &::gltf::Mesh, buffers: &[BufferData]) -> Result<
         }
         for target in primitive.morph_targets() {
             if let Some(acc) = target.positions() {
-                let count = check_accessor(file, "targets.POSITION", &acc, Dimensions::Vec3, &quantized)?;
+                let count = check_accessor(file, "targets.POSITION", &acc, Dimensions::Vec3, quantized, buffers)?;
                 if count != n {
                     return Err(bad(
                         file,
@@ -203,7 +222,8 @@ fn load_mesh(file: &str, mesh: &::gltf::Mesh, buffers: &[BufferData]) -> Result<
         }
         for s in 0..sets as u32 {
             let joints = primitive.get(&Semantic::Joints(s)).expect("counted above");
-            let count = check_accessor(file, "JOINTS", &joints, Dimensions::Vec4, &[DataType::U8, DataType::U16])?;
+            let count =
+                check_accessor(file, "JOINTS", &joints, Dimensions::Vec4, &[DataType::U8, DataType::U16], buffers)?;
             let weights = primitive.get(&Semantic::Weights(s)).ok_or_else(|| {
                 bad(file, "WEIGHTS", format!("mesh {m} primitive {p} has JOINTS_{s} but no WEIGHTS_{s}"))
             })?;
@@ -213,6 +233,7 @@ fn load_mesh(file: &str, mesh: &::gltf::Mesh, buffers: &[BufferData]) -> Result<
                 &weights,
                 Dimensions::Vec4,
                 &[DataType::F32, DataType::U8, DataType::U16],
+                buffers,
             )?;
             if count != n || wcount != n {
                 return Err(bad(
@@ -229,6 +250,7 @@ fn load_mesh(file: &str, mesh: &::gltf::Mesh, buffers: &[BufferData]) -> Result<
                 &acc,
                 Dimensions::Scalar,
                 &[DataType::U8, DataType::U16, DataType::U32],
+                buffers,
             )?),
             None => None,
         };
@@ -453,7 +475,8 @@ fn load_channels(
             }
         }
         let sampler = channel.sampler();
-        let keys = check_accessor(file, "animation.input", &sampler.input(), Dimensions::Scalar, &[DataType::F32])?;
+        let keys =
+            check_accessor(file, "animation.input", &sampler.input(), Dimensions::Scalar, &[DataType::F32], buffers)?;
         let normalized = [DataType::F32, DataType::I8, DataType::U8, DataType::I16, DataType::U16];
         let (dims, types, width): (Dimensions, &[DataType], usize) = match property {
             Property::Translation | Property::Scale => (Dimensions::Vec3, &[DataType::F32], 3),
@@ -467,7 +490,7 @@ fn load_channels(
                 format!("{}: a weights animation on node {}, whose mesh has no morph targets", at(), node.index()),
             ));
         }
-        let outputs = check_accessor(file, "animation.output", &sampler.output(), dims, types)?;
+        let outputs = check_accessor(file, "animation.output", &sampler.output(), dims, types, buffers)?;
         let interpolation = sampler.interpolation();
         let per_key = if interpolation == Interpolation::CubicSpline { 3 * width } else { width };
         let expected = keys * per_key;
@@ -516,10 +539,15 @@ fn load_channels(
     Ok(out)
 }
 
+/// Lowest key-grid rate used as the sampling rate: keys further apart than a second are
+/// sampled at [`FALLBACK_FPS`] instead (a 2-key, 10-second animation is not meant as 0.1 fps).
+const MIN_KEY_RATE: f64 = 1.0;
+
 /// The rate of the key grid: `1 / Δ` for the smallest key spacing `Δ` when every key time of
 /// every channel is a whole number of `Δ` after the first (within 1 % of `Δ`), rounded to an
-/// integer when within 0.1 % of one, between 1 and 240 fps; `None` otherwise.
-fn key_rate(channels: &[Channel]) -> Option<f64> {
+/// integer when within 0.1 % of one; `None` otherwise. Any rate: the caller refuses one above
+/// [`FRAME_RATE_RANGE`] by name.
+fn key_grid(channels: &[Channel]) -> Option<f64> {
     let mut times: Vec<f64> = channels.iter().flat_map(|c| c.track.times.iter().map(|&t| t as f64)).collect();
     times.sort_by(f64::total_cmp);
     times.dedup_by(|a, b| (*a - *b).abs() <= 1e-6 * b.abs().max(1.0));
@@ -534,7 +562,13 @@ fn key_rate(channels: &[Channel]) -> Option<f64> {
     let rate = 1.0 / step;
     let rounded = rate.round();
     let rate = if (rate - rounded).abs() <= 1e-3 * rounded { rounded } else { rate };
-    (on_grid && (1.0..=240.0).contains(&rate)).then_some(rate)
+    on_grid.then_some(rate)
+}
+
+/// The key grid's rate when it is the one sampling uses by default: between [`MIN_KEY_RATE`]
+/// and the top of [`FRAME_RATE_RANGE`].
+fn key_rate(channels: &[Channel]) -> Option<f64> {
+    key_grid(channels).filter(|r| (MIN_KEY_RATE..=f64::from(*FRAME_RATE_RANGE.end())).contains(r))
 }
 
 /// Time range of the channels' keys.
@@ -597,18 +631,18 @@ fn choose<'a>(
     let available: Vec<String> = document
         .animations()
         .map(|a| match a.name() {
-            Some(n) => format!("{} '{n}'", a.index()),
+            Some(n) => format!("{} '{}'", a.index(), printable(n)),
             None => a.index().to_string(),
         })
         .collect();
     let have = if available.is_empty() { "none".to_string() } else { available.join(", ") };
-    Err(bad(file, "animation", format!("no animation named or numbered '{wanted}'; the file has: {have}")))
+    Err(bad(file, "animation", format!("no animation named or numbered '{}'; the file has: {have}", printable(wanted))))
 }
 
 /// The frame rate stored by animcodec's glTF writer in the animation's `extras`.
-fn extras_fps(json: Option<&serde_json::Value>, animation: usize) -> Option<f64> {
-    let fps = json?.get("animations")?.get(animation)?.get("extras")?.get("animcodec")?.get("fps")?.as_f64()?;
-    (fps.is_finite() && fps > 0.0 && fps <= 1e4).then_some(fps)
+fn extras_fps(json: &serde_json::Value, animation: usize) -> Option<f64> {
+    let fps = json.get("animations")?.get(animation)?.get("extras")?.get("animcodec")?.get("fps")?.as_f64()?;
+    FRAME_RATE_RANGE.contains(&(fps as f32)).then_some(fps)
 }
 
 /// A mesh instance in the cache: its node, mesh, skin and first vertex.
@@ -635,7 +669,7 @@ fn load_skin(file: &str, skin: &::gltf::Skin, buffers: &[BufferData]) -> Result<
     let inverse_bind = match skin.inverse_bind_matrices() {
         None => vec![IDENTITY; joints.len()],
         Some(acc) => {
-            let count = check_accessor(file, "inverseBindMatrices", &acc, Dimensions::Mat4, &[DataType::F32])?;
+            let count = check_accessor(file, "inverseBindMatrices", &acc, Dimensions::Mat4, &[DataType::F32], buffers)?;
             if count < joints.len() {
                 return Err(bad(
                     file,
@@ -669,13 +703,15 @@ pub(super) struct Selection<'a> {
     pub frame_rate: Option<f64>,
 }
 
-/// Plays the scene into a vertex cache.
+/// Plays the scene into a vertex cache. `json` is the file's raw JSON (extension data,
+/// animcodec's `extras`); everything held is counted against `budget` before it is allocated.
 pub(super) fn bake(
     file: &str,
     document: &::gltf::Document,
     buffers: &[BufferData],
-    json: Option<&serde_json::Value>,
+    json: &serde_json::Value,
     selection: &Selection,
+    budget: &mut Budget,
 ) -> Result<Animation> {
     let limits = Limits::default();
     let hierarchy = hierarchy(file, document)?;
@@ -683,17 +719,26 @@ pub(super) fn bake(
     if mesh_nodes.is_empty() {
         return Err(bad(file, "meshes", "no node of the scene has a mesh"));
     }
+    let quantization = json
+        .get("extensionsUsed")
+        .and_then(|u| u.as_array())
+        .is_some_and(|u| u.iter().any(|e| e.as_str() == Some(KHR_MESH_QUANTIZATION)));
     let nodes: Vec<::gltf::Node> = document.nodes().collect();
     let mut meshes: Vec<Option<MeshData>> = (0..document.meshes().len()).map(|_| None).collect();
     let mut skins: Vec<Option<Skin>> = (0..document.skins().len()).map(|_| None).collect();
     let mut instances = Vec::new();
     let mut vertex_count = 0usize;
-    let mut triangles: Vec<[u32; 3]> = Vec::new();
+    let mut triangle_count = 0usize;
     for &n in &mesh_nodes {
         let mesh = nodes[n].mesh().expect("a mesh node");
         let m = mesh.index();
         if meshes[m].is_none() {
-            meshes[m] = Some(load_mesh(file, &mesh, buffers)?);
+            let data = load_mesh(file, &mesh, buffers, quantization)?;
+            let held = 4 * (data.base.len() + data.targets.iter().map(Vec::len).sum::<usize>() + data.weights.len())
+                + 2 * data.joints.len()
+                + 12 * data.triangles.len();
+            budget.take("mesh data", held as u64)?;
+            meshes[m] = Some(data);
         }
         let data = meshes[m].as_ref().expect("loaded");
         let skin = nodes[n].skin().map(|s| s.index());
@@ -737,10 +782,10 @@ pub(super) fn bake(
         if vertex_count > limits.max_vertices {
             return Err(limit(file, "vertex_count", vertex_count, limits.max_vertices));
         }
-        let o = offset as u32;
-        triangles.extend(data.triangles.iter().map(|t| [t[0] + o, t[1] + o, t[2] + o]));
-        if triangles.len() > limits.max_triangles {
-            return Err(limit(file, "triangle_count", triangles.len(), limits.max_triangles));
+        // Counted only here; the triangles are built once the whole read is known to fit.
+        triangle_count += data.triangles.len();
+        if triangle_count > limits.max_triangles {
+            return Err(limit(file, "triangle_count", triangle_count, limits.max_triangles));
         }
         instances.push(Instance { node: n, mesh: m, skin, offset, weights });
     }
@@ -751,11 +796,28 @@ pub(super) fn bake(
         Some(a) => load_channels(file, a, buffers, &|n| targets[n])?,
         None => Vec::new(),
     };
-    let fps = selection
-        .frame_rate
-        .or_else(|| chosen.as_ref().and_then(|a| extras_fps(json, a.index())))
-        .or_else(|| key_rate(&channels))
-        .unwrap_or(FALLBACK_FPS);
+    let own_rate = || -> Result<f64> {
+        if let Some(fps) = chosen.as_ref().and_then(|a| extras_fps(json, a.index())) {
+            return Ok(fps);
+        }
+        match key_grid(&channels) {
+            Some(rate) if rate > f64::from(*FRAME_RATE_RANGE.end()) => Err(bad(
+                file,
+                "animation.input",
+                format!(
+                    "the keys lie on a grid of {rate:.6e} frames per second, above the highest supported rate {}; \
+                     give a frame rate (--fps) to sample it",
+                    FRAME_RATE_RANGE.end()
+                ),
+            )),
+            Some(rate) if (MIN_KEY_RATE..=f64::from(*FRAME_RATE_RANGE.end())).contains(&rate) => Ok(rate),
+            _ => Ok(FALLBACK_FPS),
+        }
+    };
+    let fps = match selection.frame_rate {
+        Some(fps) => fps,
+        None => own_rate()?,
+    };
     let (t0, frames) = match key_range(&channels) {
         None => (0.0, 1usize),
         Some((t0, t1)) => {
@@ -766,10 +828,29 @@ pub(super) fn bake(
             if frames_f > limits.max_frames as f64 {
                 return Err(limit(file, "frame_count", frames_f as usize, limits.max_frames));
             }
+            // An animation whose keys span less than one frame at the file's own rate would
+            // play as a still (keys microseconds apart): say so rather than lose the motion.
+            if frames_f < 2.0 && t1 > t0 && selection.frame_rate.is_none() {
+                return Err(bad(
+                    file,
+                    "animation.input",
+                    format!(
+                        "the keys span {:.6e} s, less than one frame at {fps} fps: give a frame rate (--fps) to \
+                         sample it",
+                        t1 - t0
+                    ),
+                ));
+            }
             (t0, frames_f as usize)
         }
     };
-    limits.check_alloc("gltf", "positions", (frames as u64) * (vertex_count as u64) * 12)?;
+    // Everything the playback holds: the positions, the triangles (twice: ours and the
+    // animation's topology), and per vertex the f64 morph scratch.
+    let positions_bytes = (frames as u64).saturating_mul(vertex_count as u64).saturating_mul(12);
+    budget.take("the baked positions (frames × vertices × 12 bytes)", positions_bytes)?;
+    budget.take("the triangles", (triangle_count as u64) * 24)?;
+    budget.take("the playback scratch", (vertex_count as u64) * 24)?;
+    limits.check_alloc("gltf", "positions", positions_bytes)?;
     // The CPU work is bounded too (the output size alone does not bound it: many nodes or
     // targets cost work every frame): one unit per node transform, channel sample, joint matrix
     // and per vertex per morph target or skin influence.
@@ -787,6 +868,12 @@ pub(super) fn bake(
             work,
             MAX_BAKE_WORK,
         ));
+    }
+    let mut triangles: Vec<[u32; 3]> = Vec::with_capacity(triangle_count);
+    for instance in &instances {
+        let o = instance.offset as u32;
+        let data = meshes[instance.mesh].as_ref().expect("loaded");
+        triangles.extend(data.triangles.iter().map(|t| [t[0] + o, t[1] + o, t[2] + o]));
     }
     let mut positions: Vec<f32> = Vec::with_capacity(frames * vertex_count * 3);
     let rest: Vec<Local> = nodes.iter().map(rest_transform).collect();

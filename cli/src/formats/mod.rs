@@ -60,14 +60,29 @@ pub struct ReadOptions {
 }
 
 impl ReadOptions {
-    /// The frame rate override, checked: `None` when unset, an error when not finite and positive.
+    /// The frame rate override, checked: `None` when unset, an error outside [`FRAME_RATE_RANGE`].
     fn checked_frame_rate(&self) -> Result<Option<f32>> {
-        match self.frame_rate {
-            Some(fps) if !(fps.is_finite() && fps > 0.0) => {
-                Err(Error::InvalidAnimation(format!("frame rate {fps} is not a finite positive number")))
-            }
-            other => Ok(other),
-        }
+        self.frame_rate.map(check_frame_rate).transpose()
+    }
+}
+
+/// Frame rates accepted wherever one enters (`--fps`, reading, glTF export and read-back): one
+/// frame per 1000 s to 10 000 frames per second. Outside it, key times `frame / fps` stop being
+/// representable or distinguishable as `f32` seconds (at 1e-45 fps frame 1 is at +inf s; at
+/// 1e5 fps over a minute the key spacing nears the f32 rounding step), and no capture or
+/// playback device works there.
+pub const FRAME_RATE_RANGE: std::ops::RangeInclusive<f32> = 1e-3..=1e4;
+
+/// `fps` when it lies in [`FRAME_RATE_RANGE`], else an error saying so.
+pub fn check_frame_rate(fps: f32) -> Result<f32> {
+    if FRAME_RATE_RANGE.contains(&fps) {
+        Ok(fps)
+    } else {
+        Err(Error::InvalidAnimation(format!(
+            "frame rate {fps:e} is outside the supported range {}..={} frames per second",
+            FRAME_RATE_RANGE.start(),
+            FRAME_RATE_RANGE.end()
+        )))
     }
 }
 
@@ -88,7 +103,9 @@ pub fn read_animation(path: &Path, options: &ReadOptions) -> Result<Animation> {
         Some("pc2") => pc2::read_pc2(path, options.topology.as_deref(), frame_rate),
         Some("mdd") => mdd::read_mdd(path, options.topology.as_deref(), frame_rate),
         Some("gltf") | Some("glb") => {
-            gltf::read_gltf(path, &gltf::GltfSelection { animation: options.animation.clone(), frame_rate })
+            let selection =
+                gltf::GltfSelection { animation: options.animation.clone(), frame_rate, memory_budget: None };
+            gltf::read_gltf(path, &selection)
         }
         _ => Err(Error::Unsupported {
             context: "formats".into(),

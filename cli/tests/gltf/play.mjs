@@ -50,6 +50,19 @@ let action = null;
 if (opt.animation !== undefined && Number(opt.frames ?? 0) > 0) {
   const clip = gltf.animations[Number(opt.animation)];
   if (!clip) throw new Error(`no animation ${opt.animation}`);
+  // NORMALIZE_ROTATIONS=1: every rotation key is normalized before playing, as animcodec's
+  // reader does (glTF rotations are unit quaternions; three.js uses a stored key as it is, and
+  // a 16-bit quantized key, as gltfpack writes, is unit only to about 1e-4).
+  if (process.env.NORMALIZE_ROTATIONS === '1') {
+    for (const track of clip.tracks) {
+      if (!track.name.endsWith('.quaternion')) continue;
+      const v = track.values;
+      for (let i = 0; i + 4 <= v.length; i += 4) {
+        const n = Math.hypot(v[i], v[i + 1], v[i + 2], v[i + 3]);
+        if (n > 0) for (let c = 0; c < 4; c++) v[i + c] /= n;
+      }
+    }
+  }
   mixer = new AnimationMixer(scene);
   action = mixer.clipAction(clip);
   action.setLoop(LoopOnce, 1);
