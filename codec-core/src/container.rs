@@ -66,8 +66,7 @@ pub struct Limits {
 
 /// Default total memory of one decode: 4 GiB, or the whole address space on a target whose
 /// `usize` cannot hold that (32 bit), never 0.
-pub const DEFAULT_MAX_MEMORY: usize =
-    if usize::MAX as u64 >= 4 << 30 { (4u64 << 30) as usize } else { usize::MAX };
+pub const DEFAULT_MAX_MEMORY: usize = if usize::MAX as u64 >= 4 << 30 { (4u64 << 30) as usize } else { usize::MAX };
 
 /// Default work budget of one decode (operations). Decoding the largest real animation the
 /// project measures with (sac, default parameters) estimates about 2 % of it; a crafted stream

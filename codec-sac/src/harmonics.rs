@@ -117,7 +117,11 @@ fn dense_eigen(
     // The matrix and its eigenvectors are held together with the scratch (`Limits` bounds the
     // total a decode holds).
     let matrices = (n as u64).saturating_mul(n as u64).saturating_mul(16);
-    limits.check_alloc(NAME, "dense eigensolver (n × n)", matrices.saturating_add(evd.unaligned_bytes_required() as u64))?;
+    limits.check_alloc(
+        NAME,
+        "dense eigensolver (n × n)",
+        matrices.saturating_add(evd.unaligned_bytes_required() as u64),
+    )?;
     let mut a = Mat::<f64>::zeros(n, n);
     for t in trip {
         let v = t.val / (sqrt_mass[t.row] * sqrt_mass[t.col]);

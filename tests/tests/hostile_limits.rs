@@ -26,7 +26,9 @@ fn refused(label: &str, bytes: &[u8]) -> Error {
     assert!(peak < MAX_PEAK_BYTES, "{label}: held {peak} bytes at peak");
     assert!(elapsed < Duration::from_secs(MAX_SECONDS), "{label}: took {elapsed:?}");
     let e = match result {
-        Ok(a) => panic!("{label}: decoded {} frames of {} vertices; expected a refusal", a.frame_count(), a.vertex_count()),
+        Ok(a) => {
+            panic!("{label}: decoded {} frames of {} vertices; expected a refusal", a.frame_count(), a.vertex_count())
+        }
         Err(e) => e,
     };
     eprintln!("{label}: refused in {elapsed:?}, {peak} bytes at peak: {e}");
@@ -109,7 +111,10 @@ fn the_memory_limit_bounds_the_total_not_each_allocation() {
     let e = decode_animation(&bytes, &registry, limits).unwrap_err();
     assert!(matches!(e, Error::AllocLimit { .. }), "{e}");
     let roomy = Limits { max_alloc_bytes: 4 * decoded as usize + (1 << 20), ..Limits::default() };
-    assert_eq!(decode_animation(&bytes, &registry, roomy).unwrap().positions(), decode_animation(&bytes, &registry, Limits::default()).unwrap().positions());
+    assert_eq!(
+        decode_animation(&bytes, &registry, roomy).unwrap().positions(),
+        decode_animation(&bytes, &registry, Limits::default()).unwrap().positions()
+    );
 }
 
 /// The work budget is deterministic and checked: a small one refuses a stream a large one

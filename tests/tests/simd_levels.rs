@@ -201,8 +201,7 @@ fn decodes_are_bit_identical_at_every_simd_level() {
         // libtest prints the test's name without a newline before the child's first line.
         let seen = stdout.lines().find_map(|l| l.split("features ").nth(1)).unwrap_or("none reported");
         assert_eq!(seen, want_features, "{level}: {qemu} -cpu {model} did not give the level asked for");
-        let hashes: Vec<String> =
-            stdout.lines().filter_map(|l| l.strip_prefix("hash ")).map(str::to_owned).collect();
+        let hashes: Vec<String> = stdout.lines().filter_map(|l| l.strip_prefix("hash ")).map(str::to_owned).collect();
         let differ: Vec<&str> = native
             .iter()
             .zip(&hashes)
