@@ -216,15 +216,17 @@ pub fn check_bound(bound: &ErrorBound, measured: &Measured) -> Result<(), String
 // ---------------------------------------------------------------------------------------
 
 /// Tight decoding limits for a stream of `anim`: the exact vertex, frame and triangle counts
-/// and `max_alloc_bytes` of 4 MiB (or the decoded size if that is larger — it never is for
-/// the animations of this suite).
+/// and `max_alloc_bytes` of 8 MiB in total (or the decoded size if that is larger — it never is
+/// for the animations of this suite). `max_alloc_bytes` bounds the whole decode (issue 27): a
+/// sac decode of this suite's 240-vertex, 40-frame flag holds 6.2 MB at peak (its eigensolver's
+/// workspaces), more than the 4 MiB this was when it bounded each allocation.
 pub fn tight_limits(anim: &Animation) -> Limits {
     let decoded = anim.positions().len() * 4;
     Limits {
         max_vertices: anim.vertex_count(),
         max_frames: anim.frame_count(),
         max_triangles: anim.triangles().len(),
-        max_alloc_bytes: (4usize << 20).max(decoded),
+        max_alloc_bytes: (8usize << 20).max(decoded),
         max_work: codec_core::container::DEFAULT_MAX_WORK,
     }
 }
