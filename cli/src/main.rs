@@ -31,11 +31,17 @@ struct Cli {
 /// Options shared by every subcommand.
 #[derive(Debug, Args)]
 struct GlobalArgs {
-    /// Largest single allocation a decoder may make from stream contents (bytes; K, M, G
-    /// suffixes are powers of 1024). Streams needing more are rejected before allocating.
-    /// Default 4G.
+    /// Most memory a decode, or a glTF read, may hold in total (bytes; K, M, G suffixes are
+    /// powers of 1024). Inputs needing more are rejected before allocating. Default 4G for a
+    /// decode, 1G for a glTF read.
     #[arg(long, global = true, value_name = "BYTES", value_parser = commands::parse_bytes)]
     max_memory: Option<u64>,
+
+    /// Most arithmetic operations a decode may spend, counted from the stream's sizes before
+    /// the work starts (the same count on every machine). Streams needing more are rejected
+    /// before computing. Default 2e11 (K, M, G suffixes are powers of 1024).
+    #[arg(long, global = true, value_name = "OPS", value_parser = commands::parse_bytes)]
+    max_work: Option<u64>,
 
     /// Worker threads for codecs that parallelize (default: all cores). Output bytes do not
     /// depend on it.
@@ -638,7 +644,7 @@ fn run(cli: Cli) -> commands::CmdResult {
             .build_global()
             .map_err(|e| format!("cannot set up {n} worker threads: {e}"))?;
     }
-    let limits = commands::limits(cli.global.max_memory);
+    let limits = commands::limits(cli.global.max_memory, cli.global.max_work);
     if let Some(bytes) = cli.global.max_memory {
         // The glTF reader's total budget (its default is 1 GiB).
         animcodec::formats::gltf::set_default_memory_budget(bytes);

@@ -62,11 +62,11 @@ pub enum Error {
         limit: u64,
     },
 
-    /// An allocation a size read from the stream asks for exceeds
+    /// What a decode would hold at once (sizes read from the stream) exceeds
     /// [`Limits::max_alloc_bytes`](crate::Limits::max_alloc_bytes).
     #[error(
-        "{context}: {what} would need {bytes} bytes, more than the limit of {limit} bytes per allocation \
-         (Limits::max_alloc_bytes; --max-memory on the command line)"
+        "{context}: {what} would need {bytes} bytes, more than the {limit} bytes left of the memory limit \
+         for the whole decode (Limits::max_alloc_bytes; --max-memory on the command line)"
     )]
     AllocLimit {
         /// Codec name or `container`.
@@ -75,6 +75,23 @@ pub enum Error {
         what: Cow<'static, str>,
         /// Bytes needed.
         bytes: u64,
+        /// Limit in force.
+        limit: u64,
+    },
+
+    /// The work a stream asks for (counted from sizes before it starts) exceeds
+    /// [`Limits::max_work`](crate::Limits::max_work).
+    #[error(
+        "{context}: {what} would take about {ops} operations, more than the work limit of {limit} \
+         for one decode (Limits::max_work; --max-work on the command line)"
+    )]
+    WorkLimit {
+        /// Codec name or `container`.
+        context: Cow<'static, str>,
+        /// What would be computed, in words.
+        what: Cow<'static, str>,
+        /// Operations estimated.
+        ops: u64,
         /// Limit in force.
         limit: u64,
     },

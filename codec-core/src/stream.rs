@@ -246,7 +246,13 @@ impl<R: Read> StreamDecoder<R> {
                 ),
             });
         }
-        let decoder = codec.new_decoder(&header.info, &header.config, &limits)?;
+        // `Limits` bound the total a decode holds: the decoded animation (what `decode_all`
+        // keeps; a caller taking packets one by one is charged the same) and the topology are
+        // held throughout, so the codec's decoder gets what is left of the memory budget.
+        let decoder_limits = limits
+            .reserve(codec.name(), "the decoded animation", packet_alloc(header, header.info.frame_count as u64))?
+            .reserve(codec.name(), "the topology", header.info.topology.triangle_count() as u64 * 12)?;
+        let decoder = codec.new_decoder(&header.info, &header.config, &decoder_limits)?;
         Ok(Self { codec: codec.name(), reader, decoder, index: None })
     }
 
@@ -325,7 +331,11 @@ pub fn decode_frame<R: Read + Seek>(
     let (start, target) = container::seek_packets(&index, t).ok_or_else(|| {
         Error::InvalidAnimation(format!("frame {t} is past the end of the stream ({} frames)", header.info.frame_count))
     })?;
-    let mut decoder = codec.new_decoder(&header.info, &header.config, &limits)?;
+    // The index, the topology and the packets from the keyframe on are held while decoding.
+    let decoder_limits = limits
+        .reserve(codec.name(), "the index", (index.len() * std::mem::size_of::<IndexEntry>()) as u64)?
+        .reserve(codec.name(), "the topology", header.info.topology.triangle_count() as u64 * 12)?;
+    let mut decoder = codec.new_decoder(&header.info, &header.config, &decoder_limits)?;
     decoder.reset();
     let v3 = header.info.vertex_count() * 3;
     for entry in &index[start..=target] {

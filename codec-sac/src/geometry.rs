@@ -531,6 +531,13 @@ impl PoissonSystem {
         words.saturating_mul(8).saturating_add(req.unaligned_bytes_required() as u64)
     }
 
+    /// Operations of one [`PoissonSystem::solve`]: the numeric factorization
+    /// ([`crate::harmonics::cholesky_work`]) and three triangular solve pairs.
+    pub fn solve_work(&self) -> u64 {
+        let fill = self.cholesky.len_val();
+        crate::harmonics::cholesky_work(fill, self.unknowns).saturating_add(12 * fill as u64)
+    }
+
     /// The pinned vertex of every component.
     pub fn pins(&self) -> &[usize] {
         &self.pins
@@ -655,6 +662,14 @@ impl ReducedPoisson {
             + self.tris.len() as u64 * std::mem::size_of::<Option<Element>>() as u64;
         let scratch = (3 * self.unknowns as u64 + (self.slots.len() + self.unknowns) as u64) * 8;
         factor.saturating_add(scratch).saturating_add(self.scratch_req().unaligned_bytes_required() as u64)
+    }
+
+    /// Operations of one [`ReducedPoisson::factor`] and one [`ReducedPoisson::solve`]: the
+    /// numeric factorization ([`crate::harmonics::cholesky_work`]) and three triangular solve
+    /// pairs.
+    pub fn factor_and_solve_work(&self) -> u64 {
+        let fill = self.cholesky.len_val();
+        crate::harmonics::cholesky_work(fill, self.unknowns).saturating_add(12 * fill as u64)
     }
 
     /// Scratch for [`ReducedPoisson::factor`] and [`ReducedPoisson::solve`] (allocate once).

@@ -112,12 +112,16 @@ fn dense_eigen(
     limits: &Limits,
 ) -> Result<(Mat<f64>, Vec<f64>)> {
     let n = sqrt_mass.len();
-    // An n × n matrix, its eigenvectors and the decomposition's scratch, before allocating
-    // (`Limits` bounds each allocation).
+    // Two n × n matrices and the decomposition's scratch, before allocating.
     let evd = self_adjoint_evd_scratch::<f64>(n, ComputeEigenvectors::Yes, Par::Seq, Default::default());
-    for bytes in [(n as u64).saturating_mul(n as u64).saturating_mul(8), evd.unaligned_bytes_required() as u64] {
-        limits.check_alloc(NAME, "dense eigensolver (n × n)", bytes)?;
-    }
+    // The matrix and its eigenvectors are held together with the scratch (`Limits` bounds the
+    // total a decode holds).
+    let matrices = (n as u64).saturating_mul(n as u64).saturating_mul(16);
+    limits.check_alloc(
+        NAME,
+        "dense eigensolver (n × n)",
+        matrices.saturating_add(evd.unaligned_bytes_required() as u64),
+    )?;
     let mut a = Mat::<f64>::zeros(n, n);
     for t in trip {
         let v = t.val / (sqrt_mass[t.row] * sqrt_mass[t.col]);
@@ -159,12 +163,16 @@ fn krylov_eigen(
         .map_err(|e| numerical("laplacian symbolic factorization", codec_core::error::debug_in_words(&e)))?;
     // The fill is known now: refuse a topology whose factor exceeds the limits before any
     // numeric allocation (a crafted, expander-like connectivity fills in almost densely).
+    limits.check_work(NAME, "laplacian factorization (sparse Cholesky)", cholesky_work(cholesky.len_val(), n))?;
     let numeric_scratch = cholesky.factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default());
+    let factor_bytes = (cholesky.len_val() as u64).saturating_mul(8);
     limits.check_alloc(
         NAME,
         "laplacian factor (sparse Cholesky fill)",
-        (cholesky.len_val() as u64).saturating_mul(8).saturating_add(numeric_scratch.unaligned_bytes_required() as u64),
+        factor_bytes.saturating_add(numeric_scratch.unaligned_bytes_required() as u64),
     )?;
+    // The factor stays held (with a copy of the mass) while the eigensolver runs.
+    let limits = limits.reserve(NAME, "laplacian factor (sparse Cholesky fill)", factor_bytes + n as u64 * 8)?;
     let mut values = vec![0.0; cholesky.len_val()];
     {
         let mut buf = MemBuffer::new(numeric_scratch);
@@ -186,18 +194,19 @@ fn krylov_eigen(
     let want = (count + (count / 10).max(8)).min(n);
     let params = PartialEigenParams { max_dim: max_dim.max(2 * want + 20).min(n - 1), ..Default::default() };
     // Krylov–Schur's projection space (`max_dim` vectors of n) lives in its scratch; the
-    // returned vectors and the Rayleigh–Ritz step allocate n × want blocks and an SVD scratch.
-    // `Limits` bounds each allocation.
+    // returned vectors and the Rayleigh–Ritz step allocate n × want blocks and an SVD scratch;
+    // all are held at once (the Rayleigh–Ritz step holds about three n × want blocks).
     let krylov = partial_self_adjoint_eigen_scratch::<f64>(&op, want, Par::Seq, params);
     let ritz_svd =
         svd_scratch::<f64>(n, want, ComputeSvdVectors::Thin, ComputeSvdVectors::No, Par::Seq, Default::default());
-    for (what, bytes) in [
-        ("eigensolver workspace (Krylov vectors)", krylov.unaligned_bytes_required() as u64),
-        ("eigenvectors (n × wanted)", (n as u64).saturating_mul(want as u64).saturating_mul(8)),
-        ("eigensolver workspace (Rayleigh-Ritz)", ritz_svd.unaligned_bytes_required() as u64),
-    ] {
-        limits.check_alloc(NAME, what, bytes)?;
-    }
+    let blocks = (n as u64).saturating_mul(want as u64).saturating_mul(8 * 3);
+    limits.check_alloc(
+        NAME,
+        "eigensolver workspace (Krylov vectors, eigenvectors, Rayleigh-Ritz)",
+        (krylov.unaligned_bytes_required() as u64)
+            .saturating_add(ritz_svd.unaligned_bytes_required() as u64)
+            .saturating_add(blocks),
+    )?;
     let mut vecs = Mat::<f64>::zeros(n, want);
     let mut vals = vec![0.0f64; want];
     // xorshift start vector: fixed, and not an eigenvector (a constant would be one).
@@ -293,6 +302,38 @@ pub struct Harmonics {
     pub eigenvalues: Vec<f64>,
 }
 
+/// Operations the harmonics of `n` vertices with `count` vectors take, from the sizes alone
+/// (so a decoder refuses a crafted basis request before any work; `Limits::max_work`): on
+/// the Krylov path, one pass of Krylov–Schur's full reorthogonalization against its `max_dim`
+/// vectors (2 n max_dim²) and the Rayleigh–Ritz thin SVD (4 n want²); on the dense path, the
+/// n × n eigendecomposition (4 n³). A lower bound of the real count (restarts, the shift-invert
+/// solves and the Laplacian factorization come on top; the factorization is checked once its
+/// fill is known, [`cholesky_work`]). Covers the by-component basis too: each component's
+/// count is at most the whole mesh's, per vertex.
+pub fn work_estimate(n: usize, count: usize) -> u64 {
+    let (n64, count) = (n as u64, count.min(n) as u64);
+    if n == 0 || count == 0 {
+        return 0;
+    }
+    let want = (count + (count / 10).max(8)).min(n64);
+    let max_dim = (2 * count + 20).max(64);
+    if max_dim + 1 >= n64 {
+        return 4u64.saturating_mul(n64).saturating_mul(n64).saturating_mul(n64);
+    }
+    let reorthogonalize = 2u64.saturating_mul(n64).saturating_mul(max_dim.saturating_mul(max_dim));
+    let ritz = 4u64.saturating_mul(n64).saturating_mul(want.saturating_mul(want));
+    reorthogonalize.saturating_add(ritz)
+}
+
+/// Operations of a sparse Cholesky factorization whose factor has `fill` entries in `n`
+/// columns: `Σ_j c_j²` over the column counts `c_j`, bounded below by `fill² / n`
+/// (Cauchy–Schwarz), which is what is returned — an expander-like crafted connectivity, whose
+/// factor is nearly dense, gives about n³/4.
+pub fn cholesky_work(fill: usize, n: usize) -> u64 {
+    let fill = fill as u64;
+    fill.saturating_mul(fill) / (n as u64).max(1)
+}
+
 /// Computes the first `count` manifold harmonics of the mesh `pos`/`tris`.
 ///
 /// Shift `σ = 10⁻²/area` sits well below the first non-zero eigenvalue (≈ 1/area in these
@@ -324,6 +365,7 @@ fn harmonics_with(
     if n == 0 || count == 0 {
         return Ok(Harmonics { basis: Mat::zeros(n, 0), eigenvalues: Vec::new() });
     }
+    limits.check_work(NAME, "manifold harmonics", work_estimate(n, count))?;
     let (mut trip, mass, area) = laplacian(pos, tris);
     if !(area > 0.0 && area.is_finite()) {
         return Err(numerical("manifold harmonics", format!("mesh area {area} is not positive")));

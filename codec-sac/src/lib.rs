@@ -44,8 +44,7 @@ pub const NAME: &str = "sac";
 
 /// The encoder's limits: it reads no untrusted stream, so its allocations are bounded only by
 /// the input it was given (the decoder uses the caller's [`Limits`]).
-pub(crate) const UNLIMITED: Limits =
-    Limits { max_vertices: usize::MAX, max_frames: usize::MAX, max_triangles: usize::MAX, max_alloc_bytes: usize::MAX };
+pub(crate) const UNLIMITED: Limits = Limits::UNLIMITED;
 
 /// Stream version the encoder writes. Version 2 (issue 14) computes the manifold harmonics of
 /// a disconnected mesh one connected component at a time
@@ -402,11 +401,17 @@ impl AnimationCodec for Sac {
         if !(8..=30).contains(&iframe_bits) {
             return Err(r.malformed("config.iframe_bits", format!("{iframe_bits} is outside 8..=30")));
         }
-        // The harmonic basis (n × bases f64) and analysis matrices are the largest allocations.
+        // The harmonic basis (n × bases f64) and analysis matrices are the largest allocations;
+        // with the connectivity's state they are held for the whole decode, so what is left of
+        // the limits after them bounds everything else (the Poisson factor, the eigensolver).
         let n = info.vertex_count() as u64;
         let m = info.topology.triangle_count() as u64;
-        limits.check_alloc(NAME, "bases", (n + m) * (bases as u64).min(n) * 8)?;
-        limits.check_alloc(NAME, "topology", (n + m) * 200)?;
+        let limits = limits
+            .reserve(NAME, "bases", (n + m).saturating_mul((bases as u64).min(n)).saturating_mul(8))?
+            .reserve(NAME, "topology", (n + m).saturating_mul(200))?;
+        // The first keyframe computes the basis: refuse a crafted request (1000 bases on a
+        // large mesh) from the header, before the connectivity's factorization.
+        limits.check_work(NAME, "manifold harmonics basis", harmonics::work_estimate(n as usize, bases as usize))?;
         let settings = Settings {
             bits,
             bases,
@@ -416,8 +421,9 @@ impl AnimationCodec for Sac {
             basis_per_keyframe,
             refactor,
         };
-        let shared = Shared::new(&info.topology, limits, settings)?;
-        Ok(Box::new(SacDecoder { shared, limits: *limits, gop: None, state: None }))
+        let shared = Shared::new(&info.topology, &limits, settings)?;
+        let limits = shared.limits;
+        Ok(Box::new(SacDecoder { shared, limits, gop: None, state: None }))
     }
 }
 
@@ -571,18 +577,41 @@ impl Shared {
             (false, false) => (Some(PoissonSystem::new(n, &tris, &pins)?), None),
             (false, true) => (None, Some(ReducedPoisson::new(n, &tris, &pins)?)),
         };
+        // The factor is held from the first P-frame on; every P-frame factors and solves.
         const WHAT: &str = "poisson factor (sparse Cholesky fill of the topology)";
+        const WORK: &str = "poisson factorization per frame (sparse Cholesky of the topology)";
+        let mut limits = *limits;
         if let Some(p) = &poisson {
-            limits.check_alloc(NAME, WHAT, p.solve_bytes())?;
+            limits = limits.reserve(NAME, WHAT, p.solve_bytes())?;
+            limits.check_work(NAME, WORK, p.solve_work())?;
         }
         if let Some(r) = &reduced {
-            limits.check_alloc(NAME, WHAT, r.factor_and_scratch_bytes())?;
+            limits = limits.reserve(NAME, WHAT, r.factor_and_scratch_bytes())?;
+            limits.check_work(NAME, WORK, r.factor_and_solve_work())?;
         }
-        Ok(Self { settings, n, tris, component, component_sizes, poisson, reduced, limits: *limits })
+        Ok(Self { settings, n, tris, component, component_sizes, poisson, reduced, limits })
     }
 
     fn components(&self) -> usize {
         self.component_sizes.len()
+    }
+
+    /// Operations one P-frame with `bases` vectors takes to reconstruct: the synthesis of every
+    /// channel from the basis and the Poisson factorization and solve (`Limits::max_work`).
+    fn frame_work(&self, bases: usize) -> u64 {
+        let channels = self.settings.groups().iter().sum::<usize>() as u64;
+        let synthesis = (self.n as u64).saturating_mul(bases as u64).saturating_mul(channels);
+        let poisson = match (&self.poisson, &self.reduced) {
+            (Some(p), _) => p.solve_work(),
+            (None, Some(r)) => r.factor_and_solve_work(),
+            (None, None) => 0,
+        };
+        synthesis.saturating_add(poisson)
+    }
+
+    /// Operations a new basis state takes (`Limits::max_work`).
+    fn basis_work(&self) -> u64 {
+        harmonics::work_estimate(self.n, self.settings.bases as usize)
     }
 
     /// The basis state of the rest pose `rest` (decoded positions) whose stored block is
@@ -1324,6 +1353,9 @@ impl SacDecoder {
         if s.settings.version < 3 {
             let block = r.take(r.remaining(), "positions")?;
             let rec = decode_positions(&mut ByteReader::new(block, NAME), s.n, bits, &self.limits)?;
+            if with_basis {
+                self.limits = self.limits.spend(NAME, "manifold harmonics basis of a keyframe", s.basis_work())?;
+            }
             let state = s.basis_state(&rec, Vec::new(), Some(with_basis), false)?;
             return Ok((rec, Arc::new(state)));
         }
@@ -1343,6 +1375,9 @@ impl SacDecoder {
             if with_basis && cached.has_bases() && cached.rest_block == rest_block {
                 return Ok((rec, cached.clone()));
             }
+        }
+        if with_basis {
+            self.limits = self.limits.spend(NAME, "manifold harmonics basis of a keyframe", s.basis_work())?;
         }
         let state = if !with_basis {
             s.basis_state(&rec, Vec::new(), Some(false), false)?
@@ -1435,6 +1470,7 @@ impl FrameDecoder for SacDecoder {
                 let rest = r.take(r.remaining(), "descriptors")?;
                 let mut contexts = gop.contexts.clone();
                 let codes = coding::decode(rest, &sizes, l, &mut contexts)?;
+                self.limits = self.limits.spend(NAME, "P-frame reconstruction", s.frame_work(l))?;
                 s.reconstruct(gop, &codes, &amps)?;
                 let mut rec = s.translate(&gop.work.solved, &shifts);
                 if let Some(bytes) = residual {

@@ -49,15 +49,25 @@ pub fn run(target: &str, data: &[u8]) {
 }
 
 /// Limits for fuzzed streams: small enough that a decoder sizing a buffer from an unchecked
-/// field is caught by the peak check, large enough for the seeds.
+/// field is caught by the peak check, or spending work from one is refused (so no input holds
+/// a fuzzer for long), large enough for the seeds.
 pub fn fuzz_limits() -> Limits {
-    Limits { max_vertices: 1 << 16, max_frames: 1 << 12, max_triangles: 1 << 17, max_alloc_bytes: 8 << 20 }
+    Limits {
+        max_vertices: 1 << 16,
+        max_frames: 1 << 12,
+        max_triangles: 1 << 17,
+        max_alloc_bytes: 8 << 20,
+        max_work: FUZZ_MAX_WORK,
+    }
 }
+
+/// Work budget of a fuzzed decode ([`Limits::max_work`]): about a second of decoding.
+pub const FUZZ_MAX_WORK: u64 = 1 << 30;
 
 /// Runs `f` and panics if the live memory it peaks at exceeds `budget` bytes.
 fn within(what: &str, budget: u64, f: impl FnOnce()) {
-    let info = allocation_counter::measure(f);
-    assert!(info.bytes_max <= budget, "{what}: held {} bytes at peak, over the budget of {budget}", info.bytes_max);
+    let peak = crate::measure_peak(f);
+    assert!(peak <= budget, "{what}: held {peak} bytes at peak, over the budget of {budget}");
 }
 
 /// Decodes a stream fully and frame `t` by random access; `Ok` results must be finite and

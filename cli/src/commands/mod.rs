@@ -125,11 +125,15 @@ pub fn parse_bytes(text: &str) -> Result<u64, String> {
     number.checked_mul(1u64 << shift).filter(|&n| n > 0).ok_or_else(|| format!("'{text}' is out of range"))
 }
 
-/// Decoding limits, with `max_memory` (if given) as the per-allocation bound.
-pub fn limits(max_memory: Option<u64>) -> Limits {
+/// Decoding limits, with `max_memory` (if given) as the bound on the total a decode holds and
+/// `max_work` (if given) as its work budget.
+pub fn limits(max_memory: Option<u64>, max_work: Option<u64>) -> Limits {
     let mut limits = Limits::default();
     if let Some(m) = max_memory {
         limits.max_alloc_bytes = usize::try_from(m).unwrap_or(usize::MAX);
+    }
+    if let Some(w) = max_work {
+        limits.max_work = w;
     }
     limits
 }
