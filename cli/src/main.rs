@@ -32,8 +32,7 @@ struct Cli {
 #[derive(Debug, Args)]
 struct GlobalArgs {
     /// Most memory a decode, or a glTF read, may hold in total (bytes; K, M, G suffixes are
-    /// powers of 1024). Inputs needing more are rejected before allocating. Default 4G for a
-    /// decode, 1G for a glTF read.
+    /// powers of 1024). Inputs needing more are rejected before allocating. Default 1G.
     #[arg(long, global = true, value_name = "BYTES", value_parser = commands::parse_bytes)]
     max_memory: Option<u64>,
 

@@ -606,7 +606,7 @@ fn crafted_high_fill_topology_is_refused_by_the_decoder_limits() {
         let msg = e.to_string();
         assert!(matches!(e, Error::AllocLimit { .. }), "version {version}: {msg}");
         assert!(msg.contains("sac") && msg.contains("poisson factor"), "version {version}: {msg}");
-        // With the default limits (4 GiB) the same topology (≈ 24 MB) is accepted.
+        // With the default limits (1 GiB) the same topology (≈ 24 MB) is accepted.
         assert!(Sac.new_decoder(&info(expander.clone(), version), &config(version), &Limits::default()).is_ok());
     }
 }

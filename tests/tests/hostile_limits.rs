@@ -131,13 +131,12 @@ fn the_work_limit_refuses_what_exceeds_it() {
     assert!(e.to_string().contains("--max-work"), "{e}");
 }
 
-/// `Limits::default` is representable on every target: 4 GiB where `usize` holds it, the
-/// address space otherwise, never 0.
+/// `Limits::default` is representable on every target (1 GiB), never 0.
 #[test]
 fn default_limits_are_never_zero() {
     let l = Limits::default();
     assert!(l.max_alloc_bytes > 0 && l.max_work > 0);
-    assert_eq!(l.max_alloc_bytes as u64, (4u64 << 30).min(usize::MAX as u64));
+    assert_eq!(l.max_alloc_bytes as u64, 1u64 << 30);
 }
 
 fn probe_dir() -> PathBuf {
@@ -158,5 +157,38 @@ fn probe_round3_streams_are_refused() {
     for name in ["g1000.anim", "exp.anim"] {
         let bytes = std::fs::read(dir.join(name)).unwrap_or_else(|e| panic!("{name}: {e}"));
         refused(name, &bytes);
+    }
+}
+
+/// A stream of a few hundred bytes whose topology claims 2²⁴ vertices (the 700-byte
+/// stream): every codec's tiny stream with its topology swapped. Coding order graphs and
+/// decoded frames for that many vertices exceed the default total budget, so each is refused
+/// before they are built, within seconds and under 1 GB.
+#[test]
+fn a_tiny_stream_claiming_16m_vertices_is_refused_early() {
+    let registry = registry();
+    // Few frames: the decoded frames (4 × 2^24 × 12 bytes) fit the default budget, so what
+    // is refused is what each codec would build on top of them.
+    let anim = codec_core::synth::waving_flag(6, 5, 4);
+    let huge = Topology::new(1 << 24, anim.topology().triangles().to_vec()).unwrap();
+    for codec in registry.iter() {
+        // hosvd's default size model cannot reduce 4 frames; the smallest rate point can.
+        let params = match codec.name() {
+            "hosvd" => conformance_tests::params_with(codec, "ss", codec_core::ParamValue::Float(0.3)).unwrap(),
+            _ => codec.default_params(),
+        };
+        let bytes = codec_core::encode_animation(codec, &params, &anim).unwrap();
+        let parts = conformance_tests::split(&bytes).unwrap();
+        let crafted = conformance_tests::rebuild(
+            &parts.header,
+            &parts.header.config,
+            parts.header.info.codec_version,
+            Some(&huge),
+            None,
+            &parts.packets,
+        )
+        .unwrap();
+        assert!(crafted.len() < 4096, "{}: {} bytes", codec.name(), crafted.len());
+        refused(&format!("{} claiming 2^24 vertices ({} bytes)", codec.name(), crafted.len()), &crafted);
     }
 }
