@@ -83,7 +83,6 @@ impl<'c, W: Write> StreamEncoder<'c, W> {
             max_frames: usize::MAX,
             max_triangles: usize::MAX,
             max_alloc_bytes: usize::MAX,
-            ..Limits::default()
         };
         let check = SelfCheck {
             decoder: codec.new_decoder(&info, &encoder.config(), &limits)?,

@@ -1108,10 +1108,11 @@ impl FrameEncoder for HosvdEncoder {
     }
 
     fn push_frames(&mut self, frames: &[f32]) -> Result<Vec<EncodedPacket>> {
-        for p in frames.chunks_exact(3) {
+        if frames.len() >= 3 {
+            let (lo, hi) = codec_core::animation::bounding_box(frames);
             for a in 0..3 {
-                self.lo[a] = self.lo[a].min(p[a]);
-                self.hi[a] = self.hi[a].max(p[a]);
+                self.lo[a] = self.lo[a].min(lo[a]);
+                self.hi[a] = self.hi[a].max(hi[a]);
             }
         }
         self.coordinates += frames.len();
