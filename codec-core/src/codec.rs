@@ -131,6 +131,14 @@ pub trait FrameEncoder: Send {
     fn notes(&self) -> Vec<String> {
         Vec::new()
     }
+
+    /// The bound of what this encoder coded, when it knows it without extra work (read after
+    /// [`FrameEncoder::finish`]; must equal [`AnimationCodec::error_bound`] on the same input).
+    /// The stream driver's self-check uses it; `None` (the default) makes the driver keep the
+    /// input and ask [`AnimationCodec::error_bound`].
+    fn declared_bound(&self) -> Option<ErrorBound> {
+        None
+    }
 }
 
 /// A decoder made by [`AnimationCodec::new_decoder`]. Packets arrive in stream order; after a

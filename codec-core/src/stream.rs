@@ -4,15 +4,29 @@
 use std::io::{Read, Seek, Write};
 
 use crate::animation::{check_finite, Animation, Topology};
-use crate::codec::{AnimationCodec, EncodedPacket, EncoderSetup, FrameDecoder, FrameEncoder, Packet};
+use crate::codec::{
+    AnimationCodec, EncodedPacket, EncoderSetup, ErrorBound, FrameDecoder, FrameEncoder, Packet, StreamInfo,
+};
 use crate::container::{self, ContainerReader, ContainerWriter, Header, IndexEntry, Limits, Section};
 use crate::error::{Error, Result};
 use crate::params::ParamSet;
 use crate::registry::CodecRegistry;
 
 /// Encodes frames as they arrive into a container written to `W`.
-pub struct StreamEncoder<W: Write> {
+///
+/// **The encoder checks its own output** (issue 26): every packet is decoded by the codec's own
+/// decoder before it is written; the decoded frames must be finite and equal the encoder's
+/// reconstruction when it gave one, and at [`StreamEncoder::finish`] the error against the
+/// input must be within the codec's declared [`ErrorBound`] ([`FrameEncoder::declared_bound`],
+/// else [`AnimationCodec::error_bound`]). Otherwise `finish` fails with an error naming the
+/// codec and the cause, and no index is written (the CLI then leaves no file): a stream that
+/// exceeds its bound never leaves the encoder. Cost: one decode of every packet, and a copy of
+/// the input frames while the stream is coded (the error is measured at the end).
+pub struct StreamEncoder<'c, W: Write> {
     codec: &'static str,
+    codec_ref: &'c dyn AnimationCodec,
+    params: ParamSet,
+    check: SelfCheck,
     encoder: Box<dyn FrameEncoder>,
     writer: ContainerWriter<W>,
     /// The triangles as the stream stores them (canonical order).
@@ -22,11 +36,11 @@ pub struct StreamEncoder<W: Write> {
     frame_count: usize,
 }
 
-impl<W: Write> StreamEncoder<W> {
+impl<'c, W: Write> StreamEncoder<'c, W> {
     /// Validates `params`, makes the codec's encoder and writes the container header.
     /// `frame_count` frames must then be pushed before [`StreamEncoder::finish`].
     pub fn new(
-        codec: &dyn AnimationCodec,
+        codec: &'c dyn AnimationCodec,
         params: &ParamSet,
         topology: &Topology,
         frame_count: usize,
@@ -48,6 +62,7 @@ impl<W: Write> StreamEncoder<W> {
             return Err(Error::InvalidAnimation(format!("frame rate {frame_rate} is not a finite positive number")));
         }
         codec.validate(params)?;
+        let topology_in = topology;
         // The stream stores the triangles in canonical order (each triangle with its
         // orientation, `connectivity::canonical_order`), where the container codes them in a
         // few bits each; the codec sees that same list, as its decoder will.
@@ -55,6 +70,29 @@ impl<W: Write> StreamEncoder<W> {
         let topology = &canonical;
         let setup = EncoderSetup { topology, frame_count, frame_rate, want_reconstruction };
         let encoder = codec.new_encoder(params, &setup)?;
+        let info = StreamInfo {
+            fourcc: codec.fourcc(),
+            codec_version: codec.stream_version(),
+            topology: topology.clone(),
+            frame_count,
+            frame_rate,
+        };
+        // The encoder's own stream: limits that never refuse it for its size.
+        let limits = Limits {
+            max_vertices: usize::MAX,
+            max_frames: usize::MAX,
+            max_triangles: usize::MAX,
+            max_alloc_bytes: usize::MAX,
+        };
+        let check = SelfCheck {
+            decoder: codec.new_decoder(&info, &encoder.config(), &limits)?,
+            topology: topology_in.clone(),
+            frame_rate,
+            input: Vec::new(),
+            checked_frames: 0,
+            max_error: 0.0,
+            sum_squared: 0.0,
+        };
         let writer = ContainerWriter::new(
             sink,
             codec.fourcc(),
@@ -66,6 +104,9 @@ impl<W: Write> StreamEncoder<W> {
         )?;
         Ok(Self {
             codec: codec.name(),
+            codec_ref: codec,
+            params: params.clone(),
+            check,
             encoder,
             writer,
             vertex_count: topology.vertex_count(),
@@ -102,6 +143,7 @@ impl<W: Write> StreamEncoder<W> {
         }
         check_finite(frames, self.vertex_count, self.frames_pushed)?;
         self.frames_pushed += n;
+        self.check.input.extend_from_slice(frames);
         let packets = self.encoder.push_frames(frames)?;
         self.write(packets)
     }
@@ -116,6 +158,7 @@ impl<W: Write> StreamEncoder<W> {
                     });
                 }
             }
+            self.check.packet(self.codec, self.vertex_count, p)?;
             self.writer.write_packet(&p.packet)?;
         }
         Ok(packets)
@@ -138,7 +181,118 @@ impl<W: Write> StreamEncoder<W> {
         let packets = self.encoder.finish()?;
         let packets = self.write(packets)?;
         let notes = self.encoder.notes();
+        self.check_bound()?;
         Ok((packets, self.writer.finish()?, notes))
+    }
+
+    /// The self-check's last step: every frame was decoded and the error is within the bound.
+    fn check_bound(&mut self) -> Result<()> {
+        let refuse = |cause: String| Error::Unsupported {
+            context: self.codec.into(),
+            detail: format!("self-check: {cause}; the stream was not written"),
+        };
+        if self.check.checked_frames != self.frame_count {
+            return Err(refuse(format!(
+                "the packets cover {} of {} frames",
+                self.check.checked_frames, self.frame_count
+            )));
+        }
+        let (lo, hi) = crate::animation::bounding_box(&self.check.input);
+        let diagonal = (0..3).map(|a| (hi[a] as f64 - lo[a] as f64).powi(2)).sum::<f64>().sqrt();
+        let coordinates = self.check.input.len();
+        let bound = match self.encoder.declared_bound() {
+            Some(b) => b,
+            None => {
+                // The bound of the input as the user gave it (as the conformance suite asks).
+                let input = std::mem::take(&mut self.check.input);
+                let animation = Animation::new(self.check.topology.clone(), input, self.check.frame_rate)?;
+                self.codec_ref.error_bound(&self.params, &animation)?
+            }
+        };
+        self.check.within(&bound, coordinates, diagonal).map_err(refuse)
+    }
+}
+
+/// State of [`StreamEncoder`]'s self-check.
+struct SelfCheck {
+    /// The codec's decoder, fed every packet in order.
+    decoder: Box<dyn FrameDecoder>,
+    /// The input frames pushed so far (frame-major), and their topology and rate as given.
+    input: Vec<f32>,
+    topology: Topology,
+    frame_rate: f32,
+    /// Frames decoded and compared so far.
+    checked_frames: usize,
+    /// Largest coordinate error so far.
+    max_error: f64,
+    /// Sum of squared coordinate errors so far.
+    sum_squared: f64,
+}
+
+impl SelfCheck {
+    /// Decodes `p`, checks it against the encoder's reconstruction and accumulates its error.
+    fn packet(&mut self, codec: &'static str, vertices: usize, p: &EncodedPacket) -> Result<()> {
+        let refuse = |cause: String| Error::Unsupported {
+            context: codec.into(),
+            detail: format!("self-check: {cause}; the stream was not written"),
+        };
+        let first = p.packet.first_frame as usize;
+        let frames = p.packet.frame_count as usize;
+        if first != self.checked_frames {
+            return Err(refuse(format!("packet starts at frame {first}, expected {}", self.checked_frames)));
+        }
+        let per_frame = vertices * 3;
+        let input = self
+            .input
+            .get(first * per_frame..(first + frames) * per_frame)
+            .ok_or_else(|| refuse(format!("packet covers frames {first}..{} not pushed yet", first + frames)))?;
+        let decoded =
+            self.decoder.decode_packet(&p.packet).map_err(|e| refuse(format!("decoding a packet failed: {e}")))?;
+        if decoded.len() != input.len() {
+            return Err(refuse(format!("decoded {} coordinates, expected {}", decoded.len(), input.len())));
+        }
+        check_finite(&decoded, vertices, first).map_err(|e| refuse(format!("decoded frames are not finite: {e}")))?;
+        if let Some(rec) = &p.reconstruction {
+            if let Some(i) = rec.iter().zip(&decoded).position(|(a, b)| a.to_bits() != b.to_bits()) {
+                return Err(refuse(format!(
+                    "decoded frames differ from the encoder's reconstruction (first at coordinate {} of frame {first})",
+                    i
+                )));
+            }
+        }
+        for (&x, &y) in input.iter().zip(&decoded) {
+            let d = (x as f64 - y as f64).abs();
+            self.max_error = self.max_error.max(d);
+            self.sum_squared += d * d;
+        }
+        self.checked_frames += frames;
+        Ok(())
+    }
+
+    /// The accumulated error against `bound`, like the conformance suite's check: a relative
+    /// 1e-9 for the rounding of these f64 sums, nothing else loosened. A bound that is not
+    /// finite (e.g. a relative one on a zero-extent animation) checks nothing.
+    fn within(&self, bound: &ErrorBound, coordinates: usize, diagonal: f64) -> std::result::Result<(), String> {
+        let slack = 1.0 + 1e-9;
+        if let Some(b) = bound.max_coordinate_error.filter(|b| b.is_finite()) {
+            if self.max_error > b * slack {
+                return Err(format!("max coordinate error {:.6e} > bound {b:.6e}", self.max_error));
+            }
+        }
+        if let Some(b) = bound.relative_rms_error.filter(|b| b.is_finite()) {
+            let rms = (self.sum_squared / coordinates.max(1) as f64).sqrt();
+            let rel = if diagonal > 0.0 {
+                rms / diagonal
+            } else if rms == 0.0 {
+                0.0
+            } else {
+                f64::INFINITY
+            };
+            if rel > b * slack {
+                return Err(format!("relative RMS error {rel:.6e} > bound {b:.6e}"));
+            }
+        }
+        Ok(())
     }
 }
 
@@ -149,6 +303,9 @@ pub struct Encoded {
     pub bytes: Vec<u8>,
     /// The encoder's reconstruction, when requested.
     pub reconstruction: Option<Animation>,
+    /// The encoder's warnings ([`FrameEncoder::notes`]), e.g. a fallback it took to keep the
+    /// stream within its bound.
+    pub notes: Vec<String>,
 }
 
 /// Encodes a whole animation, pushing it in blocks of `feed_frames` frames (the bytes do
@@ -182,11 +339,11 @@ pub fn encode_animation_fed(
         keep(enc.push_frames(chunk)?);
     }
     let topology = enc.topology().clone();
-    let (last, bytes) = enc.finish()?;
+    let (last, bytes, notes) = enc.finish_with_notes()?;
     keep(last);
     let reconstruction =
         if want_reconstruction { Some(Animation::new(topology, rec, animation.frame_rate())?) } else { None };
-    Ok(Encoded { bytes, reconstruction })
+    Ok(Encoded { bytes, reconstruction, notes })
 }
 
 /// Encodes a whole animation into container bytes.

@@ -8,6 +8,9 @@
 //! | `tumble`   | [`tumbling_body`]                           | exact rigid motion of a closed mesh          |
 //! | `phases`   | [`phased_motion`]                           | motion whose character changes at known frames |
 //!
+//! [`skinned_character`] (not in [`by_name`]: it takes a [`CharacterSpec`]) is issue 26's
+//! stress input: disconnected meshes, tiny rigid parts, duplicated seam vertices, bone chains.
+//!
 //! [`by_name`] builds any of them at a [`SynthSize`]. [`flag_frame`] generates the flag one
 //! frame at a time, so arbitrarily long sequences can be streamed into an encoder without
 //! holding them in memory.
@@ -658,4 +661,232 @@ mod tests {
         let d = (0..40).map(|t| dist(a.vertex(t, top), a.vertex(0, top))).fold(0.0, f64::max);
         assert!(d > 0.3, "top ring moved only {d}");
     }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Skinned character with tiny rigid parts (issue 26's stress input)
+
+/// What [`skinned_character`] builds. Every field is clamped to a meaningful range.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CharacterSpec {
+    /// Rings of the body tube along its length (≥ 2).
+    pub rings: usize,
+    /// Vertices around a ring before the seam column is duplicated (≥ 3).
+    pub segments: usize,
+    /// Bones of the skeleton chain along the body (1..=8).
+    pub bones: usize,
+    /// Disconnected rigid parts (UV spheres) riding on the body (0..=200).
+    pub parts: usize,
+    /// Radius of a part, in units of the body length 2 (e.g. 0.006: 0.3 % of the diagonal).
+    pub part_radius: f64,
+    /// Latitude bands and longitude vertices of a part (≥ 2, ≥ 3): `(lat − 1)·lon + 2` vertices.
+    pub part_lat: usize,
+    /// See `part_lat`.
+    pub part_lon: usize,
+    /// Frames (≥ 1).
+    pub frames: usize,
+    /// Chooses anchors, amplitudes and phases (a hash, no random-number generator).
+    pub seed: u64,
+}
+
+impl CharacterSpec {
+    /// The shape of `../shared/probe-round3/hosvd-divergence/` (`gen.py spheres srad=0.006
+    /// nframes=30 nsph=40 nseg=30 nring=16`): a 30 × 16 tube and 40 UV spheres of 128
+    /// vertices and radius 0.006, 30 frames. The motion is this module's (skinned bones), not
+    /// `gen.py`'s integrated centre line.
+    pub fn spheres_like(seed: u64) -> Self {
+        Self {
+            rings: 30,
+            segments: 16,
+            bones: 4,
+            parts: 40,
+            part_radius: 0.006,
+            part_lat: 10,
+            part_lon: 14,
+            frames: 30,
+            seed,
+        }
+    }
+}
+
+/// A deterministic value in `[0, 1)` from `seed` and `salt` (SplitMix64's finalizer).
+fn unit_hash(seed: u64, salt: u64) -> f64 {
+    let mut z = seed ^ salt.wrapping_mul(0x9E37_79B9_7F4A_7C15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^= z >> 31;
+    (z >> 11) as f64 / (1u64 << 53) as f64
+}
+
+/// A rigid transform `p ↦ m·p + c`.
+#[derive(Clone, Copy)]
+struct Rigid {
+    m: [[f64; 3]; 3],
+    c: [f64; 3],
+}
+
+impl Rigid {
+    fn apply(&self, p: [f64; 3]) -> [f64; 3] {
+        let q = apply(&self.m, p);
+        [q[0] + self.c[0], q[1] + self.c[1], q[2] + self.c[2]]
+    }
+
+    /// `self ∘ other`.
+    fn then_inner(&self, other: &Rigid) -> Rigid {
+        let c = self.apply(other.c);
+        Rigid { m: mat_mul(&self.m, &other.m), c }
+    }
+}
+
+/// A UV sphere of `lat` bands (≥ 2) and `lon` vertices around (≥ 3) at the origin:
+/// `(lat − 1)·lon + 2` vertices (poles first and last).
+fn uv_sphere(lat: usize, lon: usize, radius: f64) -> (Vec<[f64; 3]>, Vec<[u32; 3]>) {
+    let mut v = vec![[0.0, 0.0, radius]];
+    for i in 1..lat {
+        let th = PI * i as f64 / lat as f64;
+        for j in 0..lon {
+            let ph = TAU * j as f64 / lon as f64;
+            v.push([radius * th.sin() * ph.cos(), radius * th.sin() * ph.sin(), radius * th.cos()]);
+        }
+    }
+    v.push([0.0, 0.0, -radius]);
+    let last = index(v.len() - 1);
+    let mut f = Vec::new();
+    for j in 0..lon {
+        f.push([0, index(1 + j), index(1 + (j + 1) % lon)]);
+    }
+    for i in 0..lat - 2 {
+        let (a, b) = (1 + i * lon, 1 + (i + 1) * lon);
+        for j in 0..lon {
+            let j2 = (j + 1) % lon;
+            f.push([index(a + j), index(b + j), index(b + j2)]);
+            f.push([index(a + j), index(b + j2), index(a + j2)]);
+        }
+    }
+    let a = 1 + (lat - 2) * lon;
+    for j in 0..lon {
+        f.push([index(a + j), last, index(a + (j + 1) % lon)]);
+    }
+    (v, f)
+}
+
+/// A skinned "character" with what the failing real one of issue 26 has: several
+/// disconnected meshes, tiny rigid parts, coincident seam vertices and bone-driven motion.
+///
+/// The body is an open tube along z (length 2, radius 0.12) of `rings × (segments + 1)`
+/// vertices: the seam column is duplicated (coincident positions, not connected across, as
+/// UV seams are in glTF). A chain of `bones` bones splits its length evenly; bone `b`
+/// rotates about its joint (`z = 2b/bones`) by `a_b sin(2π(f_b s + φ_b))` about a horizontal
+/// axis turning at `w_b` rad/s, composed down the chain; the body vertices are skinned by
+/// linear blend skinning with hat weights around each bone's centre (normalised). `parts`
+/// UV spheres of radius `part_radius` ride *rigidly* on the body: each is attached to a
+/// surface point (hashed anchor along the length and around) and follows the transform of
+/// the bone with the largest weight there. Amplitudes, frequencies, phases and anchors come
+/// from `seed` through a hash, so equal specs give equal bytes.
+pub fn skinned_character(spec: &CharacterSpec) -> Animation {
+    const LENGTH: f64 = 2.0;
+    const RADIUS: f64 = 0.12;
+    let rings = spec.rings.max(2);
+    let segments = spec.segments.max(3);
+    let bones = spec.bones.clamp(1, 8);
+    let parts = spec.parts.min(200);
+    let (lat, lon) = (spec.part_lat.max(2), spec.part_lon.max(3));
+    let frames = spec.frames.max(1);
+    let radius = if spec.part_radius.is_finite() { spec.part_radius.clamp(1e-5, 0.1) } else { 0.006 };
+    let h = |salt: u64| unit_hash(spec.seed, salt);
+
+    // Body: the seam column j = segments repeats j = 0.
+    let around = segments + 1;
+    let mut rest = Vec::with_capacity(rings * around);
+    for i in 0..rings {
+        let z = LENGTH * i as f64 / (rings - 1) as f64;
+        for j in 0..around {
+            let a = TAU * (j % segments) as f64 / segments as f64;
+            rest.push([RADIUS * a.cos(), RADIUS * a.sin(), z]);
+        }
+    }
+    let mut tris = Vec::new();
+    for i in 0..rings - 1 {
+        for j in 0..segments {
+            let a = index(i * around + j);
+            let b = index(i * around + j + 1);
+            let c = index((i + 1) * around + j);
+            let d = index((i + 1) * around + j + 1);
+            tris.push([a, b, d]);
+            tris.push([a, d, c]);
+        }
+    }
+    let body = rest.len();
+    let bone_len = LENGTH / bones as f64;
+    let weights = |z: f64| -> Vec<f64> {
+        let raw: Vec<f64> = (0..bones)
+            .map(|b| {
+                let centre = (b as f64 + 0.5) * bone_len;
+                (1.0 - (z - centre).abs() / bone_len).max(0.0) + 1e-9
+            })
+            .collect();
+        let sum: f64 = raw.iter().sum();
+        raw.iter().map(|w| w / sum).collect()
+    };
+    let body_weights: Vec<Vec<f64>> = rest.iter().map(|p| weights(p[2])).collect();
+
+    // Parts: a sphere per anchor, offset just outside the surface.
+    let (sphere, sphere_tris) = uv_sphere(lat, lon, radius);
+    let mut anchors = Vec::with_capacity(parts);
+    for k in 0..parts {
+        let z = 0.05 + (LENGTH - 0.1) * h(1000 + 2 * k as u64);
+        let a = TAU * h(1001 + 2 * k as u64);
+        let centre = [(RADIUS + radius) * a.cos(), (RADIUS + radius) * a.sin(), z];
+        let w = weights(z);
+        let bone = (0..bones).fold(0, |best, b| if w[b] > w[best] { b } else { best });
+        let first = rest.len();
+        for q in &sphere {
+            rest.push([centre[0] + q[0], centre[1] + q[1], centre[2] + q[2]]);
+        }
+        for t in &sphere_tris {
+            tris.push([t[0] + index(first), t[1] + index(first), t[2] + index(first)]);
+        }
+        anchors.push((first, bone));
+    }
+
+    let mut positions = Vec::with_capacity(frames * rest.len() * 3);
+    for t in 0..frames {
+        let s = t as f64 / FRAME_RATE as f64;
+        // World transform of each bone, down the chain.
+        let mut world: Vec<Rigid> = Vec::with_capacity(bones);
+        for b in 0..bones {
+            let salt = 10 * b as u64;
+            let amplitude = if b == 0 { 0.15 } else { 0.2 + 0.5 * h(salt) };
+            let angle = amplitude * (TAU * ((0.3 + 1.2 * h(salt + 1)) * s + h(salt + 2))).sin();
+            let heading = TAU * h(salt + 3) + (0.5 + h(salt + 4)) * s;
+            let axis = [heading.cos(), heading.sin(), 0.0];
+            let joint = [0.0, 0.0, b as f64 * bone_len];
+            let m = rotation(axis, angle);
+            let local = Rigid {
+                m,
+                c: [joint[0] - apply(&m, joint)[0], joint[1] - apply(&m, joint)[1], joint[2] - apply(&m, joint)[2]],
+            };
+            let w = match world.last() {
+                Some(parent) => parent.then_inner(&local),
+                None => local,
+            };
+            world.push(w);
+        }
+        for (p, w) in rest[..body].iter().zip(&body_weights) {
+            let mut out = [0.0; 3];
+            for b in 0..bones {
+                let q = world[b].apply(*p);
+                for a in 0..3 {
+                    out[a] += w[b] * q[a];
+                }
+            }
+            to_f32(out, &mut positions);
+        }
+        for &(first, bone) in &anchors {
+            for p in &rest[first..first + sphere.len()] {
+                to_f32(world[bone].apply(*p), &mut positions);
+            }
+        }
+    }
+    animation(rest.len(), tris, positions)
 }

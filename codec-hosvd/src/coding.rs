@@ -25,6 +25,17 @@
 //! the regression predicts the geometric detail the neighbour average cannot. The rate search
 //! regresses on the unquantized leading columns (the decoded ones depend on steps not yet
 //! chosen); the final coding and the decoder on the decoded ones, before smoothing.
+//!
+//! Stream version 5 (issue 26): the same layout, with the *guarded* regression
+//! ([`Fit::guarded`]: an absolute ridge from the leads' steps, predictions clamped to the
+//! neighbourhood's range). Version 4's unguarded fit could diverge on decoded leads that are
+//! flat up to rounding across a small rigid part (`../shared/probe-round3/hosvd-divergence/`:
+//! weights 6e12, codes clamped at `MAX_CODE`, coordinates 5e13). The rate search fits on the
+//! unquantized leads with their reference steps; the final pass re-decides each regression
+//! column on the *decoded* leads (regression or the mesh predictor, fewer bits), and checks
+//! every component's closed loop (each entry within a step of its value before smoothing): a
+//! regression column that fails is re-coded with the mesh predictor and counted in
+//! [`Coded::fallbacks`]. Version 4 streams still decode with the unguarded fit.
 
 use codec_core::toolkit::adaptive::{AdaptiveDecoder, AdaptiveEncoder, CostModel};
 use codec_core::toolkit::order::CausalGraph;
@@ -65,6 +76,10 @@ pub struct Settings {
     /// parallelogram and (after the first column) local regression on the leading columns
     /// ([`codec_core::toolkit::regress`]); stream version 4, [`ColumnMode`].
     pub regress: bool,
+    /// Test hook (never set by the codec's parameters): regression on every `U1` column after
+    /// the first, with version 4's *unguarded* fit and no final-pass choice, so tests can drive
+    /// the encoder into the divergence and see its closed-loop check fall back.
+    pub force_unguarded_regression: bool,
 }
 
 /// How a `U1` column is predicted (stream version 4: one byte per column).
@@ -211,6 +226,12 @@ pub struct Coded {
     pub smoothing: Vec<u8>,
     /// Per `U1` column, its [`ColumnMode`] byte (all 0 without `regress`).
     pub modes: Vec<u8>,
+    /// `U1` columns coded in regression mode whose closed loop failed (an entry more than a
+    /// step from its value, or not finite) and were re-coded with the mesh predictor.
+    pub fallbacks: Vec<usize>,
+    /// Components (coding order: `U1`, `U3`, core) whose closed loop failed with no safer mode
+    /// to fall back to; the caller must not write the stream.
+    pub failed: Vec<usize>,
 }
 
 #[derive(Clone, Copy, PartialEq, Eq)]
@@ -237,6 +258,8 @@ struct Component<'g> {
     smoother: Option<&'g Smoother>,
     /// Try the other column modes (U1 with `regress` only).
     modes: bool,
+    /// Test hook: regression is the only mode (see [`Settings::force_unguarded_regression`]).
+    forced: bool,
     /// Regression on the leading columns, unquantized (U1 columns after the first, with
     /// `regress` only): the rate search's stand-in for the decoded ones.
     regression: Option<Regression<'g>>,
@@ -305,6 +328,9 @@ impl Component<'_> {
     fn best_mode(&self, step: f64) -> ColumnMode {
         if !self.modes || step <= 0.0 {
             return ColumnMode::Mesh;
+        }
+        if self.forced && self.regression.is_some() {
+            return ColumnMode::Regression;
         }
         let (mut codes, mut recon) = (Vec::new(), Vec::new());
         let mut best = (f64::INFINITY, ColumnMode::Mesh);
@@ -443,14 +469,26 @@ pub fn code(op: &Operator<'_>, mesh: &CausalGraph, settings: &Settings, target: 
     let lead_columns: Vec<Vec<f64>> =
         (0..leads).map(|i| mesh.order().iter().map(|&x| op.u1[x as usize * v + i]).collect()).collect();
     let lead_refs: Vec<&[f64]> = lead_columns.iter().map(|c| c.as_slice()).collect();
+    let u1_reference_step = |i: usize| (4.0 * target / (v * k) as f64).sqrt() / op.s1[i].max(1e-300);
+    // The guarded fit's ridge needs the leads' steps, not chosen yet: their reference steps
+    // stand in (the decoded leads' noise is of that order).
+    let lead_steps: Vec<f64> = lead_columns
+        .iter()
+        .enumerate()
+        .map(|(i, c)| {
+            let max_abs = c.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+            rdq::stored_step(u1_reference_step(i), rdq::step_floor(max_abs))
+        })
+        .collect();
     let hoods = (leads > 0).then(|| Neighbourhoods::new(mesh));
+    let guarded = !settings.force_unguarded_regression;
     let fits: Vec<Fit> = match &hoods {
-        Some(h) => (1..=leads).map(|n| Fit::new(h, &lead_refs[..n])).collect(),
+        Some(h) => (1..=leads).map(|n| make_fit(h, &lead_refs[..n], &lead_steps[..n], guarded)).collect(),
         None => Vec::new(),
     };
     for i in 0..v {
         let values: Vec<f64> = mesh.order().iter().map(|&x| op.u1[x as usize * v + i]).collect();
-        let reference_step = (4.0 * target / (v * k) as f64).sqrt() / op.s1[i].max(1e-300);
+        let reference_step = u1_reference_step(i);
         let regression = match &hoods {
             Some(hoods) if i > 0 => {
                 let n = i.min(leads);
@@ -470,6 +508,7 @@ pub fn code(op: &Operator<'_>, mesh: &CausalGraph, settings: &Settings, target: 
             reference_step,
             smoother: smoother.as_ref(),
             modes: settings.regress,
+            forced: settings.force_unguarded_regression,
             regression,
         });
     }
@@ -488,6 +527,7 @@ pub fn code(op: &Operator<'_>, mesh: &CausalGraph, settings: &Settings, target: 
             reference_step,
             smoother: None,
             modes: false,
+            forced: false,
             regression: None,
         });
     }
@@ -506,6 +546,7 @@ pub fn code(op: &Operator<'_>, mesh: &CausalGraph, settings: &Settings, target: 
             reference_step,
             smoother: None,
             modes: false,
+            forced: false,
             regression: None,
         });
     }
@@ -575,21 +616,52 @@ pub fn code(op: &Operator<'_>, mesh: &CausalGraph, settings: &Settings, target: 
     // The leading U1 columns as the decoder has them before smoothing: the regressors.
     let mut decoded_leads: Vec<Vec<f64>> = Vec::with_capacity(leads);
     let mut decoded_fit: Option<(usize, Fit)> = None;
-    for (((c, &step), &level), &mode) in comps.iter().zip(&steps).zip(&levels).zip(&modes) {
+    let mut modes = modes;
+    let (mut fallbacks, mut failed) = (Vec::new(), Vec::new());
+    let (mut alt_codes, mut alt_recon) = (Vec::new(), Vec::new());
+    for (ci, ((c, &step), &level)) in comps.iter().zip(&steps).zip(&levels).enumerate() {
         if step > 0.0 {
-            match (&hoods, mode) {
+            match (&hoods, modes[ci]) {
                 (Some(hoods), ColumnMode::Regression) => {
                     let n = c.index.min(leads);
                     let refs: Vec<&[f64]> = decoded_leads[..n].iter().map(|x| x.as_slice()).collect();
-                    let fit = current_fit(&mut decoded_fit, n, hoods, &refs);
+                    // The decoder's steps of the leads (stored as f32).
+                    let lead_steps: Vec<f64> = steps[..n].iter().map(|&s| s as f32 as f64).collect();
+                    let fit = current_fit(&mut decoded_fit, n, hoods, &refs, &lead_steps, guarded);
                     let reg = Regression { graph: mesh, fallback: c.predictor, hoods, fit };
                     reg.quantize(&c.values, step, &mut codes, &mut recon);
+                    // The search chose the mode on the unquantized leads; on the decoded ones
+                    // the regression may lose to the mesh predictor (or, unguarded, diverge).
+                    let sound = closed_loop_holds(&c.values, &recon, step, 0.0);
+                    if !sound || !c.forced {
+                        predict::quantize(
+                            c.graph,
+                            c.predictor,
+                            &c.values,
+                            step,
+                            c.shaping,
+                            &mut alt_codes,
+                            &mut alt_recon,
+                        );
+                        if !sound || c.rate(&alt_codes) < c.rate(&codes) {
+                            std::mem::swap(&mut codes, &mut alt_codes);
+                            std::mem::swap(&mut recon, &mut alt_recon);
+                            modes[ci] = ColumnMode::Mesh;
+                            if !sound {
+                                fallbacks.push(c.index);
+                            }
+                        }
+                    }
                 }
                 (_, ColumnMode::Parallelogram) => {
                     let pred = Predictor::Parallelogram;
                     predict::quantize(c.graph, pred, &c.values, step, c.shaping, &mut codes, &mut recon)
                 }
                 _ => predict::quantize(c.graph, c.predictor, &c.values, step, c.shaping, &mut codes, &mut recon),
+            }
+            let shaping = if modes[ci] == ColumnMode::Regression { 0.0 } else { c.shaping };
+            if !closed_loop_holds(&c.values, &recon, step, shaping) {
+                failed.push(ci);
             }
             for p in 0..codes.len() {
                 enc.encode(codes[p], c.class(), predict::neighbour_bucket(c.graph, &codes, p));
@@ -636,16 +708,44 @@ pub fn code(op: &Operator<'_>, mesh: &CausalGraph, settings: &Settings, target: 
         estimated_bits,
         smoothing: levels[..v].to_vec(),
         modes: modes[..v].iter().map(|&m| m as u8).collect(),
+        fallbacks,
+        failed,
+    }
+}
+
+/// The closed loop's promise: every reconstructed entry finite and within half a step of its
+/// value — `step/2/(1 − α)` with noise shaping `α` (the shaped target moves by `α` times the
+/// neighbours' mean error) — plus half a step for the rounding of the prediction's
+/// arithmetic. Only a clamped code (a prediction more than `MAX_CODE` steps off: a diverging
+/// predictor) breaks it.
+fn closed_loop_holds(values: &[f64], recon: &[f64], step: f64, shaping: f64) -> bool {
+    let tolerance = step * (0.5 / (1.0 - shaping.clamp(0.0, 0.95)) + 0.5);
+    values.iter().zip(recon).all(|(x, r)| r.is_finite() && (x - r).abs() <= tolerance)
+}
+
+/// The regression fit of a stream's arithmetic: guarded (version 5) or version 4's.
+fn make_fit(hoods: &Neighbourhoods, refs: &[&[f64]], steps: &[f64], guarded: bool) -> Fit {
+    if guarded {
+        Fit::guarded(hoods, refs, steps)
+    } else {
+        Fit::new(hoods, refs)
     }
 }
 
 /// The fit on the first `n` decoded leading columns, built when `n` changes (columns come in
 /// order, so `n` never decreases and one fit is alive at a time).
-fn current_fit<'f>(slot: &'f mut Option<(usize, Fit)>, n: usize, hoods: &Neighbourhoods, refs: &[&[f64]]) -> &'f Fit {
+fn current_fit<'f>(
+    slot: &'f mut Option<(usize, Fit)>,
+    n: usize,
+    hoods: &Neighbourhoods,
+    refs: &[&[f64]],
+    steps: &[f64],
+    guarded: bool,
+) -> &'f Fit {
     if slot.as_ref().is_some_and(|(m, _)| *m != n) {
         *slot = None; // dropped before the next is built
     }
-    &slot.get_or_insert_with(|| (n, Fit::new(hoods, refs))).1
+    &slot.get_or_insert_with(|| (n, make_fit(hoods, refs, steps, guarded))).1
 }
 
 /// Number of leading `U1` columns the others may be regressed on (0 without `regress`).
@@ -670,6 +770,7 @@ pub fn decode(
     f: usize,
     steps: &[f32],
     column_modes: Option<&[u8]>,
+    guarded: bool,
 ) -> Result<(Vec<f64>, Vec<f64>, Vec<f64>)> {
     let k = mesh.len();
     if steps.len() != 2 * v + f {
@@ -706,7 +807,8 @@ pub fn decode(
             (Some(hoods), ColumnMode::Regression) => {
                 let n = i.min(leads);
                 let refs: Vec<&[f64]> = decoded_leads[..n].iter().map(|x| x.as_slice()).collect();
-                let fit = current_fit(&mut fit, n, hoods, &refs);
+                let lead_steps: Vec<f64> = steps[..n].iter().map(|&s| s as f64).collect();
+                let fit = current_fit(&mut fit, n, hoods, &refs, &lead_steps, guarded);
                 let reg = Regression { graph: mesh, fallback: mesh_predictor, hoods, fit };
                 component(&mut dec, &mut codes, &mut recon, mesh, mesh_predictor, Some(&reg), class, steps[i])?
             }

@@ -115,6 +115,12 @@ pub struct HosvdParams {
     /// regression on the leading columns (up to 4) over its already coded two-ring neighbours.
     /// Beyond the paper. Default true.
     pub regress: bool,
+    /// Test hook, not a codec parameter (always false from a [`ParamSet`]): regression on every
+    /// mode-1 column with stream version 4's unguarded fit, to drive the encoder into the
+    /// divergence of issue 26 and prove its closed-loop check falls back
+    /// (`coding::Settings::force_unguarded_regression`).
+    #[doc(hidden)]
+    pub force_unguarded_regression: bool,
 }
 
 /// Coding of the quantized operator (`coding` parameter).
@@ -162,6 +168,7 @@ impl Default for HosvdParams {
             edge_noise: 0.0,
             denoise: true,
             regress: true,
+            force_unguarded_regression: false,
         }
     }
 }
@@ -340,6 +347,7 @@ impl HosvdParams {
             edge_noise: p.float("edge_noise")?,
             denoise: p.bool("denoise")?,
             regress: p.bool("regress")?,
+            force_unguarded_regression: false,
         };
         out.check_cross()?;
         Ok(out)
@@ -394,7 +402,7 @@ impl AnimationCodec for Hosvd {
         FOURCC
     }
     fn stream_version(&self) -> u16 {
-        4
+        5
     }
     fn summary(&self) -> &'static str {
         "HO-SVD / Tucker (v, 3, f) truncation with affine motion removal (Romaszewski et al.)"
@@ -446,10 +454,10 @@ impl AnimationCodec for Hosvd {
         if block == 0 {
             return Err(r.malformed("config.block", "0 frames per block"));
         }
-        if !(1..=4).contains(&info.codec_version) {
+        if !(1..=5).contains(&info.codec_version) {
             return Err(Error::Unsupported {
                 context: NAME.into(),
-                detail: format!("stream version {} (this build decodes 1 to 4)", info.codec_version),
+                detail: format!("stream version {} (this build decodes 1 to 5)", info.codec_version),
             });
         }
         // Version 2 packets may use the toolkit coding, which needs the mesh's coding order:
@@ -487,6 +495,9 @@ pub struct BlockStats {
     pub error_bound: f64,
     /// Packet payload bytes.
     pub payload_bytes: usize,
+    /// Mode-1 columns the search put in regression mode whose closed loop failed on the
+    /// decoded leads and were re-coded with the mesh predictor (issue 26; 0 normally).
+    pub regression_fallbacks: usize,
     /// Seconds in motion removal + Gram factorizations (+ full core when searching).
     pub decompose_seconds: f64,
     /// Seconds in the rank search.
@@ -894,6 +905,7 @@ pub fn encode_block(
         transforms: if p.rigid { transforms.clone() } else { vec![Affine::IDENTITY; frames] },
     };
     let mut w = ByteWriter::new();
+    let mut regression_fallbacks = 0;
     // Per-column bounds of ‖δu1_i‖, ‖δu3_l‖, and ‖δC‖, for the error bound below.
     let (n1, n3, dc) = match p.coding {
         Coding::Paper => paper_code(&mut w, side, &mut m, p, &u1, &u3, &core, &s1, &s3, budget)?,
@@ -907,8 +919,21 @@ pub fn encode_block(
                 edge_weight: p.edge_weight,
                 denoise: p.denoise,
                 regress: p.regress,
+                force_unguarded_regression: p.force_unguarded_regression,
             };
             let coded = coding::code(&op, graph, &settings, budget);
+            // The encoder checks its own output (issue 26): a component whose closed loop
+            // failed with no safer mode left is never written.
+            if let Some(&c) = coded.failed.first() {
+                return Err(Error::Unsupported {
+                    context: NAME.into(),
+                    detail: format!(
+                        "component {c} of the coded operator (v = {v}, f = {f}) does not reconstruct within its \
+                         quantization step; no stream written"
+                    ),
+                });
+            }
+            regression_fallbacks = coded.fallbacks.len();
             for &step in &coded.steps {
                 side.f32(step);
             }
@@ -977,6 +1002,7 @@ pub fn encode_block(
         truncation_error2: trunc2,
         error_bound,
         payload_bytes: payload.len(),
+        regression_fallbacks,
         decompose_seconds,
         search_seconds,
         hooi_seconds,
@@ -998,6 +1024,10 @@ pub struct HosvdEncoder {
     stats: Vec<BlockStats>,
     /// Frames in the whole animation.
     frame_count: usize,
+    /// Bounding box and coordinate count of the frames pushed (for [`FrameEncoder::declared_bound`]).
+    lo: [f32; 3],
+    hi: [f32; 3],
+    coordinates: usize,
 }
 
 /// The parameters for one block of `frames` frames (`whole`: the block is the whole
@@ -1047,6 +1077,9 @@ impl HosvdEncoder {
             next_frame: 0,
             stats: Vec::new(),
             frame_count,
+            lo: [f32::INFINITY; 3],
+            hi: [f32::NEG_INFINITY; 3],
+            coordinates: 0,
         }
     }
 
@@ -1075,12 +1108,46 @@ impl FrameEncoder for HosvdEncoder {
     }
 
     fn push_frames(&mut self, frames: &[f32]) -> Result<Vec<EncodedPacket>> {
+        if frames.len() >= 3 {
+            let (lo, hi) = codec_core::animation::bounding_box(frames);
+            for a in 0..3 {
+                self.lo[a] = self.lo[a].min(lo[a]);
+                self.hi[a] = self.hi[a].max(hi[a]);
+            }
+        }
+        self.coordinates += frames.len();
         self.pending.extend_from_slice(frames);
         let mut out = Vec::new();
         while self.pending.len() >= self.block * self.k * 3 && self.k > 0 {
             out.push(self.code(self.block)?);
         }
         Ok(out)
+    }
+
+    /// [`AnimationCodec::error_bound`] from the packets' own bounds (the same arithmetic), so
+    /// the stream driver's self-check needs no second analysis.
+    fn declared_bound(&self) -> Option<ErrorBound> {
+        let frob = self.stats.iter().map(|s| s.error_bound.powi(2)).sum::<f64>().sqrt();
+        let diag = if self.coordinates >= 3 {
+            (0..3).map(|a| (self.hi[a] as f64 - self.lo[a] as f64).powi(2)).sum::<f64>().sqrt()
+        } else {
+            0.0
+        };
+        let rel = if diag > 0.0 { frob / (self.coordinates as f64).sqrt() / diag } else { f64::INFINITY };
+        Some(ErrorBound { max_coordinate_error: Some(frob), relative_rms_error: Some(rel) })
+    }
+
+    fn notes(&self) -> Vec<String> {
+        let fallbacks: usize = self.stats.iter().map(|s| s.regression_fallbacks).sum();
+        if fallbacks == 0 {
+            return Vec::new();
+        }
+        vec![format!(
+            "{NAME}: fallback: {fallbacks} mode-1 column{} in regression mode did not reconstruct within its \
+             step on the decoded leading columns and {} re-coded with the mesh predictor",
+            if fallbacks == 1 { "" } else { "s" },
+            if fallbacks == 1 { "was" } else { "were" },
+        )]
     }
 
     fn finish(&mut self) -> Result<Vec<EncodedPacket>> {
@@ -1238,9 +1305,21 @@ impl FrameDecoder for HosvdDecoder {
             if modes.as_ref().is_some_and(|x| x.contains(&(coding::ColumnMode::Regression as u8))) {
                 self.limits.check_alloc(NAME, "regression neighbourhoods", Neighbourhoods::bytes(k))?;
             }
+            // Version 5's guarded regression; version 4 streams keep their arithmetic.
+            let guarded = self.version >= 5;
             let graph = self.mesh_order()?;
-            let (mut u1, u3, core) =
-                coding::decode(bytes, graph, mesh_predictor, time_predictor, frames, v, f, &steps, modes.as_deref())?;
+            let (mut u1, u3, core) = coding::decode(
+                bytes,
+                graph,
+                mesh_predictor,
+                time_predictor,
+                frames,
+                v,
+                f,
+                &steps,
+                modes.as_deref(),
+                guarded,
+            )?;
             if let Some(levels) = smoothing {
                 coding::Smoother::new(graph).apply_columns(graph, &mut u1, v, &levels)?;
             }

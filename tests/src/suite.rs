@@ -1266,13 +1266,13 @@ fn check_mutation(
     }
 }
 
-fn new_encoder(
-    codec: &dyn AnimationCodec,
+fn new_encoder<'c>(
+    codec: &'c dyn AnimationCodec,
     params: &ParamSet,
     topology: &Topology,
     frames: usize,
     rate: f32,
-) -> codec_core::Result<StreamEncoder<Vec<u8>>> {
+) -> codec_core::Result<StreamEncoder<'c, Vec<u8>>> {
     StreamEncoder::new(codec, params, topology, frames, rate, true, Vec::new())
 }
 

@@ -217,14 +217,26 @@ fn container_versions_keep_the_triangles() {
 /// hosvd stream version 4's column modes (regression on the leading `U1` columns,
 /// parallelogram): the default golden input is too small for the encoder to pick them, so a
 /// larger flag with fine quantization pins the regression decoder's arithmetic.
-/// `ANIMCODEC_WRITE_GOLDEN=1` writes `hosvd-v4-modes/hosvd-v4.anim` and its hash when missing.
+/// `ANIMCODEC_WRITE_GOLDEN=1` writes `hosvd-v4-modes/hosvd-v4.anim` and its hash when missing
+/// (only a build whose hosvd writes version 4 can).
 #[test]
 fn hosvd_v4_column_modes_golden() {
+    hosvd_column_modes_golden(4);
+}
+
+/// Version 5's guarded regression (issue 26), on the same input as version 4's: pins the
+/// absolute ridge and the clamp of the prediction.
+#[test]
+fn hosvd_v5_column_modes_golden() {
+    hosvd_column_modes_golden(5);
+}
+
+fn hosvd_column_modes_golden(version: u16) {
     use codec_core::container::Section;
     let registry = registry();
     let codec = registry.by_name("hosvd").unwrap();
-    let dir = golden_dir().join("hosvd-v4-modes");
-    let (path, hash_path) = (dir.join("hosvd-v4.anim"), dir.join("hash.txt"));
+    let dir = golden_dir().join(format!("hosvd-v{version}-modes"));
+    let (path, hash_path) = (dir.join(format!("hosvd-v{version}.anim")), dir.join("hash.txt"));
     let input = synth::waving_flag(16, 12, 24);
     let specs = codec.param_specs();
     let params = codec
@@ -233,7 +245,7 @@ fn hosvd_v4_column_modes_golden() {
         .and_then(|p| p.with(&specs, "ss", ParamValue::Float(0.6)))
         .and_then(|p| p.with(&specs, "quant", ParamValue::Float(0.05)))
         .unwrap();
-    if std::env::var_os("ANIMCODEC_WRITE_GOLDEN").is_some() && !path.exists() {
+    if std::env::var_os("ANIMCODEC_WRITE_GOLDEN").is_some() && !path.exists() && codec.stream_version() == version {
         let bytes = encode_animation(codec, &params, &input).unwrap();
         let decoded = decode_animation(&bytes, &registry, Limits::default()).unwrap();
         std::fs::create_dir_all(&dir).unwrap();
@@ -243,7 +255,7 @@ fn hosvd_v4_column_modes_golden() {
     let bytes = std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
     let hash = std::fs::read_to_string(&hash_path).unwrap_or_else(|e| panic!("{}: {e}", hash_path.display()));
     let mut reader = ContainerReader::new(&bytes[..], Limits::default()).unwrap();
-    assert_eq!(reader.header().info.codec_version, 4);
+    assert_eq!(reader.header().info.codec_version, version);
     // The packet's last v bytes are the column modes (flag bit 4): both new modes occur.
     let Some(Ok(Section::Packet(packet))) = reader.next_section() else { panic!("no packet") };
     assert_eq!(packet.data[0] & 16, 16, "column modes flag");
@@ -251,5 +263,5 @@ fn hosvd_v4_column_modes_golden() {
     let modes = &packet.data[packet.data.len() - v..];
     assert!(modes.contains(&1) && modes.contains(&2), "modes {modes:?}");
     let decoded = decode_animation(&bytes, &registry, Limits::default()).unwrap();
-    assert_eq!(frames_hash(&decoded), hash.trim(), "hosvd v4 column modes decode to their golden frames");
+    assert_eq!(frames_hash(&decoded), hash.trim(), "hosvd v{version} column modes decode to their golden frames");
 }

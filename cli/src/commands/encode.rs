@@ -89,6 +89,11 @@ pub fn run(args: &EncodeArgs, limits: Limits) -> CmdResult {
     let (mut file, bytes, notes) =
         encode_to_file(codec, &params, &source, (&topology, frame_count, frame_rate), file, args.feed as usize)?;
     let encode_seconds = start.elapsed().as_secs_f64();
+    // The encoder's warnings (e.g. a fallback it took to stay within its bound, issue 26) also go
+    // to stderr, whatever the output format; `--json` lists them under "notes".
+    for n in &notes {
+        eprintln!("animcodec: warning: {n}");
+    }
 
     let (v, f, t) = (topology.vertex_count(), frame_count, topology.triangle_count());
     let rate = bpvf(bytes, v, f);

@@ -24,6 +24,21 @@
 //!
 //! Everything is plain `f64` arithmetic in a fixed order (no fused operations, no library
 //! functions), so the encoder and the decoder compute the same predictions bit for bit.
+//!
+//! **Guarded fits** ([`Fit::guarded`], hosvd stream version 5, issue 26). The closed loop
+//! regresses on *decoded* regressors, which carry quantization noise of about `step²/12` per
+//! entry. Across a small rigid part the decoded leads can be flat up to floating-point rounding
+//! (every entry coded with 0): the Gram matrix is ~1e-36, a ridge relative to its trace adds
+//! nothing, and one lead code of ±1 (one step) makes the weights grow like step / 1e-18 — the
+//! prediction is off by 1e8–1e12 steps and the reconstruction explodes
+//! (`../shared/probe-round3/hosvd-divergence/`). The guarded fit therefore (1) adds an
+//! *absolute* ridge `|N|·step_j²/12` to `G_jj`, the noise energy the decoded regressor `j`
+//! carries over the neighbourhood (ridge regression as the errors-in-variables correction):
+//! a neighbourhood whose lead spread is below a few steps carries no information and its
+//! weights shrink smoothly to the plain neighbour average `1/|N|`; and (2) clamps every
+//! prediction to the neighbours' reconstructed range widened by its own width on both sides
+//! (room for a linear extrapolation across two rings), so no fit can put the prediction far
+//! outside the values it was made from.
 
 use super::order::CausalGraph;
 use super::predict::{self, Predictor};
@@ -39,6 +54,9 @@ pub const RING_CAP: usize = 32;
 /// Ridge added to the centred Gram matrix's diagonal, relative to its mean diagonal entry:
 /// keeps nearly collinear neighbourhoods from extrapolating wildly.
 pub const RIDGE: f64 = 1e-6;
+/// Quantization noise energy per entry of a decoded regressor, in squared steps (uniform error
+/// over one step): the guarded fit's absolute ridge is `|N| · step² · NOISE_PER_STEP2`.
+pub const NOISE_PER_STEP2: f64 = 1.0 / 12.0;
 
 /// Per position, the positions within two mesh rings coded before it (ascending, at most
 /// [`MAX_NEIGHBOURS`]: the latest). Each ring is read up to its first [`RING_CAP`] entries.
@@ -110,6 +128,8 @@ impl Neighbourhoods {
 #[derive(Debug, Clone)]
 pub struct Fit {
     k: usize,
+    /// Guarded ([`Fit::guarded`]): predictions are clamped to the neighbourhood's range.
+    clamped: bool,
     usable: Vec<bool>,
     /// One weight per neighbourhood entry (same layout as [`Neighbourhoods`]' lists).
     weights: Vec<f64>,
@@ -120,11 +140,29 @@ impl Fit {
     /// least `hoods.len()` long). A position is usable when its neighbourhood has at least
     /// `k + 2` entries, the Gram matrix's trace is finite and positive, the factorization has
     /// positive pivots and every weight is finite.
+    /// This is hosvd stream version 4's fit (unguarded: see the module docs).
     pub fn new(hoods: &Neighbourhoods, regressors: &[&[f64]]) -> Self {
+        Self::build(hoods, regressors, None)
+    }
+
+    /// The guarded fit (hosvd stream version 5; module docs): as [`Fit::new`], plus an
+    /// absolute ridge `|N|·steps[j]²/12` on `G_jj` (`steps[j]` the quantization step regressor
+    /// `j` was decoded with; 0 adds nothing) and predictions clamped to the neighbourhood's
+    /// reconstructed range widened by its width. `steps` must hold one step per regressor
+    /// (else no position is usable).
+    pub fn guarded(hoods: &Neighbourhoods, regressors: &[&[f64]], steps: &[f64]) -> Self {
+        Self::build(hoods, regressors, Some(steps))
+    }
+
+    fn build(hoods: &Neighbourhoods, regressors: &[&[f64]], steps: Option<&[f64]>) -> Self {
         let k = regressors.len().clamp(1, MAX_REGRESSORS);
         let n = hoods.len();
-        let mut fit = Self { k, usable: vec![false; n], weights: vec![0.0; hoods.list.len()] };
+        let clamped = steps.is_some();
+        let mut fit = Self { k, clamped, usable: vec![false; n], weights: vec![0.0; hoods.list.len()] };
         if regressors.len() != k || regressors.iter().any(|r| r.len() < n) {
+            return fit;
+        }
+        if steps.is_some_and(|s| s.len() != k || s.iter().any(|x| !(x.is_finite() && *x >= 0.0))) {
             return fit;
         }
         let mut gram = [0.0f64; MAX_REGRESSORS * MAX_REGRESSORS];
@@ -154,6 +192,11 @@ impl Fit {
             let ridge = RIDGE * trace / k as f64;
             for j in 0..k {
                 gram[j * k + j] += ridge;
+            }
+            if let Some(steps) = steps {
+                for j in 0..k {
+                    gram[j * k + j] += count * (steps[j] * steps[j] * NOISE_PER_STEP2);
+                }
             }
             // Cholesky factor L (lower, row major) of the ridged Gram matrix.
             let mut ok = true;
@@ -210,6 +253,11 @@ impl Fit {
         self.k
     }
 
+    /// True for a guarded fit ([`Fit::guarded`]).
+    pub fn is_guarded(&self) -> bool {
+        self.clamped
+    }
+
     /// Share of positions with a usable fit.
     pub fn usable_share(&self) -> f64 {
         if self.usable.is_empty() {
@@ -243,7 +291,25 @@ impl Regression<'_> {
             let pred: f64 =
                 self.hoods.list[a..b].iter().zip(&self.fit.weights[a..b]).map(|(&q, &w)| w * recon[q as usize]).sum();
             if pred.is_finite() {
-                return pred;
+                if !self.fit.clamped {
+                    return pred;
+                }
+                // Guarded: within the neighbours' range widened by its width (module docs).
+                let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+                for &q in &self.hoods.list[a..b] {
+                    let y = recon[q as usize];
+                    lo = if y < lo { y } else { lo };
+                    hi = if y > hi { y } else { hi };
+                }
+                let width = hi - lo;
+                let (lo, hi) = (lo - width, hi + width);
+                return if pred < lo {
+                    lo
+                } else if pred > hi {
+                    hi
+                } else {
+                    pred
+                };
             }
         }
         predict::predict(self.graph, self.fallback, recon, p)
@@ -391,5 +457,59 @@ mod tests {
         let short = vec![0.0; 3];
         let fit = Fit::new(&hoods, &[short.as_slice()]);
         assert_eq!(fit.usable_share(), 0.0);
+    }
+
+    /// The hosvd divergence (`../shared/probe-round3/hosvd-divergence/`) in miniature: decoded
+    /// leads flat up to rounding (1e-18) over a patch, one lead one step off at a few
+    /// positions, and a predicted column with a real spread. The unguarded fit's weights grow
+    /// like step / 1e-18 and its closed loop clamps codes; the guarded fit stays at the
+    /// neighbour average there, within half a step, and the decoder agrees bit for bit.
+    #[test]
+    fn guarded_fit_survives_leads_flat_up_to_rounding() {
+        let (graph, _) = setup();
+        let hoods = Neighbourhoods::new(&graph);
+        let n = graph.len();
+        let step = 6e-4;
+        let lead: Vec<f64> =
+            (0..n).map(|p| if p % 37 == 36 { 0.01 + step } else { 0.01 + 2e-18 * (p % 3) as f64 }).collect();
+        let y: Vec<f64> = (0..n).map(|p| 1e-4 * ((p * 7919) % 13) as f64 / 13.0).collect();
+        let regs = [lead.as_slice()];
+        let unguarded = Fit::new(&hoods, &regs);
+        let largest = unguarded.weights.iter().fold(0.0f64, |m, w| m.max(w.abs()));
+        assert!(largest > 1e6, "the reproducer's mechanism: weights {largest}");
+        let (mut codes, mut recon, mut back) = (Vec::new(), Vec::new(), Vec::new());
+        let reg = Regression { graph: &graph, fallback: Predictor::Average, hoods: &hoods, fit: &unguarded };
+        reg.quantize(&y, 1e-6, &mut codes, &mut recon);
+        let worst = y.iter().zip(&recon).fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+        assert!(worst > 1e-6, "unguarded closed loop stays in bounds ({worst}): the test lost its point");
+
+        let guarded = Fit::guarded(&hoods, &regs, &[step]);
+        assert!(guarded.is_guarded());
+        let largest = guarded.weights.iter().fold(0.0f64, |m, w| m.max(w.abs()));
+        assert!(largest < 2.0, "guarded weights {largest}");
+        let reg = Regression { graph: &graph, fallback: Predictor::Average, hoods: &hoods, fit: &guarded };
+        reg.quantize(&y, 1e-6, &mut codes, &mut recon);
+        for p in 0..n {
+            assert!((recon[p] - y[p]).abs() <= 0.5e-6 * (1.0 + 1e-9), "position {p}");
+        }
+        reg.dequantize(&codes, 1e-6, &mut back);
+        assert_eq!(recon, back);
+    }
+
+    #[test]
+    fn guarded_fit_keeps_the_regression_gain_on_informative_leads() {
+        let (graph, f) = setup();
+        let hoods = Neighbourhoods::new(&graph);
+        let regs: Vec<&[f64]> = vec![&f[0], &f[1]];
+        // Lead steps far below the leads' spread (≈ 1 per ring): the ridge hardly matters.
+        let fit = Fit::guarded(&hoods, &regs, &[0.01, 0.01]);
+        let reg = Regression { graph: &graph, fallback: Predictor::Average, hoods: &hoods, fit: &fit };
+        let (mut c_reg, mut r_reg, mut c_avg, mut r_avg) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+        reg.quantize(&f[2], 0.01, &mut c_reg, &mut r_reg);
+        predict::quantize(&graph, Predictor::Average, &f[2], 0.01, 0.0, &mut c_avg, &mut r_avg);
+        let mag = |c: &[i32]| c.iter().map(|&x| (x.unsigned_abs() as f64 + 1.0).log2()).sum::<f64>();
+        assert!(mag(&c_reg) < 0.7 * mag(&c_avg), "guarded {} vs average {}", mag(&c_reg), mag(&c_avg));
+        // Wrong number of steps: nothing usable.
+        assert_eq!(Fit::guarded(&hoods, &regs, &[0.01]).usable_share(), 0.0);
     }
 }
