@@ -78,14 +78,8 @@ impl<'c, W: Write> StreamEncoder<'c, W> {
             frame_rate,
         };
         // The encoder's own stream: limits that never refuse it for its size.
-        let limits = Limits {
-            max_vertices: usize::MAX,
-            max_frames: usize::MAX,
-            max_triangles: usize::MAX,
-            max_alloc_bytes: usize::MAX,
-        };
         let check = SelfCheck {
-            decoder: codec.new_decoder(&info, &encoder.config(), &limits)?,
+            decoder: codec.new_decoder(&info, &encoder.config(), &Limits::UNLIMITED)?,
             topology: topology_in.clone(),
             frame_rate,
             input: Vec::new(),
