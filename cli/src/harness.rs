@@ -1203,11 +1203,12 @@ impl SpaceSearcher<'_> {
         run.candidates.iter().find(|c| c.index == index).and_then(|c| c.outcome.as_ref().ok()).map(|(p, _)| p.bytes)
     }
 
-    /// The first configuration, searched cold: the top step (if it misses, nothing on this
-    /// ladder meets the target), then a binary search for the first passing step.
+    /// The first configuration, searched cold: a binary search for the first passing step.
+    /// The top step (the largest, slowest stream) is measured only if nothing below it
+    /// passes; if it misses too, nothing on this ladder meets the target.
     fn search_cold(&self, run: &mut ConfigRun) -> HResult<()> {
         let n = run.ladder.steps.len();
-        if n == 0 || !self.visit(run, n - 1)? {
+        if n == 0 {
             return Ok(());
         }
         let (mut lo, mut hi) = (0, n - 1);
@@ -1218,6 +1219,9 @@ impl SpaceSearcher<'_> {
             } else {
                 lo = mid + 1;
             }
+        }
+        if !self.visit(run, hi)? {
+            return Ok(());
         }
         run.pass = Some(hi);
         run.fail_below = hi.checked_sub(1);
@@ -1257,29 +1261,80 @@ impl SpaceSearcher<'_> {
         }
     }
 
-    /// Bisects the ladder parameter between the failing step below the answer and the
-    /// answer, `refine` times (ladders are coarse); refined points carry the answer's index.
+    /// Refines the ladder parameter between the failing step below the answer and the
+    /// answer, up to `refine` points (ladders are coarse): each point by the secant in
+    /// log(error) (errors fall about exponentially along a rate axis), aimed just under the
+    /// target and kept inside the middle 70% of the bracket so it always shrinks (bisection
+    /// when the secant is undefined). Stops early once a passing point is within
+    /// [`REFINE_CLOSE`] of the target (the stream cannot get much smaller). Refined points
+    /// carry the answer's index.
     fn refine(&self, run: &mut ConfigRun, refine: usize) {
         let (Some(k), Some(f)) = (run.pass, run.fail_below) else { return };
         if f + 1 != k {
             return;
         }
-        let (mut fail, mut pass) = (run.ladder.steps[f].clone(), run.ladder.steps[k].clone());
+        let value_at = |run: &ConfigRun, index: usize| {
+            run.candidates
+                .iter()
+                .find(|c| c.index == index)
+                .and_then(|c| c.outcome.as_ref().ok())
+                .and_then(|(p, _)| self.target.metric.value(&p.report))
+        };
+        let mut fail = (run.ladder.steps[f].clone(), value_at(run, f));
+        let mut pass = (run.ladder.steps[k].clone(), value_at(run, k));
         let specs = self.codec.param_specs();
         for _ in 0..refine {
-            let Some(mid) = midpoint(&fail, &pass) else { break };
-            let Ok(params) = run.params.clone().with(&specs, run.ladder.param, mid.clone()) else { break };
+            if pass.1.is_some_and(|v| v >= REFINE_CLOSE * self.target.value) {
+                break;
+            }
+            let Some(next) =
+                secant(&fail, &pass, REFINE_AIM * self.target.value).or_else(|| midpoint(&fail.0, &pass.0))
+            else {
+                break;
+            };
+            let Ok(params) = run.params.clone().with(&specs, run.ladder.param, next.clone()) else { break };
             if self.codec.validate(&params).is_err() {
                 break;
             }
             let c = self.measure(&params, run.ladder.param, k);
+            let value = c.outcome.as_ref().ok().and_then(|(p, _)| self.target.metric.value(&p.report));
             if self.passes(&c) {
-                pass = mid;
+                pass = (next, value);
             } else {
-                fail = mid;
+                fail = (next, value);
             }
             run.candidates.push(c);
         }
+    }
+}
+
+/// A refined point meeting the target within this fraction of it ends the refinement.
+const REFINE_CLOSE: f64 = 0.97;
+/// The secant aims at this fraction of the target (just under it, so the point likely passes).
+const REFINE_AIM: f64 = 0.985;
+
+/// The parameter value where the error is expected to reach `aim`, by linear interpolation of
+/// log(error) between the failing and passing ends of a bracket, kept within the middle 70%
+/// of the bracket and rounded as [`midpoint`] rounds; `None` when the errors are missing or
+/// not ordered, or the bracket holds nothing in between.
+fn secant(fail: &(ParamValue, Option<f64>), pass: &(ParamValue, Option<f64>), aim: f64) -> Option<ParamValue> {
+    let (Some(vf), Some(vp)) = (fail.1, pass.1) else { return None };
+    if !(vf > vp && vp > 0.0 && aim > 0.0) {
+        return None;
+    }
+    let t = ((aim.ln() - vf.ln()) / (vp.ln() - vf.ln())).clamp(0.15, 0.85);
+    match (&fail.0, &pass.0) {
+        (ParamValue::Int(a), ParamValue::Int(b)) => {
+            let x = (*a as f64 + t * (*b - *a) as f64).round() as i64;
+            (x != *a && x != *b && (x - a).signum() == (b - a).signum()).then_some(ParamValue::Int(x))
+        }
+        (ParamValue::Float(a), ParamValue::Float(b)) if a != b => {
+            let unit = 10f64.powf(((b - a).abs().log10() - 2.0).floor());
+            let x = ((a + t * (b - a)) / unit).round() * unit;
+            let x = format!("{x:.12}").parse::<f64>().unwrap_or(x);
+            (x.is_finite() && x != *a && x != *b).then_some(ParamValue::Float(x))
+        }
+        _ => None,
     }
 }
 
@@ -1289,12 +1344,13 @@ impl SpaceSearcher<'_> {
 /// the primary rate ladder.
 ///
 /// Search: the first configuration (the codec's usual one) cold, by a binary search over its
-/// ladder; then every other configuration in parallel (rayon), each warm-started at the first
+/// ladder (its top step measured only when nothing below passes); then every other configuration in parallel (rayon), each warm-started at the first
 /// one's answer and walked up or down one step at a time, abandoned once a failing step's
 /// stream is as large as the first configuration's answer (an early stop: its passing steps
 /// can only be larger). Then the ladder parameter is bisected `refine` times between the last
-/// failing and the first passing step, for the best configuration and, in parallel, the
-/// runner-up when its answer is within 10% of the best's bytes. Each configuration's walk
+/// failing and the first passing step (secant steps, see `SpaceSearcher::refine`), for the
+/// best configuration and, in parallel, the runner-up when its answer is within 3% of the
+/// best's bytes. Each configuration's walk
 /// depends only on the first configuration's result, never on another running at the same
 /// time, and the results are combined in configuration order: the chosen stream does not
 /// depend on the thread count. Only measured points are ever chosen; a candidate that fails
@@ -1348,7 +1404,7 @@ pub fn search_space_target(
     ranked.sort();
     if let Some(&(best, _)) = ranked.first() {
         let chosen: Vec<usize> =
-            ranked.iter().take(2).filter(|(b, _)| (*b as f64) <= best as f64 * 1.1).map(|(_, i)| *i).collect();
+            ranked.iter().take(2).filter(|(b, _)| (*b as f64) <= best as f64 * 1.03).map(|(_, i)| *i).collect();
         runs.par_iter_mut().enumerate().filter(|(i, _)| chosen.contains(i)).for_each(|(_, run)| {
             searcher.refine(run, refine);
         });

@@ -2,7 +2,7 @@
 """Issue 26 item 4 benchmark: the cost of quality-targeted rate control, as ratios measured in
 one run on one machine.
 
-    rate_bench.py ANIMCODEC INPUT [--target sted=0.05] [--codec hosvd] [--sweep]
+    rate_bench.py ANIMCODEC INPUT [--target sted=0.05] [--codec hosvd] [--sweep] [--keep DIR]
 
 1. `encode INPUT -c CODEC --target T` (the parameter-space search): wall seconds and the
    parameters it picks;
@@ -10,7 +10,7 @@ one run on one machine.
    ratio 1/2 (issue 26: ≤ 8);
 3. with --sweep: `sweep INPUT --ladder` (the single-axis sweep, today's default before issue
    26) and `sweep INPUT` (the envelope sweep, the new default): wall seconds each, ratio
-   (issue 26: ≤ 2).
+   (issue 26: ≤ 2); --keep DIR keeps their JSON (ladder.json, envelope.json) for rdsummary.py.
 Each command runs alone (the search and the sweep use both cores themselves)."""
 import json, subprocess, sys, tempfile, time, os
 
@@ -46,8 +46,9 @@ def main():
         print(f"  picked: {' '.join(params)}")
         print(f"  one encode at those parameters: {one_s:.2f} s -> search / encode = {search_s / one_s:.2f}")
         if "--sweep" in args:
-            ladder_s, _ = run([binary, "sweep", data, "--ladder", "--json", os.path.join(tmp, "l.json"), "-f"])
-            env_s, _ = run([binary, "sweep", data, "--json", os.path.join(tmp, "e.json"), "-f"])
+            keep = args[args.index("--keep") + 1] if "--keep" in args else tmp
+            ladder_s, _ = run([binary, "sweep", data, "--ladder", "--json", os.path.join(keep, "ladder.json"), "-f"])
+            env_s, _ = run([binary, "sweep", data, "--json", os.path.join(keep, "envelope.json"), "-f"])
             print(f"  sweep --ladder: {ladder_s:.1f} s; sweep (envelope): {env_s:.1f} s -> ratio {env_s / ladder_s:.2f}")
 
 
