@@ -411,19 +411,22 @@ impl AnimationCodec for Hosvd {
         let steps = [0.998, 0.995, 0.99, 0.98, 0.97, 0.96, 0.95, 0.94, 0.93, 0.9, 0.85, 0.8, 0.7, 0.5];
         RateLadder { param: "ss", steps: steps.iter().map(|&s| ParamValue::Float(s)).collect() }
     }
-    /// The ladder over `ss`, on each combination of the two levers that decide between the
-    /// KG-efficient and the STED-efficient streams (issue 15, sessions 3 and 5): affine motion
-    /// removal (`rigid`; removing it helps STED on articulated motion) and the cap on the
-    /// quantization noise relative to the edge length (`edge_noise` 0 or 0.012, between the
-    /// best hand-picked series' 0.009 and 0.015). With the toolkit coding the search always
-    /// weighs edge (STED-like) error in the mode-1 factor's RD rule (`edge_weight = 1`): with
-    /// both values searched (issue 26), it won on 13 of the 14 RobotExpressive clips at
-    /// KG ≤ 0.5 and on samba at STED ≤ 0.05, and searching both doubled the search time.
+    /// The ladder over `ss`, on each combination of the three levers that decide between the
+    /// KG-efficient and the STED-efficient streams (issue 15, sessions 3 and 5): the edge
+    /// (STED-like) distortion in the mode-1 factor's RD rule (`edge_weight` 0 or 1; toolkit
+    /// coding), affine motion removal (`rigid`; removing it helps STED on articulated motion)
+    /// and the cap on the quantization noise relative to the edge length (`edge_noise` 0 or
+    /// 0.012, between the best hand-picked series' 0.009 and 0.015). The default
+    /// configuration comes first. (Fixing `edge_weight = 1` halves the search but costs 17%
+    /// at KG ≤ 0.5 on samba: issue 26 note.)
     fn search_space(&self, base: &ParamSet) -> SearchSpace {
         let toolkit = base.choice("coding").is_ok_and(|c| c == "toolkit");
         let mut secondary = Vec::new();
         if toolkit {
-            secondary.push(SearchAxis { param: "edge_weight", values: vec![ParamValue::Float(1.0)] });
+            secondary.push(SearchAxis {
+                param: "edge_weight",
+                values: vec![ParamValue::Float(0.0), ParamValue::Float(1.0)],
+            });
         }
         secondary.push(SearchAxis { param: "rigid", values: vec![ParamValue::Bool(true), ParamValue::Bool(false)] });
         secondary
