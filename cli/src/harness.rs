@@ -1458,6 +1458,7 @@ pub fn search_space_target(
 /// [`search_space_target`] for every codec in `codecs` (each on its defaults, nothing fixed),
 /// keeping the smallest stream (ties: the earlier codec). Codecs that cannot meet the target
 /// are skipped; if none can, the error lists each codec's best. Other failures are errors.
+#[allow(clippy::too_many_arguments)]
 pub fn search_space_target_auto(
     registry: &CodecRegistry,
     codecs: &[&dyn AnimationCodec],

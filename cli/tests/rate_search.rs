@@ -114,7 +114,7 @@ fn fixed_parameters_are_not_searched() {
         &|_| {},
     )
     .unwrap();
-    assert!(hit.tried.iter().all(|p| p.params.bool("rigid").unwrap() == false));
+    assert!(hit.tried.iter().all(|p| !p.params.bool("rigid").unwrap()));
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -400,7 +400,7 @@ mod tests {
         assert_eq!(c[3], vec![("on", ParamValue::Bool(true)), ("eps", ParamValue::Float(0.1))]);
         let s = specs();
         let p = SearchSpace::apply(&ParamSet::defaults("x", &s), &s, &c[3]).unwrap();
-        assert_eq!(p.bool("on").unwrap(), true);
+        assert!(p.bool("on").unwrap());
         assert_eq!(p.float("eps").unwrap(), 0.1);
         assert!(SearchSpace::apply(&p, &s, &[("nope", ParamValue::Bool(true))]).is_err());
     }
