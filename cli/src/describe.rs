@@ -18,9 +18,12 @@ pub fn param_value_json(value: &ParamValue) -> Value {
     }
 }
 
-/// One codec as JSON: `{name, fourcc, stream_version, summary, params, rate_ladder}`.
+/// One codec as JSON: `{name, fourcc, stream_version, summary, params, rate_ladder,
+/// search_space}` (`search_space`: `{primary, secondary: [{param, values}]}`, what
+/// quality-targeted encoding searches on top of the defaults).
 pub fn codec_json(codec: &dyn AnimationCodec) -> Value {
     let ladder = codec.rate_ladder(&codec.default_params());
+    let space = codec.search_space(&codec.default_params());
     json!({
         "name": codec.name(),
         "fourcc": codec.fourcc().to_string(),
@@ -30,6 +33,13 @@ pub fn codec_json(codec: &dyn AnimationCodec) -> Value {
         "rate_ladder": {
             "param": ladder.param,
             "steps": ladder.steps.iter().map(param_value_json).collect::<Vec<_>>(),
+        },
+        "search_space": {
+            "primary": space.primary.param,
+            "secondary": space.secondary.iter().map(|a| json!({
+                "param": a.param,
+                "values": a.values.iter().map(param_value_json).collect::<Vec<_>>(),
+            })).collect::<Vec<_>>(),
         },
     })
 }

@@ -119,6 +119,11 @@ pub fn measure_point(
     let start = Instant::now();
     let decoded = StreamDecoder::new(bytes.as_slice(), registry, limits)?.decode_all()?;
     let decode_seconds = start.elapsed().as_secs_f64();
+    // A stream that decodes to non-finite coordinates is garbage whatever its metrics say
+    // (issue 26): never a measured point, so never chosen by a search.
+    if decoded.positions().iter().any(|x| !x.is_finite()) {
+        return Err(format!("{} [{params}]: the stream decodes to non-finite coordinates", codec.name()).into());
+    }
     let report = metrics::evaluate(animation, &decoded, eval)?;
     let size = bytes.len() as u64;
     let point = Point {
@@ -182,12 +187,14 @@ pub struct SweepSeries<'a> {
     pub base: ParamSet,
     /// Curve name in tables, JSON and plots.
     pub label: String,
+    /// Ladder positions to measure on this curve (`None`: the sweep's `points`, spread evenly).
+    pub steps: Option<Vec<usize>>,
 }
 
 impl<'a> SweepSeries<'a> {
     /// The codec at its defaults, labelled with its name.
     pub fn defaults(codec: &'a dyn AnimationCodec) -> Self {
-        Self { codec, base: codec.default_params(), label: codec.name().to_string() }
+        Self { codec, base: codec.default_params(), label: codec.name().to_string(), steps: None }
     }
 
     /// The codec on `base`, labelled `codec[key=value,…]` with the parameters that differ from
@@ -202,7 +209,7 @@ impl<'a> SweepSeries<'a> {
         } else {
             format!("{}[{}]", codec.name(), changed.join(","))
         };
-        Ok(Self { codec, base, label })
+        Ok(Self { codec, base, label, steps: None })
     }
 
     fn ladder(&self) -> RateLadder {
@@ -361,7 +368,10 @@ pub fn sweep_jobs(series: &[SweepSeries<'_>], points: Option<usize>) -> Vec<(usi
     series
         .iter()
         .enumerate()
-        .flat_map(|(c, entry)| ladder_indices(entry.ladder().steps.len(), points).into_iter().map(move |s| (c, s)))
+        .flat_map(|(c, entry)| {
+            let steps = entry.steps.clone().unwrap_or_else(|| ladder_indices(entry.ladder().steps.len(), points));
+            steps.into_iter().map(move |s| (c, s))
+        })
         .collect()
 }
 
@@ -570,6 +580,12 @@ pub fn sweep_json_sized(input: &str, (vertices, frames): (usize, usize), eval: &
             "sted_decreasing": m.sted_decreasing,
             "violations": m.violations,
         })).collect::<Vec<_>>(),
+        // Row positions on each codec's lower envelope (sorted by bytes, error below every
+        // smaller stream of the codec), by KG and by STED.
+        "envelope": {
+            "kg": envelope(&sweep.points, TargetMetric::Kg),
+            "sted": envelope(&sweep.points, TargetMetric::Sted),
+        },
     })
 }
 
@@ -777,6 +793,9 @@ pub struct TargetHit {
     /// True when the measured errors were not monotone along the ladder and the search fell
     /// back to a linear scan below the binary search's answer.
     pub linear_fallback: bool,
+    /// Candidates the search rejected (the codec failed, or the stream decoded to non-finite
+    /// coordinates), one message each, in search order.
+    pub rejected: Vec<String>,
 }
 
 /// Why [`search_target`] found nothing: no ladder point meets the target.
@@ -952,6 +971,7 @@ pub fn search_target_with_progress(
         stream: best.1,
         tried: tried.into_iter().map(|(p, _)| p).collect(),
         linear_fallback: !monotone,
+        rejected: Vec::new(),
     })
 }
 
@@ -1004,6 +1024,461 @@ pub fn search_target_auto_with_progress(
     for &codec in codecs {
         let base = codec.default_params();
         match search_target_with_progress(registry, codec, &base, animation, target, eval, limits, refine, progress) {
+            Ok(hit) => hits.push(hit),
+            Err(e) => match e.downcast::<TargetMiss>() {
+                Ok(miss) => misses.push(miss.to_string()),
+                Err(e) => return Err(format!("{}: {e}", codec.name()).into()),
+            },
+        }
+    }
+    let best = hits
+        .iter()
+        .enumerate()
+        .min_by_key(|(i, h)| (h.point.bytes, *i))
+        .map(|(i, _)| i)
+        .ok_or_else(|| format!("no codec meets {target}: {}", misses.join("; ")))?;
+    let chosen = hits.remove(best);
+    Ok((chosen, hits))
+}
+
+/// Errors that mark the part of a rate-distortion curve the envelope sweep looks at closely:
+/// KG 0.05–4 % or STED 0.01–0.2 (the targets of the issues and the README tables, with room).
+const ENVELOPE_KG: (f64, f64) = (0.05, 4.0);
+const ENVELOPE_STED: (f64, f64) = (0.01, 0.2);
+
+/// The default sweep: each codec's lower envelope over its declared search space
+/// ([`AnimationCodec::search_space`] on `base`, minus the `fixed` parameters). First every
+/// codec's first configuration on its whole ladder (the points of today's single-axis sweep,
+/// `options.points` applies), then every other configuration at `per_config` ladder positions
+/// spread evenly over the positions where the first configuration's KG or STED fell in the
+/// range the targets live in (every position if none did). Curves are labelled
+/// `codec[key=value,…]`; [`envelope`] picks the points on the lower envelope. Results are in
+/// a fixed order (the first phase's series, then the others) whatever the scheduling.
+pub fn envelope_sweep<'a>(
+    registry: &CodecRegistry,
+    codecs: &[(&'a dyn AnimationCodec, ParamSet, Vec<&'static str>)],
+    animation: &Animation,
+    options: &SweepOptions,
+    per_config: usize,
+    progress: &(dyn Fn(usize) + Sync),
+) -> HResult<Sweep> {
+    let mut first = Vec::new();
+    let mut rest: Vec<Vec<SweepSeries<'a>>> = Vec::new();
+    for (codec, base, fixed) in codecs {
+        let specs = codec.param_specs();
+        let space = codec.search_space(base).without(fixed);
+        let mut series: Vec<SweepSeries<'a>> = space
+            .configurations()
+            .iter()
+            .filter_map(|config| {
+                let params = codec_core::SearchSpace::apply(base, &specs, config).ok()?;
+                SweepSeries::with_base(*codec, params).ok()
+            })
+            .collect();
+        if series.is_empty() {
+            return Err(format!("{}: no configuration of the search space validates", codec.name()).into());
+        }
+        first.push(series.remove(0));
+        rest.push(series);
+    }
+    progress(sweep_jobs(&first, options.points).len());
+    let mut result = sweep(registry, &first, animation, options, &|| progress(0))?;
+    let mut second = Vec::new();
+    for (head, others) in first.iter().zip(rest) {
+        let curve: Vec<&Point> = result.points.iter().filter(|p| p.series == head.label).collect();
+        let within = |v: Option<f64>, (lo, hi): (f64, f64)| v.is_some_and(|v| v >= lo && v <= hi);
+        let mut region: Vec<usize> = curve
+            .iter()
+            .filter(|p| within(p.report.kg, ENVELOPE_KG) || within(p.report.sted, ENVELOPE_STED))
+            .map(|p| p.ladder_index)
+            .collect();
+        region.sort_unstable();
+        region.dedup();
+        for mut s in others {
+            let positions = if region.is_empty() { (0..s.ladder().steps.len()).collect() } else { region.clone() };
+            let picked = ladder_indices(positions.len(), Some(per_config)).into_iter().map(|i| positions[i]).collect();
+            s.steps = Some(picked);
+            second.push(s);
+        }
+    }
+    progress(sweep_jobs(&second, options.points).len());
+    let more = sweep(registry, &second, animation, options, &|| progress(0))?;
+    result.points.extend(more.points);
+    result.failures.extend(more.failures);
+    Ok(result)
+}
+
+/// Positions in `points` of each codec's lower envelope by `metric`: sorted by bytes, the
+/// points whose error is below that of every smaller stream of the same codec (points that are
+/// not [`usable`] left out). In input order.
+pub fn envelope(points: &[Point], metric: TargetMetric) -> Vec<usize> {
+    let mut order: Vec<usize> =
+        (0..points.len()).filter(|&i| metric.value(&points[i].report).is_some() && usable(&points[i])).collect();
+    order.sort_by_key(|&i| (points[i].codec, points[i].bytes, i));
+    let mut keep = Vec::new();
+    let mut last: Option<(&str, f64)> = None;
+    for i in order {
+        let v = metric.value(&points[i].report).unwrap_or(f64::INFINITY);
+        let better = match last {
+            Some((codec, best)) if codec == points[i].codec => v < best,
+            _ => v.is_finite(),
+        };
+        if better {
+            last = Some((points[i].codec, v));
+            keep.push(i);
+        }
+    }
+    keep.sort_unstable();
+    keep
+}
+
+/// A reconstruction whose KG exceeds this (in %) is not a usable animation, whatever its
+/// STED or Hausdorff distance: on samba hosvd at `ss=0.998` decodes to KG 233 % with STED
+/// 0.00023 (a nearly rigid reconstruction STED cannot see; issue 15 session 5 met the same on
+/// chicken-crossing). Such points never meet a target and are left out of the envelopes.
+pub const DEGENERATE_KG: f64 = 50.0;
+
+/// Whether `p` is a usable reconstruction (KG, when measured, at most [`DEGENERATE_KG`]).
+pub fn usable(p: &Point) -> bool {
+    p.report.kg.is_none_or(|kg| kg.is_finite() && kg <= DEGENERATE_KG)
+}
+
+fn meets(target: Target, p: &Point) -> bool {
+    target.metric.value(&p.report).is_some_and(|v| v.is_finite() && v <= target.value)
+}
+
+/// The quality every command aims at when given neither parameters nor a target: KG ≤ 0.5 %
+/// (see the README's "Quality by default" and `docs/notes/issue-26-rate-control.md` for the
+/// measurements behind the choice).
+pub const DEFAULT_TARGET: Target = Target { metric: TargetMetric::Kg, value: 0.5 };
+
+/// One candidate of a space search: its ladder position and what measuring it gave (the
+/// point and stream, or why it was rejected).
+struct Candidate {
+    index: usize,
+    outcome: Result<(Point, Vec<u8>), String>,
+}
+
+/// One configuration of the secondary axes as searched: its parameters, ladder and
+/// candidates in measuring order, the lowest passing ladder position and the highest failing
+/// one below it.
+struct ConfigRun {
+    params: ParamSet,
+    ladder: RateLadder,
+    candidates: Vec<Candidate>,
+    pass: Option<usize>,
+    fail_below: Option<usize>,
+}
+
+/// What a space search needs for every measurement.
+struct SpaceSearcher<'a> {
+    registry: &'a CodecRegistry,
+    codec: &'a dyn AnimationCodec,
+    animation: &'a Animation,
+    target: Target,
+    eval: EvalOptions,
+    limits: Limits,
+    progress: &'a (dyn Fn(&Point) + Sync),
+}
+
+impl SpaceSearcher<'_> {
+    fn measure(&self, params: &ParamSet, ladder_param: &'static str, index: usize) -> Candidate {
+        let outcome = measure_point(
+            self.registry,
+            self.codec,
+            params,
+            (ladder_param, index),
+            self.animation,
+            &self.eval,
+            self.limits,
+        )
+        .map_err(|e| format!("{} [{params}]: {e}", self.codec.name()));
+        if let Ok((p, _)) = &outcome {
+            (self.progress)(p);
+        }
+        Candidate { index, outcome }
+    }
+
+    fn passes(&self, c: &Candidate) -> bool {
+        c.outcome.as_ref().is_ok_and(|(p, _)| usable(p) && meets(self.target, p))
+    }
+
+    fn step(&self, run: &ConfigRun, index: usize) -> HResult<ParamSet> {
+        ladder_params(self.codec, &run.params, &run.ladder, index)
+    }
+
+    /// Measures ladder position `index` of `run` (once) and says whether it meets the target.
+    fn visit(&self, run: &mut ConfigRun, index: usize) -> HResult<bool> {
+        if let Some(c) = run.candidates.iter().find(|c| c.index == index) {
+            return Ok(self.passes(c));
+        }
+        let params = self.step(run, index)?;
+        let c = self.measure(&params, run.ladder.param, index);
+        let pass = self.passes(&c);
+        run.candidates.push(c);
+        Ok(pass)
+    }
+
+    fn bytes_at(run: &ConfigRun, index: usize) -> Option<u64> {
+        run.candidates.iter().find(|c| c.index == index).and_then(|c| c.outcome.as_ref().ok()).map(|(p, _)| p.bytes)
+    }
+
+    /// The first configuration, searched cold: a binary search for the first passing step.
+    /// The top step (the largest, slowest stream) is measured only if nothing below it
+    /// passes; if it misses too, nothing on this ladder meets the target.
+    fn search_cold(&self, run: &mut ConfigRun) -> HResult<()> {
+        let n = run.ladder.steps.len();
+        if n == 0 {
+            return Ok(());
+        }
+        let (mut lo, mut hi) = (0, n - 1);
+        while lo < hi {
+            let mid = (lo + hi) / 2;
+            if self.visit(run, mid)? {
+                hi = mid;
+            } else {
+                lo = mid + 1;
+            }
+        }
+        if !self.visit(run, hi)? {
+            return Ok(());
+        }
+        run.pass = Some(hi);
+        run.fail_below = hi.checked_sub(1);
+        Ok(())
+    }
+
+    /// Another configuration, warm-started at `start` (the first configuration's answer;
+    /// neighbouring configurations land on nearby steps): down while it passes, or up until it
+    /// passes. Early stop: going up, a failing step whose stream already has `bound` bytes or
+    /// more (the smallest passing stream found so far) ends the walk, since every larger step
+    /// makes a larger stream.
+    fn search_warm(&self, run: &mut ConfigRun, start: usize, bound: Option<u64>) -> HResult<()> {
+        let n = run.ladder.steps.len();
+        if n == 0 {
+            return Ok(());
+        }
+        let mut i = start.min(n - 1);
+        if self.visit(run, i)? {
+            while i > 0 && self.visit(run, i - 1)? {
+                i -= 1;
+            }
+            run.pass = Some(i);
+            run.fail_below = i.checked_sub(1);
+            return Ok(());
+        }
+        loop {
+            let over = matches!((bound, Self::bytes_at(run, i)), (Some(b), Some(x)) if x >= b);
+            if over || i + 1 >= n {
+                return Ok(());
+            }
+            i += 1;
+            if self.visit(run, i)? {
+                run.pass = Some(i);
+                run.fail_below = Some(i - 1);
+                return Ok(());
+            }
+        }
+    }
+
+    /// Refines the ladder parameter between the failing step below the answer and the
+    /// answer, up to `refine` points (ladders are coarse): each point by the secant in
+    /// log(error) (errors fall about exponentially along a rate axis), aimed just under the
+    /// target and kept inside the middle 70% of the bracket so it always shrinks (bisection
+    /// when the secant is undefined). Stops early once a passing point is within
+    /// [`REFINE_CLOSE`] of the target (the stream cannot get much smaller). Refined points
+    /// carry the answer's index.
+    fn refine(&self, run: &mut ConfigRun, refine: usize) {
+        let (Some(k), Some(f)) = (run.pass, run.fail_below) else { return };
+        if f + 1 != k {
+            return;
+        }
+        let value_at = |run: &ConfigRun, index: usize| {
+            run.candidates
+                .iter()
+                .find(|c| c.index == index)
+                .and_then(|c| c.outcome.as_ref().ok())
+                .and_then(|(p, _)| self.target.metric.value(&p.report))
+        };
+        let mut fail = (run.ladder.steps[f].clone(), value_at(run, f));
+        let mut pass = (run.ladder.steps[k].clone(), value_at(run, k));
+        let specs = self.codec.param_specs();
+        for _ in 0..refine {
+            if pass.1.is_some_and(|v| v >= REFINE_CLOSE * self.target.value) {
+                break;
+            }
+            let Some(next) =
+                secant(&fail, &pass, REFINE_AIM * self.target.value).or_else(|| midpoint(&fail.0, &pass.0))
+            else {
+                break;
+            };
+            let Ok(params) = run.params.clone().with(&specs, run.ladder.param, next.clone()) else { break };
+            if self.codec.validate(&params).is_err() {
+                break;
+            }
+            let c = self.measure(&params, run.ladder.param, k);
+            let value = c.outcome.as_ref().ok().and_then(|(p, _)| self.target.metric.value(&p.report));
+            if self.passes(&c) {
+                pass = (next, value);
+            } else {
+                fail = (next, value);
+            }
+            run.candidates.push(c);
+        }
+    }
+}
+
+/// A refined point meeting the target within this fraction of it ends the refinement.
+const REFINE_CLOSE: f64 = 0.97;
+/// The secant aims at this fraction of the target (just under it, so the point likely passes).
+const REFINE_AIM: f64 = 0.985;
+
+/// The parameter value where the error is expected to reach `aim`, by linear interpolation of
+/// log(error) between the failing and passing ends of a bracket, kept within the middle 70%
+/// of the bracket and rounded as [`midpoint`] rounds; `None` when the errors are missing or
+/// not ordered, or the bracket holds nothing in between.
+fn secant(fail: &(ParamValue, Option<f64>), pass: &(ParamValue, Option<f64>), aim: f64) -> Option<ParamValue> {
+    let (Some(vf), Some(vp)) = (fail.1, pass.1) else { return None };
+    if !(vf > vp && vp > 0.0 && aim > 0.0) {
+        return None;
+    }
+    let t = ((aim.ln() - vf.ln()) / (vp.ln() - vf.ln())).clamp(0.15, 0.85);
+    match (&fail.0, &pass.0) {
+        (ParamValue::Int(a), ParamValue::Int(b)) => {
+            let x = (*a as f64 + t * (*b - *a) as f64).round() as i64;
+            (x != *a && x != *b && (x - a).signum() == (b - a).signum()).then_some(ParamValue::Int(x))
+        }
+        (ParamValue::Float(a), ParamValue::Float(b)) if a != b => {
+            let unit = 10f64.powf(((b - a).abs().log10() - 2.0).floor());
+            let x = ((a + t * (b - a)) / unit).round() * unit;
+            let x = format!("{x:.12}").parse::<f64>().unwrap_or(x);
+            (x.is_finite() && x != *a && x != *b).then_some(ParamValue::Float(x))
+        }
+        _ => None,
+    }
+}
+
+/// Finds the smallest stream `codec` makes of `animation` meeting `target` over the codec's
+/// declared [`SearchSpace`](codec_core::SearchSpace) on top of `base`: every configuration of
+/// the secondary axes (minus the parameters in `fixed`, which the user set), each walked along
+/// the primary rate ladder.
+///
+/// Search: the first configuration (the codec's usual one) cold, by a binary search over its
+/// ladder (its top step measured only when nothing below passes); then every other configuration in parallel (rayon), each warm-started at the first
+/// one's answer and walked up or down one step at a time, abandoned once a failing step's
+/// stream is as large as the first configuration's answer (an early stop: its passing steps
+/// can only be larger). Then the ladder parameter is bisected `refine` times between the last
+/// failing and the first passing step (secant steps, see `SpaceSearcher::refine`), for the
+/// best configuration and, in parallel, the runner-up when its answer is within 3% of the
+/// best's bytes. Each configuration's walk
+/// depends only on the first configuration's result, never on another running at the same
+/// time, and the results are combined in configuration order: the chosen stream does not
+/// depend on the thread count. Only measured points are ever chosen; a candidate that fails
+/// to encode or decodes to non-finite coordinates is rejected (listed in
+/// [`TargetHit::rejected`]), never chosen. Invalid configurations are skipped.
+///
+/// Assumes errors fall along each ladder (as [`search_target`] does); the single-axis
+/// [`search_target`] remains for `--ladder`.
+#[allow(clippy::too_many_arguments)]
+pub fn search_space_target(
+    registry: &CodecRegistry,
+    codec: &dyn AnimationCodec,
+    base: &ParamSet,
+    fixed: &[&str],
+    animation: &Animation,
+    target: Target,
+    eval: &EvalOptions,
+    limits: Limits,
+    refine: usize,
+    progress: &(dyn Fn(&Point) + Sync),
+) -> HResult<TargetHit> {
+    let space = codec.search_space(base).without(fixed);
+    let specs = codec.param_specs();
+    let mut runs: Vec<ConfigRun> = space
+        .configurations()
+        .iter()
+        .filter_map(|config| {
+            let params = codec_core::SearchSpace::apply(base, &specs, config).ok()?;
+            codec.validate(&params).ok()?;
+            let ladder = codec.rate_ladder(&params);
+            Some(ConfigRun { params, ladder, candidates: Vec::new(), pass: None, fail_below: None })
+        })
+        .collect();
+    if runs.is_empty() {
+        return Err(format!("{}: no configuration of the search space validates on [{base}]", codec.name()).into());
+    }
+    let searcher =
+        SpaceSearcher { registry, codec, animation, target, eval: target.metric.eval_options(eval), limits, progress };
+    let (first, others) = runs.split_first_mut().expect("checked non-empty");
+    searcher.search_cold(first)?;
+    let start = first.pass.unwrap_or(first.ladder.steps.len().saturating_sub(1));
+    let bound = first.pass.and_then(|k| SpaceSearcher::bytes_at(first, k));
+    others.par_iter_mut().map(|run| searcher.search_warm(run, start, bound)).collect::<HResult<Vec<()>>>()?;
+
+    // Refinement of the best configuration and a close runner-up, chosen in configuration order.
+    let mut ranked: Vec<(u64, usize)> = runs
+        .iter()
+        .enumerate()
+        .filter_map(|(i, run)| run.pass.and_then(|k| SpaceSearcher::bytes_at(run, k)).map(|b| (b, i)))
+        .collect();
+    ranked.sort();
+    if let Some(&(best, _)) = ranked.first() {
+        let chosen: Vec<usize> =
+            ranked.iter().take(2).filter(|(b, _)| (*b as f64) <= best as f64 * 1.03).map(|(_, i)| *i).collect();
+        runs.par_iter_mut().enumerate().filter(|(i, _)| chosen.contains(i)).for_each(|(_, run)| {
+            searcher.refine(run, refine);
+        });
+    }
+
+    let mut tried = Vec::new();
+    let mut rejected = Vec::new();
+    let mut best: Option<(Point, Vec<u8>)> = None;
+    for run in runs {
+        for c in run.candidates {
+            let pass = searcher.passes(&c);
+            match c.outcome {
+                Ok((point, stream)) => {
+                    if pass && best.as_ref().is_none_or(|(b, _)| point.bytes < b.bytes) {
+                        best = Some((point.clone(), stream));
+                    }
+                    tried.push(point);
+                }
+                Err(message) => rejected.push(message),
+            }
+        }
+    }
+    match best {
+        Some((point, stream)) => Ok(TargetHit { point, stream, tried, linear_fallback: false, rejected }),
+        None => {
+            let best = tried
+                .iter()
+                .filter_map(|p| target.metric.value(&p.report).filter(|v| v.is_finite()).map(|v| (v, p)))
+                .min_by(|a, b| a.0.total_cmp(&b.0))
+                .map(|(_, p)| p.clone());
+            Err(Box::new(TargetMiss { codec: codec.name(), target, best }))
+        }
+    }
+}
+
+/// [`search_space_target`] for every codec in `codecs` (each on its defaults, nothing fixed),
+/// keeping the smallest stream (ties: the earlier codec). Codecs that cannot meet the target
+/// are skipped; if none can, the error lists each codec's best. Other failures are errors.
+#[allow(clippy::too_many_arguments)]
+pub fn search_space_target_auto(
+    registry: &CodecRegistry,
+    codecs: &[&dyn AnimationCodec],
+    animation: &Animation,
+    target: Target,
+    eval: &EvalOptions,
+    limits: Limits,
+    refine: usize,
+    progress: &(dyn Fn(&Point) + Sync),
+) -> HResult<(TargetHit, Vec<TargetHit>)> {
+    let mut hits = Vec::new();
+    let mut misses = Vec::new();
+    for &codec in codecs {
+        let base = codec.default_params();
+        match search_space_target(registry, codec, &base, &[], animation, target, eval, limits, refine, progress) {
             Ok(hit) => hits.push(hit),
             Err(e) => match e.downcast::<TargetMiss>() {
                 Ok(miss) => misses.push(miss.to_string()),

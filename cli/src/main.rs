@@ -275,7 +275,8 @@ pub struct EncodeArgs {
     #[arg(value_name = "INPUT")]
     pub input: String,
 
-    /// Codec name (see `animcodec list`), or `auto` with `--target` (every codec).
+    /// Codec name (see `animcodec list`), or `auto` (every codec searched for the smallest
+    /// stream meeting the target or the default quality).
     #[arg(short, long, value_name = "CODEC")]
     pub codec: String,
 
@@ -311,11 +312,13 @@ pub struct EncodeArgs {
     #[arg(long, value_name = "N", default_value_t = 32, value_parser = clap::value_parser!(u32).range(1..))]
     pub feed: u32,
 
-    /// Search the codec's rate ladder for the smallest stream whose decoded error meets
-    /// METRIC=VALUE (metrics: kg [%], sted, hausdorff, max_error, rmse; absolute values in
-    /// model units except kg). Other `-p` parameters stay fixed. With `-c auto`, every codec is
-    /// searched and the smallest stream kept. Fails, stating the best error reached, when no
-    /// ladder point meets the target.
+    /// Search the codec's declared parameter space (its rate ladder on every configuration of
+    /// its secondary parameters; `animcodec describe`) for the smallest stream whose decoded
+    /// error meets METRIC=VALUE (metrics: kg [%], sted, hausdorff, max_error, rmse; absolute
+    /// values in model units except kg). Parameters given with `-p` stay fixed. With `-c auto`,
+    /// every codec is searched and the smallest stream kept. Fails, stating the best error
+    /// reached, when no point meets the target. Without -p and without --target, encode aims
+    /// at the default quality, kg=0.5.
     #[arg(long, value_name = "METRIC=VALUE", value_parser = parse_target)]
     pub target: Option<animcodec::harness::Target>,
 
@@ -324,6 +327,11 @@ pub struct EncodeArgs {
     /// bracket closes). 0 keeps to the ladder's own steps.
     #[arg(long, value_name = "N", default_value_t = 4, value_parser = clap::value_parser!(u32).range(0..=32))]
     pub refine: u32,
+
+    /// With a target: search the codec's single rate ladder only (on the -p parameters), as
+    /// before the parameter-space search.
+    #[arg(long)]
+    pub ladder: bool,
 
     /// After encoding, decode the written stream and measure it against the input: KG, STED,
     /// Hausdorff, RMSE and max error are printed (and added to --json as `kg`, `sted` and the
@@ -440,6 +448,18 @@ pub struct SweepArgs {
     /// parameters that differ from the defaults, so one codec can be compared with itself.
     #[arg(long = "series", value_name = "CODEC:KEY=VALUE,...")]
     pub series: Vec<String>,
+
+    /// Sweep only the single-axis rate ladders (each codec on its -p parameters) instead of
+    /// each codec's lower envelope over its declared parameter space (the default without
+    /// --series).
+    #[arg(long)]
+    pub ladder: bool,
+
+    /// Envelope sweep: ladder points measured on each configuration after the first (spread
+    /// over the part of the ladder where the first configuration reached KG 0.05–4 or STED
+    /// 0.01–0.2).
+    #[arg(long, value_name = "N", default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..=64))]
+    pub config_points: u32,
 
     /// Ladder points per codec, spread evenly over its rate ladder, ends included (default:
     /// every step).

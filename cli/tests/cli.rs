@@ -196,8 +196,10 @@ fn streamed_flag_encodes_to_the_same_bytes_as_the_whole_flag() {
     let s = Scratch::new("streamed-flag");
     let (a, b) = (s.path("whole.anim"), s.path("streamed.anim"));
     // Small flag = 20 × 12 vertices × 40 frames; different feed sizes must not matter either.
-    ok(&["encode", "synth:flag:small", "-c", "quant-delta", "-o", &a, "--feed", "40"]);
-    ok(&["encode", "synth:flag:20x12x40", "-c", "quant-delta", "-o", &b, "--feed", "3"]);
+    // (Parameters given: without them the in-memory flag would be encoded at the default
+    // quality, which a streamed flag cannot be searched for.)
+    ok(&["encode", "synth:flag:small", "-c", "quant-delta", "-p", "bits=12", "-o", &a, "--feed", "40"]);
+    ok(&["encode", "synth:flag:20x12x40", "-c", "quant-delta", "-p", "bits=12", "-o", &b, "--feed", "3"]);
     assert_eq!(std::fs::read(&a).unwrap(), std::fs::read(&b).unwrap());
     fails(&["encode", "synth:flag:20x1x40", "-c", "quant-delta", "-o", &b], &["COLSxROWSxFRAMES"]);
     fails(&["encode", "synth:flag:20xtenx40", "-c", "quant-delta", "-o", &b], &["COLSxROWSxFRAMES"]);

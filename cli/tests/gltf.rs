@@ -222,9 +222,11 @@ fn robot_dance_encodes_decodes_to_a_valid_glb() {
     ok(&["encode", &robot, "--animation", "Dance", "-c", "hosvd", "-o", &anim]);
     let glb = s.path("d.glb");
     ok(&["decode", &anim, "-o", &glb]);
-    // The decoded GLB against the baked input: within the default KG target plus hosvd's error.
+    // The decoded GLB against the baked input: `encode` without -p aims at the default
+    // quality (issue 26), measured on the stream; the GLB adds nothing beyond it.
     let e = ok_json(&["eval", &robot, &glb, "--animation", "Dance", "--json", "--no-hausdorff"]);
-    assert!(e["kg"].as_f64().unwrap() < 0.1, "{e}");
+    let default_kg = animcodec::harness::DEFAULT_TARGET.value;
+    assert!(e["kg"].as_f64().unwrap() <= default_kg, "{e}");
     fails(&["encode", &robot, "--animation", "Moonwalk", "-c", "hosvd", "-o", &anim, "-f"], &["Moonwalk", "0 'Dance'"]);
     let tools = match node_tools() {
         Ok(t) => t,

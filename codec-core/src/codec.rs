@@ -12,7 +12,7 @@ use std::fmt;
 use crate::animation::{Animation, Topology};
 use crate::container::Limits;
 use crate::error::Result;
-use crate::params::{ParamSet, ParamSpec, RateLadder};
+use crate::params::{ParamSet, ParamSpec, RateLadder, SearchSpace};
 
 /// Four-character code identifying a codec inside a stream (never a list index).
 #[derive(Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -180,6 +180,15 @@ pub trait AnimationCodec: Send + Sync {
     /// depend on `base` (pca-aoi walks `k` in its fixed-rank modes but the error band in
     /// `qaoi`); every step applied to `base` must validate.
     fn rate_ladder(&self, base: &ParamSet) -> RateLadder;
+
+    /// The space quality-targeted rate control searches on top of `base`: the rate ladder as
+    /// the primary axis, and the secondary parameters worth trying with it (each value of
+    /// every configuration applied to `base` must validate). Default: the ladder alone.
+    /// A caller that fixes a parameter explicitly removes its axis (see
+    /// [`SearchSpace::without`]).
+    fn search_space(&self, base: &ParamSet) -> SearchSpace {
+        SearchSpace::ladder_only(self.rate_ladder(base))
+    }
 
     /// Checks a full parameter set, including constraints between parameters; errors state
     /// the allowed range.

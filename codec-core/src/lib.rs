@@ -28,7 +28,7 @@ pub use codec::{
 };
 pub use container::Limits;
 pub use error::{Error, Result};
-pub use params::{ParamKind, ParamSet, ParamSpec, ParamValue, RateLadder};
+pub use params::{ParamKind, ParamSet, ParamSpec, ParamValue, RateLadder, SearchAxis, SearchSpace};
 pub use quant::Quantizer;
 pub use registry::CodecRegistry;
 pub use stream::{

@@ -264,6 +264,69 @@ pub struct RateLadder {
     pub steps: Vec<ParamValue>,
 }
 
+/// One secondary axis of a codec's rate search: a parameter and the values the search may
+/// give it, the first being the value of the codec's usual configuration.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SearchAxis {
+    /// The parameter this axis sets.
+    pub param: &'static str,
+    /// Candidate values, in the order configurations are enumerated (first: the usual one).
+    pub values: Vec<ParamValue>,
+}
+
+/// The parameter space a codec's rate control may search: a primary rate axis (a
+/// [`RateLadder`], small streams first) walked for every configuration of the secondary
+/// axes (their Cartesian product, enumerated in a fixed order, the first axis varying
+/// slowest). A codec with only a ladder has no secondary axes.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SearchSpace {
+    /// The rate axis searched within each configuration.
+    pub primary: RateLadder,
+    /// The axes whose value combinations make the configurations.
+    pub secondary: Vec<SearchAxis>,
+}
+
+impl SearchSpace {
+    /// A space of one configuration: just `ladder`.
+    pub fn ladder_only(ladder: RateLadder) -> Self {
+        Self { primary: ladder, secondary: Vec::new() }
+    }
+
+    /// Every configuration of the secondary axes as `(param, value)` lists, in a fixed order
+    /// (axis 0 slowest; the first configuration takes every axis's first value).
+    pub fn configurations(&self) -> Vec<Vec<(&'static str, ParamValue)>> {
+        let mut out: Vec<Vec<(&'static str, ParamValue)>> = vec![Vec::new()];
+        for axis in &self.secondary {
+            out = out
+                .into_iter()
+                .flat_map(|prefix| {
+                    axis.values.iter().map(move |v| {
+                        let mut c = prefix.clone();
+                        c.push((axis.param, v.clone()));
+                        c
+                    })
+                })
+                .collect();
+        }
+        out
+    }
+
+    /// The space without the secondary axes named in `fixed` (parameters the user set).
+    pub fn without(mut self, fixed: &[&str]) -> Self {
+        self.secondary.retain(|a| !fixed.contains(&a.param));
+        self
+    }
+
+    /// `base` with the configuration `config` applied (checked against `specs`).
+    pub fn apply(base: &ParamSet, specs: &[ParamSpec], config: &[(&'static str, ParamValue)]) -> Result<ParamSet> {
+        let mut p = base.clone();
+        for (name, value) in config {
+            p.set(specs, name, value.clone())?;
+        }
+        Ok(p)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -318,5 +381,27 @@ mod tests {
         assert_eq!(s[3].parse("x", "0.25").unwrap(), ParamValue::Float(0.25));
         let e = s[1].parse("x", "z").unwrap_err().to_string();
         assert!(e.contains("a|b"), "{e}");
+    }
+    #[test]
+    fn search_space_enumerates_configurations_in_a_fixed_order() {
+        let ladder = RateLadder { param: "bits", steps: vec![ParamValue::Int(4), ParamValue::Int(8)] };
+        assert_eq!(SearchSpace::ladder_only(ladder.clone()).configurations(), vec![Vec::new()]);
+        let space = SearchSpace {
+            primary: ladder,
+            secondary: vec![
+                SearchAxis { param: "on", values: vec![ParamValue::Bool(false), ParamValue::Bool(true)] },
+                SearchAxis { param: "eps", values: vec![ParamValue::Float(0.5), ParamValue::Float(0.1)] },
+            ],
+        };
+        let c = space.configurations();
+        assert_eq!(c.len(), 4);
+        assert_eq!(c[0], vec![("on", ParamValue::Bool(false)), ("eps", ParamValue::Float(0.5))]);
+        assert_eq!(c[1], vec![("on", ParamValue::Bool(false)), ("eps", ParamValue::Float(0.1))]);
+        assert_eq!(c[3], vec![("on", ParamValue::Bool(true)), ("eps", ParamValue::Float(0.1))]);
+        let s = specs();
+        let p = SearchSpace::apply(&ParamSet::defaults("x", &s), &s, &c[3]).unwrap();
+        assert!(p.bool("on").unwrap());
+        assert_eq!(p.float("eps").unwrap(), 0.1);
+        assert!(SearchSpace::apply(&p, &s, &[("nope", ParamValue::Bool(true))]).is_err());
     }
 }

@@ -27,7 +27,8 @@ use codec_core::toolkit::predict::Predictor;
 use codec_core::toolkit::regress::Neighbourhoods;
 use codec_core::{
     entropy, Animation, AnimationCodec, EncodedPacket, EncoderSetup, Error, ErrorBound, FourCc, FrameDecoder,
-    FrameEncoder, Limits, Packet, ParamSet, ParamSpec, ParamValue, Quantizer, RateLadder, Result, StreamInfo, Topology,
+    FrameEncoder, Limits, Packet, ParamSet, ParamSpec, ParamValue, Quantizer, RateLadder, Result, SearchAxis,
+    SearchSpace, StreamInfo, Topology,
 };
 use faer::Mat;
 
@@ -417,6 +418,28 @@ impl AnimationCodec for Hosvd {
         // STED-best series is not size-monotone on every input (conformance), see the README.
         let steps = [0.998, 0.995, 0.99, 0.98, 0.97, 0.96, 0.95, 0.94, 0.93, 0.9, 0.85, 0.8, 0.7, 0.5];
         RateLadder { param: "ss", steps: steps.iter().map(|&s| ParamValue::Float(s)).collect() }
+    }
+    /// The ladder over `ss`, on each combination of the three levers that decide between the
+    /// KG-efficient and the STED-efficient streams (issue 15, sessions 3 and 5): the edge
+    /// (STED-like) distortion in the mode-1 factor's RD rule (`edge_weight` 0 or 1; toolkit
+    /// coding), affine motion removal (`rigid`; removing it helps STED on articulated motion)
+    /// and the cap on the quantization noise relative to the edge length (`edge_noise` 0 or
+    /// 0.012, between the best hand-picked series' 0.009 and 0.015). The default
+    /// configuration comes first. (Fixing `edge_weight = 1` halves the search but costs 17%
+    /// at KG ≤ 0.5 on samba: issue 26 note.)
+    fn search_space(&self, base: &ParamSet) -> SearchSpace {
+        let toolkit = base.choice("coding").is_ok_and(|c| c == "toolkit");
+        let mut secondary = Vec::new();
+        if toolkit {
+            secondary.push(SearchAxis {
+                param: "edge_weight",
+                values: vec![ParamValue::Float(0.0), ParamValue::Float(1.0)],
+            });
+        }
+        secondary.push(SearchAxis { param: "rigid", values: vec![ParamValue::Bool(true), ParamValue::Bool(false)] });
+        secondary
+            .push(SearchAxis { param: "edge_noise", values: vec![ParamValue::Float(0.0), ParamValue::Float(0.012)] });
+        SearchSpace { primary: self.rate_ladder(base), secondary }
     }
     fn validate(&self, params: &ParamSet) -> Result<()> {
         HosvdParams::from_param_set(params).map(|_| ())

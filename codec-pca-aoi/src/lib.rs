@@ -21,7 +21,8 @@ use codec_core::toolkit::order::{self, CausalGraph};
 use codec_core::toolkit::predict::Predictor;
 use codec_core::{
     entropy, Animation, AnimationCodec, EncodedPacket, EncoderSetup, Error, ErrorBound, FourCc, FrameDecoder,
-    FrameEncoder, Limits, Packet, ParamSet, ParamSpec, ParamValue, Quantizer, RateLadder, Result, StreamInfo, Topology,
+    FrameEncoder, Limits, Packet, ParamSet, ParamSpec, ParamValue, Quantizer, RateLadder, Result, SearchAxis,
+    SearchSpace, StreamInfo, Topology,
 };
 use faer::Mat;
 use rayon::prelude::*;
@@ -435,6 +436,23 @@ impl AnimationCodec for PcaAoi {
             param: "k",
             steps: [1, 2, 3, 4, 6, 8, 12, 16, 24, 32, 48].into_iter().map(ParamValue::Int).collect(),
         }
+    }
+    /// Toolkit coding in the fixed-rank modes: the ladder over the target KG, on blocks of the
+    /// default 40 frames and of 120 (a basis per block: longer blocks share it over more
+    /// frames, shorter ones follow changing motion; which wins depends on the input).
+    fn search_space(&self, base: &ParamSet) -> SearchSpace {
+        let primary = self.rate_ladder(base);
+        let toolkit = base.choice("coding").is_ok_and(|c| c == "toolkit");
+        let qaoi = base.choice("mode").is_ok_and(|m| m == "qaoi");
+        if !toolkit || qaoi {
+            return SearchSpace::ladder_only(primary);
+        }
+        let block = base.int("block").unwrap_or(40);
+        let mut values = vec![ParamValue::Int(block)];
+        if block != 120 {
+            values.push(ParamValue::Int(120));
+        }
+        SearchSpace { primary, secondary: vec![SearchAxis { param: "block", values }] }
     }
     fn validate(&self, params: &ParamSet) -> Result<()> {
         PcaAoiParams::from_param_set(params).map(|_| ())

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass
-from typing import Any, Dict, List, Optional, Sequence, Tuple, Union
+from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
@@ -39,6 +39,7 @@ __all__ = [
     "codec_names",
     "encode",
     "encode_to_target",
+    "DEFAULT_TARGET",
     "decode",
     "decode_frame",
     "info",
@@ -194,20 +195,40 @@ def codec_names() -> List[str]:
     return [c["name"] for c in _native.codecs()]
 
 
-def encode(positions: Any, faces: Any, codec: str, fps: float = 30.0, **params: Any) -> bytes:
+DEFAULT_TARGET = "kg=0.5"
+"""The quality :func:`encode` aims at when given no parameters (``animcodec encode`` without
+``-p``): KG ≤ 0.5 %."""
+
+
+def encode(
+    positions: Any,
+    faces: Any,
+    codec: str,
+    fps: float = 30.0,
+    *,
+    progress: Optional[Callable[[Dict[str, Any]], None]] = None,
+    **params: Any,
+) -> bytes:
     """Encodes an animation into ``.anim`` container bytes.
+
+    Without parameters, aims at the default quality (:data:`DEFAULT_TARGET`): the smallest
+    stream meeting it over the codec's declared parameter space (``codec="auto"``: every
+    codec's), as ``animcodec encode INPUT -c CODEC`` does. With parameters, exactly those.
 
     Args:
         positions: ``(frames, vertices, 3)`` array (float32 or float64).
         faces: ``(triangles, 3)`` integer array.
-        codec: a name from :func:`codec_names` (``quant-delta``, ``pca-aoi``, ``hosvd``, ...).
+        codec: a name from :func:`codec_names` (``quant-delta``, ``pca-aoi``, ``hosvd``, ...)
+            or ``"auto"`` (without parameters).
         fps: frame rate stored in the stream.
+        progress: called during the search with each measured point, a dict
+            ``{codec, params, bytes, bpvf, kg}`` (possibly from another thread).
         **params: codec parameters (``bits=12``, ``ss=0.95``, ...); the rest take their defaults.
 
     Raises:
         AnimcodecError: unknown codec or parameter, value out of range, non-finite coordinates.
     """
-    return _native.encode(_positions(positions), _faces(faces), str(codec), _fps(fps), params or None)
+    return _native.encode(_positions(positions), _faces(faces), str(codec), _fps(fps), params or None, progress)
 
 
 _TARGET_METRICS = ("kg", "sted", "hausdorff", "max_error", "rmse")
@@ -225,13 +246,18 @@ def encode_to_target(
     max_error: Optional[float] = None,
     rmse: Optional[float] = None,
     refine: int = 0,
+    ladder: bool = False,
+    progress: Optional[Callable[[Dict[str, Any]], None]] = None,
     **params: Any,
 ) -> TargetEncoding:
     """The smallest stream whose decoded error meets one target, e.g. ``kg=0.5``.
 
-    Walks the codec's rate ladder (binary search, checked for monotonicity) as
-    ``animcodec encode -c CODEC --target kg=0.5`` does; ``codec="auto"`` searches every codec
-    and keeps the smallest stream; ``refine`` bisects the ladder parameter further.
+    Searches the codec's declared parameter space (its rate ladder on every configuration of
+    its secondary parameters; those given in ``params`` stay fixed) as
+    ``animcodec encode -c CODEC --target kg=0.5`` does; ``ladder=True`` walks the rate ladder
+    alone (``--ladder``). ``codec="auto"`` searches every codec and keeps the smallest
+    stream; ``refine`` bisects the ladder parameter further; ``progress`` is called with
+    every measured point (a dict, possibly from another thread).
 
     Raises:
         AnimcodecError: no point meets the target (the message gives the best reached).
@@ -244,7 +270,7 @@ def encode_to_target(
         raise ValueError(f"refine must be ≥ 0; got {refine}")
     stream, summary = _native.encode_to_target(
         _positions(positions), _faces(faces), str(codec), _fps(fps), f"{metric}={float(value)!r}", int(refine),
-        params or None,
+        params or None, bool(ladder), progress,
     )
     return TargetEncoding(stream, summary["codec"], summary["params"], summary["reached"], summary["bpvf"], summary)
 

@@ -321,9 +321,13 @@ fn codecs(py: Python<'_>) -> PyResult<Py<PyAny>> {
     value_to_py(py, &Value::Array(list))
 }
 
-/// Encodes an animation into `.anim` container bytes.
+/// Encodes an animation into `.anim` container bytes. With parameters: exactly those (the
+/// rest at their defaults). Without: the smallest stream meeting the default quality
+/// ([`harness::DEFAULT_TARGET`]) over the codec's search space (or every codec's, `"auto"`),
+/// as `animcodec encode` without `-p` finds it; `progress` is then called with every point
+/// measured.
 #[pyfunction]
-#[pyo3(signature = (positions, faces, codec, fps, params=None))]
+#[pyo3(signature = (positions, faces, codec, fps, params=None, progress=None))]
 fn encode<'py>(
     py: Python<'py>,
     positions: PyReadonlyArray3<'py, f32>,
@@ -331,19 +335,67 @@ fn encode<'py>(
     codec: &str,
     fps: f32,
     params: Option<&Bound<'py, PyDict>>,
+    progress: Option<Py<PyAny>>,
 ) -> PyResult<Bound<'py, PyBytes>> {
-    let codec = registry().by_name(codec).map_err(to_py)?;
-    let params = params_from(codec, params)?;
+    let registry = registry();
     let animation = animation_from(&positions, &faces, fps)?;
+    if params.is_none_or(|p| p.is_empty()) {
+        let target = harness::DEFAULT_TARGET;
+        let report = progress_reporter(progress, target);
+        let (eval, limits, refine) = (EvalOptions::default(), Limits::default(), DEFAULT_REFINE);
+        let hit = py
+            .detach(|| {
+                if codec == "auto" {
+                    let all: Vec<&dyn AnimationCodec> = registry.iter().collect();
+                    harness::search_space_target_auto(registry, &all, &animation, target, &eval, limits, refine, &report)
+                        .map(|(h, _)| h)
+                } else {
+                    let c = registry.by_name(codec)?;
+                    harness::search_space_target(
+                        registry, c, &c.default_params(), &[], &animation, target, &eval, limits, refine, &report,
+                    )
+                }
+            })
+            .map_err(to_py)?;
+        return Ok(PyBytes::new(py, &hit.stream));
+    }
+    let codec = registry.by_name(codec).map_err(to_py)?;
+    let params = params_from(codec, params)?;
     let bytes = py.detach(|| codec_core::encode_animation(codec, &params, &animation)).map_err(to_py)?;
     Ok(PyBytes::new(py, &bytes))
+}
+
+/// Bisection steps of the ladder parameter after a search, as `animcodec encode` (its
+/// `--refine` default).
+const DEFAULT_REFINE: usize = 4;
+
+/// A search's progress as Python calls: `callback({codec, params, bytes, bpvf, METRIC})` for
+/// every measured point (from the search's worker threads, each taking the GIL). A callback
+/// that raises is reported as unraisable and the search goes on.
+fn progress_reporter(callback: Option<Py<PyAny>>, target: Target) -> impl Fn(&harness::Point) + Sync {
+    move |p: &harness::Point| {
+        let Some(cb) = &callback else { return };
+        let row = serde_json::json!({
+            "codec": p.codec,
+            "params": harness::params_json(&p.params),
+            "bytes": p.bytes,
+            "bpvf": p.bpvf,
+            target.metric.name(): target.metric.value(&p.report),
+        });
+        Python::attach(|py| {
+            let result = value_to_py(py, &row).and_then(|arg| cb.call1(py, (arg,)));
+            if let Err(e) = result {
+                e.write_unraisable(py, None);
+            }
+        });
+    }
 }
 
 /// The smallest stream meeting `target` (`"kg=0.5"`, `"sted=0.02"`, …) of one codec (on its
 /// rate ladder, the other parameters from `params`) or of every codec (`codec="auto"`), as
 /// `animcodec encode --target` finds it. Returns `(bytes, summary dict)`.
 #[pyfunction]
-#[pyo3(signature = (positions, faces, codec, fps, target, refine=0, params=None))]
+#[pyo3(signature = (positions, faces, codec, fps, target, refine=0, params=None, ladder=false, progress=None))]
 #[allow(clippy::too_many_arguments)]
 fn encode_to_target<'py>(
     py: Python<'py>,
@@ -354,6 +406,8 @@ fn encode_to_target<'py>(
     target: &str,
     refine: usize,
     params: Option<&Bound<'py, PyDict>>,
+    ladder: bool,
+    progress: Option<Py<PyAny>>,
 ) -> PyResult<(Bound<'py, PyBytes>, Py<PyAny>)> {
     let target: Target = target.parse().map_err(to_py)?;
     let registry = registry();
@@ -377,13 +431,30 @@ fn encode_to_target<'py>(
     let animation = animation_from(&positions, &faces, fps)?;
     let eval = EvalOptions::default();
     let limits = Limits::default();
+    let fixed: Vec<String> = match params {
+        Some(p) => p.keys().iter().map(|k| k.extract::<String>()).collect::<PyResult<_>>()?,
+        None => Vec::new(),
+    };
+    let report = progress_reporter(progress, target);
     let (hit, others) = py
-        .detach(|| match chosen {
-            Some((c, base)) => harness::search_target(registry, c, &base, &animation, target, &eval, limits, refine)
+        .detach(|| {
+            let fixed: Vec<&str> = fixed.iter().map(String::as_str).collect();
+            let all: Vec<&dyn AnimationCodec> = registry.iter().collect();
+            match (chosen, ladder) {
+                (Some((c, base)), true) => harness::search_target_with_progress(
+                    registry, c, &base, &animation, target, &eval, limits, refine, &report,
+                )
                 .map(|h| (h, Vec::new())),
-            None => {
-                let all: Vec<&dyn AnimationCodec> = registry.iter().collect();
-                harness::search_target_auto(registry, &all, &animation, target, &eval, limits, refine)
+                (Some((c, base)), false) => harness::search_space_target(
+                    registry, c, &base, &fixed, &animation, target, &eval, limits, refine, &report,
+                )
+                .map(|h| (h, Vec::new())),
+                (None, true) => harness::search_target_auto_with_progress(
+                    registry, &all, &animation, target, &eval, limits, refine, &report,
+                ),
+                (None, false) => {
+                    harness::search_space_target_auto(registry, &all, &animation, target, &eval, limits, refine, &report)
+                }
             }
         })
         .map_err(to_py)?;
@@ -397,6 +468,7 @@ fn encode_to_target<'py>(
         "bytes": p.bytes,
         "bpvf": p.bpvf,
         "linear_fallback": hit.linear_fallback,
+        "rejected": hit.rejected,
         "tried": hit.tried.iter().map(|t| serde_json::json!({
             "ladder_index": t.ladder_index,
             "params": harness::params_json(&t.params),

@@ -46,20 +46,26 @@ pub fn parse_params(codec: &dyn AnimationCodec, pairs: &[String]) -> CmdResult<P
 
 /// Runs `encode`.
 pub fn run(args: &EncodeArgs, limits: Limits) -> CmdResult {
-    if args.codec == "auto" && args.target.is_none() {
-        return Err("-c auto needs --target METRIC=VALUE (for example --target kg=0.5): it searches every \
-                    codec for the smallest stream meeting that error target; without a target, name a codec \
-                    (see `animcodec list`)"
-            .into());
-    }
     // Mistyped arguments first, then the output, all before anything long happens.
-    parse_streamed_flag(&args.input)?;
+    let streamed = parse_streamed_flag(&args.input)?.is_some();
     if args.eval {
         sted_params(&args.sted)?;
     }
     let policy = output_policy(args);
     if let Some(target) = args.target {
-        return run_target(args, target, limits, &policy);
+        return run_target(args, target, false, limits, &policy);
+    }
+    // Quality by default: no parameters and no target aims at the documented default quality
+    // and picks the parameters for this input. A streamed flag is never held in memory, so it
+    // cannot be searched: it keeps the codec's fixed defaults.
+    if args.params.is_empty() && !streamed {
+        return run_target(args, harness::DEFAULT_TARGET, true, limits, &policy);
+    }
+    if args.codec == "auto" {
+        return Err("-c auto searches every codec for the smallest stream meeting an error target \
+                    (--target METRIC=VALUE, or the default quality without -p); it takes no -p and cannot \
+                    encode a streamed synth:flag:COLSxROWSxFRAMES: name a codec (see `animcodec list`)"
+            .into());
     }
     let registry = animcodec::registry();
     let codec = registry.by_name(&args.codec)?;
@@ -100,7 +106,15 @@ pub fn run(args: &EncodeArgs, limits: Limits) -> CmdResult {
     let ratio = raw_bytes(v, f) as f64 / bytes as f64;
     // --eval measures the stream as written, before it replaces anything: a failed measurement
     // leaves the old output untouched and no new file.
-    let evaluation = if args.eval { Some(evaluate_written(args, &source, file.finish()?, limits)?) } else { None };
+    let evaluation = match (&source, args.eval) {
+        (_, false) => None,
+        (Source::Whole(input), true) => Some(evaluate_written(args, input, file.finish()?, limits)?),
+        (Source::Flag { .. }, true) => {
+            return Err("--eval needs the input in memory, but synth:flag:COLSxROWSxFRAMES is generated frame by \
+                        frame; write it to a file first (animcodec synth) or drop --eval"
+                .into())
+        }
+    };
     file.commit()?;
     if args.json {
         let mut p = Map::new();
@@ -167,15 +181,10 @@ pub fn run(args: &EncodeArgs, limits: Limits) -> CmdResult {
 /// measures it against the input; returns the report and the seconds it took.
 fn evaluate_written(
     args: &EncodeArgs,
-    source: &Source,
+    input: &Animation,
     written: &std::path::Path,
     limits: Limits,
 ) -> CmdResult<(MetricReport, f64)> {
-    let Source::Whole(input) = source else {
-        return Err("--eval needs the input in memory, but synth:flag:COLSxROWSxFRAMES is generated frame by frame; \
-                    write it to a file first (animcodec synth) or drop --eval"
-            .into());
-    };
     let start = Instant::now();
     let registry = animcodec::registry();
     let decoded = StreamDecoder::new(super::decode::open(written)?, &registry, limits)
@@ -307,9 +316,11 @@ impl<W: Write> Write for CountingWriter<W> {
     }
 }
 
-/// `encode --target`: searches the rate ladder (see [`harness::search_target`]) and writes the
-/// smallest stream that meets the target.
-fn run_target(args: &EncodeArgs, target: Target, limits: Limits, policy: &OutputPolicy) -> CmdResult {
+/// `encode --target` (or the default quality target, `by_default`): searches the codec's
+/// declared parameter space (see [`harness::search_space_target`]; with `--ladder` its rate
+/// ladder alone, [`harness::search_target`]) and writes the smallest stream that meets the
+/// target. Parameters given with `-p` stay fixed and are not searched.
+fn run_target(args: &EncodeArgs, target: Target, by_default: bool, limits: Limits, policy: &OutputPolicy) -> CmdResult {
     let registry = animcodec::registry();
     let auto = args.codec == "auto";
     let chosen: Option<(&dyn AnimationCodec, ParamSet)> = if auto {
@@ -372,25 +383,37 @@ fn run_target(args: &EncodeArgs, target: Target, limits: Limits, policy: &Output
         bar.set_message(format!("last: {} {knob}→ {}={value} at {:.3} bpvf", p.codec, target.metric.name(), p.bpvf));
     };
     let refine = args.refine as usize;
-    let found = match chosen {
-        Some((codec, params)) => harness::search_target_with_progress(
+    let fixed: Vec<&str> = args.params.iter().filter_map(|p| p.split_once('=').map(|(k, _)| k.trim())).collect();
+    let found = match (chosen, args.ladder) {
+        (Some((codec, params)), true) => harness::search_target_with_progress(
             &registry, codec, &params, &animation, target, &eval, limits, refine, &progress,
         )
         .map(|hit| (hit, Vec::new())),
-        None => {
+        (Some((codec, params)), false) => harness::search_space_target(
+            &registry, codec, &params, &fixed, &animation, target, &eval, limits, refine, &progress,
+        )
+        .map(|hit| (hit, Vec::new())),
+        (None, true) => {
             let codecs: Vec<&dyn AnimationCodec> = registry.iter().collect();
             harness::search_target_auto_with_progress(
                 &registry, &codecs, &animation, target, &eval, limits, refine, &progress,
             )
         }
+        (None, false) => {
+            let codecs: Vec<&dyn AnimationCodec> = registry.iter().collect();
+            harness::search_space_target_auto(&registry, &codecs, &animation, target, &eval, limits, refine, &progress)
+        }
     };
     bar.finish_and_clear();
     let (hit, others) = found?;
     let search_seconds = start.elapsed().as_secs_f64();
-    policy.write(&args.output, &hit.stream)?;
-
+    // Written under a temporary name and measured (--eval) before it replaces anything.
+    let mut file = policy.create(&args.output)?;
+    file.write_all(&hit.stream).map_err(|e| file.error(e))?;
     let p = &hit.point;
     let reached = target.metric.value(&p.report).unwrap_or(f64::NAN);
+    let evaluation = if args.eval { Some(evaluate_written(args, &animation, file.finish()?, limits)?) } else { None };
+    file.commit()?;
     let (v, f) = (animation.vertex_count(), animation.frame_count());
     if args.json {
         let summary = |h: &TargetHit| {
@@ -402,12 +425,15 @@ fn run_target(args: &EncodeArgs, target: Target, limits: Limits, policy: &Output
                 "value": target.metric.value(&h.point.report),
             })
         };
-        return emit_json(&json!({
+        let mut out = json!({
             "codec": p.codec,
             "params": harness::params_json(&p.params),
             "input": args.input,
             "output": args.output.display().to_string(),
             "target": { "metric": target.metric.name(), "value": target.value },
+            "default_target": by_default,
+            "search": if args.ladder { "ladder" } else { "space" },
+            "rejected": hit.rejected,
             "reached": reached,
             "bytes": p.bytes,
             "bpvf": p.bpvf,
@@ -428,13 +454,21 @@ fn run_target(args: &EncodeArgs, target: Target, limits: Limits, policy: &Output
                 "value": target.metric.value(&t.report),
             })).collect::<Vec<_>>(),
             "other_codecs": others.iter().map(summary).collect::<Vec<_>>(),
-        }));
+        });
+        if let (Some((report, seconds)), Value::Object(map)) = (&evaluation, &mut out) {
+            map.insert("kg".into(), report.kg.into());
+            map.insert("sted".into(), report.sted.into());
+            map.insert("metrics".into(), harness::report_json(report));
+            map.insert("eval_seconds".into(), (*seconds).into());
+        }
+        return emit_json(&out);
     }
     let mut out = format!(
         "{input}: {f} frames × {v} vertices (read in {read_seconds:.2} s)\n\
-         target {target}: {codec} [{params}] reaches {metric}={reached:.6} → {output}\n\
-         {bytes} bytes, {rate:.3} bits/vertex/frame; searched {n} ladder points in {search_seconds:.2} s{fallback}\n",
+         target {target}{default}: {codec} [{params}] reaches {metric}={reached:.6} → {output}\n\
+         {bytes} bytes, {rate:.3} bits/vertex/frame; searched {n} points in {search_seconds:.2} s{fallback}\n",
         input = args.input,
+        default = if by_default { " (the default quality; -p or --target for other choices)" } else { "" },
         codec = p.codec,
         params = p.params,
         metric = target.metric.name(),
@@ -444,6 +478,20 @@ fn run_target(args: &EncodeArgs, target: Target, limits: Limits, policy: &Output
         n = hit.tried.len(),
         fallback = if hit.linear_fallback { " (errors not monotone along the ladder: linear scan used)" } else { "" },
     );
+    for r in &hit.rejected {
+        out.push_str(&format!("  rejected candidate: {r}\n"));
+    }
+    if let Some((r, seconds)) = &evaluation {
+        let num = |x: Option<f64>| x.map_or_else(|| "n/a".to_string(), |x| format!("{x:.4e}"));
+        out.push_str(&format!(
+            "decoded vs input: KG {} %, STED {}, Hausdorff {}, RMSE {:.4e}, max error {:.4e} (measured in {seconds:.2} s)\n",
+            num(r.kg),
+            num(r.sted),
+            num(r.hausdorff),
+            r.rmse,
+            r.max_error,
+        ));
+    }
     for o in &others {
         out.push_str(&format!(
             "  also meets it: {} [{}] {} bytes, {:.3} bpvf\n",

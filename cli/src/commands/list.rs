@@ -50,4 +50,8 @@ fn write_codec(out: &mut String, codec: &dyn AnimationCodec) {
     let ladder = codec.rate_ladder(&codec.default_params());
     let steps: Vec<String> = ladder.steps.iter().map(|v| v.to_string()).collect();
     let _ = writeln!(out, "  rate ladder: {} = {}", ladder.param, steps.join(", "));
+    for axis in codec.search_space(&codec.default_params()).secondary {
+        let values: Vec<String> = axis.values.iter().map(|v| v.to_string()).collect();
+        let _ = writeln!(out, "  searched with: {} = {}", axis.param, values.join(", "));
+    }
 }

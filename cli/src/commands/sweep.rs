@@ -7,7 +7,7 @@ use std::path::Path;
 use std::time::Instant;
 
 use animcodec::formats::ReadOptions;
-use animcodec::harness::{self, monotone_report, Sweep, SweepOptions, SweepSeries};
+use animcodec::harness::{self, monotone_report, Point, Sweep, SweepOptions, SweepSeries, TargetMetric};
 use animcodec::output::{commit_all, OutputPolicy};
 use animcodec::viewer;
 use codec_core::{AnimationCodec, CodecRegistry, Limits};
@@ -38,6 +38,9 @@ pub fn run(args: &SweepArgs, limits: Limits) -> CmdResult {
     policy.check_all(&outputs)?;
     let registry = animcodec::registry();
     let series = sweep_series(&registry, args)?;
+    // The default: each codec's lower envelope over its search space; `--ladder` and
+    // `--series` give the single-axis curves.
+    let envelope_mode = !args.ladder && args.series.is_empty();
     // Checked before the (long) sweep: a typo should not cost it.
     let view_points = args.view_points.iter().map(|t| parse_view_point(t, &series)).collect::<CmdResult<Vec<_>>>()?;
     let eval = eval_options(&args.metrics)?;
@@ -46,7 +49,7 @@ pub fn run(args: &SweepArgs, limits: Limits) -> CmdResult {
 
     let options =
         SweepOptions { points: args.points.map(|n| n as usize), jobs: args.jobs.map(|n| n as usize), eval, limits };
-    let total = harness::sweep_jobs(&series, options.points).len() as u64;
+    let total = if envelope_mode { 0 } else { harness::sweep_jobs(&series, options.points).len() as u64 };
     let bar = if std::io::stderr().is_terminal() {
         let bar = ProgressBar::with_draw_target(Some(total), ProgressDrawTarget::stderr());
         if let Ok(style) = ProgressStyle::with_template("{bar:30} {pos}/{len} {elapsed} sweeping {msg}") {
@@ -58,7 +61,33 @@ pub fn run(args: &SweepArgs, limits: Limits) -> CmdResult {
         ProgressBar::hidden()
     };
     let start = Instant::now();
-    let result = harness::sweep(&registry, &series, &animation, &options, &|| bar.inc(1))?;
+    let result = if envelope_mode {
+        let fixed: Vec<&'static str> = {
+            let mut names = Vec::new();
+            for s in &series {
+                let specs = s.codec.param_specs();
+                for pair in &args.params {
+                    if let Some(spec) =
+                        pair.split_once('=').and_then(|(k, _)| specs.iter().find(|p| p.name == k.trim()))
+                    {
+                        names.push(spec.name);
+                    }
+                }
+            }
+            names
+        };
+        let codecs: Vec<_> = series.iter().map(|s| (s.codec, s.base.clone(), fixed.clone())).collect();
+        let per_config = args.config_points as usize;
+        harness::envelope_sweep(&registry, &codecs, &animation, &options, per_config, &|more| {
+            if more > 0 {
+                bar.inc_length(more as u64);
+            } else {
+                bar.inc(1);
+            }
+        })?
+    } else {
+        harness::sweep(&registry, &series, &animation, &options, &|| bar.inc(1))?
+    };
     let seconds = start.elapsed().as_secs_f64();
     bar.finish_and_clear();
 
@@ -96,7 +125,7 @@ pub fn run(args: &SweepArgs, limits: Limits) -> CmdResult {
         value["jobs"] = options.jobs.map_or_else(|| "rayon".into(), |j| j.into());
         emit_json(&value)?;
     } else {
-        emit(&table(input, &animation, &result, seconds))?;
+        emit(&table(input, &animation, &result, seconds, envelope_mode))?;
     }
     if result.failures.is_empty() {
         Ok(())
@@ -172,8 +201,17 @@ fn num(v: Option<f64>) -> String {
     v.map_or_else(|| "n/a".to_string(), |x| format!("{x:.4e}"))
 }
 
-fn table(input: &str, animation: &codec_core::Animation, sweep: &Sweep, seconds: f64) -> String {
+fn table(input: &str, animation: &codec_core::Animation, sweep: &Sweep, seconds: f64, envelope_only: bool) -> String {
     let mut out = String::new();
+    let kg = harness::envelope(&sweep.points, TargetMetric::Kg);
+    let sted = harness::envelope(&sweep.points, TargetMetric::Sted);
+    let shown: Vec<&Point> = sweep
+        .points
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| !envelope_only || kg.contains(i) || sted.contains(i))
+        .map(|(_, p)| p)
+        .collect();
     let width = sweep.points.iter().map(|p| p.series.chars().count()).max().unwrap_or(0).max(14);
     let _ = writeln!(
         out,
@@ -197,7 +235,16 @@ fn table(input: &str, animation: &codec_core::Animation, sweep: &Sweep, seconds:
         "dec s",
         w = width
     );
-    for p in &sweep.points {
+    if envelope_only {
+        let _ = writeln!(
+            out,
+            "lower envelope of each codec over its parameter space (by KG or STED): {} of {} points shown, every \
+             point in --json; --ladder for the single-axis ladders",
+            shown.len(),
+            sweep.points.len()
+        );
+    }
+    for p in shown {
         let knob = format!("{}={}", p.ladder_param, p.ladder_value().map(|v| v.to_string()).unwrap_or_default());
         let r = &p.report;
         let _ = writeln!(
@@ -216,7 +263,7 @@ fn table(input: &str, animation: &codec_core::Animation, sweep: &Sweep, seconds:
             w = width
         );
     }
-    for m in monotone_report(&sweep.points) {
+    for m in monotone_report(&sweep.points).into_iter().filter(|_| !envelope_only) {
         let ok = m.bpvf_increasing && m.kg_decreasing && m.sted_decreasing;
         let _ = writeln!(
             out,

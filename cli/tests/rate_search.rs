@@ -1,0 +1,292 @@
+//! Tests of quality-targeted rate control over each codec's declared parameter space
+//! (issue 26): `harness::search_space_target`, the envelope sweep, and the default quality of
+//! `animcodec encode` without `-p`.
+
+use animcodec::harness::{self, search_space_target, search_target, Target, TargetMetric, DEFAULT_TARGET};
+use codec_core::quant_delta::QuantDelta;
+use codec_core::synth;
+use codec_core::{
+    Animation, AnimationCodec, CodecRegistry, EncodedPacket, EncoderSetup, ErrorBound, FourCc, FrameDecoder,
+    FrameEncoder, Limits, Packet, ParamSet, ParamSpec, ParamValue, RateLadder, SearchAxis, SearchSpace, StreamInfo,
+};
+use metrics::EvalOptions;
+
+mod common;
+use common::*;
+
+fn small() -> Animation {
+    synth::waving_flag(12, 9, 12)
+}
+
+fn in_pool<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> T {
+    rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap().install(f)
+}
+
+/// The chosen stream depends on neither the thread count nor the scheduling: 1 and 2 threads
+/// give the same bytes, and the search measures the same candidates.
+#[test]
+fn space_search_chooses_the_same_stream_with_one_and_two_threads() {
+    let registry = animcodec::registry();
+    let codec = registry.by_name("hosvd").unwrap();
+    let animation = small();
+    let eval = EvalOptions::default();
+    for target in [Target { metric: TargetMetric::Kg, value: 0.5 }, Target { metric: TargetMetric::Sted, value: 0.05 }]
+    {
+        let run = |threads| {
+            in_pool(threads, || {
+                search_space_target(
+                    &registry,
+                    codec,
+                    &codec.default_params(),
+                    &[],
+                    &animation,
+                    target,
+                    &eval,
+                    Limits::default(),
+                    2,
+                    &|_| {},
+                )
+                .unwrap()
+            })
+        };
+        let (one, two) = (run(1), run(2));
+        assert_eq!(one.stream, two.stream, "{target}");
+        assert_eq!(one.point.params, two.point.params);
+        let measured =
+            |h: &harness::TargetHit| h.tried.iter().map(|p| (p.params.to_string(), p.bytes)).collect::<Vec<_>>();
+        assert_eq!(measured(&one), measured(&two));
+        let reached = target.metric.value(&one.point.report).unwrap();
+        assert!(reached <= target.value, "{target}: reached {reached}");
+        // The answer is the smallest passing stream measured.
+        let smallest = one
+            .tried
+            .iter()
+            .filter(|p| target.metric.value(&p.report).is_some_and(|v| v <= target.value))
+            .map(|p| p.bytes)
+            .min()
+            .unwrap();
+        assert_eq!(one.point.bytes, smallest);
+        // More than one configuration was tried.
+        let configs: std::collections::BTreeSet<String> =
+            one.tried.iter().map(|p| format!("{:?}{:?}", p.params.get("rigid"), p.params.get("edge_noise"))).collect();
+        assert!(configs.len() > 1, "{configs:?}");
+    }
+}
+
+/// The space holds the single ladder's configuration, so (on a monotone ladder, without
+/// refinement) its answer is never larger than the ladder search's.
+#[test]
+fn space_search_is_never_worse_than_the_ladder_alone() {
+    let registry = animcodec::registry();
+    let animation = small();
+    let eval = EvalOptions::default();
+    let target = Target { metric: TargetMetric::Kg, value: 0.5 };
+    for name in ["hosvd", "pca-aoi"] {
+        let codec = registry.by_name(name).unwrap();
+        let base = codec.default_params();
+        let ladder = search_target(&registry, codec, &base, &animation, target, &eval, Limits::default(), 0).unwrap();
+        let space =
+            search_space_target(&registry, codec, &base, &[], &animation, target, &eval, Limits::default(), 0, &|_| {})
+                .unwrap();
+        if !ladder.linear_fallback {
+            assert!(space.point.bytes <= ladder.point.bytes, "{name}: {} > {}", space.point.bytes, ladder.point.bytes);
+        }
+    }
+}
+
+/// Parameters the user fixed are not searched.
+#[test]
+fn fixed_parameters_are_not_searched() {
+    let registry = animcodec::registry();
+    let codec = registry.by_name("hosvd").unwrap();
+    let base = codec.default_params().with(&codec.param_specs(), "rigid", ParamValue::Bool(false)).unwrap();
+    let target = Target { metric: TargetMetric::Kg, value: 1.0 };
+    let hit = search_space_target(
+        &registry,
+        codec,
+        &base,
+        &["rigid"],
+        &small(),
+        target,
+        &EvalOptions::default(),
+        Limits::default(),
+        0,
+        &|_| {},
+    )
+    .unwrap();
+    assert!(hit.tried.iter().all(|p| !p.params.bool("rigid").unwrap()));
+}
+
+// ---------------------------------------------------------------------------------------------
+// A codec whose smaller configuration is garbage: quant-delta that, at `level = 1`, writes a
+// stream that decodes to NaN. The search must reject it, whatever its size.
+
+struct Garbling;
+
+struct GarbleEncoder(Box<dyn FrameEncoder>, bool);
+impl FrameEncoder for GarbleEncoder {
+    fn config(&self) -> Vec<u8> {
+        let mut c = vec![u8::from(self.1)];
+        c.extend(self.0.config());
+        c
+    }
+    fn push_frames(&mut self, frames: &[f32]) -> codec_core::Result<Vec<EncodedPacket>> {
+        self.0.push_frames(frames)
+    }
+    fn finish(&mut self) -> codec_core::Result<Vec<EncodedPacket>> {
+        self.0.finish()
+    }
+}
+
+struct GarbleDecoder(Box<dyn FrameDecoder>, bool);
+impl FrameDecoder for GarbleDecoder {
+    fn decode_packet(&mut self, packet: &Packet) -> codec_core::Result<Vec<f32>> {
+        let mut frames = self.0.decode_packet(packet)?;
+        if self.1 {
+            frames.iter_mut().for_each(|x| *x = f32::NAN);
+        }
+        Ok(frames)
+    }
+}
+
+fn as_quant_delta(params: &ParamSet) -> codec_core::Result<ParamSet> {
+    let specs = QuantDelta.param_specs();
+    let mut p = QuantDelta.default_params();
+    for (name, value) in params.iter() {
+        p.set(&specs, name, value.clone())?;
+    }
+    Ok(p)
+}
+
+impl AnimationCodec for Garbling {
+    fn name(&self) -> &'static str {
+        "garbling"
+    }
+    fn fourcc(&self) -> FourCc {
+        FourCc::new(b"TGRB")
+    }
+    fn stream_version(&self) -> u16 {
+        1
+    }
+    fn summary(&self) -> &'static str {
+        "quant-delta decoding to NaN at level 1 (test only)"
+    }
+    fn param_specs(&self) -> Vec<ParamSpec> {
+        QuantDelta.param_specs()
+    }
+    fn rate_ladder(&self, _base: &ParamSet) -> RateLadder {
+        RateLadder { param: "bits", steps: (4..=20).step_by(2).map(ParamValue::Int).collect() }
+    }
+    fn search_space(&self, base: &ParamSet) -> SearchSpace {
+        SearchSpace {
+            primary: self.rate_ladder(base),
+            secondary: vec![SearchAxis { param: "level", values: vec![ParamValue::Int(19), ParamValue::Int(1)] }],
+        }
+    }
+    fn validate(&self, params: &ParamSet) -> codec_core::Result<()> {
+        QuantDelta.validate(&as_quant_delta(params)?)
+    }
+    fn error_bound(&self, params: &ParamSet, animation: &Animation) -> codec_core::Result<ErrorBound> {
+        QuantDelta.error_bound(&as_quant_delta(params)?, animation)
+    }
+    fn new_encoder(&self, params: &ParamSet, setup: &EncoderSetup<'_>) -> codec_core::Result<Box<dyn FrameEncoder>> {
+        let garbage = params.int("level")? == 1;
+        Ok(Box::new(GarbleEncoder(QuantDelta.new_encoder(&as_quant_delta(params)?, setup)?, garbage)))
+    }
+    fn new_decoder(
+        &self,
+        info: &StreamInfo,
+        config: &[u8],
+        limits: &Limits,
+    ) -> codec_core::Result<Box<dyn FrameDecoder>> {
+        let (&flag, rest) = config
+            .split_first()
+            .ok_or(codec_core::Error::Truncated { context: "garbling".into(), field: "flag".into() })?;
+        Ok(Box::new(GarbleDecoder(QuantDelta.new_decoder(info, rest, limits)?, flag == 1)))
+    }
+}
+
+#[test]
+fn candidates_decoding_to_non_finite_coordinates_are_rejected() {
+    let registry = CodecRegistry::new(vec![Box::new(Garbling)]).unwrap();
+    let codec = registry.by_name("garbling").unwrap();
+    for metric in [TargetMetric::Kg, TargetMetric::MaxError] {
+        let target = Target { metric, value: 1e-2 };
+        let hit = search_space_target(
+            &registry,
+            codec,
+            &codec.default_params(),
+            &[],
+            &small(),
+            target,
+            &EvalOptions::default(),
+            Limits::default(),
+            0,
+            &|_| {},
+        )
+        .unwrap();
+        assert_eq!(hit.point.params.int("level").unwrap(), 19, "{target}");
+        assert!(hit.tried.iter().all(|p| p.params.int("level").unwrap() == 19));
+        assert!(!hit.rejected.is_empty() && hit.rejected[0].contains("non-finite"), "{:?}", hit.rejected);
+    }
+}
+
+/// Each codec's envelope: sorted by bytes, its errors strictly fall.
+#[test]
+fn envelope_sweep_points_form_a_falling_curve_per_codec() {
+    let registry = animcodec::registry();
+    let animation = small();
+    let codecs: Vec<(&dyn AnimationCodec, ParamSet, Vec<&'static str>)> = ["quant-delta", "hosvd"]
+        .iter()
+        .map(|n| {
+            let c = registry.by_name(n).unwrap();
+            (c, c.default_params(), Vec::new())
+        })
+        .collect();
+    let options = harness::SweepOptions { points: Some(6), jobs: Some(2), ..Default::default() };
+    let swept = harness::envelope_sweep(&registry, &codecs, &animation, &options, 2, &|_| {}).unwrap();
+    assert!(swept.failures.is_empty(), "{:?}", swept.failures);
+    // hosvd's secondary configurations were measured and are labelled with their parameters.
+    assert!(swept.points.iter().any(|p| p.series.starts_with("hosvd[")), "no secondary configuration measured");
+    for metric in [TargetMetric::Kg, TargetMetric::Sted] {
+        let on = harness::envelope(&swept.points, metric);
+        for codec in ["quant-delta", "hosvd"] {
+            let mut curve: Vec<_> = on.iter().map(|&i| &swept.points[i]).filter(|p| p.codec == codec).collect();
+            assert!(!curve.is_empty());
+            curve.sort_by_key(|p| p.bytes);
+            for w in curve.windows(2) {
+                assert!(metric.value(&w[1].report).unwrap() < metric.value(&w[0].report).unwrap());
+            }
+            // No point of the codec is both smaller and better than an envelope point.
+            for p in &curve {
+                let v = metric.value(&p.report).unwrap();
+                assert!(!swept
+                    .points
+                    .iter()
+                    .any(|q| q.codec == codec && q.bytes < p.bytes && metric.value(&q.report).is_some_and(|w| w <= v)));
+            }
+        }
+    }
+}
+
+/// `encode` without `-p` aims at the default quality; with `-p`, exactly those parameters.
+#[test]
+fn encode_without_parameters_meets_the_default_quality() {
+    let s = Scratch::new("default-quality");
+    let (pc2, anim) = (s.path("flag.pc2"), s.path("flag.anim"));
+    ok(&["synth", "flag", "-o", &pc2]);
+    for codec in ["hosvd", "quant-delta"] {
+        let v = ok_json(&["encode", &pc2, "-c", codec, "-o", &anim, "-f", "--json", "--eval"]);
+        assert_eq!(v["default_target"], true, "{v}");
+        assert_eq!(v["target"]["metric"], DEFAULT_TARGET.metric.name());
+        let kg = v["kg"].as_f64().unwrap();
+        assert!(kg <= DEFAULT_TARGET.value, "{codec}: KG {kg}");
+        assert_eq!(v["bytes"].as_u64().unwrap(), std::fs::metadata(&anim).unwrap().len());
+    }
+    let v = ok_json(&["encode", &pc2, "-c", "hosvd", "-p", "ss=0.9", "-o", &anim, "-f", "--json"]);
+    assert!(v.get("default_target").is_none(), "{v}");
+    assert_eq!(v["params"]["ss"], 0.9);
+    let v = ok_json(&["encode", &pc2, "-c", "auto", "-o", &anim, "-f", "--json"]);
+    assert_eq!(v["default_target"], true, "{v}");
+    fails(&["encode", &pc2, "-c", "auto", "-p", "ss=0.9", "-o", &anim, "-f"], &["-p"]);
+}
