@@ -808,6 +808,9 @@ pub struct TargetMiss {
     /// The measured point with the smallest error (`None` if the metric was undefined at
     /// every point measured).
     pub best: Option<Point>,
+    /// Why the candidates the codec refused were refused (its own advice, e.g. hosvd on one
+    /// frame), distinct messages in search order.
+    pub refused: Vec<String>,
 }
 
 impl fmt::Display for TargetMiss {
@@ -831,7 +834,15 @@ impl fmt::Display for TargetMiss {
                 self.target,
                 m.name()
             ),
+        }?;
+        // The codec's own reasons come last: they say what would work.
+        if let Some(first) = self.refused.first() {
+            write!(f, "; where the codec refused: {first}")?;
+            if self.refused.len() > 1 {
+                write!(f, " (and {} other reasons)", self.refused.len() - 1)?;
+            }
         }
+        Ok(())
     }
 }
 
@@ -908,7 +919,7 @@ pub fn search_target_with_progress(
             .filter_map(|(p, _)| target.metric.value(&p.report).map(|v| (v, p)))
             .min_by(|a, b| a.0.total_cmp(&b.0))
             .map(|(_, p)| p.clone());
-        Box::new(TargetMiss { codec: codec.name(), target, best })
+        Box::new(TargetMiss { codec: codec.name(), target, best, refused: Vec::new() })
     };
     if n == 0 {
         return Err(format!("{}: the rate ladder is empty", codec.name()).into());
@@ -1455,7 +1466,13 @@ pub fn search_space_target(
                 .filter_map(|p| target.metric.value(&p.report).filter(|v| v.is_finite()).map(|v| (v, p)))
                 .min_by(|a, b| a.0.total_cmp(&b.0))
                 .map(|(_, p)| p.clone());
-            Err(Box::new(TargetMiss { codec: codec.name(), target, best }))
+            let mut refused: Vec<String> = Vec::new();
+            for message in rejected {
+                if !refused.contains(&message) {
+                    refused.push(message);
+                }
+            }
+            Err(Box::new(TargetMiss { codec: codec.name(), target, best, refused }))
         }
     }
 }

@@ -218,7 +218,7 @@ fn info_verifies_every_packet_checksum() {
 }
 
 #[test]
-fn repeated_parameters_and_auto_without_target_are_explained() {
+fn repeated_parameters_and_auto_with_parameters_are_explained() {
     let s = Scratch::new("params");
     let out = s.path("x.anim");
     fails(
@@ -226,7 +226,8 @@ fn repeated_parameters_and_auto_without_target_are_explained() {
         &["'bits'", "more than once"],
     );
     fails(&["inspect", "synth:flag", "-p", "w=3", "-p", "w=4"], &["'w'", "more than once"]);
-    fails(&["encode", "synth:flag", "-c", "auto", "-o", &out], &["auto", "--target"]);
+    // Without a target, -c auto aims at the default quality (issue 26); it takes no -p.
+    fails(&["encode", "synth:flag", "-c", "auto", "-p", "bits=8", "-o", &out], &["auto", "-p"]);
     assert!(!Path::new(&out).exists());
 }
 
@@ -300,7 +301,7 @@ fn no_failure_path_prints_panic_text() {
         (s.path("x.pc2"), s.path("x.xyz"), s.path("m.xyz"), s.path("t.pc2"), s.path("y.pc2"));
     let cases: Vec<Vec<&str>> = vec![
         vec!["encode", "synth:flag", "-c", "nope", "-o", &out],
-        vec!["encode", "synth:flag", "-c", "auto", "-o", &out],
+        vec!["encode", "synth:flag", "-c", "auto", "-p", "bits=8", "-o", &out],
         vec!["encode", "synth:flag", "-c", "hosvd", "-p", "ss=7", "-o", &out],
         vec!["encode", &missing, "-c", "quant-delta", "-o", &out],
         vec!["encode", &bad_glb, "-c", "quant-delta", "-o", &out],

@@ -102,6 +102,7 @@ fn sweep_report(s: &Scratch) -> String {
         "synth:flag",
         "-c",
         "quant-delta,hosvd",
+        "--ladder",
         "--points",
         "3",
         "--html",
