@@ -322,9 +322,9 @@ fn codecs(py: Python<'_>) -> PyResult<Py<PyAny>> {
 }
 
 /// Encodes an animation into `.anim` container bytes. With parameters: exactly those (the
-/// rest at their defaults). Without: the smallest stream meeting the default quality
-/// ([`harness::DEFAULT_TARGET`]) over the codec's search space (or every codec's, `"auto"`),
-/// as `animcodec encode` without `-p` finds it; `progress` is then called with every point
+/// rest at their defaults). Without: a stream meeting the default quality
+/// ([`harness::DEFAULT_TARGET`], [`harness::search_default_quality`]; `"auto"`: the smallest
+/// over every codec's search space), as `animcodec encode` without `-p` finds it; `progress` is then called with every point
 /// measured.
 #[pyfunction]
 #[pyo3(signature = (positions, faces, codec, fps, params=None, progress=None))]
@@ -351,9 +351,7 @@ fn encode<'py>(
                         .map(|(h, _)| h)
                 } else {
                     let c = registry.by_name(codec)?;
-                    harness::search_space_target(
-                        registry, c, &c.default_params(), &[], &animation, target, &eval, limits, refine, &report,
-                    )
+                    harness::search_default_quality(registry, c, &animation, &eval, limits, refine, &report)
                 }
             })
             .map_err(to_py)?;

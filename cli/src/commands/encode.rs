@@ -385,6 +385,10 @@ fn run_target(args: &EncodeArgs, target: Target, by_default: bool, limits: Limit
     let refine = args.refine as usize;
     let fixed: Vec<&str> = args.params.iter().filter_map(|p| p.split_once('=').map(|(k, _)| k.trim())).collect();
     let found = match (chosen, args.ladder) {
+        (Some((codec, _)), false) if by_default => {
+            harness::search_default_quality(&registry, codec, &animation, &eval, limits, refine, &progress)
+                .map(|hit| (hit, Vec::new()))
+        }
         (Some((codec, params)), true) => harness::search_target_with_progress(
             &registry, codec, &params, &animation, target, &eval, limits, refine, &progress,
         )
