@@ -19,7 +19,8 @@ use std::str::FromStr;
 use std::time::Instant;
 
 use codec_core::{
-    encode_animation, Animation, AnimationCodec, CodecRegistry, Limits, ParamSet, ParamValue, RateLadder, StreamDecoder,
+    encode_animation_fed, Animation, AnimationCodec, CodecRegistry, Limits, ParamSet, ParamValue, RateLadder,
+    StreamDecoder,
 };
 use metrics::{EvalOptions, MetricReport};
 use rayon::prelude::*;
@@ -114,7 +115,8 @@ pub fn measure_point(
     limits: Limits,
 ) -> HResult<(Point, Vec<u8>)> {
     let start = Instant::now();
-    let bytes = encode_animation(codec, params, animation)?;
+    let encoded = encode_animation_fed(codec, params, animation, false, animation.frame_count())?;
+    let bytes = encoded.bytes;
     let encode_seconds = start.elapsed().as_secs_f64();
     let start = Instant::now();
     let decoded = StreamDecoder::new(bytes.as_slice(), registry, limits)?.decode_all()?;
@@ -122,9 +124,12 @@ pub fn measure_point(
     // A stream that decodes to non-finite coordinates is garbage whatever its metrics say
     // (issue 26): never a measured point, so never chosen by a search.
     if decoded.positions().iter().any(|x| !x.is_finite()) {
-        return Err(format!("{} [{params}]: the stream decodes to non-finite coordinates", codec.name()).into());
+        return Err(format!("{}: the stream decodes to non-finite coordinates", codec.name()).into());
     }
-    let report = metrics::evaluate(animation, &decoded, eval)?;
+    let mut report = metrics::evaluate(animation, &decoded, eval)?;
+    // The encoder's warnings (a fallback it took to stay within its bound, issue 26) travel with
+    // the point, so a search's answer reports them as a plain encode does.
+    report.notes.extend(encoded.notes.into_iter().map(|n| format!("encoder: {n}")));
     let size = bytes.len() as u64;
     let point = Point {
         codec: codec.name(),
@@ -813,6 +818,37 @@ pub struct TargetMiss {
     pub refused: Vec<String>,
 }
 
+impl TargetMiss {
+    /// The miss of a search that measured `tried` and saw the codec refuse `rejected`: the
+    /// point of smallest finite error, and the distinct refusals (each without the `codec
+    /// [params]: ` prefix the space search gives a candidate's message, so one reason given at
+    /// every candidate is listed once).
+    pub fn new<'a>(
+        codec: &'static str,
+        target: Target,
+        tried: impl Iterator<Item = &'a Point>,
+        rejected: Vec<String>,
+    ) -> Self {
+        let best = tried
+            .filter_map(|p| target.metric.value(&p.report).filter(|v| v.is_finite()).map(|v| (v, p)))
+            .min_by(|a, b| a.0.total_cmp(&b.0))
+            .map(|(_, p)| p.clone());
+        let mut refused: Vec<String> = Vec::new();
+        for message in rejected {
+            let reason = message
+                .strip_prefix(codec)
+                .and_then(|rest| rest.strip_prefix(" ["))
+                .and_then(|rest| rest.split_once("]: "))
+                .map_or(message.as_str(), |(_, reason)| reason)
+                .to_owned();
+            if !refused.contains(&reason) {
+                refused.push(reason);
+            }
+        }
+        Self { codec, target, best, refused }
+    }
+}
+
 impl fmt::Display for TargetMiss {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let m = self.target.metric;
@@ -910,7 +946,7 @@ pub fn search_target_with_progress(
             measured[i] = Some((point, bytes));
         }
         let p = &measured[i].as_ref().expect("measured above").0;
-        Ok(target.metric.value(&p.report).is_some_and(|v| v <= target.value))
+        Ok(usable(p) && meets(target, p))
     };
     let miss = |measured: &[Option<(Point, Vec<u8>)>]| -> HarnessError {
         let best = measured
@@ -950,7 +986,8 @@ pub fn search_target_with_progress(
             measure(i, &mut measured)?;
         }
     }
-    let passes = |p: &Point| target.metric.value(&p.report).is_some_and(|v| v <= target.value);
+    // Degenerate reconstructions (KG > 50 %) never meet a target, whatever the metric says.
+    let passes = |p: &Point| usable(p) && meets(target, p);
     let mut tried: Vec<(Point, Vec<u8>)> = measured.into_iter().flatten().collect();
     if monotone && k >= 1 {
         let (mut fail, mut pass) = (ladder.steps[k - 1].clone(), ladder.steps[k].clone());
@@ -1240,7 +1277,7 @@ pub fn search_default_quality(
     let mut stride = 1;
     loop {
         let next =
-            if first_pass { pass.and_then(|p| p.checked_sub(stride)) } else { fail.map(|f| (f + stride).min(n - 1)) };
+            if first_pass { pass.map(|p| p.saturating_sub(stride)) } else { fail.map(|f| (f + stride).min(n - 1)) };
         let Some(i) = next.filter(|&i| Some(i) != fail && Some(i) != pass) else { break };
         if measure(&at(i)?, i, &mut tried, &mut rejected)? {
             pass = Some(i);
@@ -1297,20 +1334,7 @@ pub fn search_default_quality(
             linear_fallback: false,
             rejected,
         }),
-        None => {
-            let best = tried
-                .iter()
-                .filter_map(|(p, _)| target.metric.value(&p.report).filter(|v| v.is_finite()).map(|v| (v, p)))
-                .min_by(|a, b| a.0.total_cmp(&b.0))
-                .map(|(_, p)| p.clone());
-            let mut refused: Vec<String> = Vec::new();
-            for message in rejected {
-                if !refused.contains(&message) {
-                    refused.push(message);
-                }
-            }
-            Err(Box::new(TargetMiss { codec: codec.name(), target, best, refused }))
-        }
+        None => Err(Box::new(TargetMiss::new(codec.name(), target, tried.iter().map(|(p, _)| p), rejected))),
     }
 }
 
@@ -1611,20 +1635,7 @@ pub fn search_space_target(
     }
     match best {
         Some((point, stream)) => Ok(TargetHit { point, stream, tried, linear_fallback: false, rejected }),
-        None => {
-            let best = tried
-                .iter()
-                .filter_map(|p| target.metric.value(&p.report).filter(|v| v.is_finite()).map(|v| (v, p)))
-                .min_by(|a, b| a.0.total_cmp(&b.0))
-                .map(|(_, p)| p.clone());
-            let mut refused: Vec<String> = Vec::new();
-            for message in rejected {
-                if !refused.contains(&message) {
-                    refused.push(message);
-                }
-            }
-            Err(Box::new(TargetMiss { codec: codec.name(), target, best, refused }))
-        }
+        None => Err(Box::new(TargetMiss::new(codec.name(), target, tried.iter(), rejected))),
     }
 }
 

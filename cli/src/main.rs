@@ -38,7 +38,8 @@ struct GlobalArgs {
 
     /// Most arithmetic operations a decode may spend, counted from the stream's sizes before
     /// the work starts (the same count on every machine). Streams needing more are rejected
-    /// before computing. Default 2e11 (K, M, G suffixes are powers of 1024).
+    /// before computing. Default 200 000 000 000 (about 186G; K, M, G suffixes are powers of
+    /// 1024).
     #[arg(long, global = true, value_name = "OPS", value_parser = commands::parse_bytes)]
     max_work: Option<u64>,
 

@@ -44,12 +44,19 @@ pub fn parse_params(codec: &dyn AnimationCodec, pairs: &[String]) -> CmdResult<P
     Ok(params)
 }
 
+/// Why `--eval` refuses a streamed flag (checked before encoding starts).
+const EVAL_NEEDS_MEMORY: &str = "--eval needs the input in memory, but synth:flag:COLSxROWSxFRAMES is generated \
+                                 frame by frame; write it to a file first (animcodec synth) or drop --eval";
+
 /// Runs `encode`.
 pub fn run(args: &EncodeArgs, limits: Limits) -> CmdResult {
     // Mistyped arguments first, then the output, all before anything long happens.
     let streamed = parse_streamed_flag(&args.input)?.is_some();
     if args.eval {
         sted_params(&args.sted)?;
+        if streamed && !args.params.is_empty() && args.target.is_none() {
+            return Err(EVAL_NEEDS_MEMORY.into());
+        }
     }
     let policy = output_policy(args);
     if let Some(target) = args.target {
@@ -109,11 +116,7 @@ pub fn run(args: &EncodeArgs, limits: Limits) -> CmdResult {
     let evaluation = match (&source, args.eval) {
         (_, false) => None,
         (Source::Whole(input), true) => Some(evaluate_written(args, input, file.finish()?, limits)?),
-        (Source::Flag { .. }, true) => {
-            return Err("--eval needs the input in memory, but synth:flag:COLSxROWSxFRAMES is generated frame by \
-                        frame; write it to a file first (animcodec synth) or drop --eval"
-                .into())
-        }
+        (Source::Flag { .. }, true) => return Err(EVAL_NEEDS_MEMORY.into()),
     };
     file.commit()?;
     if args.json {
@@ -411,6 +414,11 @@ fn run_target(args: &EncodeArgs, target: Target, by_default: bool, limits: Limit
     bar.finish_and_clear();
     let (hit, others) = found?;
     let search_seconds = start.elapsed().as_secs_f64();
+    // The chosen encode's warnings, as a plain encode prints them (stderr, `--json` "notes").
+    let notes: Vec<&str> = hit.point.report.notes.iter().filter_map(|n| n.strip_prefix("encoder: ")).collect();
+    for n in &notes {
+        eprintln!("animcodec: warning: {n}");
+    }
     // Written under a temporary name and measured (--eval) before it replaces anything.
     let mut file = policy.create(&args.output)?;
     file.write_all(&hit.stream).map_err(|e| file.error(e))?;
@@ -438,6 +446,7 @@ fn run_target(args: &EncodeArgs, target: Target, by_default: bool, limits: Limit
             "default_target": by_default,
             "search": if args.ladder { "ladder" } else { "space" },
             "rejected": hit.rejected,
+            "notes": notes,
             "reached": reached,
             "bytes": p.bytes,
             "bpvf": p.bpvf,

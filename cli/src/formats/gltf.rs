@@ -247,7 +247,7 @@ pub(super) fn check_accessor(
     if accessor.sparse().is_some_and(|s| s.count() == 0) {
         return Err(bad(file, field, format!("{what} has an empty sparse block")));
     }
-    let limits = Limits::default();
+    let limits = super::reader_limits();
     if accessor.count() > limits.max_triangles * 3 {
         return Err(Error::LimitExceeded {
             context: file.to_owned().into(),
@@ -445,7 +445,7 @@ fn load_buffers(
     raw: &Value,
     budget: &mut Budget,
 ) -> Result<Vec<BufferData>> {
-    let limits = Limits::default();
+    let limits = super::reader_limits();
     let (used_views, used_buffers) = geometry_views(document.as_json(), raw);
     let mut buffers = Vec::with_capacity(document.buffers().len());
     for buffer in document.buffers() {

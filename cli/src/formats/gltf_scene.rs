@@ -7,7 +7,7 @@ use ::gltf::accessor::{DataType, Dimensions};
 use ::gltf::animation::{Interpolation, Property};
 use ::gltf::mesh::Mode;
 use ::gltf::Semantic;
-use codec_core::{Animation, Error, Limits, Result};
+use codec_core::{Animation, Error, Result};
 
 use super::gltf::{bad, check_accessor, collect_exact, printable, Budget, BufferData, KHR_MESH_QUANTIZATION};
 use super::gltf_anim::{self, Mat4, Track, IDENTITY};
@@ -121,7 +121,7 @@ const MAX_JOINT_SETS: usize = 8;
 /// `quantization`: the file uses `KHR_mesh_quantization` (8/16-bit positions and displacements
 /// allowed; without it the core spec allows only `f32`).
 fn load_mesh(file: &str, mesh: &::gltf::Mesh, buffers: &[BufferData], quantization: bool) -> Result<MeshData> {
-    let limits = Limits::default();
+    let limits = super::reader_limits();
     let m = mesh.index();
     let first = mesh.primitives().next();
     let target_count = first.as_ref().map(|p| p.morph_targets().len()).unwrap_or(0);
@@ -713,7 +713,7 @@ pub(super) fn bake(
     selection: &Selection,
     budget: &mut Budget,
 ) -> Result<Animation> {
-    let limits = Limits::default();
+    let limits = super::reader_limits();
     let hierarchy = hierarchy(file, document)?;
     let mesh_nodes = scene_mesh_nodes(document, &hierarchy);
     if mesh_nodes.is_empty() {

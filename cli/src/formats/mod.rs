@@ -267,11 +267,24 @@ fn check_finite_in(file: &str, positions: &[f32], vertex_count: usize) -> Result
     codec_core::animation::check_finite(positions, vertex_count, 0).map_err(|e| in_file(file, e))
 }
 
-/// Checks a frame count and vertex count read from a file header against the default [`Limits`]
+/// Memory a file reader may allocate at once: 4 GiB (the whole address space on 32-bit
+/// targets). Readers load a user's own file whole (a 100 000-vertex, 1 000-frame PC2 is 1.2 GB),
+/// so they keep the per-allocation bound they had before decodes got their 1 GiB total
+/// ([`codec_core::container::DEFAULT_MAX_MEMORY`]); the glTF reader also holds a total budget
+/// (`gltf::set_default_memory_budget`, `--max-memory`).
+pub const READER_MAX_ALLOC: usize = if usize::MAX as u64 >= 4 << 30 { (4u64 << 30) as usize } else { usize::MAX };
+
+/// The [`Limits`] file readers check header counts and allocations against: the decoders'
+/// count limits, [`READER_MAX_ALLOC`] per allocation.
+pub fn reader_limits() -> Limits {
+    Limits { max_alloc_bytes: READER_MAX_ALLOC, ..Limits::default() }
+}
+
+/// Checks a frame count and vertex count read from a file header against [`reader_limits`]
 /// and against the number of position bytes the file can hold, before anything is allocated.
 /// Returns the number of position floats.
 fn check_cache_sizes(file: &str, frames: u64, vertices: u64, position_bytes_available: u64) -> Result<usize> {
-    let limits = Limits::default();
+    let limits = reader_limits();
     if vertices == 0 {
         return Err(Error::malformed(file.to_owned(), "vertex_count", "is 0: the cache has no vertices"));
     }

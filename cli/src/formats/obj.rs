@@ -19,7 +19,7 @@ use std::io::Write as _;
 use std::path::{Path, PathBuf};
 
 use codec_core::animation::check_finite;
-use codec_core::{Animation, Error, Limits, Result, Topology};
+use codec_core::{Animation, Error, Result, Topology};
 
 use super::{in_file, name, read_file, write_file};
 use crate::output::{commit_all, OutputPolicy, PendingFile};
@@ -48,7 +48,7 @@ pub fn read_obj(path: &Path) -> Result<ObjMesh> {
 /// Parses OBJ text (bytes: comments in other encodings are fine). `file` names the source in errors,
 /// which also give the line number.
 pub fn parse_obj(bytes: &[u8], file: &str) -> Result<ObjMesh> {
-    let limits = Limits::default();
+    let limits = super::reader_limits();
     let mut positions: Vec<f32> = Vec::new();
     // Faces as raw 0-based indices; positive indices are range-checked once all `v` are known.
     let mut triangles: Vec<[u32; 3]> = Vec::new();
@@ -170,7 +170,7 @@ pub fn read_obj_sequence(paths: &[PathBuf], frame_rate: f32) -> Result<Animation
     let first = read_obj(first_path)?;
     let vertex_count = first.vertex_count();
     let floats = vertex_count * 3;
-    let total = floats.checked_mul(paths.len()).filter(|&n| n <= Limits::default().max_alloc_bytes / 4);
+    let total = floats.checked_mul(paths.len()).filter(|&n| n <= super::reader_limits().max_alloc_bytes / 4);
     let total = total.ok_or_else(|| {
         Error::InvalidAnimation(format!("{} frames of {vertex_count} vertices are too many to hold", paths.len()))
     })?;
