@@ -1067,11 +1067,24 @@ pub fn search_target_auto_with_progress(
     refine: usize,
     progress: &dyn Fn(&Point),
 ) -> HResult<(TargetHit, Vec<TargetHit>)> {
+    smallest_over_codecs(codecs, target, |codec| {
+        let base = codec.default_params();
+        search_target_with_progress(registry, codec, &base, animation, target, eval, limits, refine, progress)
+    })
+}
+
+/// Runs `search` for every codec in order and keeps the smallest stream (ties: the earlier
+/// codec); codecs that miss the target are skipped, and if all do, the error lists each one's
+/// miss. Other failures are errors.
+fn smallest_over_codecs(
+    codecs: &[&dyn AnimationCodec],
+    target: Target,
+    mut search: impl FnMut(&dyn AnimationCodec) -> HResult<TargetHit>,
+) -> HResult<(TargetHit, Vec<TargetHit>)> {
     let mut hits = Vec::new();
     let mut misses = Vec::new();
     for &codec in codecs {
-        let base = codec.default_params();
-        match search_target_with_progress(registry, codec, &base, animation, target, eval, limits, refine, progress) {
+        match search(codec) {
             Ok(hit) => hits.push(hit),
             Err(e) => match e.downcast::<TargetMiss>() {
                 Ok(miss) => misses.push(miss.to_string()),
@@ -1653,26 +1666,10 @@ pub fn search_space_target_auto(
     refine: usize,
     progress: &(dyn Fn(&Point) + Sync),
 ) -> HResult<(TargetHit, Vec<TargetHit>)> {
-    let mut hits = Vec::new();
-    let mut misses = Vec::new();
-    for &codec in codecs {
+    smallest_over_codecs(codecs, target, |codec| {
         let base = codec.default_params();
-        match search_space_target(registry, codec, &base, &[], animation, target, eval, limits, refine, progress) {
-            Ok(hit) => hits.push(hit),
-            Err(e) => match e.downcast::<TargetMiss>() {
-                Ok(miss) => misses.push(miss.to_string()),
-                Err(e) => return Err(format!("{}: {e}", codec.name()).into()),
-            },
-        }
-    }
-    let best = hits
-        .iter()
-        .enumerate()
-        .min_by_key(|(i, h)| (h.point.bytes, *i))
-        .map(|(i, _)| i)
-        .ok_or_else(|| format!("no codec meets {target}: {}", misses.join("; ")))?;
-    let chosen = hits.remove(best);
-    Ok((chosen, hits))
+        search_space_target(registry, codec, &base, &[], animation, target, eval, limits, refine, progress)
+    })
 }
 
 #[cfg(test)]

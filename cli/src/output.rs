@@ -142,11 +142,17 @@ impl OutputPolicy {
         PendingFile::new(path)
     }
 
-    /// Writes `bytes` to `path` safely (checked, temporary file, rename).
-    pub fn write(&self, path: &Path, bytes: &[u8]) -> Result<()> {
+    /// Writes `bytes` to `path` under its temporary name and returns the pending file, to be
+    /// committed with the command's other outputs ([`commit_all`]).
+    pub fn stage(&self, path: &Path, bytes: &[u8]) -> Result<PendingFile> {
         let mut file = self.create(path)?;
         file.write_all(bytes).map_err(|e| file.error(e))?;
-        file.commit()
+        Ok(file)
+    }
+
+    /// Writes `bytes` to `path` safely (checked, temporary file, rename).
+    pub fn write(&self, path: &Path, bytes: &[u8]) -> Result<()> {
+        self.stage(path, bytes)?.commit()
     }
 }
 

@@ -44,6 +44,16 @@ pub fn parse_params(codec: &dyn AnimationCodec, pairs: &[String]) -> CmdResult<P
     Ok(params)
 }
 
+/// Adds `--eval`'s figures (KG, STED, every metric, its seconds) to an `encode --json` object.
+fn add_evaluation(out: &mut Value, evaluation: Option<&(MetricReport, f64)>) {
+    if let (Some((report, seconds)), Value::Object(map)) = (evaluation, out) {
+        map.insert("kg".into(), report.kg.into());
+        map.insert("sted".into(), report.sted.into());
+        map.insert("metrics".into(), harness::report_json(report));
+        map.insert("eval_seconds".into(), (*seconds).into());
+    }
+}
+
 /// Why `--eval` refuses a streamed flag (checked before encoding starts).
 const EVAL_NEEDS_MEMORY: &str = "--eval needs the input in memory, but synth:flag:COLSxROWSxFRAMES is generated \
                                  frame by frame; write it to a file first (animcodec synth) or drop --eval";
@@ -140,12 +150,7 @@ pub fn run(args: &EncodeArgs, limits: Limits) -> CmdResult {
             "encode_seconds": encode_seconds,
             "notes": notes,
         });
-        if let (Some((report, seconds)), Value::Object(map)) = (&evaluation, &mut out) {
-            map.insert("kg".into(), report.kg.into());
-            map.insert("sted".into(), report.sted.into());
-            map.insert("metrics".into(), harness::report_json(report));
-            map.insert("eval_seconds".into(), (*seconds).into());
-        }
+        add_evaluation(&mut out, evaluation.as_ref());
         return emit_json(&out);
     }
     let mut text = format!(
@@ -468,12 +473,7 @@ fn run_target(args: &EncodeArgs, target: Target, by_default: bool, limits: Limit
             })).collect::<Vec<_>>(),
             "other_codecs": others.iter().map(summary).collect::<Vec<_>>(),
         });
-        if let (Some((report, seconds)), Value::Object(map)) = (&evaluation, &mut out) {
-            map.insert("kg".into(), report.kg.into());
-            map.insert("sted".into(), report.sted.into());
-            map.insert("metrics".into(), harness::report_json(report));
-            map.insert("eval_seconds".into(), (*seconds).into());
-        }
+        add_evaluation(&mut out, evaluation.as_ref());
         return emit_json(&out);
     }
     let mut out = format!(

@@ -3,7 +3,6 @@
 //! the groups as vertex colours in a PLY or OBJ mesh any viewer opens.
 
 use std::fmt::Write as _;
-use std::io::Write as _;
 use std::path::Path;
 use std::time::Instant;
 
@@ -84,9 +83,7 @@ pub fn run(args: &InspectArgs) -> CmdResult {
     let mut notes = Vec::new();
     let mut staged = Vec::new();
     let mut stage = |path: &Path, text: &str| -> CmdResult {
-        let mut file = policy.create(path)?;
-        file.write_all(text.as_bytes()).map_err(|e| file.error(e))?;
-        staged.push(file);
+        staged.push(policy.stage(path, text.as_bytes())?);
         Ok(())
     };
     if let (Some(path), Some(format)) = (args.mesh.as_deref(), mesh_format) {

@@ -2,7 +2,7 @@
 //! a table and write JSON, CSV and an SVG rate-distortion plot.
 
 use std::fmt::Write as _;
-use std::io::{IsTerminal, Write as _};
+use std::io::IsTerminal;
 use std::path::Path;
 use std::time::Instant;
 
@@ -96,9 +96,7 @@ pub fn run(args: &SweepArgs, limits: Limits) -> CmdResult {
     // together: a failure on the way leaves every old file untouched.
     let mut staged = Vec::new();
     let mut stage = |path: &Path, text: &str| -> CmdResult {
-        let mut file = policy.create(path)?;
-        file.write_all(text.as_bytes()).map_err(|e| file.error(e))?;
-        staged.push(file);
+        staged.push(policy.stage(path, text.as_bytes())?);
         Ok(())
     };
     if let Some(path) = args.json.as_ref().filter(|_| !to_stdout) {
