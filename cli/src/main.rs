@@ -5,6 +5,8 @@
 //! (exit code 2).
 
 mod commands;
+mod signals;
+mod viewer;
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -181,7 +183,7 @@ pub struct ViewArgs {
     /// Per-vertex error shown as the heat map: euclidean (distance in model units) or sted
     /// (STED's local deviation of relative edge lengths).
     #[arg(long, value_name = "METRIC", default_value = "euclidean", value_parser = commands::view::parse_heat)]
-    pub heat: animcodec::viewer::HeatMetric,
+    pub heat: crate::viewer::HeatMetric,
 
     /// Top of the colour bar (default: the 99.5th percentile of every candidate's per-vertex,
     /// per-frame errors; larger errors get the top colour).
@@ -637,7 +639,7 @@ pub struct DemoArgs {
 }
 
 fn main() -> ExitCode {
-    animcodec::output::install_signal_cleanup();
+    signals::install_cleanup();
     // No panic text ever reaches the terminal: the library turns the panics it can meet (inside
     // the gltf crate) into errors, which are reported below; any other panic is a bug, reported
     // as one short line instead of a backtrace.

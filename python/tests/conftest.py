@@ -65,7 +65,7 @@ def cli():
     """Runs the command-line tool: cli(*args) -> CompletedProcess (stdout text)."""
     binary = _cli_binary()
     if binary is None:
-        pytest.skip("no animcodec binary (set ANIMCODEC_BIN or build it with `cargo build -p animcodec`)")
+        pytest.skip("no animcodec binary (set ANIMCODEC_BIN or build it with `cargo build -p animcodec-cli`)")
 
     def run(*args, check=True):
         return subprocess.run([binary, *map(str, args)], capture_output=True, text=True, check=check)

@@ -6,10 +6,10 @@ use std::io::IsTerminal;
 use std::path::Path;
 use std::time::Instant;
 
+use crate::viewer;
 use animcodec::formats::ReadOptions;
 use animcodec::harness::{self, monotone_report, Point, Sweep, SweepOptions, SweepSeries, TargetMetric};
 use animcodec::output::{commit_all, OutputPolicy};
-use animcodec::viewer;
 use codec_core::{AnimationCodec, CodecRegistry, Limits};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
@@ -110,7 +110,7 @@ pub fn run(args: &SweepArgs, limits: Limits) -> CmdResult {
     }
     if let Some(path) = &args.plot {
         let title = format!("{input}: {} frames × {} vertices", animation.frame_count(), animation.vertex_count());
-        stage(path, &harness::plot_svg_text(&title, &result.points)?)?;
+        stage(path, &animcodec::plot::rd_svg(&title, &result.points))?;
     }
     if let Some(path) = &args.html {
         let page = html_report(&registry, input, &animation, &eval, &result, &view_points, limits)?;

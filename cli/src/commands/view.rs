@@ -1,13 +1,13 @@
 //! `animcodec view`: one self-contained HTML page playing a reference animation and candidates
-//! side by side with per-vertex error heat maps (`animcodec::viewer`).
+//! side by side with per-vertex error heat maps (`crate::viewer`).
 
 use std::path::Path;
 use std::time::Instant;
 
+use crate::viewer::{self, Candidate, HeatMetric, ViewerOptions};
 use animcodec::formats::ReadOptions;
 use animcodec::harness;
 use animcodec::output::OutputPolicy;
-use animcodec::viewer::{self, Candidate, HeatMetric, ViewerOptions};
 use codec_core::{Animation, CodecRegistry, Limits, StreamDecoder};
 use metrics::EvalOptions;
 use serde_json::{json, Value};

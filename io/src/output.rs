@@ -4,10 +4,9 @@
 //! - Every file is written to a temporary file in the target's own folder (`.NAME.PID-N.tmp`)
 //!   and renamed over the target only once it is complete ([`PendingFile::commit`]). A failed
 //!   command drops its [`PendingFile`]s, which deletes them: the old file stays untouched.
-//! - [`install_signal_cleanup`] (called once by the binary) deletes pending temporary files
-//!   when the process is interrupted (SIGINT, SIGTERM, SIGHUP) and makes a write beyond
-//!   `ulimit -f` an ordinary error (SIGXFSZ no longer kills the process), so interrupted or
-//!   failed commands leave no partial file either.
+//! - [`delete_pending_and_exit`] is what a program's interrupt handler calls: the binary
+//!   installs one for SIGINT, SIGTERM and SIGHUP (and makes a write beyond `ulimit -f` an
+//!   ordinary error), so interrupted or failed commands leave no partial file either.
 //! - [`OutputPolicy::check`] refuses an existing target unless overwriting is allowed (the
 //!   `-f/--force` convention of gzip and zstd), and refuses a target that is one of the
 //!   command's inputs even then, or that is `-` (which means standard output only where a
@@ -33,27 +32,17 @@ fn pending() -> MutexGuard<'static, Vec<PathBuf>> {
     PENDING.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
 }
 
-/// Installs the signal handling described in the module docs. Call once, early, from `main`.
-/// Errors (no signal support) are ignored: files are still written safely, only an
-/// interruption may then leave a temporary `.NAME.*.tmp` file behind.
-pub fn install_signal_cleanup() {
-    use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM, SIGXFSZ};
-    // With a handler installed, an oversized write fails with EFBIG instead of killing us.
-    let _ = signal_hook::flag::register(SIGXFSZ, std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false)));
-    if let Ok(mut signals) = signal_hook::iterator::Signals::new([SIGINT, SIGTERM, SIGHUP]) {
-        let _ = std::thread::Builder::new().name("signal-cleanup".into()).spawn(move || {
-            if let Some(signal) = signals.forever().next() {
-                // Holding the lock, no commit can be half done: either the rename happened (the
-                // new file is complete) or the temporary file is still listed here.
-                let files = pending();
-                for f in files.iter() {
-                    let _ = std::fs::remove_file(f);
-                }
-                let _ = writeln!(std::io::stderr(), "\ninterrupted: no output file was changed");
-                std::process::exit(128 + signal);
-            }
-        });
+/// Deletes every pending temporary file, prints `message` on stderr and exits with `code`,
+/// for a program's interrupt handler (the binary's `signals::install_cleanup`). The pending list
+/// stays locked until the exit, so no commit can be half done: either a rename happened (the new
+/// file is complete) or the temporary file is still listed and is deleted here.
+pub fn delete_pending_and_exit(code: i32, message: &str) -> ! {
+    let files = pending();
+    for f in files.iter() {
+        let _ = std::fs::remove_file(f);
     }
+    let _ = writeln!(std::io::stderr(), "{message}");
+    std::process::exit(code)
 }
 
 /// What a command may write over.

@@ -9,8 +9,8 @@ use ::gltf::mesh::Mode;
 use ::gltf::Semantic;
 use codec_core::{Animation, Error, Result};
 
-use super::gltf::{bad, check_accessor, collect_exact, printable, Budget, BufferData, KHR_MESH_QUANTIZATION};
 use super::gltf_anim::{self, Mat4, Track, IDENTITY};
+use super::gltf_buffers::{bad, check_accessor, collect_exact, printable, Budget, BufferData, KHR_MESH_QUANTIZATION};
 use super::{in_file, FRAME_RATE_RANGE};
 
 /// Frame rate when neither the caller, the file's `extras` nor a regular key grid gives one.

@@ -554,9 +554,9 @@ pub fn monotone_report(points: &[Point]) -> Vec<Monotonicity> {
 
 /// Writes `text` to `path` (replacing it) through a temporary file renamed into place when
 /// complete, naming the file in the error. Callers check first whether `path` may be replaced
-/// ([`OutputPolicy::check`](crate::output::OutputPolicy::check)).
+/// ([`OutputPolicy::check`](animcodec_io::output::OutputPolicy::check)).
 pub fn write_text(path: &Path, text: &str) -> HResult<()> {
-    Ok(crate::output::OutputPolicy::new(true).write(path, text.as_bytes())?)
+    Ok(animcodec_io::output::OutputPolicy::new(true).write(path, text.as_bytes())?)
 }
 
 /// Writes the sweep as JSON: `{input, vertices, frames, eval_options, rows: [point_json…],
@@ -594,106 +594,9 @@ pub fn sweep_json_sized(input: &str, (vertices, frames): (usize, usize), eval: &
     })
 }
 
-/// Draws the rate-distortion curves into one SVG file with two panels side by side: bpvf vs
-/// KG (left) and bpvf vs STED (right), one line per codec, error axes in log₁₀ scale (points
-/// with a zero or missing error are left out of a panel). Text is written as SVG `<text>`
-/// elements by plotters' SVG backend, so no font files are needed (plotters is built without
-/// its `ttf` feature and estimates text sizes itself).
+/// Writes the rate-distortion plot of `points` ([`crate::plot::rd_svg`]) to `path`.
 pub fn plot_svg(path: &Path, title: &str, points: &[Point]) -> HResult<()> {
-    write_text(path, &plot_svg_text(title, points)?)
-}
-
-/// The SVG document [`plot_svg`] writes.
-pub fn plot_svg_text(title: &str, points: &[Point]) -> HResult<String> {
-    let mut svg = String::new();
-    draw_rd(&mut svg, title, points)?;
-    Ok(svg)
-}
-
-type PanelData = Vec<(String, Vec<(f64, f64)>)>;
-
-fn panel_data(points: &[Point], metric: impl Fn(&MetricReport) -> Option<f64>) -> PanelData {
-    let mut out: PanelData = Vec::new();
-    for p in points {
-        let Some(y) = metric(&p.report).filter(|y| *y > 0.0 && y.is_finite()) else { continue };
-        if !p.bpvf.is_finite() {
-            continue;
-        }
-        match out.iter_mut().find(|(c, _)| *c == p.series) {
-            Some((_, v)) => v.push((p.bpvf, y.log10())),
-            None => out.push((p.series.clone(), vec![(p.bpvf, y.log10())])),
-        }
-    }
-    out
-}
-
-/// Renders the two panels into `svg` (an SVG document).
-pub fn draw_rd(svg: &mut String, title: &str, points: &[Point]) -> HResult<()> {
-    use plotters::prelude::*;
-    let plot_err = |e: &dyn fmt::Display| -> HarnessError { format!("drawing the rate-distortion plot: {e}").into() };
-    {
-        let root = SVGBackend::with_string(svg, (1200, 520)).into_drawing_area();
-        root.fill(&WHITE).map_err(|e| plot_err(&e))?;
-        let root = root.titled(title, ("sans-serif", 20)).map_err(|e| plot_err(&e))?;
-        let panels = root.split_evenly((1, 2));
-        let series = [("KG error (%)", panel_data(points, |r| r.kg)), ("STED", panel_data(points, |r| r.sted))];
-        for (area, (label, data)) in panels.iter().zip(series.iter()) {
-            let xs = data.iter().flat_map(|(_, v)| v.iter().map(|p| p.0));
-            let ys = data.iter().flat_map(|(_, v)| v.iter().map(|p| p.1));
-            let (x0, x1) = padded_range(xs, false);
-            let (y0, y1) = padded_range(ys, true);
-            let mut chart = ChartBuilder::on(area)
-                .caption(format!("bpvf vs {label}"), ("sans-serif", 16))
-                .margin(12)
-                .x_label_area_size(40)
-                .y_label_area_size(60)
-                .build_cartesian_2d(x0..x1, y0..y1)
-                .map_err(|e| plot_err(&e))?;
-            chart
-                .configure_mesh()
-                .x_desc("bits per vertex per frame")
-                .y_desc(format!("{label}, log scale"))
-                .y_label_formatter(&|v| format!("{:.2e}", 10f64.powf(*v)))
-                .x_label_formatter(&|v| format!("{v:.2}"))
-                .draw()
-                .map_err(|e| plot_err(&e))?;
-            for (i, (codec, pts)) in data.iter().enumerate() {
-                let color = Palette99::pick(i).to_rgba();
-                chart
-                    .draw_series(LineSeries::new(pts.iter().copied(), color.stroke_width(2)))
-                    .map_err(|e| plot_err(&e))?
-                    .label(codec.as_str())
-                    .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2)));
-                chart
-                    .draw_series(pts.iter().map(|&(x, y)| Circle::new((x, y), 3, color.filled())))
-                    .map_err(|e| plot_err(&e))?;
-            }
-            if !data.is_empty() {
-                chart
-                    .configure_series_labels()
-                    .background_style(WHITE.mix(0.8))
-                    .border_style(BLACK)
-                    .draw()
-                    .map_err(|e| plot_err(&e))?;
-            }
-        }
-        root.present().map_err(|e| plot_err(&e))?;
-    }
-    Ok(())
-}
-
-/// `(min, max)` of `values` widened by 5 % (or ±1 / ±0.5 decades when empty or flat).
-fn padded_range(values: impl Iterator<Item = f64>, log: bool) -> (f64, f64) {
-    let (lo, hi) = values.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(v), b.max(v)));
-    if !lo.is_finite() || !hi.is_finite() {
-        return (0.0, 1.0);
-    }
-    if hi - lo <= f64::EPSILON * hi.abs().max(1.0) {
-        let pad = if log { 0.5 } else { lo.abs().max(1.0) * 0.1 };
-        return (lo - pad, hi + pad);
-    }
-    let pad = (hi - lo) * 0.05;
-    (lo - pad, hi + pad)
+    write_text(path, &crate::plot::rd_svg(title, points))
 }
 
 /// The metric a [`Target`] bounds.
@@ -1677,6 +1580,13 @@ mod tests {
     use super::*;
     use codec_core::synth;
 
+    /// The harness takes its codecs from the caller; these tests use the baseline and one
+    /// transform codec (the facade crate's `registry()` is above this crate).
+    fn test_registry() -> CodecRegistry {
+        CodecRegistry::new(vec![Box::new(codec_core::quant_delta::QuantDelta), Box::new(codec_pca_aoi::PcaAoi)])
+            .expect("unique codec names")
+    }
+
     #[test]
     fn ladder_indices_spread_evenly_and_keep_ends() {
         assert_eq!(ladder_indices(9, None), (0..9).collect::<Vec<_>>());
@@ -1721,17 +1631,8 @@ mod tests {
     }
 
     #[test]
-    fn padded_ranges_are_never_empty() {
-        assert_eq!(padded_range(std::iter::empty(), false), (0.0, 1.0));
-        let (a, b) = padded_range([2.0].into_iter(), true);
-        assert!(a < 2.0 && b > 2.0);
-        let (a, b) = padded_range([1.0, 3.0].into_iter(), false);
-        assert!(a < 1.0 && b > 3.0);
-    }
-
-    #[test]
     fn sweep_points_and_rows_read_back_give_the_sweep_rows() {
-        let registry = crate::registry();
+        let registry = test_registry();
         let a = synth::tumbling_body_sized(8, 6, 4);
         let series: Vec<SweepSeries<'_>> = registry.iter().take(2).map(SweepSeries::defaults).collect();
         let options = SweepOptions { points: Some(2), jobs: Some(1), ..Default::default() };
@@ -1770,7 +1671,7 @@ mod tests {
 
     #[test]
     fn miss_reports_the_best_point() {
-        let registry = crate::registry();
+        let registry = test_registry();
         let codec = registry.by_name("quant-delta").unwrap();
         let a = synth::tumbling_body_sized(8, 6, 4);
         let target = Target { metric: TargetMetric::MaxError, value: 0.0 };

@@ -15,6 +15,7 @@
 
 pub mod gltf;
 mod gltf_anim;
+mod gltf_buffers;
 mod gltf_meshopt;
 pub mod gltf_out;
 mod gltf_scene;

@@ -18,7 +18,7 @@
 use codec_core::{Limits, Result};
 use serde_json::Value;
 
-use super::gltf::{bad, BufferData};
+use super::gltf_buffers::{bad, BufferData};
 
 /// The extension's name.
 pub const EXTENSION: &str = "EXT_meshopt_compression";

@@ -1,0 +1,45 @@
+//! `animcodec`: compression of 3D mesh animations (fixed-connectivity vertex caches) with
+//! research codecs, the metrics the field uses, and rate-distortion comparisons.
+//!
+//! This is the facade crate applications depend on (the command-line tool, the Python package,
+//! the conformance suite and the fuzz targets do): it owns the list of codecs ([`registry`]) and
+//! re-exports the crates below it, so one dependency gives the whole library.
+//!
+//! | module | crate | what |
+//! |---|---|---|
+//! | [`core`] | `codec-core` | the codec trait, `.anim` container, streams, limits, coding toolkit, synthetic animations |
+//! | [`metrics`] | `metrics` | KG error, STED, Hausdorff, … |
+//! | [`formats`], [`output`] | `animcodec-io` | file formats in and out; safe output files |
+//! | [`harness`], [`plot`], [`describe`] | `animcodec-eval` | measured points, sweeps, target search, the rate-distortion plot; codec and stream descriptions |
+//!
+//! ```no_run
+//! use animcodec::core::{encode_animation, synth, Limits, StreamDecoder};
+//! let registry = animcodec::registry();
+//! let hosvd = registry.by_name("hosvd").unwrap();
+//! let animation = synth::tumbling_body_sized(64, 32, 30);
+//! let bytes = encode_animation(hosvd, &hosvd.default_params(), &animation).unwrap();
+//! let decoded = StreamDecoder::new(bytes.as_slice(), &registry, Limits::default()).unwrap().decode_all().unwrap();
+//! assert_eq!(decoded.frame_count(), animation.frame_count());
+//! ```
+
+pub use animcodec_eval::{describe, harness, plot};
+pub use animcodec_io::{formats, output};
+pub use codec_core as core;
+pub use metrics;
+
+use codec_core::{quant_delta::QuantDelta, CodecRegistry};
+
+/// Every codec, one line each. This list is where codecs are registered (a new codec crate is
+/// also a dependency in this crate's `Cargo.toml` and a workspace member; README "Adding a
+/// codec"); streams name their codec by FourCC, so the order here is only the order of listings
+/// and sweeps.
+pub fn registry() -> CodecRegistry {
+    CodecRegistry::new(vec![
+        Box::new(QuantDelta),            // baseline, codec-core
+        Box::new(codec_pca_aoi::PcaAoi), // issue #4, Lalos et al. 2017
+        Box::new(codec_hosvd::Hosvd),    // issue #5, Romaszewski, Gawron, Opozda
+        Box::new(codec_sac::Sac),        // issue #6, spectral deformation-gradient compression
+        Box::new(codec_stseg::Stseg),    // issue #7, Luo et al. 2020
+    ])
+    .expect("codec names and FourCCs in the registry list are unique")
+}
