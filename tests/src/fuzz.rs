@@ -289,9 +289,10 @@ fn decodes(target: &str, data: &[u8]) -> bool {
         "read_mdd" => animcodec::formats::mdd::parse_mdd(data, "seed.mdd").is_ok(),
         "read_obj" => animcodec::formats::obj::parse_obj(data, "seed.obj").is_ok(),
         "read_gltf" => animcodec::formats::gltf::parse_gltf(data, None, "seed.glb", synth::FRAME_RATE).is_ok(),
-        t => t.strip_prefix("codec_").and_then(|c| codec_container(&c.replace('_', "-"), data)).is_some_and(|bytes| {
-            codec_core::decode_animation(&bytes, &registry, fuzz_limits()).is_ok()
-        }),
+        t => t
+            .strip_prefix("codec_")
+            .and_then(|c| codec_container(&c.replace('_', "-"), data))
+            .is_some_and(|bytes| codec_core::decode_animation(&bytes, &registry, fuzz_limits()).is_ok()),
     }
 }
 
