@@ -11,9 +11,9 @@ use crate::bytes::{zigzag_decode, zigzag_encode, ByteReader, ByteWriter};
 use crate::codec::{
     AnimationCodec, EncodedPacket, EncoderSetup, ErrorBound, FourCc, FrameDecoder, FrameEncoder, Packet, StreamInfo,
 };
-use crate::container::Limits;
 use crate::entropy;
 use crate::error::{Error, Result};
+use crate::limits::Limits;
 use crate::params::{ParamSet, ParamSpec, ParamValue, RateLadder};
 use crate::quant::Quantizer;
 
