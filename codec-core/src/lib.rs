@@ -13,6 +13,7 @@ pub mod connectivity;
 pub mod container;
 pub mod entropy;
 pub mod error;
+pub mod linalg;
 pub mod params;
 pub mod quant;
 pub mod quant_delta;
@@ -28,7 +29,9 @@ pub use codec::{
 };
 pub use container::Limits;
 pub use error::{Error, Result};
-pub use params::{ParamKind, ParamSet, ParamSpec, ParamValue, RateLadder, SearchAxis, SearchSpace};
+pub use params::{
+    DeclaredParams, ParamChoice, ParamKind, ParamSet, ParamSpec, ParamValue, RateLadder, SearchAxis, SearchSpace,
+};
 pub use quant::Quantizer;
 pub use registry::CodecRegistry;
 pub use stream::{

@@ -57,49 +57,75 @@ pub(crate) const UNLIMITED: Limits = Limits::UNLIMITED;
 /// 1 and 2 exactly as they were.
 pub const STREAM_VERSION: u16 = 3;
 
-/// Typed parameters of `sac`.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct SacParams {
-    /// Number of manifold harmonic bases `l` (the rate knob), 1..=1000. Default 100 (paper §4).
-    pub bases: u32,
-    /// Quantization bits of the spectral descriptors, 4..=30. Default 18 (paper §4).
-    pub bits: u8,
-    /// Polar decomposition into rotation and stretch (§3.3); `false` codes `J − I` directly
-    /// (the paper's comparison of §4.2). Default true.
-    pub polar: bool,
-    /// Frames between I-frames (random-access points); 0 = only the first frame. Default 0.
-    pub keyframe_interval: u32,
-    /// Bits per coordinate of I-frames and refresh frames, 8..=30. Default 20.
-    pub iframe_bits: u8,
-    /// Error guard: a P-frame whose RMS coordinate error exceeds this fraction of the frame's
-    /// bounding-box diagonal is replaced by a refresh frame (positions coded like an
-    /// I-frame, bases kept). 1e-6..=1. Default 0.05.
-    pub max_error: f64,
-    /// zstd level of I-frame and refresh-frame positions, 1..=22. Default 19.
-    pub level: i32,
-    /// Residual layer (not in the paper; issue 14): after the Poisson reconstruction every
-    /// P-frame codes what it missed as per-coordinate residuals, uniformly quantized with step
-    /// `residual × (the frame's bounding-box diagonal)`, zstd-coded; the corrected frame is
-    /// the closed loop's reference, so the correction does not accumulate. 0 = off (the
-    /// paper's method), else 1e-6..=0.1. Default 0 (the rate ladder switches it on).
-    pub residual: f64,
-    /// Rate preset, 0..=10 (issue 14): 0 uses `bases` and `residual` as given; `k ≥ 1` is step
-    /// `k` of the rate ladder and sets both from [`RATE_PRESETS`] (steps 1–6: the paper's
-    /// method at 16…100 bases; 7–10: 100 bases plus the residual layer); steps 6–10 also cap
-    /// `max_error` at [`PRESET_GUARD_AT_100`]. Default 0.
-    pub rate: u8,
-    /// Where the manifold harmonic basis comes from (issue 14): computed once per stream from
-    /// the first frame, which every keyframe names ([`BasisSource::Stream`], default), or
-    /// recomputed from every keyframe as in the paper ([`BasisSource::Keyframe`]).
-    pub basis: BasisSource,
-    /// Poisson factorization schedule (issue 14), 0..=255: the system is factored at the
-    /// previous reconstruction every `refactor` P-frames of an interval and reused in between
-    /// (the targets are carried to the factor's reference, see [`geometry::ReducedPoisson`]);
-    /// 1 = every frame, exactly the paper's solve; 0 = never, the rest pose's factor. Default 8
-    /// (measured: KG +5 % against 1 on horse-gallop and samba at 100 bases; samba decodes in
-    /// 0.49× the time of the pre-issue-14 decoder, against 0.54× with 4; 0 costs +60–80 % KG;
-    /// README, issue-14 note session 3).
-    pub refactor: u8,
+codec_core::declare_params! {
+    codec: NAME;
+    /// Typed parameters of `sac`.
+    #[derive(Debug, Clone, Copy, PartialEq)]
+    pub struct SacParams {
+        /// Number of manifold harmonic bases `l` (the rate knob), 1..=1000. Default 100 (paper §4).
+        pub bases: u32 = 100 => int(1, 1000, "manifold harmonic bases kept (clamped to the vertex count)"),
+        /// Quantization bits of the spectral descriptors, 4..=30. Default 18 (paper §4).
+        pub bits: u8 = 18 => int(4, 30, "quantization bits of the spectral descriptors"),
+        /// Polar decomposition into rotation and stretch (§3.3); `false` codes `J − I` directly
+        /// (the paper's comparison of §4.2). Default true.
+        pub polar: bool = true
+            => boolean("split gradients into rotation (log map) and stretch; false codes J - I"),
+        /// Frames between I-frames (random-access points); 0 = only the first frame. Default 0.
+        pub keyframe_interval: u32 = 0 => int(
+            0,
+            1_000_000,
+            "frames between I-frames (each recomputes the bases); 0 = only frame 0"
+        ),
+        /// Bits per coordinate of I-frames and refresh frames, 8..=30. Default 20.
+        pub iframe_bits: u8 = 20 => int(8, 30, "bits per coordinate of I-frames and refresh frames"),
+        /// Error guard: a P-frame whose RMS coordinate error exceeds this fraction of the frame's
+        /// bounding-box diagonal is replaced by a refresh frame (positions coded like an
+        /// I-frame, bases kept). 1e-6..=1. Default 0.05.
+        pub max_error: f64 = 0.05
+            => float(1e-6, 1.0, "per-frame RMS error guard relative to the frame's bounding-box diagonal"),
+        /// zstd level of I-frame and refresh-frame positions, 1..=22. Default 19.
+        pub level: i32 = 19 => int(1, 22, "zstd level of I-frame positions"),
+        /// Residual layer (not in the paper; issue 14): after the Poisson reconstruction every
+        /// P-frame codes what it missed as per-coordinate residuals, uniformly quantized with step
+        /// `residual × (the frame's bounding-box diagonal)`, zstd-coded; the corrected frame is
+        /// the closed loop's reference, so the correction does not accumulate. 0 = off (the
+        /// paper's method), else 1e-6..=0.1. Default 0 (the rate ladder switches it on).
+        pub residual: f64 = 0.0 => float(
+            0.0,
+            0.1,
+            "residual layer step relative to the frame diagonal (0 = off, the paper's method; else >= 1e-6)"
+        ),
+        /// Rate preset, 0..=10 (issue 14): 0 uses `bases` and `residual` as given; `k ≥ 1` is step
+        /// `k` of the rate ladder and sets both from [`RATE_PRESETS`] (steps 1–6: the paper's
+        /// method at 16…100 bases; 7–10: 100 bases plus the residual layer); steps 6–10 also cap
+        /// `max_error` at [`PRESET_GUARD_AT_100`]. Default 0.
+        pub rate: u8 = 0 => int(
+            0,
+            RATE_PRESETS.len() as i64,
+            "rate ladder step; 0 = bases/residual as given, k >= 1 sets them (1-6 paper at 16..100 bases, 7-10 residual layer)"
+        ),
+        /// Where the manifold harmonic basis comes from (issue 14): computed once per stream from
+        /// the first frame, which every keyframe names ([`BasisSource::Stream`], default), or
+        /// recomputed from every keyframe as in the paper ([`BasisSource::Keyframe`]).
+        pub basis: BasisSource = BasisSource::Stream => choice(
+            "harmonic basis computed once per stream from the first frame (stream) or at every keyframe (keyframe, the paper)"
+        ),
+        /// Poisson factorization schedule (issue 14), 0..=255: the system is factored at the
+        /// previous reconstruction every `refactor` P-frames of an interval and reused in between
+        /// (the targets are carried to the factor's reference, see [`geometry::ReducedPoisson`]);
+        /// 1 = every frame, exactly the paper's solve; 0 = never, the rest pose's factor. Default 8
+        /// (measured: KG +5 % against 1 on horse-gallop and samba at 100 bases; samba decodes in
+        /// 0.49× the time of the pre-issue-14 decoder, against 0.54× with 4; 0 costs +60–80 % KG;
+        /// README, issue-14 note session 3).
+        pub refactor: u8 = 8 => int(
+            0,
+            255,
+            "Poisson system factored at the previous frame every k P-frames (1 = every frame, the paper; 0 = rest pose only)"
+        ),
+    }
+    // A residual step below 1e-6 is refused on reading (not by `to_param_set`, which `validate`
+    // completes), and the rate preset sets `bases` and `residual`.
+    after_read: |s: SacParams| SacParams::check_residual(s.residual).map(|()| s.with_preset());
 }
 
 /// Where the manifold harmonic basis comes from.
@@ -112,7 +138,7 @@ pub enum BasisSource {
     Keyframe,
 }
 
-const BASIS_NAMES: &[&str] = &["stream", "keyframe"];
+codec_core::param_choice!(BasisSource { Stream = "stream", Keyframe = "keyframe" });
 
 /// `(bases, residual)` of rate presets 1..=10: the paper's method up to 100 bases, then the
 /// residual layer on 100 bases, which is what brings the error below the paper's floor
@@ -137,94 +163,7 @@ pub const RATE_PRESETS: [(u32, f64); 10] = [
 /// rate=6 -p max_error=0.02 --eval`), below step 5's 5.85.
 pub const PRESET_GUARD_AT_100: f64 = 0.02;
 
-impl Default for SacParams {
-    fn default() -> Self {
-        Self {
-            bases: 100,
-            bits: 18,
-            polar: true,
-            keyframe_interval: 0,
-            iframe_bits: 20,
-            max_error: 0.05,
-            level: 19,
-            residual: 0.0,
-            rate: 0,
-            basis: BasisSource::Stream,
-            refactor: 8,
-        }
-    }
-}
-
 impl SacParams {
-    /// Parameter descriptions, with the defaults of [`SacParams::default`].
-    pub fn specs() -> Vec<ParamSpec> {
-        let d = Self::default();
-        vec![
-            ParamSpec::int(
-                "bases",
-                1,
-                1000,
-                d.bases as i64,
-                "manifold harmonic bases kept (clamped to the vertex count)",
-            ),
-            ParamSpec::int("bits", 4, 30, d.bits as i64, "quantization bits of the spectral descriptors"),
-            ParamSpec::boolean(
-                "polar",
-                d.polar,
-                "split gradients into rotation (log map) and stretch; false codes J - I",
-            ),
-            ParamSpec::int(
-                "keyframe_interval",
-                0,
-                1_000_000,
-                d.keyframe_interval as i64,
-                "frames between I-frames (each recomputes the bases); 0 = only frame 0",
-            ),
-            ParamSpec::int(
-                "iframe_bits",
-                8,
-                30,
-                d.iframe_bits as i64,
-                "bits per coordinate of I-frames and refresh frames",
-            ),
-            ParamSpec::float(
-                "max_error",
-                1e-6,
-                1.0,
-                d.max_error,
-                "per-frame RMS error guard relative to the frame's bounding-box diagonal",
-            ),
-            ParamSpec::int("level", 1, 22, d.level as i64, "zstd level of I-frame positions"),
-            ParamSpec::float(
-                "residual",
-                0.0,
-                0.1,
-                d.residual,
-                "residual layer step relative to the frame diagonal (0 = off, the paper's method; else >= 1e-6)",
-            ),
-            ParamSpec::int(
-                "rate",
-                0,
-                RATE_PRESETS.len() as i64,
-                d.rate as i64,
-                "rate ladder step; 0 = bases/residual as given, k >= 1 sets them (1-6 paper at 16..100 bases, 7-10 residual layer)",
-            ),
-            ParamSpec::choice(
-                "basis",
-                BASIS_NAMES,
-                BASIS_NAMES[0],
-                "harmonic basis computed once per stream from the first frame (stream) or at every keyframe (keyframe, the paper)",
-            ),
-            ParamSpec::int(
-                "refactor",
-                0,
-                255,
-                d.refactor as i64,
-                "Poisson system factored at the previous frame every k P-frames (1 = every frame, the paper; 0 = rest pose only)",
-            ),
-        ]
-    }
-
     /// Checks every field against the ranges in [`SacParams::specs`]; `residual` is 0 or in
     /// 1e-6..=0.1.
     pub fn validate(&self) -> Result<()> {
@@ -239,32 +178,6 @@ impl SacParams {
         Ok(())
     }
 
-    /// Reads the typed parameters from a [`ParamSet`] made for this codec (values in a
-    /// `ParamSet` are already range-checked, so the casts are in range).
-    pub fn from_param_set(p: &ParamSet) -> Result<Self> {
-        if p.codec() != NAME {
-            return Err(Error::parameter(NAME, "params", format!("parameters belong to codec '{}'", p.codec())));
-        }
-        Ok(Self {
-            bases: p.int("bases")? as u32,
-            bits: p.int("bits")? as u8,
-            polar: p.bool("polar")?,
-            keyframe_interval: p.int("keyframe_interval")? as u32,
-            iframe_bits: p.int("iframe_bits")? as u8,
-            max_error: p.float("max_error")?,
-            level: p.int("level")? as i32,
-            residual: {
-                let r = p.float("residual")?;
-                Self::check_residual(r)?;
-                r
-            },
-            rate: p.int("rate")? as u8,
-            basis: if p.choice("basis")? == "keyframe" { BasisSource::Keyframe } else { BasisSource::Stream },
-            refactor: p.int("refactor")? as u8,
-        }
-        .with_preset())
-    }
-
     /// Applies the rate preset, if any, to `bases` and `residual`.
     fn with_preset(mut self) -> Self {
         if self.rate > 0 {
@@ -276,23 +189,6 @@ impl SacParams {
             }
         }
         self
-    }
-
-    /// The generic form of these parameters; fails like [`SacParams::validate`].
-    pub fn to_param_set(&self) -> Result<ParamSet> {
-        let s = Self::specs();
-        ParamSet::defaults(NAME, &s)
-            .with(&s, "bases", ParamValue::Int(self.bases as i64))?
-            .with(&s, "bits", ParamValue::Int(self.bits as i64))?
-            .with(&s, "polar", ParamValue::Bool(self.polar))?
-            .with(&s, "keyframe_interval", ParamValue::Int(self.keyframe_interval as i64))?
-            .with(&s, "iframe_bits", ParamValue::Int(self.iframe_bits as i64))?
-            .with(&s, "max_error", ParamValue::Float(self.max_error))?
-            .with(&s, "level", ParamValue::Int(self.level as i64))?
-            .with(&s, "residual", ParamValue::Float(self.residual))?
-            .with(&s, "rate", ParamValue::Int(self.rate as i64))?
-            .with(&s, "basis", ParamValue::Choice(BASIS_NAMES[(self.basis == BasisSource::Keyframe) as usize]))?
-            .with(&s, "refactor", ParamValue::Int(self.refactor as i64))
     }
 }
 
