@@ -14,6 +14,7 @@ pub mod container;
 pub mod entropy;
 pub mod error;
 pub mod limits;
+pub mod linalg;
 pub mod params;
 pub mod quant;
 pub mod quant_delta;
@@ -29,7 +30,9 @@ pub use codec::{
 };
 pub use error::{Error, Result};
 pub use limits::Limits;
-pub use params::{ParamKind, ParamSet, ParamSpec, ParamValue, RateLadder, SearchAxis, SearchSpace};
+pub use params::{
+    DeclaredParams, ParamChoice, ParamKind, ParamSet, ParamSpec, ParamValue, RateLadder, SearchAxis, SearchSpace,
+};
 pub use quant::Quantizer;
 pub use registry::CodecRegistry;
 pub use stream::{
