@@ -10,8 +10,8 @@
 use std::fmt;
 
 use crate::animation::{Animation, Topology};
-use crate::container::Limits;
 use crate::error::Result;
+use crate::limits::Limits;
 use crate::params::{ParamSet, ParamSpec, RateLadder, SearchSpace};
 
 /// Four-character code identifying a codec inside a stream (never a list index).

@@ -13,6 +13,8 @@ pub mod connectivity;
 pub mod container;
 pub mod entropy;
 pub mod error;
+pub mod limits;
+pub mod linalg;
 pub mod params;
 pub mod quant;
 pub mod quant_delta;
@@ -26,9 +28,11 @@ pub use animation::{Animation, Topology};
 pub use codec::{
     AnimationCodec, EncodedPacket, EncoderSetup, ErrorBound, FourCc, FrameDecoder, FrameEncoder, Packet, StreamInfo,
 };
-pub use container::Limits;
 pub use error::{Error, Result};
-pub use params::{ParamKind, ParamSet, ParamSpec, ParamValue, RateLadder, SearchAxis, SearchSpace};
+pub use limits::Limits;
+pub use params::{
+    DeclaredParams, ParamChoice, ParamKind, ParamSet, ParamSpec, ParamValue, RateLadder, SearchAxis, SearchSpace,
+};
 pub use quant::Quantizer;
 pub use registry::CodecRegistry;
 pub use stream::{

@@ -4,6 +4,12 @@
 //! behind the object-safe [`AnimationCodec`](crate::AnimationCodec) trait, it also describes
 //! them as a list of [`ParamSpec`]s and converts to and from a [`ParamSet`] of typed
 //! [`ParamValue`]s. Strings appear only at the CLI edge, in [`ParamSpec::parse`].
+//!
+//! The struct, its `Default`, its specs and both conversions come from one declaration per
+//! parameter ([`declare_params!`](crate::declare_params)): the name, kind, range, default and
+//! help of a parameter are written once, so the three views cannot disagree (issue 28; before,
+//! each name was spelled three times by hand). Choice parameters are enums implementing
+//! [`ParamChoice`] ([`param_choice!`](crate::param_choice)).
 
 use std::fmt;
 
@@ -325,6 +331,324 @@ impl SearchSpace {
         }
         Ok(p)
     }
+}
+
+/// An enum that is the value of a [`ParamKind::Choice`] parameter: its names, in the order
+/// the spec lists them, and the mapping both ways. Implement it with
+/// [`param_choice!`](crate::param_choice).
+pub trait ParamChoice: Sized + Copy + 'static {
+    /// Every name, in the order the parameter's spec lists them.
+    const NAMES: &'static [&'static str];
+    /// The name of this value (one of [`ParamChoice::NAMES`]).
+    fn name(self) -> &'static str;
+    /// The value called `name`, if any.
+    fn from_name(name: &str) -> Option<Self>;
+}
+
+/// An integer type a [`ParamKind::Int`] parameter may be stored in. A [`ParamSet`] holds
+/// `i64`s checked against the spec's range; the range must fit the field's type, which the
+/// conversion checks instead of truncating.
+pub trait IntParam: Sized + Copy {
+    /// The value as a parameter value (saturating at `i64::MAX`, outside any range).
+    fn to_i64(self) -> i64;
+    /// The field value of `v`, if it fits.
+    fn from_i64(v: i64) -> Option<Self>;
+}
+
+macro_rules! int_param {
+    ($($t:ty),*) => {$(
+        impl IntParam for $t {
+            fn to_i64(self) -> i64 {
+                i64::try_from(self).unwrap_or(i64::MAX)
+            }
+            fn from_i64(v: i64) -> Option<Self> {
+                <$t>::try_from(v).ok()
+            }
+        }
+    )*};
+}
+int_param!(u8, u16, u32, u64, usize, i8, i16, i32, i64);
+
+/// A typed parameter struct made by [`declare_params!`](crate::declare_params): the
+/// generic view the conformance check [`crate::testing::check_declared_params`] works on.
+///
+/// `read_fields` and `write_fields` are the pure field-by-field conversions; a codec's
+/// `from_param_set` / `to_param_set` add its hand-written cross-field checks (and, for `sac`,
+/// its rate presets) around them.
+pub trait DeclaredParams: Sized + Default + Clone + fmt::Debug + PartialEq {
+    /// The codec the parameters belong to.
+    const CODEC: &'static str;
+    /// The parameter descriptions, in declaration order, defaults from `Default`.
+    fn param_specs() -> Vec<ParamSpec>;
+    /// Every declared parameter read from `p` (hidden fields at their defaults), with no
+    /// cross-field check. Fails when `p` belongs to another codec.
+    fn read_fields(p: &ParamSet) -> Result<Self>;
+    /// Every declared parameter written into a [`ParamSet`], each checked against its spec
+    /// (the first out of range fails, naming codec and field), with no cross-field check.
+    fn write_fields(&self) -> Result<ParamSet>;
+}
+
+/// The error of reading a [`ParamSet`] made for another codec.
+#[doc(hidden)]
+pub fn foreign_set(codec: &'static str, p: &ParamSet) -> Error {
+    Error::parameter(codec, "params", format!("parameters belong to codec '{}'", p.codec()))
+}
+
+/// Reads integer parameter `name` into a field of type `T`.
+#[doc(hidden)]
+pub fn read_int<T: IntParam>(codec: &'static str, p: &ParamSet, name: &'static str) -> Result<T> {
+    let v = p.int(name)?;
+    T::from_i64(v).ok_or_else(|| Error::parameter(codec, name, format!("{v} does not fit the field's type")))
+}
+
+/// Reads choice parameter `name` into a field of type `T`.
+#[doc(hidden)]
+pub fn read_choice<T: ParamChoice>(codec: &'static str, p: &ParamSet, name: &'static str) -> Result<T> {
+    let v = p.choice(name)?;
+    T::from_name(v).ok_or_else(|| Error::parameter(codec, name, format!("'{v}' is not one of {}", T::NAMES.join(", "))))
+}
+
+/// Implements [`ParamChoice`] for an enum: each variant with its parameter name, in the
+/// order the spec lists them. `param_choice!(Type, inherent)` implements it with the type's
+/// own `NAMES`, `name` and `from_name` instead, for enums whose names are tied to their
+/// stream codes (name = `NAMES[code]`), so the names stay spelled once.
+///
+/// ```
+/// #[derive(Debug, Clone, Copy, PartialEq)]
+/// enum Shape { Round, Square }
+/// codec_core::param_choice!(Shape { Round = "round", Square = "square" });
+/// use codec_core::params::ParamChoice;
+/// assert_eq!(Shape::NAMES, ["round", "square"]);
+/// assert_eq!(Shape::from_name("square"), Some(Shape::Square));
+/// assert_eq!(Shape::Round.name(), "round");
+/// ```
+#[macro_export]
+macro_rules! param_choice {
+    ($ty:ident { $($variant:ident = $name:literal),+ $(,)? }) => {
+        impl $crate::params::ParamChoice for $ty {
+            const NAMES: &'static [&'static str] = &[$($name),+];
+            fn name(self) -> &'static str {
+                match self {
+                    $(Self::$variant => $name,)+
+                }
+            }
+            fn from_name(name: &str) -> ::core::option::Option<Self> {
+                match name {
+                    $($name => ::core::option::Option::Some(Self::$variant),)+
+                    _ => ::core::option::Option::None,
+                }
+            }
+        }
+    };
+    ($ty:ident, inherent) => {
+        impl $crate::params::ParamChoice for $ty {
+            const NAMES: &'static [&'static str] = {
+                let names: &'static [&'static str] = &$ty::NAMES;
+                names
+            };
+            fn name(self) -> &'static str {
+                $ty::name(self)
+            }
+            fn from_name(name: &str) -> ::core::option::Option<Self> {
+                $ty::from_name(name)
+            }
+        }
+    };
+}
+
+/// Declares a codec's typed parameter struct, one line per parameter, and generates from it
+/// the struct, its `Default`, `specs()`, `from_param_set()`, `to_param_set()` and
+/// [`DeclaredParams`].
+///
+/// Each field is `name: Type = default => kind(...)`; the parameter's name is the field's.
+/// Kinds, with the arguments of the matching [`ParamSpec`] constructor:
+/// - `int(min, max, "help")`: any [`IntParam`] type;
+/// - `float(min, max, "help")`: `f64`;
+/// - `boolean("help")`: `bool`;
+/// - `choice("help")`: a [`ParamChoice`] enum, its names in `NAMES` order;
+/// - `hidden`: a field that is not a parameter (a test hook): not in the specs, never read
+///   from or written to a [`ParamSet`]; `from_param_set` gives it its default.
+///
+/// Specs list the parameters in declaration order. Optional hooks after the struct keep the
+/// codec's hand-written checks: `after_read: f;` (`f(Self) -> Result<Self>`, run by
+/// `from_param_set` after reading every field), `before_write: f;` and `after_write: f;`
+/// (`f(&Self) -> Result<()>`, run by `to_param_set` before / after writing the fields).
+///
+/// ```
+/// #[derive(Debug, Clone, Copy, PartialEq)]
+/// pub enum Shape { Round, Square }
+/// codec_core::param_choice!(Shape { Round = "round", Square = "square" });
+///
+/// codec_core::declare_params! {
+///     codec: "demo";
+///     /// Parameters of `demo`.
+///     #[derive(Debug, Clone, Copy, PartialEq)]
+///     pub struct DemoParams {
+///         /// Bits per value.
+///         pub bits: u8 = 12 => int(1, 24, "bits per value"),
+///         /// Step.
+///         pub step: f64 = 0.5 => float(0.0, 1.0, "step size"),
+///         /// Shape.
+///         pub shape: Shape = Shape::Round => choice("shape of things"),
+///         /// Test hook.
+///         pub hook: bool = false => hidden,
+///     }
+///     after_write: DemoParams::check;
+/// }
+/// impl DemoParams {
+///     fn check(&self) -> codec_core::Result<()> {
+///         Ok(())
+///     }
+/// }
+/// let specs = DemoParams::specs();
+/// assert_eq!(specs.len(), 3);
+/// let set = DemoParams { bits: 8, ..Default::default() }.to_param_set().unwrap();
+/// assert_eq!(set.to_string(), "bits=8,step=0.5,shape=round");
+/// assert_eq!(DemoParams::from_param_set(&set).unwrap().bits, 8);
+/// ```
+#[macro_export]
+macro_rules! declare_params {
+    (
+        codec: $codec:expr;
+        $(#[$smeta:meta])*
+        $svis:vis struct $Name:ident {
+            $(
+                $(#[$fmeta:meta])*
+                $fvis:vis $field:ident : $fty:ty = $default:expr => $kind:ident $(($($arg:expr),* $(,)?))?
+            ),* $(,)?
+        }
+        $(after_read: $after_read:expr;)?
+        $(before_write: $before_write:expr;)?
+        $(after_write: $after_write:expr;)?
+    ) => {
+        $(#[$smeta])*
+        $svis struct $Name {
+            $(
+                $(#[$fmeta])*
+                $fvis $field: $fty,
+            )*
+        }
+
+        impl ::core::default::Default for $Name {
+            fn default() -> Self {
+                Self { $($field: $default,)* }
+            }
+        }
+
+        impl $Name {
+            #[doc = concat!("Parameter descriptions, in declaration order, with the defaults of [`", stringify!($Name), "::default`].")]
+            pub fn specs() -> ::std::vec::Vec<$crate::params::ParamSpec> {
+                let d = <Self as ::core::default::Default>::default();
+                let specs: ::std::vec::Vec<::core::option::Option<$crate::params::ParamSpec>> =
+                    ::std::vec![$($crate::declare_params!(@spec d, $field, $fty, $kind $(($($arg),*))?)),*];
+                specs.into_iter().flatten().collect()
+            }
+
+            /// Reads the typed parameters from a `ParamSet` made for this codec (its values are
+            /// already range-checked), then runs the codec's own checks.
+            pub fn from_param_set(p: &$crate::params::ParamSet) -> $crate::Result<Self> {
+                let s = <Self as $crate::params::DeclaredParams>::read_fields(p)?;
+                $(let s = ($after_read)(s)?;)?
+                Ok(s)
+            }
+
+            /// The generic form of these parameters: fails on the first field outside its
+            /// range (naming codec and field) or on the codec's own cross-field checks.
+            pub fn to_param_set(&self) -> $crate::Result<$crate::params::ParamSet> {
+                $(($before_write)(self)?;)?
+                let set = <Self as $crate::params::DeclaredParams>::write_fields(self)?;
+                $(($after_write)(self)?;)?
+                Ok(set)
+            }
+        }
+
+        impl $crate::params::DeclaredParams for $Name {
+            const CODEC: &'static str = $codec;
+
+            fn param_specs() -> ::std::vec::Vec<$crate::params::ParamSpec> {
+                Self::specs()
+            }
+
+            fn read_fields(p: &$crate::params::ParamSet) -> $crate::Result<Self> {
+                if p.codec() != $codec {
+                    return Err($crate::params::foreign_set($codec, p));
+                }
+                Ok(Self { $($field: $crate::declare_params!(@read p, $field, $fty, $default, $kind),)* })
+            }
+
+            fn write_fields(&self) -> $crate::Result<$crate::params::ParamSet> {
+                let specs = Self::specs();
+                let mut set = $crate::params::ParamSet::defaults($codec, &specs);
+                $($crate::declare_params!(@write set, specs, self, $field, $kind);)*
+                Ok(set)
+            }
+        }
+    };
+
+    (@spec $d:ident, $field:ident, $fty:ty, int($min:expr, $max:expr, $doc:expr)) => {
+        ::core::option::Option::Some($crate::params::ParamSpec::int(
+            stringify!($field),
+            $min,
+            $max,
+            <$fty as $crate::params::IntParam>::to_i64($d.$field),
+            $doc,
+        ))
+    };
+    (@spec $d:ident, $field:ident, $fty:ty, float($min:expr, $max:expr, $doc:expr)) => {
+        ::core::option::Option::Some($crate::params::ParamSpec::float(stringify!($field), $min, $max, $d.$field, $doc))
+    };
+    (@spec $d:ident, $field:ident, $fty:ty, boolean($doc:expr)) => {
+        ::core::option::Option::Some($crate::params::ParamSpec::boolean(stringify!($field), $d.$field, $doc))
+    };
+    (@spec $d:ident, $field:ident, $fty:ty, choice($doc:expr)) => {
+        ::core::option::Option::Some($crate::params::ParamSpec::choice(
+            stringify!($field),
+            <$fty as $crate::params::ParamChoice>::NAMES,
+            <$fty as $crate::params::ParamChoice>::name($d.$field),
+            $doc,
+        ))
+    };
+    (@spec $d:ident, $field:ident, $fty:ty, hidden) => {
+        ::core::option::Option::None
+    };
+
+    (@read $p:ident, $field:ident, $fty:ty, $default:expr, int) => {
+        $crate::params::read_int::<$fty>(Self::CODEC, $p, stringify!($field))?
+    };
+    (@read $p:ident, $field:ident, $fty:ty, $default:expr, float) => {
+        $p.float(stringify!($field))?
+    };
+    (@read $p:ident, $field:ident, $fty:ty, $default:expr, boolean) => {
+        $p.bool(stringify!($field))?
+    };
+    (@read $p:ident, $field:ident, $fty:ty, $default:expr, choice) => {
+        $crate::params::read_choice::<$fty>(Self::CODEC, $p, stringify!($field))?
+    };
+    (@read $p:ident, $field:ident, $fty:ty, $default:expr, hidden) => {
+        $default
+    };
+
+    (@write $set:ident, $specs:ident, $self:ident, $field:ident, int) => {
+        $set.set(
+            &$specs,
+            stringify!($field),
+            $crate::params::ParamValue::Int($crate::params::IntParam::to_i64($self.$field)),
+        )?
+    };
+    (@write $set:ident, $specs:ident, $self:ident, $field:ident, float) => {
+        $set.set(&$specs, stringify!($field), $crate::params::ParamValue::Float($self.$field))?
+    };
+    (@write $set:ident, $specs:ident, $self:ident, $field:ident, boolean) => {
+        $set.set(&$specs, stringify!($field), $crate::params::ParamValue::Bool($self.$field))?
+    };
+    (@write $set:ident, $specs:ident, $self:ident, $field:ident, choice) => {
+        $set.set(
+            &$specs,
+            stringify!($field),
+            $crate::params::ParamValue::Choice($crate::params::ParamChoice::name($self.$field)),
+        )?
+    };
+    (@write $set:ident, $specs:ident, $self:ident, $field:ident, hidden) => {};
 }
 
 #[cfg(test)]

@@ -11,70 +11,34 @@ use crate::bytes::{zigzag_decode, zigzag_encode, ByteReader, ByteWriter};
 use crate::codec::{
     AnimationCodec, EncodedPacket, EncoderSetup, ErrorBound, FourCc, FrameDecoder, FrameEncoder, Packet, StreamInfo,
 };
-use crate::container::Limits;
 use crate::entropy;
 use crate::error::{Error, Result};
+use crate::limits::Limits;
 use crate::params::{ParamSet, ParamSpec, ParamValue, RateLadder};
 use crate::quant::Quantizer;
 
 const NAME: &str = "quant-delta";
 
-/// Typed parameters of `quant-delta`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct QuantDeltaParams {
-    /// Bits per coordinate, 1..=24. Default 12.
-    pub bits: u8,
-    /// Frames per packet (random-access granularity), 1..=65536. Default 32.
-    pub block: u32,
-    /// zstd level, 1..=22. Default 15.
-    pub level: i32,
-}
-
-impl Default for QuantDeltaParams {
-    fn default() -> Self {
-        Self { bits: 12, block: 32, level: 15 }
+crate::declare_params! {
+    codec: NAME;
+    /// Typed parameters of `quant-delta`.
+    #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+    pub struct QuantDeltaParams {
+        /// Bits per coordinate, 1..=24. Default 12.
+        pub bits: u8 = 12
+            => int(1, 24, "bits per coordinate; max error is half a step of the packet's range"),
+        /// Frames per packet (random-access granularity), 1..=65536. Default 32.
+        pub block: u32 = 32 => int(1, 65536, "frames per packet (random-access granularity)"),
+        /// zstd level, 1..=22. Default 15.
+        pub level: i32 = 15 => int(1, 22, "zstd compression level"),
     }
 }
 
 impl QuantDeltaParams {
-    /// Parameter descriptions, with the defaults of [`QuantDeltaParams::default`].
-    pub fn specs() -> Vec<ParamSpec> {
-        let d = Self::default();
-        vec![
-            ParamSpec::int(
-                "bits",
-                1,
-                24,
-                d.bits as i64,
-                "bits per coordinate; max error is half a step of the packet's range",
-            ),
-            ParamSpec::int("block", 1, 65536, d.block as i64, "frames per packet (random-access granularity)"),
-            ParamSpec::int("level", 1, 22, d.level as i64, "zstd compression level"),
-        ]
-    }
-
     /// Checks every field against the ranges in [`QuantDeltaParams::specs`]; the error
     /// names the field and states the allowed range.
     pub fn validate(&self) -> Result<()> {
         self.to_param_set().map(|_| ())
-    }
-
-    /// Reads the typed parameters from a [`ParamSet`] made for this codec. A `ParamSet` only
-    /// holds values checked against the specs, so the narrowing casts below are in range.
-    pub fn from_param_set(p: &ParamSet) -> Result<Self> {
-        if p.codec() != NAME {
-            return Err(Error::parameter(NAME, "params", format!("parameters belong to codec '{}'", p.codec())));
-        }
-        Ok(Self { bits: p.int("bits")? as u8, block: p.int("block")? as u32, level: p.int("level")? as i32 })
-    }
-
-    /// The generic form of these parameters; fails like [`QuantDeltaParams::validate`].
-    pub fn to_param_set(&self) -> Result<ParamSet> {
-        let specs = Self::specs();
-        ParamSet::defaults(NAME, &specs)
-            .with(&specs, "bits", ParamValue::Int(self.bits as i64))?
-            .with(&specs, "block", ParamValue::Int(self.block as i64))?
-            .with(&specs, "level", ParamValue::Int(self.level as i64))
     }
 }
 
@@ -329,6 +293,12 @@ mod tests {
             let all_at_once = encode_animation_fed(&QuantDelta, &params, &anim, false, 1000).unwrap();
             assert_eq!(all_at_once.bytes, enc.bytes, "bytes depend on how frames are fed");
         }
+    }
+
+    #[test]
+    fn parameter_declaration_agrees_with_specs_parsing_and_printing() {
+        crate::testing::check_declared_params::<QuantDeltaParams>();
+        assert_eq!(QuantDelta.param_specs(), QuantDeltaParams::specs());
     }
 
     #[test]

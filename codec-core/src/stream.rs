@@ -7,8 +7,9 @@ use crate::animation::{check_finite, Animation, Topology};
 use crate::codec::{
     AnimationCodec, EncodedPacket, EncoderSetup, ErrorBound, FrameDecoder, FrameEncoder, Packet, StreamInfo,
 };
-use crate::container::{self, ContainerReader, ContainerWriter, Header, IndexEntry, Limits, Section};
+use crate::container::{self, ContainerReader, ContainerWriter, Header, IndexEntry, Section};
 use crate::error::{Error, Result};
+use crate::limits::Limits;
 use crate::params::ParamSet;
 use crate::registry::CodecRegistry;
 

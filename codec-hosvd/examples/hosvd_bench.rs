@@ -26,8 +26,8 @@ use std::time::Instant;
 
 use codec_core::container::ContainerWriter;
 use codec_core::quant_delta::{QuantDelta, QuantDeltaParams};
-use codec_core::AnimationCodec;
 use codec_core::{decode_animation, encode_animation_fed, Animation, CodecRegistry, FrameEncoder, Limits, Topology};
+use codec_core::{AnimationCodec, ParamChoice};
 use codec_hosvd::{
     truncated_reconstruction, truncated_reconstruction_with, BlockStats, Hosvd, HosvdEncoder, HosvdParams, Strategy,
 };

@@ -59,69 +59,110 @@ const FLAG_DENOISE: u8 = 8;
 /// 2 parallelogram). Written with the toolkit coding and `regress`.
 const FLAG_REGRESS: u8 = 16;
 
-/// Typed parameters of `hosvd`.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct HosvdParams {
-    /// Requested space saving `SS = 1 − CR` (Eq. 13) as a fraction, 0..=0.9999. Default 0.9.
-    pub ss: f64,
-    /// How `(v, f)` is chosen for `ss`. Default iterative.
-    pub strategy: Strategy,
-    /// Explicit mode-1 rank (0 = from `ss`); must be given together with `f`.
-    pub v: u32,
-    /// Explicit mode-3 rank (0 = from `ss`); must be given together with `v`.
-    pub f: u32,
-    /// Remove per-frame affine motion before the decomposition (§2.3). Default true.
-    pub rigid: bool,
-    /// With `rigid`: fit an affine map (true, the issue's default) or only a rotation +
-    /// translation (false; orthogonal Procrustes). Default true.
-    pub affine: bool,
-    /// HOOI refinement sweeps after the truncated HO-SVD (0 = plain HO-SVD). Default 0.
-    pub hooi_iters: u32,
-    /// Target quantization RMS error relative to the truncation error, 0.01..=10. Default 0.25.
-    pub quant: f64,
-    /// Frames per independently decomposed packet (0 = the whole sequence). Default 0.
-    pub block: u32,
-    /// Alg. 4 samples per level `s`, 3..=64. Default 5.
-    pub samples: u32,
-    /// Alg. 4 recursion limit `I`, 1..=32. Default 4.
-    pub depth: u32,
-    /// zstd level, 1..=22. Default 19.
-    pub level: i32,
-    /// How factors and core are coded: the toolkit (stream version 2's coding, default) or
-    /// the paper's (version 1: one rule-of-thumb step per column, byte planes + zstd).
-    pub coding: Coding,
-    /// Toolkit: predictor of mode-1 factor entries along the mesh. Default average.
-    pub mesh_predictor: Predictor,
-    /// Toolkit: predictor of mode-3 factor entries along time. Default previous.
-    pub time_predictor: Predictor,
-    /// Toolkit: noise shaping of the mode-1 factor along the mesh, 0..=0.95. Default 0.
-    pub shaping: f64,
-    /// Toolkit: per-component steps by the equal-slope rule (true) or the paper coding's rule
-    /// of thumb (false). Default true.
-    pub rdq: bool,
-    /// Toolkit: weight of the edge error (STED-like) in the mode-1 factor's RD distortion,
-    /// 0..=1. Default 0.
-    pub edge_weight: f64,
-    /// Toolkit: cap on the quantization noise, as an RMS per coordinate relative to the RMS
-    /// edge length of the mesh, 0..=1 (0 = no cap). Default 0. STED (relative edge-length
-    /// changes) is dominated by per-vertex quantization noise, which `quant` sizes relative to
-    /// the truncation error, so at low rates the noise reaches a large fraction of an edge.
-    pub edge_noise: f64,
-    /// Toolkit (stream version 3): the decoder smooths each mode-1 factor column over the mesh
-    /// after dequantizing it, with a strength the encoder picks per column (`coding::Smoother`);
-    /// the RD rule sees the smoothed error, so it can choose coarser steps. Default true.
-    pub denoise: bool,
-    /// Toolkit (stream version 4): each mode-1 factor column gets the predictor of fewest bits
-    /// among the mesh predictor, the parallelogram and (after the first column) a local linear
-    /// regression on the leading columns (up to 4) over its already coded two-ring neighbours.
-    /// Beyond the paper. Default true.
-    pub regress: bool,
-    /// Test hook, not a codec parameter (always false from a [`ParamSet`]): regression on every
-    /// mode-1 column with stream version 4's unguarded fit, to drive the encoder into the
-    /// divergence of issue 26 and prove its closed-loop check falls back
-    /// (`coding::Settings::force_unguarded_regression`).
-    #[doc(hidden)]
-    pub force_unguarded_regression: bool,
+codec_core::declare_params! {
+    codec: NAME;
+    /// Typed parameters of `hosvd`.
+    #[derive(Debug, Clone, Copy, PartialEq)]
+    pub struct HosvdParams {
+        /// Requested space saving `SS = 1 − CR` (Eq. 13) as a fraction, 0..=0.9999. Default 0.9.
+        pub ss: f64 = 0.9 => float(
+            0.0,
+            0.9999,
+            "space saving 1 - CR of the paper's size model (Eq. 12-13), e.g. 0.95 keeps 5%"
+        ),
+        /// How `(v, f)` is chosen for `ss`. Default iterative.
+        pub strategy: Strategy = Strategy::Iterative
+            => choice("choice of (v, f) for ss: diagonal (v = f), iterative (Alg. 4), exhaustive"),
+        /// Explicit mode-1 rank (0 = from `ss`); must be given together with `f`.
+        pub v: u32 = 0 => int(0, MAX_RANK, "explicit mode-1 (vertex) rank, 0 = from ss; clamped to min(K, 3F)"),
+        /// Explicit mode-3 rank (0 = from `ss`); must be given together with `v`.
+        pub f: u32 = 0 => int(0, MAX_RANK, "explicit mode-3 (frame) rank, 0 = from ss; clamped to min(F, 3K)"),
+        /// Remove per-frame affine motion before the decomposition (§2.3). Default true.
+        pub rigid: bool = true => boolean(
+            "remove the per-frame least-squares affine motion to frame 0 first (12 numbers/frame)"
+        ),
+        /// With `rigid`: fit an affine map (true, the issue's default) or only a rotation +
+        /// translation (false; orthogonal Procrustes). Default true.
+        pub affine: bool = true => boolean(
+            "with rigid: least-squares affine map (true) or rotation + translation only (false)"
+        ),
+        /// HOOI refinement sweeps after the truncated HO-SVD (0 = plain HO-SVD). Default 0.
+        pub hooi_iters: u32 = 0 => int(0, 50, "HOOI refinement sweeps after the HO-SVD (beyond the paper)"),
+        /// Target quantization RMS error relative to the truncation error, 0.01..=10. Default 0.25.
+        pub quant: f64 = 0.25
+            => float(0.01, 10.0, "quantization RMS error target relative to the truncation error"),
+        /// Frames per independently decomposed packet (0 = the whole sequence). Default 0.
+        pub block: u32 = 0 => int(
+            0,
+            1 << 20,
+            "frames per independently decomposed packet, 0 = whole sequence (bounds memory)"
+        ),
+        /// Alg. 4 samples per level `s`, 3..=64. Default 5.
+        pub samples: u32 = 5 => int(3, 64, "iterative strategy: samples per level (s in Alg. 4)"),
+        /// Alg. 4 recursion limit `I`, 1..=32. Default 4.
+        pub depth: u32 = 4 => int(1, 32, "iterative strategy: recursion limit (I in Alg. 4)"),
+        /// zstd level, 1..=22. Default 19.
+        pub level: i32 = entropy::DEFAULT_LEVEL => int(1, 22, "zstd compression level"),
+        /// How factors and core are coded: the toolkit (stream version 2's coding, default) or
+        /// the paper's (version 1: one rule-of-thumb step per column, byte planes + zstd).
+        pub coding: Coding = Coding::Toolkit => choice(
+            "toolkit (mesh/time prediction, RD steps, adaptive arithmetic coding) or paper (v1 coding)"
+        ),
+        /// Toolkit: predictor of mode-1 factor entries along the mesh. Default average.
+        pub mesh_predictor: Predictor = Predictor::Average
+            => choice("toolkit: predictor of mode-1 factor entries along the mesh traversal"),
+        /// Toolkit: predictor of mode-3 factor entries along time. Default previous.
+        pub time_predictor: Predictor = Predictor::Previous => choice(
+            "toolkit: predictor of mode-3 factor entries along time (parallelogram = linear extrapolation)"
+        ),
+        /// Toolkit: noise shaping of the mode-1 factor along the mesh, 0..=0.95. Default 0.
+        pub shaping: f64 = 0.0 => float(
+            0.0,
+            0.95,
+            "toolkit: noise shaping of the mode-1 factor (neighbouring vertices err alike; 0 = off)"
+        ),
+        /// Toolkit: per-component steps by the equal-slope rule (true) or the paper coding's rule
+        /// of thumb (false). Default true.
+        pub rdq: bool = true
+            => boolean("toolkit: per-component steps by the equal-slope rule (false: rule of thumb)"),
+        /// Toolkit: weight of the edge error (STED-like) in the mode-1 factor's RD distortion,
+        /// 0..=1. Default 0.
+        pub edge_weight: f64 = 0.0 => float(
+            0.0,
+            1.0,
+            "toolkit: weight of edge (STED-like) error in the mode-1 factor's RD distortion"
+        ),
+        /// Toolkit: cap on the quantization noise, as an RMS per coordinate relative to the RMS
+        /// edge length of the mesh, 0..=1 (0 = no cap). Default 0. STED (relative edge-length
+        /// changes) is dominated by per-vertex quantization noise, which `quant` sizes relative to
+        /// the truncation error, so at low rates the noise reaches a large fraction of an edge.
+        pub edge_noise: f64 = 0.0 => float(
+            0.0,
+            1.0,
+            "cap on the quantization noise (RMS per coordinate) relative to the RMS edge length (0 = no cap)"
+        ),
+        /// Toolkit (stream version 3): the decoder smooths each mode-1 factor column over the mesh
+        /// after dequantizing it, with a strength the encoder picks per column (`coding::Smoother`);
+        /// the RD rule sees the smoothed error, so it can choose coarser steps. Default true.
+        pub denoise: bool = true => boolean(
+            "toolkit: decoder smooths each mode-1 factor column over the mesh, strength chosen per column (v3)"
+        ),
+        /// Toolkit (stream version 4): each mode-1 factor column gets the predictor of fewest bits
+        /// among the mesh predictor, the parallelogram and (after the first column) a local linear
+        /// regression on the leading columns (up to 4) over its already coded two-ring neighbours.
+        /// Beyond the paper. Default true.
+        pub regress: bool = true => boolean(
+            "toolkit: per mode-1 factor column the cheapest of mesh predictor, parallelogram, local regression on the leading columns (v4)"
+        ),
+        /// Test hook, not a codec parameter (always false from a [`ParamSet`]): regression on every
+        /// mode-1 column with stream version 4's unguarded fit, to drive the encoder into the
+        /// divergence of issue 26 and prove its closed-loop check falls back
+        /// (`coding::Settings::force_unguarded_regression`).
+        #[doc(hidden)]
+        pub force_unguarded_regression: bool = false => hidden,
+    }
+    after_read: |s: HosvdParams| s.check_cross().map(|()| s);
+    before_write: HosvdParams::check_cross;
 }
 
 /// Coding of the quantized operator (`coding` parameter).
@@ -134,171 +175,11 @@ pub enum Coding {
     Paper,
 }
 
-impl Coding {
-    /// Parameter names.
-    pub const NAMES: [&'static str; 2] = ["toolkit", "paper"];
-    fn name(self) -> &'static str {
-        match self {
-            Self::Toolkit => "toolkit",
-            Self::Paper => "paper",
-        }
-    }
-}
-
-impl Default for HosvdParams {
-    fn default() -> Self {
-        Self {
-            ss: 0.9,
-            strategy: Strategy::Iterative,
-            v: 0,
-            f: 0,
-            rigid: true,
-            affine: true,
-            hooi_iters: 0,
-            quant: 0.25,
-            block: 0,
-            samples: 5,
-            depth: 4,
-            level: entropy::DEFAULT_LEVEL,
-            coding: Coding::Toolkit,
-            mesh_predictor: Predictor::Average,
-            time_predictor: Predictor::Previous,
-            shaping: 0.0,
-            rdq: true,
-            edge_weight: 0.0,
-            edge_noise: 0.0,
-            denoise: true,
-            regress: true,
-            force_unguarded_regression: false,
-        }
-    }
-}
+codec_core::param_choice!(Coding { Toolkit = "toolkit", Paper = "paper" });
 
 const MAX_RANK: i64 = 1 << 24;
 
 impl HosvdParams {
-    /// Parameter descriptions, with the defaults of [`HosvdParams::default`].
-    pub fn specs() -> Vec<ParamSpec> {
-        let d = Self::default();
-        vec![
-            ParamSpec::float(
-                "ss",
-                0.0,
-                0.9999,
-                d.ss,
-                "space saving 1 - CR of the paper's size model (Eq. 12-13), e.g. 0.95 keeps 5%",
-            ),
-            ParamSpec::choice(
-                "strategy",
-                Strategy::NAMES,
-                d.strategy.name(),
-                "choice of (v, f) for ss: diagonal (v = f), iterative (Alg. 4), exhaustive",
-            ),
-            ParamSpec::int(
-                "v",
-                0,
-                MAX_RANK,
-                d.v as i64,
-                "explicit mode-1 (vertex) rank, 0 = from ss; clamped to min(K, 3F)",
-            ),
-            ParamSpec::int(
-                "f",
-                0,
-                MAX_RANK,
-                d.f as i64,
-                "explicit mode-3 (frame) rank, 0 = from ss; clamped to min(F, 3K)",
-            ),
-            ParamSpec::boolean(
-                "rigid",
-                d.rigid,
-                "remove the per-frame least-squares affine motion to frame 0 first (12 numbers/frame)",
-            ),
-            ParamSpec::boolean(
-                "affine",
-                d.affine,
-                "with rigid: least-squares affine map (true) or rotation + translation only (false)",
-            ),
-            ParamSpec::int(
-                "hooi_iters",
-                0,
-                50,
-                d.hooi_iters as i64,
-                "HOOI refinement sweeps after the HO-SVD (beyond the paper)",
-            ),
-            ParamSpec::float(
-                "quant",
-                0.01,
-                10.0,
-                d.quant,
-                "quantization RMS error target relative to the truncation error",
-            ),
-            ParamSpec::int(
-                "block",
-                0,
-                1 << 20,
-                d.block as i64,
-                "frames per independently decomposed packet, 0 = whole sequence (bounds memory)",
-            ),
-            ParamSpec::int("samples", 3, 64, d.samples as i64, "iterative strategy: samples per level (s in Alg. 4)"),
-            ParamSpec::int("depth", 1, 32, d.depth as i64, "iterative strategy: recursion limit (I in Alg. 4)"),
-            ParamSpec::int("level", 1, 22, d.level as i64, "zstd compression level"),
-            ParamSpec::choice(
-                "coding",
-                &Coding::NAMES,
-                d.coding.name(),
-                "toolkit (mesh/time prediction, RD steps, adaptive arithmetic coding) or paper (v1 coding)",
-            ),
-            ParamSpec::choice(
-                "mesh_predictor",
-                &Predictor::NAMES,
-                d.mesh_predictor.name(),
-                "toolkit: predictor of mode-1 factor entries along the mesh traversal",
-            ),
-            ParamSpec::choice(
-                "time_predictor",
-                &Predictor::NAMES,
-                d.time_predictor.name(),
-                "toolkit: predictor of mode-3 factor entries along time (parallelogram = linear extrapolation)",
-            ),
-            ParamSpec::float(
-                "shaping",
-                0.0,
-                0.95,
-                d.shaping,
-                "toolkit: noise shaping of the mode-1 factor (neighbouring vertices err alike; 0 = off)",
-            ),
-            ParamSpec::boolean(
-                "rdq",
-                d.rdq,
-                "toolkit: per-component steps by the equal-slope rule (false: rule of thumb)",
-            ),
-            ParamSpec::float(
-                "edge_weight",
-                0.0,
-                1.0,
-                d.edge_weight,
-                "toolkit: weight of edge (STED-like) error in the mode-1 factor's RD distortion",
-            ),
-            ParamSpec::float(
-                "edge_noise",
-                0.0,
-                1.0,
-                d.edge_noise,
-                "cap on the quantization noise (RMS per coordinate) relative to the RMS edge length (0 = no cap)",
-            ),
-            ParamSpec::boolean(
-                "denoise",
-                d.denoise,
-                "toolkit: decoder smooths each mode-1 factor column over the mesh, strength chosen per column (v3)",
-            ),
-            ParamSpec::boolean(
-                "regress",
-                d.regress,
-                "toolkit: per mode-1 factor column the cheapest of mesh predictor, parallelogram, local regression on the leading columns (v4)",
-            ),
-        ]
-    }
-
     /// Checks every field against the ranges in [`HosvdParams::specs`] and the cross-field
     /// rule (`v` and `f` are given together or not at all); errors name the field and range.
     pub fn validate(&self) -> Result<()> {
@@ -316,76 +197,6 @@ impl HosvdParams {
         }
         Ok(())
     }
-
-    /// Reads the typed parameters from a [`ParamSet`] made for this codec (values in a
-    /// `ParamSet` are already range-checked, so the narrowing casts are in range).
-    pub fn from_param_set(p: &ParamSet) -> Result<Self> {
-        if p.codec() != NAME {
-            return Err(Error::parameter(NAME, "params", format!("parameters belong to codec '{}'", p.codec())));
-        }
-        let strategy = Strategy::from_name(p.choice("strategy")?).ok_or_else(|| {
-            Error::parameter(NAME, "strategy", format!("expected one of {}", Strategy::NAMES.join("|")))
-        })?;
-        let out = Self {
-            ss: p.float("ss")?,
-            strategy,
-            v: p.int("v")? as u32,
-            f: p.int("f")? as u32,
-            rigid: p.bool("rigid")?,
-            affine: p.bool("affine")?,
-            hooi_iters: p.int("hooi_iters")? as u32,
-            quant: p.float("quant")?,
-            block: p.int("block")? as u32,
-            samples: p.int("samples")? as u32,
-            depth: p.int("depth")? as u32,
-            level: p.int("level")? as i32,
-            coding: if p.choice("coding")? == "paper" { Coding::Paper } else { Coding::Toolkit },
-            mesh_predictor: predictor_param(p, "mesh_predictor")?,
-            time_predictor: predictor_param(p, "time_predictor")?,
-            shaping: p.float("shaping")?,
-            rdq: p.bool("rdq")?,
-            edge_weight: p.float("edge_weight")?,
-            edge_noise: p.float("edge_noise")?,
-            denoise: p.bool("denoise")?,
-            regress: p.bool("regress")?,
-            force_unguarded_regression: false,
-        };
-        out.check_cross()?;
-        Ok(out)
-    }
-
-    /// The generic form of these parameters; fails like [`HosvdParams::validate`].
-    pub fn to_param_set(&self) -> Result<ParamSet> {
-        self.check_cross()?;
-        let specs = Self::specs();
-        ParamSet::defaults(NAME, &specs)
-            .with(&specs, "ss", ParamValue::Float(self.ss))?
-            .with(&specs, "strategy", ParamValue::Choice(self.strategy.name()))?
-            .with(&specs, "v", ParamValue::Int(self.v as i64))?
-            .with(&specs, "f", ParamValue::Int(self.f as i64))?
-            .with(&specs, "rigid", ParamValue::Bool(self.rigid))?
-            .with(&specs, "affine", ParamValue::Bool(self.affine))?
-            .with(&specs, "hooi_iters", ParamValue::Int(self.hooi_iters as i64))?
-            .with(&specs, "quant", ParamValue::Float(self.quant))?
-            .with(&specs, "block", ParamValue::Int(self.block as i64))?
-            .with(&specs, "samples", ParamValue::Int(self.samples as i64))?
-            .with(&specs, "depth", ParamValue::Int(self.depth as i64))?
-            .with(&specs, "level", ParamValue::Int(self.level as i64))?
-            .with(&specs, "coding", ParamValue::Choice(self.coding.name()))?
-            .with(&specs, "mesh_predictor", ParamValue::Choice(self.mesh_predictor.name()))?
-            .with(&specs, "time_predictor", ParamValue::Choice(self.time_predictor.name()))?
-            .with(&specs, "shaping", ParamValue::Float(self.shaping))?
-            .with(&specs, "rdq", ParamValue::Bool(self.rdq))?
-            .with(&specs, "edge_weight", ParamValue::Float(self.edge_weight))?
-            .with(&specs, "edge_noise", ParamValue::Float(self.edge_noise))?
-            .with(&specs, "denoise", ParamValue::Bool(self.denoise))?
-            .with(&specs, "regress", ParamValue::Bool(self.regress))
-    }
-}
-
-fn predictor_param(p: &ParamSet, name: &'static str) -> Result<Predictor> {
-    Predictor::from_name(p.choice(name)?)
-        .ok_or_else(|| Error::parameter(NAME, name, format!("expected one of {}", Predictor::NAMES.join("|"))))
 }
 
 /// The `hosvd` codec.

@@ -12,29 +12,7 @@ pub enum Strategy {
     Exhaustive,
 }
 
-impl Strategy {
-    /// Parameter names, in the order of [`Strategy::from_name`].
-    pub const NAMES: &'static [&'static str] = &["diagonal", "iterative", "exhaustive"];
-
-    /// Parses a parameter value.
-    pub fn from_name(name: &str) -> Option<Self> {
-        match name {
-            "diagonal" => Some(Self::Diagonal),
-            "iterative" => Some(Self::Iterative),
-            "exhaustive" => Some(Self::Exhaustive),
-            _ => None,
-        }
-    }
-
-    /// Parameter value.
-    pub fn name(self) -> &'static str {
-        match self {
-            Self::Diagonal => "diagonal",
-            Self::Iterative => "iterative",
-            Self::Exhaustive => "exhaustive",
-        }
-    }
-}
+codec_core::param_choice!(Strategy { Diagonal = "diagonal", Iterative = "iterative", Exhaustive = "exhaustive" });
 
 /// Dimensions of one tensor block and whether transforms are stored.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -10,12 +10,11 @@
 //! All decompositions run with `Par::Seq` so the encoder's bytes do not depend on how many
 //! threads exist (faer's global parallelism would otherwise split reductions by thread count).
 
+use codec_core::linalg::{self, mul};
 use codec_core::{Error, Result};
 use faer::dyn_stack::{MemBuffer, MemStack};
-use faer::linalg::evd::{self, ComputeEigenvectors};
-use faer::linalg::matmul::matmul;
 use faer::linalg::svd::{self, ComputeSvdVectors};
-use faer::{Accum, Mat, MatRef, Par};
+use faer::{Mat, MatRef, Par};
 
 const CTX: &str = "hosvd";
 
@@ -220,24 +219,10 @@ pub fn remove_affine_motion_with(
     (transforms, x)
 }
 
+/// Eigenvalues (descending, clamped at zero) and eigenvectors of a Gram matrix: Alg. 1's factors
+/// are its leading eigenvectors.
 fn gram_evd(g: MatRef<'_, f64>) -> Result<(Vec<f64>, Mat<f64>)> {
-    let n = g.nrows();
-    let par = Par::Seq;
-    let mut s = faer::diag::Diag::<f64>::zeros(n);
-    let mut u = Mat::<f64>::zeros(n, n);
-    let mut mem =
-        MemBuffer::new(evd::self_adjoint_evd_scratch::<f64>(n, ComputeEigenvectors::Yes, par, Default::default()));
-    evd::self_adjoint_evd(g, s.as_mut(), Some(u.as_mut()), par, MemStack::new(&mut mem), Default::default()).map_err(
-        |e| Error::Numerical {
-            context: CTX.into(),
-            step: "Gram eigensolver".into(),
-            detail: codec_core::error::debug_in_words(&e),
-        },
-    )?;
-    // faer sorts ascending; the HO-SVD wants leading (largest) first.
-    let vals: Vec<f64> = (0..n).rev().map(|i| s.column_vector()[i].max(0.0)).collect();
-    let vecs = Mat::from_fn(n, n, |i, j| u[(i, n - 1 - j)]);
-    Ok((vals, vecs))
+    linalg::sym_eig_desc(g).map_err(|e| e.numerical(CTX, "Gram eigensolver"))
 }
 
 fn thin_left(b: MatRef<'_, f64>) -> Result<Mat<f64>> {
@@ -258,12 +243,6 @@ fn thin_left(b: MatRef<'_, f64>) -> Result<Mat<f64>> {
         Error::Numerical { context: CTX.into(), step: "thin SVD".into(), detail: codec_core::error::debug_in_words(&e) }
     })?;
     Ok(u)
-}
-
-fn mul(a: MatRef<'_, f64>, b: MatRef<'_, f64>) -> Mat<f64> {
-    let mut c = Mat::<f64>::zeros(a.nrows(), b.ncols());
-    matmul(c.as_mut(), Accum::Replace, a, b, 1.0, Par::Seq);
-    c
 }
 
 /// Leading `r` left singular vectors of `a` (`m × n`, `r ≤ min(m, n)`), computed through the

@@ -664,3 +664,14 @@ fn spheres_like_character_needs_no_fallback_by_default() {
     let dec = decode_animation(&enc.bytes, &reg, Limits::default()).unwrap();
     assert_eq!(dec.positions(), enc.reconstruction.unwrap().positions());
 }
+
+/// Issue 28: specs, parsing and printing of every parameter agree (one declaration each).
+#[test]
+fn parameter_declaration_agrees_with_specs_parsing_and_printing() {
+    codec_core::testing::check_declared_params::<HosvdParams>();
+    assert_eq!(Hosvd.param_specs(), HosvdParams::specs());
+    // The test hook is no parameter: never in a set, always false from one.
+    assert!(HosvdParams::specs().iter().all(|s| s.name != "force_unguarded_regression"));
+    let hooked = HosvdParams { force_unguarded_regression: true, ..HosvdParams::default() };
+    assert!(!HosvdParams::from_param_set(&hooked.to_param_set().unwrap()).unwrap().force_unguarded_regression);
+}

@@ -42,9 +42,6 @@ const PER_CLUSTER_BYTES: u64 = 256;
 /// Codec name on the command line and in error messages.
 pub const NAME: &str = "pca-aoi";
 
-const MODES: &[&str] = &["svd", "baoi", "qaoi"];
-const DOMAINS: &[&str] = &["auto", "temporal", "spatial"];
-
 /// Which autocorrelation matrix the dictionary diagonalizes (Eq. 2).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Domain {
@@ -68,212 +65,91 @@ pub enum Coding {
     Paper,
 }
 
-impl Coding {
-    /// Parameter names, in stream-code order (`paper` = 0, `toolkit` = 1).
-    pub const NAMES: [&'static str; 2] = ["paper", "toolkit"];
+// Parameter names in stream-code order (`paper` = 0, `toolkit` = 1).
+codec_core::param_choice!(Coding { Paper = "paper", Toolkit = "toolkit" });
+codec_core::param_choice!(Domain { Auto = "auto", Temporal = "temporal", Spatial = "spatial" });
+codec_core::param_choice!(Mode { Svd = "svd", Baoi = "baoi", Qaoi = "qaoi" });
 
-    fn name(self) -> &'static str {
-        match self {
-            Self::Paper => "paper",
-            Self::Toolkit => "toolkit",
-        }
+codec_core::declare_params! {
+    codec: NAME;
+    /// Typed parameters of `pca-aoi`.
+    #[derive(Debug, Clone, Copy, PartialEq)]
+    pub struct PcaAoiParams {
+        /// Dictionary estimation method. Default `baoi`.
+        pub mode: Mode = Mode::Baoi
+            => choice("dictionary estimation: svd (direct, per block), baoi (Alg. 1), qaoi (Alg. 2)"),
+        /// Subspace size (svd, baoi), 1..=512. Default 8. Not used by qaoi, whose first block takes
+        /// its size from the SVD spectrum (see the README).
+        pub k: u32 = 8
+            => int(1, 512, "subspace size (svd, baoi); qaoi sizes its first block from the SVD spectrum"),
+        /// Frames per block (= per packet), 1..=4096. Default 40.
+        pub block: u32 = 40 => int(1, MAX_BLOCK as i64, "frames per block; one self-contained packet per block"),
+        /// Power of `A_i` per orthogonal iteration, 1..=16. Default 1.
+        pub z: u32 = 1 => int(1, 16, "power of A_i applied per orthogonal iteration"),
+        /// Orthogonal iterations per block (baoi), 1..=64. Default 1.
+        pub tmax: u32 = 1 => int(1, 64, "orthogonal iterations per block (baoi)"),
+        /// QAOI band, lower edge (relative residual), 1e-6..=1. Default 0.002.
+        pub eps_low: f64 = 0.002
+            => float(1e-6, 1.0, "qaoi: drop components while the relative residual is below this"),
+        /// QAOI band, upper edge (relative residual), 1e-6..=1. Default 0.01.
+        pub eps_high: f64 = 0.01
+            => float(1e-6, 1.0, "qaoi: add components while the relative residual is above this"),
+        /// Domain. Default `auto`.
+        pub domain: Domain = Domain::Auto
+            => choice("temporal (3d x 3d autocorrelation), spatial (n x n), or auto: the smaller (Eq. 2)"),
+        /// Spatial clusters, 1..=65536 (capped at the vertex count). Default 1.
+        pub clusters: u32 = 1
+            => int(1, MAX_CLUSTERS as i64, "spatial clusters along connectivity, coded independently"),
+        /// Bits per dictionary coefficient, 4..=24. Default 14 (§4.1).
+        pub dict_bits: u8 = 14 => int(4, 24, "bits per dictionary coefficient"),
+        /// Bits per feature coefficient, 4..=24. Default 12 (§4.1).
+        pub feat_bits: u8 = 12 => int(4, 24, "bits per feature-vector coefficient"),
+        /// Drift guard factor: 0 disables it, otherwise ≥ 1. Default 2.
+        pub drift: f64 = 2.0 => float(
+            0.0,
+            1e6,
+            "re-run SVD when an AOI block's residual exceeds drift x the last SVD block's (0 = off)"
+        ),
+        /// zstd level, 1..=22 (paper coding). Default 15.
+        pub level: i32 = 15 => int(1, 22, "zstd compression level (paper coding)"),
+        /// Coding of dictionaries and features: `toolkit` (stream version 2's, default) or
+        /// `paper` (§4.1's uniform bit depths + zstd, version 1's packets).
+        pub coding: Coding = Coding::Toolkit => choice(
+            "toolkit (prediction, RD steps, adaptive arithmetic coding) or paper (uniform bits + zstd)"
+        ),
+        /// Toolkit: target error of every block (and cluster) as the KG measure does it, in
+        /// percent of the block's spread about the per-frame centroids, 0.001..=100. The RD rule
+        /// chooses which of the `max_k` components to keep and their steps. Default 1.
+        pub kg: f64 = 1.0 => float(
+            0.001,
+            100.0,
+            "toolkit: target error per block, KG in percent (RD rule picks components and steps)"
+        ),
+        /// Toolkit (svd, baoi): subspace size estimated per block, 1..=512 (capped per block at
+        /// `min(e, m)`); the RD rule keeps the components that pay for themselves. Default 120
+        /// (= `3·block` at the default block: full rank, so any `kg` target is reachable).
+        pub max_k: u32 = 120 => int(
+            1,
+            512,
+            "toolkit (svd, baoi): subspace size estimated per block; the RD rule keeps what pays"
+        ),
+        /// Toolkit: predictor of vertex fields (features or spatial dictionaries) along the
+        /// cluster's mesh. Default average.
+        pub mesh_predictor: Predictor = Predictor::Average
+            => choice("toolkit: predictor of vertex fields along the mesh"),
+        /// Toolkit: predictor of trajectories (temporal dictionaries or spatial features) along
+        /// time. Default previous.
+        pub time_predictor: Predictor = Predictor::Previous
+            => choice("toolkit: predictor of trajectories along time (parallelogram = linear extrapolation)"),
+        /// Toolkit: steps by the equal-slope rule (true) or equal distortion per entry (false,
+        /// for ablations). Default true.
+        pub rdq: bool = true => boolean("toolkit: per-component steps by the equal-slope rule"),
     }
-}
-
-/// Typed parameters of `pca-aoi`.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct PcaAoiParams {
-    /// Dictionary estimation method. Default `baoi`.
-    pub mode: Mode,
-    /// Subspace size (svd, baoi), 1..=512. Default 8. Not used by qaoi, whose first block takes
-    /// its size from the SVD spectrum (see the README).
-    pub k: u32,
-    /// Frames per block (= per packet), 1..=4096. Default 40.
-    pub block: u32,
-    /// Power of `A_i` per orthogonal iteration, 1..=16. Default 1.
-    pub z: u32,
-    /// Orthogonal iterations per block (baoi), 1..=64. Default 1.
-    pub tmax: u32,
-    /// QAOI band, lower edge (relative residual), 1e-6..=1. Default 0.002.
-    pub eps_low: f64,
-    /// QAOI band, upper edge (relative residual), 1e-6..=1. Default 0.01.
-    pub eps_high: f64,
-    /// Domain. Default `auto`.
-    pub domain: Domain,
-    /// Spatial clusters, 1..=65536 (capped at the vertex count). Default 1.
-    pub clusters: u32,
-    /// Bits per dictionary coefficient, 4..=24. Default 14 (§4.1).
-    pub dict_bits: u8,
-    /// Bits per feature coefficient, 4..=24. Default 12 (§4.1).
-    pub feat_bits: u8,
-    /// Drift guard factor: 0 disables it, otherwise ≥ 1. Default 2.
-    pub drift: f64,
-    /// zstd level, 1..=22 (paper coding). Default 15.
-    pub level: i32,
-    /// Coding of dictionaries and features: `toolkit` (stream version 2's, default) or
-    /// `paper` (§4.1's uniform bit depths + zstd, version 1's packets).
-    pub coding: Coding,
-    /// Toolkit: target error of every block (and cluster) as the KG measure does it, in
-    /// percent of the block's spread about the per-frame centroids, 0.001..=100. The RD rule
-    /// chooses which of the `max_k` components to keep and their steps. Default 1.
-    pub kg: f64,
-    /// Toolkit (svd, baoi): subspace size estimated per block, 1..=512 (capped per block at
-    /// `min(e, m)`); the RD rule keeps the components that pay for themselves. Default 120
-    /// (= `3·block` at the default block: full rank, so any `kg` target is reachable).
-    pub max_k: u32,
-    /// Toolkit: predictor of vertex fields (features or spatial dictionaries) along the
-    /// cluster's mesh. Default average.
-    pub mesh_predictor: Predictor,
-    /// Toolkit: predictor of trajectories (temporal dictionaries or spatial features) along
-    /// time. Default previous.
-    pub time_predictor: Predictor,
-    /// Toolkit: steps by the equal-slope rule (true) or equal distortion per entry (false,
-    /// for ablations). Default true.
-    pub rdq: bool,
-}
-
-impl Default for PcaAoiParams {
-    fn default() -> Self {
-        Self {
-            mode: Mode::Baoi,
-            k: 8,
-            block: 40,
-            z: 1,
-            tmax: 1,
-            eps_low: 0.002,
-            eps_high: 0.01,
-            domain: Domain::Auto,
-            clusters: 1,
-            dict_bits: 14,
-            feat_bits: 12,
-            drift: 2.0,
-            level: 15,
-            coding: Coding::Toolkit,
-            kg: 1.0,
-            max_k: 120,
-            mesh_predictor: Predictor::Average,
-            time_predictor: Predictor::Previous,
-            rdq: true,
-        }
-    }
-}
-
-fn mode_name(m: Mode) -> &'static str {
-    match m {
-        Mode::Svd => "svd",
-        Mode::Baoi => "baoi",
-        Mode::Qaoi => "qaoi",
-    }
-}
-
-fn domain_name(d: Domain) -> &'static str {
-    match d {
-        Domain::Auto => "auto",
-        Domain::Temporal => "temporal",
-        Domain::Spatial => "spatial",
-    }
+    after_read: |s: PcaAoiParams| s.check_cross().map(|()| s);
+    after_write: PcaAoiParams::check_cross;
 }
 
 impl PcaAoiParams {
-    /// Parameter descriptions, with the defaults of [`PcaAoiParams::default`].
-    pub fn specs() -> Vec<ParamSpec> {
-        let d = Self::default();
-        vec![
-            ParamSpec::choice(
-                "mode",
-                MODES,
-                mode_name(d.mode),
-                "dictionary estimation: svd (direct, per block), baoi (Alg. 1), qaoi (Alg. 2)",
-            ),
-            ParamSpec::int(
-                "k",
-                1,
-                512,
-                d.k as i64,
-                "subspace size (svd, baoi); qaoi sizes its first block from the SVD spectrum",
-            ),
-            ParamSpec::int(
-                "block",
-                1,
-                MAX_BLOCK as i64,
-                d.block as i64,
-                "frames per block; one self-contained packet per block",
-            ),
-            ParamSpec::int("z", 1, 16, d.z as i64, "power of A_i applied per orthogonal iteration"),
-            ParamSpec::int("tmax", 1, 64, d.tmax as i64, "orthogonal iterations per block (baoi)"),
-            ParamSpec::float(
-                "eps_low",
-                1e-6,
-                1.0,
-                d.eps_low,
-                "qaoi: drop components while the relative residual is below this",
-            ),
-            ParamSpec::float(
-                "eps_high",
-                1e-6,
-                1.0,
-                d.eps_high,
-                "qaoi: add components while the relative residual is above this",
-            ),
-            ParamSpec::choice(
-                "domain",
-                DOMAINS,
-                domain_name(d.domain),
-                "temporal (3d x 3d autocorrelation), spatial (n x n), or auto: the smaller (Eq. 2)",
-            ),
-            ParamSpec::int(
-                "clusters",
-                1,
-                MAX_CLUSTERS as i64,
-                d.clusters as i64,
-                "spatial clusters along connectivity, coded independently",
-            ),
-            ParamSpec::int("dict_bits", 4, 24, d.dict_bits as i64, "bits per dictionary coefficient"),
-            ParamSpec::int("feat_bits", 4, 24, d.feat_bits as i64, "bits per feature-vector coefficient"),
-            ParamSpec::float(
-                "drift",
-                0.0,
-                1e6,
-                d.drift,
-                "re-run SVD when an AOI block's residual exceeds drift x the last SVD block's (0 = off)",
-            ),
-            ParamSpec::int("level", 1, 22, d.level as i64, "zstd compression level (paper coding)"),
-            ParamSpec::choice(
-                "coding",
-                &Coding::NAMES,
-                d.coding.name(),
-                "toolkit (prediction, RD steps, adaptive arithmetic coding) or paper (uniform bits + zstd)",
-            ),
-            ParamSpec::float(
-                "kg",
-                0.001,
-                100.0,
-                d.kg,
-                "toolkit: target error per block, KG in percent (RD rule picks components and steps)",
-            ),
-            ParamSpec::int(
-                "max_k",
-                1,
-                512,
-                d.max_k as i64,
-                "toolkit (svd, baoi): subspace size estimated per block; the RD rule keeps what pays",
-            ),
-            ParamSpec::choice(
-                "mesh_predictor",
-                &Predictor::NAMES,
-                d.mesh_predictor.name(),
-                "toolkit: predictor of vertex fields along the mesh",
-            ),
-            ParamSpec::choice(
-                "time_predictor",
-                &Predictor::NAMES,
-                d.time_predictor.name(),
-                "toolkit: predictor of trajectories along time (parallelogram = linear extrapolation)",
-            ),
-            ParamSpec::boolean("rdq", d.rdq, "toolkit: per-component steps by the equal-slope rule"),
-        ]
-    }
-
     fn check_cross(&self) -> Result<()> {
         if self.eps_low >= self.eps_high {
             return Err(Error::parameter(
@@ -294,73 +170,6 @@ impl PcaAoiParams {
         self.to_param_set().map(|_| ())
     }
 
-    /// Reads the typed parameters from a [`ParamSet`] made for this codec.
-    pub fn from_param_set(p: &ParamSet) -> Result<Self> {
-        if p.codec() != NAME {
-            return Err(Error::parameter(NAME, "params", format!("parameters belong to codec '{}'", p.codec())));
-        }
-        let mode = match p.choice("mode")? {
-            "svd" => Mode::Svd,
-            "qaoi" => Mode::Qaoi,
-            _ => Mode::Baoi,
-        };
-        let domain = match p.choice("domain")? {
-            "temporal" => Domain::Temporal,
-            "spatial" => Domain::Spatial,
-            _ => Domain::Auto,
-        };
-        let s = Self {
-            mode,
-            k: p.int("k")? as u32,
-            block: p.int("block")? as u32,
-            z: p.int("z")? as u32,
-            tmax: p.int("tmax")? as u32,
-            eps_low: p.float("eps_low")?,
-            eps_high: p.float("eps_high")?,
-            domain,
-            clusters: p.int("clusters")? as u32,
-            dict_bits: p.int("dict_bits")? as u8,
-            feat_bits: p.int("feat_bits")? as u8,
-            drift: p.float("drift")?,
-            level: p.int("level")? as i32,
-            coding: if p.choice("coding")? == "paper" { Coding::Paper } else { Coding::Toolkit },
-            kg: p.float("kg")?,
-            max_k: p.int("max_k")? as u32,
-            mesh_predictor: predictor_param(p, "mesh_predictor")?,
-            time_predictor: predictor_param(p, "time_predictor")?,
-            rdq: p.bool("rdq")?,
-        };
-        s.check_cross()?;
-        Ok(s)
-    }
-
-    /// The generic form of these parameters; fails like [`PcaAoiParams::validate`].
-    pub fn to_param_set(&self) -> Result<ParamSet> {
-        let specs = Self::specs();
-        let set = ParamSet::defaults(NAME, &specs)
-            .with(&specs, "mode", ParamValue::Choice(mode_name(self.mode)))?
-            .with(&specs, "k", ParamValue::Int(self.k as i64))?
-            .with(&specs, "block", ParamValue::Int(self.block as i64))?
-            .with(&specs, "z", ParamValue::Int(self.z as i64))?
-            .with(&specs, "tmax", ParamValue::Int(self.tmax as i64))?
-            .with(&specs, "eps_low", ParamValue::Float(self.eps_low))?
-            .with(&specs, "eps_high", ParamValue::Float(self.eps_high))?
-            .with(&specs, "domain", ParamValue::Choice(domain_name(self.domain)))?
-            .with(&specs, "clusters", ParamValue::Int(self.clusters as i64))?
-            .with(&specs, "dict_bits", ParamValue::Int(self.dict_bits as i64))?
-            .with(&specs, "feat_bits", ParamValue::Int(self.feat_bits as i64))?
-            .with(&specs, "drift", ParamValue::Float(self.drift))?
-            .with(&specs, "level", ParamValue::Int(self.level as i64))?
-            .with(&specs, "coding", ParamValue::Choice(self.coding.name()))?
-            .with(&specs, "kg", ParamValue::Float(self.kg))?
-            .with(&specs, "max_k", ParamValue::Int(self.max_k as i64))?
-            .with(&specs, "mesh_predictor", ParamValue::Choice(self.mesh_predictor.name()))?
-            .with(&specs, "time_predictor", ParamValue::Choice(self.time_predictor.name()))?
-            .with(&specs, "rdq", ParamValue::Bool(self.rdq))?;
-        self.check_cross()?;
-        Ok(set)
-    }
-
     fn settings(&self) -> EstimatorSettings {
         EstimatorSettings {
             mode: self.mode,
@@ -375,11 +184,6 @@ impl PcaAoiParams {
             drift: self.drift,
         }
     }
-}
-
-fn predictor_param(p: &ParamSet, name: &'static str) -> Result<Predictor> {
-    let value = p.choice(name)?;
-    Predictor::from_name(value).ok_or_else(|| Error::parameter(NAME, name, format!("unknown predictor '{value}'")))
 }
 
 /// The rate ladder of `qaoi` streams: `eps_high` from large to small residuals (`k` is only

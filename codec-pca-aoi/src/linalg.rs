@@ -4,7 +4,8 @@
 //! every floating-point reduction in the same order whatever the thread count, so the
 //! bitstream is deterministic.
 
-use codec_core::{Error, Result};
+pub(crate) use codec_core::linalg::mul;
+use codec_core::{linalg, Result};
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::householder::{
     apply_block_householder_sequence_on_the_left_in_place_scratch,
@@ -12,17 +13,9 @@ use faer::linalg::householder::{
 };
 use faer::linalg::matmul::matmul;
 use faer::linalg::qr::no_pivoting::factor::{qr_in_place, qr_in_place_scratch, recommended_block_size};
-use faer::linalg::svd::{svd, svd_scratch, ComputeSvdVectors};
 use faer::{Accum, Conj, Mat, MatRef, Par};
 
 use crate::NAME;
-
-/// `a · b`.
-pub(crate) fn mul(a: MatRef<'_, f64>, b: MatRef<'_, f64>) -> Mat<f64> {
-    let mut c = Mat::zeros(a.nrows(), b.ncols());
-    matmul(c.as_mut(), Accum::Replace, a, b, 1.0, Par::Seq);
-    c
-}
 
 /// `c ← c + alpha · a · b`.
 pub(crate) fn mul_add(c: &mut Mat<f64>, a: MatRef<'_, f64>, b: MatRef<'_, f64>, alpha: f64) {
@@ -75,22 +68,7 @@ pub(crate) fn orthonormalize(m: Mat<f64>) -> Mat<f64> {
 /// SVD of the square symmetric matrix `a` (Eq. 3, `A = U Σ Uᵀ`): left singular vectors and
 /// singular values in nonincreasing order.
 pub(crate) fn svd_symmetric(a: MatRef<'_, f64>) -> Result<(Mat<f64>, Vec<f64>)> {
-    let n = a.nrows();
-    let mut u = Mat::zeros(n, n);
-    let mut s = faer::diag::Diag::<f64>::zeros(n);
-    let mut buf = MemBuffer::new(svd_scratch::<f64>(
-        n,
-        n,
-        ComputeSvdVectors::Full,
-        ComputeSvdVectors::No,
-        Par::Seq,
-        Default::default(),
-    ));
-    svd(a, s.as_mut(), Some(u.as_mut()), None, Par::Seq, MemStack::new(&mut buf), Default::default()).map_err(|e| {
-        Error::Numerical { context: NAME.into(), step: "svd".into(), detail: codec_core::error::debug_in_words(&e) }
-    })?;
-    let values = (0..n).map(|i| s.column_vector()[i]).collect();
-    Ok((u, values))
+    linalg::sym_svd(a).map_err(|e| e.numerical(NAME, "svd"))
 }
 
 #[cfg(test)]

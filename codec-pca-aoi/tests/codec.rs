@@ -406,3 +406,10 @@ fn cluster_count_and_packet_length_are_bounded_by_the_encoders_ranges() {
     let e = dec.decode_packet(&long).unwrap_err().to_string();
     assert!(e.contains("packet.frame_count") && e.contains("4096"), "{e}");
 }
+
+/// Issue 28: specs, parsing and printing of every parameter agree (one declaration each).
+#[test]
+fn parameter_declaration_agrees_with_specs_parsing_and_printing() {
+    codec_core::testing::check_declared_params::<PcaAoiParams>();
+    assert_eq!(PcaAoi.param_specs(), PcaAoiParams::specs());
+}

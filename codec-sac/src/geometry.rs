@@ -532,10 +532,10 @@ impl PoissonSystem {
     }
 
     /// Operations of one [`PoissonSystem::solve`]: the numeric factorization
-    /// ([`crate::harmonics::cholesky_work`]) and three triangular solve pairs.
+    /// ([`cholesky_work`]) and three triangular solve pairs.
     pub fn solve_work(&self) -> u64 {
         let fill = self.cholesky.len_val();
-        crate::harmonics::cholesky_work(fill, self.unknowns).saturating_add(12 * fill as u64)
+        cholesky_work(fill, self.unknowns).saturating_add(12 * fill as u64)
     }
 
     /// The pinned vertex of every component.
@@ -665,11 +665,11 @@ impl ReducedPoisson {
     }
 
     /// Operations of one [`ReducedPoisson::factor`] and one [`ReducedPoisson::solve`]: the
-    /// numeric factorization ([`crate::harmonics::cholesky_work`]) and three triangular solve
+    /// numeric factorization ([`cholesky_work`]) and three triangular solve
     /// pairs.
     pub fn factor_and_solve_work(&self) -> u64 {
         let fill = self.cholesky.len_val();
-        crate::harmonics::cholesky_work(fill, self.unknowns).saturating_add(12 * fill as u64)
+        cholesky_work(fill, self.unknowns).saturating_add(12 * fill as u64)
     }
 
     /// Scratch for [`ReducedPoisson::factor`] and [`ReducedPoisson::solve`] (allocate once).
@@ -822,6 +822,16 @@ impl ReducedPoisson {
         }
         Ok(())
     }
+}
+
+/// Operations of a sparse Cholesky factorization whose factor has `fill` entries in `n`
+/// columns: `Σ_j c_j²` over the column counts `c_j`, bounded below by `fill² / n`
+/// (Cauchy–Schwarz), which is what is returned — an expander-like crafted connectivity, whose
+/// factor is nearly dense, gives about n³/4. It lives with the Poisson systems here because the
+/// harmonics (`harmonics.rs`, built on this module) factor sparse systems too.
+pub fn cholesky_work(fill: usize, n: usize) -> u64 {
+    let fill = fill as u64;
+    fill.saturating_mul(fill) / (n as u64).max(1)
 }
 
 #[cfg(test)]

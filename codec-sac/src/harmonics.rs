@@ -15,7 +15,7 @@ use faer::{Accum, Col, Conj, Mat, MatMut, MatRef, Par, Side};
 
 use codec_core::{Error, Limits, Result};
 
-use crate::geometry::{corners, cross, dot, norm, sub, V3};
+use crate::geometry::{cholesky_work, corners, cross, dot, norm, sub, V3};
 use crate::NAME;
 
 fn numerical(step: &'static str, detail: impl Into<String>) -> Error {
@@ -323,15 +323,6 @@ pub fn work_estimate(n: usize, count: usize) -> u64 {
     let reorthogonalize = 2u64.saturating_mul(n64).saturating_mul(max_dim.saturating_mul(max_dim));
     let ritz = 4u64.saturating_mul(n64).saturating_mul(want.saturating_mul(want));
     reorthogonalize.saturating_add(ritz)
-}
-
-/// Operations of a sparse Cholesky factorization whose factor has `fill` entries in `n`
-/// columns: `Σ_j c_j²` over the column counts `c_j`, bounded below by `fill² / n`
-/// (Cauchy–Schwarz), which is what is returned — an expander-like crafted connectivity, whose
-/// factor is nearly dense, gives about n³/4.
-pub fn cholesky_work(fill: usize, n: usize) -> u64 {
-    let fill = fill as u64;
-    fill.saturating_mul(fill) / (n as u64).max(1)
 }
 
 /// Computes the first `count` manifold harmonics of the mesh `pos`/`tris`.

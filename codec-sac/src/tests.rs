@@ -650,3 +650,10 @@ fn eigensolver_allocations_are_checked_against_the_limits() {
     expect(harmonics::harmonics_by_component_within(&pos, &tris, 120, &tight(256 << 10)), "dense eigensolver");
     assert!(harmonics::harmonics_within(&pos, &tris, 120, &tight(8 << 20)).is_ok());
 }
+
+/// Issue 28: specs, parsing and printing of every parameter agree (one declaration each).
+#[test]
+fn parameter_declaration_agrees_with_specs_parsing_and_printing() {
+    codec_core::testing::check_declared_params::<SacParams>();
+    assert_eq!(Sac.param_specs(), SacParams::specs());
+}

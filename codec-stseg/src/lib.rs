@@ -84,6 +84,8 @@ impl Centering {
     }
 }
 
+codec_core::param_choice!(Centering, inherent);
+
 /// Which change detector ends a segment besides Alg. 2's PC counts.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Detector {
@@ -97,25 +99,7 @@ pub enum Detector {
     Scan,
 }
 
-impl Detector {
-    /// Parameter names.
-    pub const NAMES: &'static [&'static str] = &["paper", "scan"];
-    /// The parameter name.
-    pub fn name(self) -> &'static str {
-        match self {
-            Self::Paper => "paper",
-            Self::Scan => "scan",
-        }
-    }
-    /// From a parameter name.
-    pub fn from_name(n: &str) -> Option<Self> {
-        match n {
-            "paper" => Some(Self::Paper),
-            "scan" => Some(Self::Scan),
-            _ => None,
-        }
-    }
-}
+codec_core::param_choice!(Detector { Paper = "paper", Scan = "scan" });
 
 /// How a segment's PCA is coded (`coding` parameter).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -157,186 +141,88 @@ impl Coding {
     }
 }
 
-/// Typed parameters of `stseg` (names follow the paper's notation).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct StsegParams {
-    /// Information persistence rate ω of the PCA that codes each group and segment (§4.4):
-    /// the rate knob. Default 0.99.
-    pub omega: f64,
-    /// Persistence rate used by the segmentation (Alg. 1 group models, Alg. 2 PC counts). The
-    /// paper uses one ω for both; keeping them apart makes the segmentation, and so the packet
-    /// structure, the same at every rung of the rate ladder. Default 0.9 (the paper's is ω =
-    /// 0.99): with frame-axis counts it rarely ends a segment early, which measured best on
-    /// samba and horse-gallop (README, issue 13).
-    pub omega_seg: f64,
-    /// What each group's PCA (coding and Alg. 2 counts) subtracts first, i.e. what ω is a
-    /// share of. Default [`Centering::FrameAxis`], the reading of §4.4 / Eq. 8 that lands
-    /// nearest Table 1's KG at ω = 0.99 (measured, see README).
-    pub centering: Centering,
-    /// What the PCA of Alg. 2's PC counts subtracts. The paper uses one PCA for both (set it
-    /// equal to `centering`). Default [`Centering::FrameAxis`]: with `omega_seg = 0.9` the
-    /// counts rarely change, segments run to γ_max, and that measured best on real data
-    /// (README); [`Centering::Vertex`] with `omega_seg = 0.99` reacts to motion changes.
-    pub seg_centering: Centering,
-    /// Change detector: [`Detector::Paper`] (default) or [`Detector::Scan`].
-    pub detector: Detector,
-    /// Smoothing window `w` of the initial cut (§4.1). Default 5.
-    pub w: u32,
-    /// Range γ_init of the initial cut. Default 20.
-    pub gamma_init: u32,
-    /// Maximal segment length γ_max (§4.3). Default 50.
-    pub gamma_max: u32,
-    /// Kernel parameter λ of Eq. 3, relative to the median squared window distance. Default 1.
-    pub lambda: f64,
-    /// Smallest maximum-mean discrepancy that counts as an initial cut. Default 0.1.
-    pub cut_threshold: f64,
-    /// Maximal number of vertex groups N_g (§4.2). Default 4.
-    pub groups: u32,
-    /// Share ρ of the edges taken as rigid (§4.2.1). Default 0.2.
-    pub rho: f64,
-    /// Rings η of neighbours added to each group before its PCA (§4.4). Default 2.
-    pub eta: u32,
-    /// Bits of the mean shapes and PCA bases. Default 12.
-    pub bits: u8,
-    /// Bits of the PCA coefficients (orthonormal rows, values in [−1, 1]). Default 12.
-    pub coef_bits: u8,
-    /// zstd level (paper coding: everything; toolkit coding: the step table). Default 19.
-    pub level: i32,
-    /// How the PCA is coded: [`Coding::Toolkit`] (default, stream version 3) or
-    /// [`Coding::Paper`] (version 2's bytes; what the paper-reproduction tables use).
-    pub coding: Coding,
-    /// Toolkit coding: RMS quantization error relative to the truncation error the PCA left
-    /// (budget `D = quant²·E_trunc` per segment). Default 0.25.
-    pub quant: f64,
-    /// Toolkit coding: predictor of the per-vertex fields (basis columns, `vertex` mean)
-    /// along each group's mesh order. Default [`Predictor::Average`].
-    pub mesh_predictor: Predictor,
-    /// Toolkit coding: predictor of the trajectories (coefficient rows, per-frame means) in
-    /// time. Default [`Predictor::Previous`].
-    pub time_predictor: Predictor,
-    /// Toolkit coding: noise shaping `α` of the basis columns along the group's mesh order
-    /// (`toolkit::predict`: neighbouring vertices err alike, which STED rewards; encoder only,
-    /// the stream is unchanged). Default 0.
-    pub shaping: f64,
-}
+codec_core::param_choice!(Coding, inherent);
 
-impl Default for StsegParams {
-    fn default() -> Self {
-        Self {
-            omega: 0.99,
-            omega_seg: 0.9,
-            centering: Centering::FrameAxis,
-            seg_centering: Centering::FrameAxis,
-            detector: Detector::Paper,
-            w: 5,
-            gamma_init: 20,
-            gamma_max: 50,
-            lambda: 1.0,
-            cut_threshold: 0.1,
-            groups: 4,
-            rho: 0.2,
-            eta: 2,
-            bits: 12,
-            coef_bits: 12,
-            level: 19,
-            coding: Coding::Toolkit,
-            quant: 0.25,
-            mesh_predictor: Predictor::Average,
-            time_predictor: Predictor::Previous,
-            shaping: 0.0,
-        }
+codec_core::declare_params! {
+    codec: NAME;
+    /// Typed parameters of `stseg` (names follow the paper's notation).
+    #[derive(Debug, Clone, Copy, PartialEq)]
+    pub struct StsegParams {
+        /// Information persistence rate ω of the PCA that codes each group and segment (§4.4):
+        /// the rate knob. Default 0.99.
+        pub omega: f64 = 0.99 => float(0.5, 0.999999, "PCA information persistence rate ω (rate knob)"),
+        /// Persistence rate used by the segmentation (Alg. 1 group models, Alg. 2 PC counts). The
+        /// paper uses one ω for both; keeping them apart makes the segmentation, and so the packet
+        /// structure, the same at every rung of the rate ladder. Default 0.9 (the paper's is ω =
+        /// 0.99): with frame-axis counts it rarely ends a segment early, which measured best on
+        /// samba and horse-gallop (README, issue 13).
+        pub omega_seg: f64 = 0.9 => float(0.5, 0.999999, "persistence rate of the segmentation (Alg. 1, 2)"),
+        /// What each group's PCA (coding and Alg. 2 counts) subtracts first, i.e. what ω is a
+        /// share of. Default [`Centering::FrameAxis`], the reading of §4.4 / Eq. 8 that lands
+        /// nearest Table 1's KG at ω = 0.99 (measured, see README).
+        pub centering: Centering = Centering::FrameAxis
+            => choice("what the PCA subtracts: frame (paper: per-frame mean), vertex (mean shape) or none"),
+        /// What the PCA of Alg. 2's PC counts subtracts. The paper uses one PCA for both (set it
+        /// equal to `centering`). Default [`Centering::FrameAxis`]: with `omega_seg = 0.9` the
+        /// counts rarely change, segments run to γ_max, and that measured best on real data
+        /// (README); [`Centering::Vertex`] with `omega_seg = 0.99` reacts to motion changes.
+        pub seg_centering: Centering = Centering::FrameAxis
+            => choice("what the PCA of Alg. 2's PC counts subtracts (same choices as centering)"),
+        /// Change detector: [`Detector::Paper`] (default) or [`Detector::Scan`].
+        pub detector: Detector = Detector::Paper
+            => choice("paper (initial cut at block starts) or scan (the cut scans the whole block)"),
+        /// Smoothing window `w` of the initial cut (§4.1). Default 5.
+        pub w: u32 = 5 => int(2, 32, "initial-cut smoothing window w (frames)"),
+        /// Range γ_init of the initial cut. Default 20.
+        pub gamma_init: u32 = 20 => int(8, 128, "initial-cut range γ_init (frames), ≥ w + 4"),
+        /// Maximal segment length γ_max (§4.3). Default 50.
+        pub gamma_max: u32 = 50
+            => int(8, MAX_SEGMENT_FRAMES as i64, "maximal segment length γ_max (frames), ≥ gamma_init"),
+        /// Kernel parameter λ of Eq. 3, relative to the median squared window distance. Default 1.
+        pub lambda: f64 = 1.0
+            => float(0.01, 100.0, "kernel parameter λ (Eq. 3), in units of the median distance"),
+        /// Smallest maximum-mean discrepancy that counts as an initial cut. Default 0.1.
+        pub cut_threshold: f64 = 0.1 => float(0.0, 2.0, "smallest MMD that counts as an initial cut"),
+        /// Maximal number of vertex groups N_g (§4.2). Default 4.
+        pub groups: u32 = 4 => int(1, MAX_GROUPS as i64, "maximal number of vertex groups N_g"),
+        /// Share ρ of the edges taken as rigid (§4.2.1). Default 0.2.
+        pub rho: f64 = 0.2 => float(0.01, 0.99, "share ρ of edges taken as rigid"),
+        /// Rings η of neighbours added to each group before its PCA (§4.4). Default 2.
+        pub eta: u32 = 2 => int(0, 8, "η-ring overlap of vertex groups for boundary consistency"),
+        /// Bits of the mean shapes and PCA bases. Default 12.
+        pub bits: u8 = 12 => int(6, 20, "bits of mean shapes and PCA bases"),
+        /// Bits of the PCA coefficients (orthonormal rows, values in [−1, 1]). Default 12.
+        pub coef_bits: u8 = 12 => int(6, 20, "bits of PCA coefficients"),
+        /// zstd level (paper coding: everything; toolkit coding: the step table). Default 19.
+        pub level: i32 = 19 => int(1, 22, "zstd compression level"),
+        /// How the PCA is coded: [`Coding::Toolkit`] (default, stream version 3) or
+        /// [`Coding::Paper`] (version 2's bytes; what the paper-reproduction tables use).
+        pub coding: Coding = Coding::Toolkit => choice(
+            "toolkit (prediction, RD steps, adaptive arithmetic coding; stream v3) or paper (bit depths + zstd)"
+        ),
+        /// Toolkit coding: RMS quantization error relative to the truncation error the PCA left
+        /// (budget `D = quant²·E_trunc` per segment). Default 0.25.
+        pub quant: f64 = 0.25
+            => float(0.01, 4.0, "toolkit: quantization RMS error target relative to the truncation error"),
+        /// Toolkit coding: predictor of the per-vertex fields (basis columns, `vertex` mean)
+        /// along each group's mesh order. Default [`Predictor::Average`].
+        pub mesh_predictor: Predictor = Predictor::Average
+            => choice("toolkit: predictor of basis fields along the group's mesh order"),
+        /// Toolkit coding: predictor of the trajectories (coefficient rows, per-frame means) in
+        /// time. Default [`Predictor::Previous`].
+        pub time_predictor: Predictor = Predictor::Previous
+            => choice("toolkit: predictor of coefficient and mean trajectories in time"),
+        /// Toolkit coding: noise shaping `α` of the basis columns along the group's mesh order
+        /// (`toolkit::predict`: neighbouring vertices err alike, which STED rewards; encoder only,
+        /// the stream is unchanged). Default 0.
+        pub shaping: f64 = 0.0
+            => float(0.0, 0.95, "toolkit: noise shaping α of the basis along the mesh (encoder only)"),
     }
+    after_read: |s: StsegParams| s.check_cross().map(|()| s);
+    after_write: StsegParams::check_cross;
 }
 
 impl StsegParams {
-    /// Parameter descriptions, with the defaults of [`StsegParams::default`].
-    pub fn specs() -> Vec<ParamSpec> {
-        let d = Self::default();
-        vec![
-            ParamSpec::float("omega", 0.5, 0.999999, d.omega, "PCA information persistence rate ω (rate knob)"),
-            ParamSpec::float(
-                "omega_seg",
-                0.5,
-                0.999999,
-                d.omega_seg,
-                "persistence rate of the segmentation (Alg. 1, 2)",
-            ),
-            ParamSpec::choice(
-                "centering",
-                Centering::NAMES,
-                d.centering.name(),
-                "what the PCA subtracts: frame (paper: per-frame mean), vertex (mean shape) or none",
-            ),
-            ParamSpec::choice(
-                "seg_centering",
-                Centering::NAMES,
-                d.seg_centering.name(),
-                "what the PCA of Alg. 2's PC counts subtracts (same choices as centering)",
-            ),
-            ParamSpec::choice(
-                "detector",
-                Detector::NAMES,
-                d.detector.name(),
-                "paper (initial cut at block starts) or scan (the cut scans the whole block)",
-            ),
-            ParamSpec::int("w", 2, 32, d.w as i64, "initial-cut smoothing window w (frames)"),
-            ParamSpec::int("gamma_init", 8, 128, d.gamma_init as i64, "initial-cut range γ_init (frames), ≥ w + 4"),
-            ParamSpec::int(
-                "gamma_max",
-                8,
-                MAX_SEGMENT_FRAMES as i64,
-                d.gamma_max as i64,
-                "maximal segment length γ_max (frames), ≥ gamma_init",
-            ),
-            ParamSpec::float(
-                "lambda",
-                0.01,
-                100.0,
-                d.lambda,
-                "kernel parameter λ (Eq. 3), in units of the median distance",
-            ),
-            ParamSpec::float("cut_threshold", 0.0, 2.0, d.cut_threshold, "smallest MMD that counts as an initial cut"),
-            ParamSpec::int("groups", 1, MAX_GROUPS as i64, d.groups as i64, "maximal number of vertex groups N_g"),
-            ParamSpec::float("rho", 0.01, 0.99, d.rho, "share ρ of edges taken as rigid"),
-            ParamSpec::int("eta", 0, 8, d.eta as i64, "η-ring overlap of vertex groups for boundary consistency"),
-            ParamSpec::int("bits", 6, 20, d.bits as i64, "bits of mean shapes and PCA bases"),
-            ParamSpec::int("coef_bits", 6, 20, d.coef_bits as i64, "bits of PCA coefficients"),
-            ParamSpec::int("level", 1, 22, d.level as i64, "zstd compression level"),
-            ParamSpec::choice(
-                "coding",
-                Coding::NAMES,
-                d.coding.name(),
-                "toolkit (prediction, RD steps, adaptive arithmetic coding; stream v3) or paper (bit depths + zstd)",
-            ),
-            ParamSpec::float(
-                "quant",
-                0.01,
-                4.0,
-                d.quant,
-                "toolkit: quantization RMS error target relative to the truncation error",
-            ),
-            ParamSpec::choice(
-                "mesh_predictor",
-                &Predictor::NAMES,
-                d.mesh_predictor.name(),
-                "toolkit: predictor of basis fields along the group's mesh order",
-            ),
-            ParamSpec::choice(
-                "time_predictor",
-                &Predictor::NAMES,
-                d.time_predictor.name(),
-                "toolkit: predictor of coefficient and mean trajectories in time",
-            ),
-            ParamSpec::float(
-                "shaping",
-                0.0,
-                0.95,
-                d.shaping,
-                "toolkit: noise shaping α of the basis along the mesh (encoder only)",
-            ),
-        ]
-    }
-
     /// Checks every field against the ranges in [`StsegParams::specs`] and the constraints
     /// between them (`gamma_init ≥ w + 4`, `gamma_max ≥ gamma_init`).
     pub fn validate(&self) -> Result<()> {
@@ -363,74 +249,6 @@ impl StsegParams {
             ));
         }
         Ok(())
-    }
-
-    /// Reads the typed parameters from a [`ParamSet`] made for this codec (values in it were
-    /// range-checked against the specs, so the narrowing casts are in range).
-    pub fn from_param_set(p: &ParamSet) -> Result<Self> {
-        if p.codec() != NAME {
-            return Err(Error::parameter(NAME, "params", format!("parameters belong to codec '{}'", p.codec())));
-        }
-        let s = Self {
-            omega: p.float("omega")?,
-            omega_seg: p.float("omega_seg")?,
-            centering: Centering::from_name(p.choice("centering")?)
-                .ok_or_else(|| Error::parameter(NAME, "centering", "unknown centering"))?,
-            seg_centering: Centering::from_name(p.choice("seg_centering")?)
-                .ok_or_else(|| Error::parameter(NAME, "seg_centering", "unknown centering"))?,
-            detector: Detector::from_name(p.choice("detector")?)
-                .ok_or_else(|| Error::parameter(NAME, "detector", "unknown detector"))?,
-            w: p.int("w")? as u32,
-            gamma_init: p.int("gamma_init")? as u32,
-            gamma_max: p.int("gamma_max")? as u32,
-            lambda: p.float("lambda")?,
-            cut_threshold: p.float("cut_threshold")?,
-            groups: p.int("groups")? as u32,
-            rho: p.float("rho")?,
-            eta: p.int("eta")? as u32,
-            bits: p.int("bits")? as u8,
-            coef_bits: p.int("coef_bits")? as u8,
-            level: p.int("level")? as i32,
-            coding: Coding::from_name(p.choice("coding")?)
-                .ok_or_else(|| Error::parameter(NAME, "coding", "unknown coding"))?,
-            quant: p.float("quant")?,
-            mesh_predictor: Predictor::from_name(p.choice("mesh_predictor")?)
-                .ok_or_else(|| Error::parameter(NAME, "mesh_predictor", "unknown predictor"))?,
-            time_predictor: Predictor::from_name(p.choice("time_predictor")?)
-                .ok_or_else(|| Error::parameter(NAME, "time_predictor", "unknown predictor"))?,
-            shaping: p.float("shaping")?,
-        };
-        s.check_cross()?;
-        Ok(s)
-    }
-
-    /// The generic form of these parameters; fails like [`StsegParams::validate`].
-    pub fn to_param_set(&self) -> Result<ParamSet> {
-        let specs = Self::specs();
-        let p = ParamSet::defaults(NAME, &specs)
-            .with(&specs, "omega", ParamValue::Float(self.omega))?
-            .with(&specs, "omega_seg", ParamValue::Float(self.omega_seg))?
-            .with(&specs, "centering", ParamValue::Choice(self.centering.name()))?
-            .with(&specs, "seg_centering", ParamValue::Choice(self.seg_centering.name()))?
-            .with(&specs, "detector", ParamValue::Choice(self.detector.name()))?
-            .with(&specs, "w", ParamValue::Int(self.w as i64))?
-            .with(&specs, "gamma_init", ParamValue::Int(self.gamma_init as i64))?
-            .with(&specs, "gamma_max", ParamValue::Int(self.gamma_max as i64))?
-            .with(&specs, "lambda", ParamValue::Float(self.lambda))?
-            .with(&specs, "cut_threshold", ParamValue::Float(self.cut_threshold))?
-            .with(&specs, "groups", ParamValue::Int(self.groups as i64))?
-            .with(&specs, "rho", ParamValue::Float(self.rho))?
-            .with(&specs, "eta", ParamValue::Int(self.eta as i64))?
-            .with(&specs, "bits", ParamValue::Int(self.bits as i64))?
-            .with(&specs, "coef_bits", ParamValue::Int(self.coef_bits as i64))?
-            .with(&specs, "level", ParamValue::Int(self.level as i64))?
-            .with(&specs, "coding", ParamValue::Choice(self.coding.name()))?
-            .with(&specs, "quant", ParamValue::Float(self.quant))?
-            .with(&specs, "mesh_predictor", ParamValue::Choice(self.mesh_predictor.name()))?
-            .with(&specs, "time_predictor", ParamValue::Choice(self.time_predictor.name()))?
-            .with(&specs, "shaping", ParamValue::Float(self.shaping))?;
-        self.check_cross()?;
-        Ok(p)
     }
 
     /// Largest number of frames in one packet.

@@ -1,8 +1,8 @@
-//! Small dense helpers on top of faer: Gram matrices and symmetric eigen-decompositions.
+//! Small dense helpers on top of faer: Gram matrices, and the shared symmetric
+//! eigen-decomposition ([`codec_core::linalg`]) with this codec's error context.
 
-use codec_core::{Error, Result};
-use faer::dyn_stack::{MemBuffer, MemStack};
-use faer::linalg::evd::{self, ComputeEigenvectors};
+pub use codec_core::linalg::mul;
+use codec_core::{linalg, Result};
 use faer::linalg::matmul::matmul;
 use faer::{Accum, Mat, MatRef, Par};
 
@@ -15,48 +15,15 @@ pub fn gram(a: MatRef<'_, f64>) -> Mat<f64> {
     c
 }
 
-/// `A·B`.
-pub fn mul(a: MatRef<'_, f64>, b: MatRef<'_, f64>) -> Mat<f64> {
-    let mut c = Mat::<f64>::zeros(a.nrows(), b.ncols());
-    matmul(c.as_mut(), Accum::Replace, a, b, 1.0, Par::Seq);
-    c
-}
-
 /// Eigenvalues (clamped at zero, descending) and matching eigenvectors (columns) of a
-/// symmetric positive semi-definite matrix.
+/// symmetric positive semi-definite matrix; a failure names the PCA `step`.
 pub fn sym_eig_desc(g: MatRef<'_, f64>, step: &'static str) -> Result<(Vec<f64>, Mat<f64>)> {
-    let n = g.nrows();
-    if n == 0 {
-        return Ok((Vec::new(), Mat::zeros(0, 0)));
-    }
-    let par = Par::Seq;
-    let mut s = faer::diag::Diag::<f64>::zeros(n);
-    let mut u = Mat::<f64>::zeros(n, n);
-    let mut mem =
-        MemBuffer::new(evd::self_adjoint_evd_scratch::<f64>(n, ComputeEigenvectors::Yes, par, Default::default()));
-    evd::self_adjoint_evd(g, s.as_mut(), Some(u.as_mut()), par, MemStack::new(&mut mem), Default::default()).map_err(
-        |e| Error::Numerical { context: NAME.into(), step: step.into(), detail: codec_core::error::debug_in_words(&e) },
-    )?;
-    // faer sorts ascending; PCA wants the leading components first.
-    let vals: Vec<f64> = (0..n).rev().map(|i| s.column_vector()[i].max(0.0)).collect();
-    let vecs = Mat::from_fn(n, n, |i, j| u[(i, n - 1 - j)]);
-    Ok((vals, vecs))
+    linalg::sym_eig_desc(g).map_err(|e| e.numerical(NAME, step))
 }
 
 /// Eigenvalues only (descending, clamped at zero) of a symmetric PSD matrix.
 pub fn sym_eigvals_desc(g: MatRef<'_, f64>, step: &'static str) -> Result<Vec<f64>> {
-    let n = g.nrows();
-    if n == 0 {
-        return Ok(Vec::new());
-    }
-    let par = Par::Seq;
-    let mut s = faer::diag::Diag::<f64>::zeros(n);
-    let mut mem =
-        MemBuffer::new(evd::self_adjoint_evd_scratch::<f64>(n, ComputeEigenvectors::No, par, Default::default()));
-    evd::self_adjoint_evd(g, s.as_mut(), None, par, MemStack::new(&mut mem), Default::default()).map_err(|e| {
-        Error::Numerical { context: NAME.into(), step: step.into(), detail: codec_core::error::debug_in_words(&e) }
-    })?;
-    Ok((0..n).rev().map(|i| s.column_vector()[i].max(0.0)).collect())
+    linalg::sym_eigvals_desc(g).map_err(|e| e.numerical(NAME, step))
 }
 
 /// Number of principal components that keep at least the share `omega` of the energy

@@ -404,3 +404,10 @@ fn toolkit_decoder_refuses_overlong_packets_and_survives_damaged_payloads() {
         }
     }
 }
+
+/// Issue 28: specs, parsing and printing of every parameter agree (one declaration each).
+#[test]
+fn parameter_declaration_agrees_with_specs_parsing_and_printing() {
+    codec_core::testing::check_declared_params::<StsegParams>();
+    assert_eq!(Stseg.param_specs(), StsegParams::specs());
+}

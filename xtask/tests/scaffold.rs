@@ -163,7 +163,8 @@ fn a_scaffolded_codec_passes_every_test_with_no_other_edit() {
 
     // Every test that concerns a new codec, on it: conformance suite (restricted to it, the
     // other codecs are tested by the real workspace's run), golden streams, fuzz corpora and
-    // their wiring, the README tables; its own unit tests; and the format check.
+    // their wiring, the README tables, parameter declarations; its own unit tests; and the
+    // format check.
     cargo(
         &ws,
         &target,
@@ -183,6 +184,8 @@ fn a_scaffolded_codec_passes_every_test_with_no_other_edit() {
             "fuzz_corpus",
             "--test",
             "codec_tables",
+            "--test",
+            "param_declarations",
         ],
         &[("ANIMCODEC_CODECS", NAME)],
     );

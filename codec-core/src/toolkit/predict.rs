@@ -60,6 +60,9 @@ impl Predictor {
     }
 }
 
+// The parameter names are the stream names, in code order.
+crate::param_choice!(Predictor, inherent);
+
 /// Prediction for position `p` from reconstructed values `recon` (position order, valid below `p`).
 #[inline]
 pub fn predict(graph: &CausalGraph, predictor: Predictor, recon: &[f64], p: usize) -> f64 {

@@ -27,13 +27,13 @@ use codec_core::bytes::{ByteReader, ByteWriter};
 use codec_core::codec::{
     AnimationCodec, EncodedPacket, EncoderSetup, ErrorBound, FourCc, FrameDecoder, FrameEncoder, Packet, StreamInfo,
 };
-use codec_core::container::Limits;
+
 use codec_core::params::{ParamSet, ParamSpec, ParamValue, RateLadder};
 use codec_core::toolkit::adaptive::{AdaptiveDecoder, AdaptiveEncoder};
 use codec_core::toolkit::order::{mesh_bytes, CausalGraph};
 use codec_core::toolkit::predict::{self, Predictor};
 use codec_core::toolkit::rdq;
-use codec_core::{Animation, Error, Result};
+use codec_core::{Animation, Error, Limits, Result};
 
 mod params;
 pub use params::TemplateParams;
