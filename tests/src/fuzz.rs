@@ -345,7 +345,7 @@ fn committed_seed_files(root: &Path) -> Vec<(String, String)> {
 /// Makes the committed seeds equal to [`seeds`]: writes the missing and changed files (not
 /// those only this CPU makes differently, [`SeedDifference::ChangedOnThisCpu`]) and deletes
 /// orphaned `seed-*` files (only those: a fuzzer's files have hash names). Returns the
-/// paths it wrote or deleted. `ANIMCODEC_WRITE_FUZZ_SEEDS=1 cargo test -p conformance-tests
+/// paths it wrote or deleted. `ANIMCODEC_WRITE_FUZZ_SEEDS=1 cargo test --workspace
 /// --test fuzz_corpus` calls it.
 pub fn write_seeds() -> std::io::Result<Vec<PathBuf>> {
     let root = corpus_dir();

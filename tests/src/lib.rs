@@ -29,7 +29,7 @@ pub fn registry() -> CodecRegistry {
 }
 
 /// Environment variable restricting the conformance suite to some codecs: a comma-separated
-/// list of names (`ANIMCODEC_CODECS=my-codec cargo test -p conformance-tests --test conformance
+/// list of names (`ANIMCODEC_CODECS=my-codec cargo test --workspace --test conformance
 /// --test corruption --test encoder_input`), for working on one codec. Unset (as in CI), every
 /// codec is tested.
 pub const CODECS_VAR: &str = "ANIMCODEC_CODECS";

@@ -2,7 +2,7 @@
 //! (`animcodec::tables::codec_table_markdown`, what `animcodec list --markdown` prints): a codec
 //! added, removed or changed (summary, parameters, ladder, version) shows up here until the
 //! tables are rewritten with
-//! `ANIMCODEC_WRITE_CODEC_TABLES=1 cargo test -p conformance-tests --test codec_tables`.
+//! `ANIMCODEC_WRITE_CODEC_TABLES=1 cargo test --workspace --test codec_tables`.
 
 use std::path::Path;
 
@@ -32,7 +32,7 @@ fn readme_codec_tables_match_the_registry() {
     assert!(
         stale.is_empty(),
         "the codec table of {} differs from the registry's:\n{table}\nrewrite it with \
-         ANIMCODEC_WRITE_CODEC_TABLES=1 cargo test -p conformance-tests --test codec_tables",
+         ANIMCODEC_WRITE_CODEC_TABLES=1 cargo test --workspace --test codec_tables",
         stale.join(" and ")
     );
 }

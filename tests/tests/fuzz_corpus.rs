@@ -4,7 +4,7 @@
 //! committed seeds are what the generator makes now, and that every registered codec has its
 //! fuzz target, `[[bin]]` and corpus.
 //!
-//! `ANIMCODEC_WRITE_FUZZ_SEEDS=1 cargo test -p conformance-tests --test fuzz_corpus` writes the
+//! `ANIMCODEC_WRITE_FUZZ_SEEDS=1 cargo test --workspace --test fuzz_corpus` writes the
 //! seed inputs made from the synthetic animations (`seed-*` files) into the corpora, and deletes
 //! `seed-*` files the generator no longer makes; on an up-to-date tree it changes nothing.
 
@@ -43,7 +43,7 @@ fn every_corpus_file_passes_its_target() {
             Ok(entries) => entries.map(|e| e.unwrap().path()).filter(|p| p.is_file()).collect(),
             Err(e) => panic!(
                 "{}: {e}: every fuzz target has a committed corpus; make its seeds with \
-                 ANIMCODEC_WRITE_FUZZ_SEEDS=1 cargo test -p conformance-tests --test fuzz_corpus",
+                 ANIMCODEC_WRITE_FUZZ_SEEDS=1 cargo test --workspace --test fuzz_corpus",
                 dir.display()
             ),
         };
@@ -110,7 +110,7 @@ fn committed_seeds_are_current() {
     assert!(
         differences.is_empty(),
         "{} committed fuzz seeds differ from what the generator makes now (tests/src/fuzz.rs, `seeds`):\n{}\n\
-         rewrite them with ANIMCODEC_WRITE_FUZZ_SEEDS=1 cargo test -p conformance-tests --test fuzz_corpus \
+         rewrite them with ANIMCODEC_WRITE_FUZZ_SEEDS=1 cargo test --workspace --test fuzz_corpus \
          and commit the result",
         differences.len(),
         listing.join("\n")
