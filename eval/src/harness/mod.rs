@@ -5,7 +5,7 @@
 //!
 //! Modules by job, each importing only those above it in this list:
 //!
-//! * [`point`](self::point): [`measure_point`] encodes one animation at one parameter set,
+//! * `point`: [`measure_point`] encodes one animation at one parameter set,
 //!   decodes the stream (the decoder sees nothing but the bytes) and measures it with
 //!   [`metrics::evaluate`]; [`ladder_indices`] and [`ladder_params`] pick ladder steps.
 //! * `target`: [`Target`] (`kg=0.5`), what a search found ([`TargetHit`]) or missed
