@@ -3,7 +3,7 @@
 //! and every variant carries its cause, so `codec_core::error::message_with_sources` prints the
 //! same line the command line always printed.
 
-use crate::harness::{Target, TargetMiss};
+use crate::harness::target::{Target, TargetMiss};
 
 /// Result alias of `animcodec-eval`.
 pub type Result<T, E = EvalError> = std::result::Result<T, E>;

@@ -3,7 +3,7 @@
 
 use serde::Serialize;
 
-use super::point::Point;
+use super::measured::Point;
 use super::target::{usable, TargetMetric};
 
 /// Monotonicity of one codec's curve along its ladder.

@@ -4,7 +4,8 @@
 
 use codec_core::{Animation, AnimationCodec, CodecRegistry, ParamSet};
 
-use super::point::{ladder_params, measure_point, Point};
+use super::measured::Point;
+use super::point::{ladder_params, measure_point};
 use super::search::{midpoint, SearchRequest};
 use super::target::{meets, usable, Target, TargetHit, TargetMetric, TargetMiss};
 use crate::error::{EvalError, Result};

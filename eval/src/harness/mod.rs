@@ -27,16 +27,18 @@
 mod csv;
 mod curve;
 mod default_quality;
+mod measured;
 mod point;
 mod rows;
 mod search;
 mod space;
 mod sweep;
-mod target;
+pub(crate) mod target;
 
 pub use curve::{envelope, monotone_report, Monotonicity};
 pub use default_quality::{search_default_quality, DEFAULT_QUALITY_BAND, DEFAULT_REFINE_BAND, DEFAULT_TARGET};
-pub use point::{ladder_indices, ladder_params, measure_point, Point};
+pub use measured::Point;
+pub use point::{ladder_indices, ladder_params, measure_point};
 pub use rows::{
     csv_columns, csv_text, points_from_rows, report_json, write_text, Envelopes, FailureRow, SweepDocument, SweepRow,
 };

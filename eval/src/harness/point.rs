@@ -5,11 +5,11 @@
 use std::time::Instant;
 
 use codec_core::{
-    encode_animation_fed, Animation, AnimationCodec, CodecRegistry, Limits, ParamSet, ParamValue, RateLadder,
-    StreamDecoder,
+    encode_animation_fed, Animation, AnimationCodec, CodecRegistry, Limits, ParamSet, RateLadder, StreamDecoder,
 };
-use metrics::{EvalOptions, MetricReport};
+use metrics::EvalOptions;
 
+use super::measured::Point;
 use crate::error::{EvalError, Result};
 
 /// Indices of `points` ladder steps spread evenly over a ladder of `len` steps, always
@@ -46,39 +46,6 @@ pub fn ladder_params(
     let params = base.clone().with(&codec.param_specs(), ladder.param, value.clone())?;
     codec.validate(&params)?;
     Ok(params)
-}
-
-/// One measured (codec, parameters) point.
-#[derive(Debug, Clone)]
-pub struct Point {
-    /// Codec name.
-    pub codec: &'static str,
-    /// The curve this point belongs to: the codec name, or for a
-    /// [`SweepSeries`](super::SweepSeries) with non-default base parameters `codec[key=value,…]`.
-    pub series: String,
-    /// Parameters used.
-    pub params: ParamSet,
-    /// The ladder's parameter.
-    pub ladder_param: &'static str,
-    /// Position on the codec's rate ladder (0 = smallest stream).
-    pub ladder_index: usize,
-    /// Container size in bytes (header and topology included).
-    pub bytes: u64,
-    /// Bits per vertex per frame of the whole container.
-    pub bpvf: f64,
-    /// Every metric of the decoded animation against the input.
-    pub report: MetricReport,
-    /// Wall-clock encoding time.
-    pub encode_seconds: f64,
-    /// Wall-clock decoding time (from the container bytes alone).
-    pub decode_seconds: f64,
-}
-
-impl Point {
-    /// The ladder parameter's value.
-    pub fn ladder_value(&self) -> Option<&ParamValue> {
-        self.params.get(self.ladder_param)
-    }
 }
 
 /// Encodes `animation` with `codec` at `params`, decodes it through the container and

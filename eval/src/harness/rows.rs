@@ -12,7 +12,7 @@ use serde_json::{Map, Value};
 
 use super::csv;
 use super::curve::{envelope, monotone_report, Monotonicity};
-use super::point::Point;
+use super::measured::Point;
 use super::sweep::{Failure, Sweep};
 use super::target::TargetMetric;
 use crate::error::{EvalError, Result};

@@ -5,7 +5,8 @@
 use codec_core::{Animation, AnimationCodec, CodecRegistry, Limits, ParamSet, ParamValue};
 use metrics::EvalOptions;
 
-use super::point::{ladder_params, measure_point, Point};
+use super::measured::Point;
+use super::point::{ladder_params, measure_point};
 use super::target::{meets, usable, Target, TargetHit, TargetMiss};
 use crate::error::{EvalError, Result};
 

@@ -6,7 +6,8 @@ use codec_core::{AnimationCodec, ParamSet, ParamValue, RateLadder};
 use metrics::EvalOptions;
 use rayon::prelude::*;
 
-use super::point::{ladder_params, measure_point, Point};
+use super::measured::Point;
+use super::point::{ladder_params, measure_point};
 use super::search::{midpoint, smallest_over_codecs, SearchRequest};
 use super::target::{meets, usable, Target, TargetHit, TargetMiss};
 use crate::error::{EvalError, Result};

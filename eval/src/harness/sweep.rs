@@ -7,7 +7,8 @@ use metrics::EvalOptions;
 use rayon::prelude::*;
 use serde::Serialize;
 
-use super::point::{ladder_indices, ladder_params, measure_point, Point};
+use super::measured::Point;
+use super::point::{ladder_indices, ladder_params, measure_point};
 use crate::error::{EvalError, Result};
 
 /// How [`sweep`] runs.

@@ -6,7 +6,7 @@ use std::str::FromStr;
 
 use metrics::{EvalOptions, MetricReport};
 
-use super::point::Point;
+use super::measured::Point;
 
 /// The metric a [`Target`] bounds.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
