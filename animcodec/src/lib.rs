@@ -27,19 +27,28 @@ pub use animcodec_io::{formats, output};
 pub use codec_core as core;
 pub use metrics;
 
+pub mod tables;
+
 use codec_core::{quant_delta::QuantDelta, CodecRegistry};
 
-/// Every codec, one line each. This list is where codecs are registered (a new codec crate is
-/// also a dependency in this crate's `Cargo.toml` and a workspace member; README "Adding a
-/// codec"); streams name their codec by FourCC, so the order here is only the order of listings
-/// and sweeps.
+/// Every codec, one entry each (a comment saying what it is, then the codec). This list is where
+/// codecs are registered (a new codec crate is also a dependency in this crate's `Cargo.toml` and
+/// a workspace member: `cargo xtask new-codec` writes all three; README "Adding a codec");
+/// streams name their codec by FourCC, so the order here is only the order of listings and
+/// sweeps.
 pub fn registry() -> CodecRegistry {
     CodecRegistry::new(vec![
-        Box::new(QuantDelta),            // baseline, codec-core
-        Box::new(codec_pca_aoi::PcaAoi), // issue #4, Lalos et al. 2017
-        Box::new(codec_hosvd::Hosvd),    // issue #5, Romaszewski, Gawron, Opozda
-        Box::new(codec_sac::Sac),        // issue #6, spectral deformation-gradient compression
-        Box::new(codec_stseg::Stseg),    // issue #7, Luo et al. 2020
+        // baseline, codec-core
+        Box::new(QuantDelta),
+        // issue #4, Lalos et al. 2017
+        Box::new(codec_pca_aoi::PcaAoi),
+        // issue #5, Romaszewski, Gawron, Opozda
+        Box::new(codec_hosvd::Hosvd),
+        // issue #6, spectral deformation-gradient compression
+        Box::new(codec_sac::Sac),
+        // issue #7, Luo et al. 2020
+        Box::new(codec_stseg::Stseg),
+        // cargo xtask new-codec inserts above this line
     ])
     .expect("codec names and FourCCs in the registry list are unique")
 }

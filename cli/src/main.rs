@@ -265,8 +265,11 @@ pub struct InspectArgs {
 #[derive(Debug, Args)]
 pub struct ListArgs {
     /// Print JSON: an array of {name, fourcc, summary, params, rate_ladder}.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "markdown")]
     pub json: bool,
+    /// Print the codec table of README.md and python/README.md (Markdown), made from the registry.
+    #[arg(long)]
+    pub markdown: bool,
 }
 
 /// Arguments of `animcodec encode`.

@@ -44,6 +44,13 @@ fn list_text_shows_every_codec_and_ladder() {
     assert!(text.contains("rate ladder"), "{text}");
 }
 
+/// `list --markdown` prints the table the READMEs carry (`tests/tests/codec_tables.rs` checks them).
+#[test]
+fn list_markdown_is_the_registry_table() {
+    let text = ok(&["list", "--markdown"]);
+    assert_eq!(text, animcodec::tables::codec_table_markdown(&animcodec::registry()));
+}
+
 #[test]
 fn help_documents_every_subcommand_and_flag() {
     let top = ok(&["--help"]);

@@ -40,6 +40,13 @@ impl CodecRegistry {
         Ok(Self { codecs })
     }
 
+    /// The registry with only the codecs `keep` accepts, in the same order (e.g. the conformance
+    /// suite restricted to one codec while working on it).
+    pub fn retain(mut self, mut keep: impl FnMut(&dyn AnimationCodec) -> bool) -> Self {
+        self.codecs.retain(|c| keep(c.as_ref()));
+        self
+    }
+
     /// All codecs, in registration order.
     pub fn iter(&self) -> impl Iterator<Item = &dyn AnimationCodec> {
         self.codecs.iter().map(|c| c.as_ref())

@@ -17,6 +17,7 @@
 //! - `read_pc2`, `read_mdd`, `read_obj`, `read_gltf`: the file readers on any bytes.
 
 use std::io::Cursor;
+use std::path::{Path, PathBuf};
 
 use codec_core::container::{self, ContainerWriter};
 use codec_core::{synth, Animation, Limits, Packet, Topology};
@@ -155,12 +156,20 @@ pub fn to_records(config: &[u8], packets: &[Packet]) -> Vec<u8> {
 
 /// Targets `codec_<name>`.
 pub fn codec_stream(codec_name: &str, data: &[u8]) {
+    if let Some(bytes) = codec_container(codec_name, data) {
+        decode_stream(&bytes, fuzz_limits());
+    }
+}
+
+/// The container a structure-aware input of codec `codec_name` stands for (see the module
+/// documentation); `None` when it has no record or no frame.
+fn codec_container(codec_name: &str, data: &[u8]) -> Option<Vec<u8>> {
     let registry = animcodec::registry();
     let codec = registry.by_name(codec_name).unwrap_or_else(|e| panic!("{e}"));
-    let Some((config, packets)) = parse_records(data) else { return };
+    let (config, packets) = parse_records(data)?;
     let frames: usize = packets.iter().map(|p| p.frame_count as usize).sum();
     if frames == 0 {
-        return;
+        return None;
     }
     let topology = fuzz_topology();
     let mut w = ContainerWriter::new(
@@ -176,8 +185,7 @@ pub fn codec_stream(codec_name: &str, data: &[u8]) {
     for p in &packets {
         w.write_packet(p).expect("packets written in order");
     }
-    let bytes = w.finish().expect("packets cover the frames");
-    decode_stream(&bytes, fuzz_limits());
+    Some(w.finish().expect("packets cover the frames"))
 }
 
 /// Live-memory budget of a reader on an input of `len` bytes: the file's positions as `f32`
@@ -221,7 +229,151 @@ pub fn read_gltf(data: &[u8]) {
     });
 }
 
+/// `fuzz/corpus`: one folder per target (cargo-fuzz's layout), committed.
+pub fn corpus_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..").join("fuzz").join("corpus")
+}
+
+/// Prefix of the generated seed files in a corpus folder. Files with it belong to [`seeds`]:
+/// [`write_seeds`] rewrites and deletes them; every other file (what a fuzzer kept, `regress-*`
+/// findings) is never touched.
+pub const SEED_PREFIX: &str = "seed-";
+
+/// How one committed seed file differs from what [`seeds`] makes now.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum SeedDifference {
+    /// The generator makes it but no file is committed.
+    Missing,
+    /// A committed `seed-*` file the generator no longer makes (a setting or codec removed).
+    Orphan,
+    /// Both exist with different bytes.
+    Changed,
+    /// Both exist with different bytes, on a CPU that is not at the SIMD level the seeds are
+    /// written at ([`seeds_are_exact_here`]), and the committed file still decodes: tolerated
+    /// (faer's kernels round differently without AVX2, and some encoders' bytes follow them).
+    ChangedOnThisCpu,
+}
+
+impl SeedDifference {
+    /// Whether this difference makes the committed seeds stale (everything but
+    /// [`SeedDifference::ChangedOnThisCpu`]).
+    pub fn is_stale(&self) -> bool {
+        *self != SeedDifference::ChangedOnThisCpu
+    }
+}
+
+/// Whether this CPU makes every seed exactly as committed: x86-64 with AVX2 and FMA (x86-64-v3
+/// and up), the level the seeds are written at. Measured under `qemu-x86_64 -cpu` (issue 31):
+/// AVX-512 and Haswell (AVX2 + FMA) make every seed alike; Nehalem (SSE only) makes one sac
+/// seed (`codec_sac/seed-flag-low`) differently, because faer's SIMD paths round differently
+/// (the decoders agree: `tests/tests/simd_levels.rs`). Elsewhere [`seed_differences`] only
+/// asks a changed seed to still decode.
+pub fn seeds_are_exact_here() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
+}
+
+/// Whether `data` is a valid input of `target` all the way through: the stream decodes, or the
+/// file reads (not just "no panic", which every corpus file must give).
+fn decodes(target: &str, data: &[u8]) -> bool {
+    let registry = animcodec::registry();
+    match target {
+        "container" => codec_core::decode_animation(data, &registry, fuzz_limits()).is_ok(),
+        "read_pc2" => animcodec::formats::pc2::parse_pc2(data, "seed.pc2").is_ok(),
+        "read_mdd" => animcodec::formats::mdd::parse_mdd(data, "seed.mdd").is_ok(),
+        "read_obj" => animcodec::formats::obj::parse_obj(data, "seed.obj").is_ok(),
+        "read_gltf" => animcodec::formats::gltf::parse_gltf(data, None, "seed.glb", synth::FRAME_RATE).is_ok(),
+        t => t
+            .strip_prefix("codec_")
+            .and_then(|c| codec_container(&c.replace('_', "-"), data))
+            .is_some_and(|bytes| codec_core::decode_animation(&bytes, &registry, fuzz_limits()).is_ok()),
+    }
+}
+
+/// The committed seeds compared with [`seeds`] in memory (nothing is written): every
+/// difference as `(target, file name, difference)`, sorted. No stale one
+/// ([`SeedDifference::is_stale`]) when `ANIMCODEC_WRITE_FUZZ_SEEDS=1` would change nothing.
+pub fn seed_differences() -> Vec<(String, String, SeedDifference)> {
+    let root = corpus_dir();
+    let exact = seeds_are_exact_here();
+    let mut expected = std::collections::BTreeMap::new();
+    for (target, name, bytes) in seeds() {
+        expected.insert((target, format!("{SEED_PREFIX}{name}")), bytes);
+    }
+    let mut out = Vec::new();
+    for ((target, file), bytes) in &expected {
+        match std::fs::read(root.join(target).join(file)) {
+            Ok(committed) if &committed == bytes => {}
+            Ok(committed) if !exact && decodes(target, &committed) => {
+                out.push((target.clone(), file.clone(), SeedDifference::ChangedOnThisCpu))
+            }
+            Ok(_) => out.push((target.clone(), file.clone(), SeedDifference::Changed)),
+            Err(_) => out.push((target.clone(), file.clone(), SeedDifference::Missing)),
+        }
+    }
+    for (target, file) in committed_seed_files(&root) {
+        if !expected.contains_key(&(target.clone(), file.clone())) {
+            out.push((target, file, SeedDifference::Orphan));
+        }
+    }
+    out.sort_by(|a, b| (&a.0, &a.1).cmp(&(&b.0, &b.1)));
+    out
+}
+
+/// Every `seed-*` file under `root/<target>/`, as `(target, file name)`.
+fn committed_seed_files(root: &Path) -> Vec<(String, String)> {
+    let mut out = Vec::new();
+    let Ok(dirs) = std::fs::read_dir(root) else { return out };
+    for dir in dirs.flatten().filter(|d| d.path().is_dir()) {
+        let target = dir.file_name().to_string_lossy().into_owned();
+        for f in std::fs::read_dir(dir.path()).into_iter().flatten().flatten() {
+            let file = f.file_name().to_string_lossy().into_owned();
+            if file.starts_with(SEED_PREFIX) {
+                out.push((target.clone(), file));
+            }
+        }
+    }
+    out
+}
+
+/// Makes the committed seeds equal to [`seeds`]: writes the missing and changed files (not
+/// those only this CPU makes differently, [`SeedDifference::ChangedOnThisCpu`]) and deletes
+/// orphaned `seed-*` files (only those: a fuzzer's files have hash names). Returns the
+/// paths it wrote or deleted. `ANIMCODEC_WRITE_FUZZ_SEEDS=1 cargo test --workspace
+/// --test fuzz_corpus` calls it.
+pub fn write_seeds() -> std::io::Result<Vec<PathBuf>> {
+    let root = corpus_dir();
+    let mut touched = Vec::new();
+    let differences = seed_differences();
+    if differences.is_empty() {
+        return Ok(touched);
+    }
+    let fresh: std::collections::BTreeMap<(String, String), Vec<u8>> =
+        seeds().into_iter().map(|(t, n, b)| ((t, format!("{SEED_PREFIX}{n}")), b)).collect();
+    for (target, file, difference) in differences {
+        let path = root.join(&target).join(&file);
+        match difference {
+            // Rewriting it would make the committed seed this CPU's, not the write level's.
+            SeedDifference::ChangedOnThisCpu => continue,
+            SeedDifference::Orphan => std::fs::remove_file(&path)?,
+            SeedDifference::Missing | SeedDifference::Changed => {
+                std::fs::create_dir_all(root.join(&target))?;
+                std::fs::write(&path, &fresh[&(target, file)])?;
+            }
+        }
+        touched.push(path);
+    }
+    Ok(touched)
+}
+
 /// Seed inputs for every target, made from the synthetic animations: `(target, name, bytes)`.
+/// Committed as `fuzz/corpus/<target>/seed-<name>` ([`write_seeds`]).
 pub fn seeds() -> Vec<(String, String, Vec<u8>)> {
     let registry = animcodec::registry();
     let mut out = Vec::new();

@@ -28,6 +28,41 @@ pub fn registry() -> CodecRegistry {
     animcodec::registry()
 }
 
+/// Environment variable restricting the conformance suite to some codecs: a comma-separated
+/// list of names (`ANIMCODEC_CODECS=my-codec cargo test --workspace --test conformance
+/// --test corruption --test encoder_input`), for working on one codec. Unset (as in CI), every
+/// codec is tested.
+pub const CODECS_VAR: &str = "ANIMCODEC_CODECS";
+
+/// The codecs the conformance suite checks (`tests/conformance.rs`, `corruption.rs`,
+/// `encoder_input.rs`): [`registry`], or only the codecs named in [`CODECS_VAR`]. A restricted
+/// run says so on the real standard error (past libtest's capture, like a skip), and an unknown
+/// name is an error, so a typo cannot make a run that tests nothing look like a pass. Tests of
+/// other things (golden streams, fuzz corpora, limits) always use the whole [`registry`].
+///
+/// # Panics
+/// When [`CODECS_VAR`] names a codec that is not registered, or names none.
+pub fn codecs_under_test() -> CodecRegistry {
+    let Some(list) = std::env::var_os(CODECS_VAR) else { return registry() };
+    let list = list.to_string_lossy().into_owned();
+    let all = registry();
+    let names: Vec<&str> = list.split(',').map(str::trim).filter(|n| !n.is_empty()).collect();
+    assert!(!names.is_empty(), "{CODECS_VAR} is set but names no codec");
+    let mut chosen = Vec::new();
+    for name in &names {
+        all.by_name(name).unwrap_or_else(|e| panic!("{CODECS_VAR}: {e}"));
+        chosen.push(*name);
+    }
+    static SAID: std::sync::Once = std::sync::Once::new();
+    SAID.call_once(|| {
+        let _ = std::io::Write::write_all(
+            &mut std::io::stderr(),
+            format!("NOTE {CODECS_VAR}={list}: the conformance suite checks only {}\n", chosen.join(", ")).as_bytes(),
+        );
+    });
+    all.retain(|c| chosen.contains(&c.name()))
+}
+
 // ---------------------------------------------------------------------------------------
 // Synthetic animations
 // ---------------------------------------------------------------------------------------

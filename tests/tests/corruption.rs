@@ -2,13 +2,13 @@
 //! flips the container must catch, and corruptions with the checksums patched (or the stream
 //! rebuilt) so that the codec's own parser sees them. Never a panic, never a large allocation.
 
-use conformance_tests::{registry, suite};
+use conformance_tests::{codecs_under_test, suite};
 
 /// Suite item 4: every truncation of a valid stream is an error from `decode_animation` and
 /// `decode_frame` — never a panic, never a large allocation; so is trailing junk.
 #[test]
 fn every_truncation_is_an_error() {
-    suite::every_truncation_is_an_error(&registry()).assert_none("every_truncation_is_an_error");
+    suite::every_truncation_is_an_error(&codecs_under_test()).assert_none("every_truncation_is_an_error");
 }
 
 /// Suite item 5, container level: random single- and multi-byte changes anywhere (header,
@@ -18,7 +18,7 @@ fn every_truncation_is_an_error() {
 /// frame of the right size.
 #[test]
 fn byte_flips_are_detected() {
-    suite::byte_flips_are_detected(&registry()).assert_none("byte_flips_are_detected");
+    suite::byte_flips_are_detected(&codecs_under_test()).assert_none("byte_flips_are_detected");
 }
 
 /// Suite item 5, codec level: bytes flipped inside packet payloads with the packet CRC
@@ -26,7 +26,7 @@ fn byte_flips_are_detected() {
 /// never a panic or a large allocation.
 #[test]
 fn payload_flips_with_valid_crc_never_panic() {
-    suite::payload_flips_with_valid_crc_never_panic(&registry())
+    suite::payload_flips_with_valid_crc_never_panic(&codecs_under_test())
         .assert_none("payload_flips_with_valid_crc_never_panic");
 }
 
@@ -35,7 +35,8 @@ fn payload_flips_with_valid_crc_never_panic() {
 /// versions. The configuration reaches `new_decoder` as untrusted bytes.
 #[test]
 fn corrupt_config_and_version_never_panic() {
-    suite::corrupt_config_and_version_never_panic(&registry()).assert_none("corrupt_config_and_version_never_panic");
+    suite::corrupt_config_and_version_never_panic(&codecs_under_test())
+        .assert_none("corrupt_config_and_version_never_panic");
 }
 
 /// Suite item 5, codec level: rebuilt streams (all checksums and the index consistent) with
@@ -44,5 +45,5 @@ fn corrupt_config_and_version_never_panic() {
 /// `decode_animation` and `decode_frame` must give Err or the right shape; never panic.
 #[test]
 fn structural_mutations_never_panic() {
-    suite::structural_mutations_never_panic(&registry()).assert_none("structural_mutations_never_panic");
+    suite::structural_mutations_never_panic(&codecs_under_test()).assert_none("structural_mutations_never_panic");
 }

@@ -15,6 +15,9 @@ pub fn run(args: &ListArgs) -> CmdResult {
     if args.json {
         return emit_json(&Value::Array(registry.iter().map(codec_json).collect()));
     }
+    if args.markdown {
+        return emit(&animcodec::tables::codec_table_markdown(&registry));
+    }
     let mut out = String::new();
     for (i, codec) in registry.iter().enumerate() {
         if i > 0 {
