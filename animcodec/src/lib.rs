@@ -10,7 +10,7 @@
 //! | [`core`] | `codec-core` | the codec trait, `.anim` container, streams, limits, coding toolkit, synthetic animations |
 //! | [`metrics`] | `metrics` | KG error, STED, Hausdorff, … |
 //! | [`formats`], [`output`] | `animcodec-io` | file formats in and out; safe output files |
-//! | [`harness`], [`plot`], [`describe`] | `animcodec-eval` | measured points, sweeps, target search, the rate-distortion plot; codec and stream descriptions |
+//! | [`harness`], [`plot`], [`describe`], [`params`] | `animcodec-eval` | measured points, sweeps, target search, the rate-distortion plot; codec and stream descriptions; parameters as JSON |
 //!
 //! ```no_run
 //! use animcodec::core::{encode_animation, synth, Limits, StreamDecoder};
@@ -22,7 +22,7 @@
 //! assert_eq!(decoded.frame_count(), animation.frame_count());
 //! ```
 
-pub use animcodec_eval::{describe, harness, plot};
+pub use animcodec_eval::{describe, harness, params, plot};
 pub use animcodec_io::{formats, output};
 pub use codec_core as core;
 pub use metrics;

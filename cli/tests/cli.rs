@@ -141,7 +141,7 @@ fn encode_info_agree_and_corruption_is_caught() {
     let mut next = 0;
     for p in packets {
         assert_eq!(p["first_frame"], next);
-        next += p["frame_count"].as_u64().unwrap();
+        next += p["frames"].as_u64().unwrap();
         assert!(p["bytes"].as_u64().unwrap() > 0);
     }
     assert_eq!(next, f);

@@ -38,23 +38,22 @@ fn data(rel: &str) -> Option<PathBuf> {
     p.is_file().then_some(p)
 }
 
-/// Plays `file` with three.js: animation `index` at `t0 + k / fps`, `frames` frames (0: at rest).
-fn three_play(tools: &Path, file: &Path, index: usize, t0: f64, fps: f64, frames: usize, out: &Path) -> Vec<f32> {
-    three_play_env(tools, file, index, t0, fps, frames, out, &[])
-}
-
-/// [`three_play`] with environment variables for play.mjs (`NORMALIZE_ROTATIONS=1`).
-#[allow(clippy::too_many_arguments)]
-fn three_play_env(
-    tools: &Path,
-    file: &Path,
+/// What three.js plays: animation `index` at `t0 + k / fps` for `frames` frames (0: at rest).
+struct Sampling {
     index: usize,
     t0: f64,
     fps: f64,
     frames: usize,
-    out: &Path,
-    env: &[(&str, &str)],
-) -> Vec<f32> {
+}
+
+/// Plays `file` with three.js as `sampling` says, the frames written to `out`.
+fn three_play(tools: &Path, file: &Path, sampling: Sampling, out: &Path) -> Vec<f32> {
+    three_play_env(tools, file, sampling, out, &[])
+}
+
+/// [`three_play`] with environment variables for play.mjs (`NORMALIZE_ROTATIONS=1`).
+fn three_play_env(tools: &Path, file: &Path, sampling: Sampling, out: &Path, env: &[(&str, &str)]) -> Vec<f32> {
+    let Sampling { index, t0, fps, frames } = sampling;
     let o = Command::new("node")
         .envs(env.iter().copied())
         .arg(tools.join("play.mjs"))
@@ -104,7 +103,12 @@ fn skinned_and_morph_playback_agrees_with_three_js() {
             let read = ReadOptions { animation: Some(info.index.to_string()), ..Default::default() };
             let ours = read_animation(&file, &read).unwrap();
             let fps = ours.frame_rate() as f64;
-            let theirs = three_play(&tools, &file, info.index, info.start, fps, ours.frame_count(), &s.0.join("t.f32"));
+            let theirs = three_play(
+                &tools,
+                &file,
+                Sampling { index: info.index, t0: info.start, fps, frames: ours.frame_count() },
+                &s.0.join("t.f32"),
+            );
             let error = relative_max_error(&ours, &theirs);
             println!(
                 "three.js agreement {rel} animation {} {:?}: {} frames × {} vertices at {fps} fps, max error {error:.3e} × diagonal",
@@ -194,8 +198,12 @@ fn written_gltf_is_valid_and_three_js_plays_it_like_our_reader() {
     for (path, fps) in &files {
         let ours = gltf::read_gltf(path, &GltfSelection::default()).unwrap();
         assert_eq!(ours.frame_rate(), *fps, "{}: the frame rate travels in extras", path.display());
-        let theirs =
-            three_play(&tools, path, 0, start_of(path, 0), *fps as f64, ours.frame_count(), &s.0.join("t.f32"));
+        let theirs = three_play(
+            &tools,
+            path,
+            Sampling { index: 0, t0: start_of(path, 0), fps: *fps as f64, frames: ours.frame_count() },
+            &s.0.join("t.f32"),
+        );
         let error = relative_max_error(&ours, &theirs);
         println!("three.js plays {}: max error {error:.3e} × diagonal against our reader", path.display());
         assert!(error <= 1e-5, "{}: {error:e}", path.display());
@@ -235,8 +243,12 @@ fn robot_dance_encodes_decodes_to_a_valid_glb() {
     let report = &validate(&tools, &[PathBuf::from(&glb)])[0];
     assert_eq!(report["errors"], 0, "{report}");
     let ours = gltf::read_gltf(Path::new(&glb), &GltfSelection::default()).unwrap();
-    let theirs =
-        three_play(&tools, Path::new(&glb), 0, 0.0, ours.frame_rate() as f64, ours.frame_count(), &s.0.join("t.f32"));
+    let theirs = three_play(
+        &tools,
+        Path::new(&glb),
+        Sampling { index: 0, t0: 0.0, fps: ours.frame_rate() as f64, frames: ours.frame_count() },
+        &s.0.join("t.f32"),
+    );
     assert!(relative_max_error(&ours, &theirs) <= 1e-5);
 }
 
@@ -677,14 +689,20 @@ fn what_gltfpack_writes_is_read_like_three_js_plays_it() {
             let fps = ours.frame_rate() as f64;
             let frames = ours.frame_count();
             let out = s.0.join("t.f32");
-            let theirs = three_play(&tools, file, info.index, info.start, fps, frames, &out);
+            let theirs = three_play(&tools, file, Sampling { index: info.index, t0: info.start, fps, frames }, &out);
             let raw_error = relative_max_error(&ours, &theirs);
             // Compared with rotation keys normalized in three.js too: gltfpack stores them as
             // 16-bit QUATERNION-filtered values, unit only to ~1e-4, which three.js uses as
             // they are and our reader normalizes (a skinned character then differs by ~1.6e-5
             // × diagonal; see the notes).
             let normalized = [("NORMALIZE_ROTATIONS", "1")];
-            let theirs = three_play_env(&tools, file, info.index, info.start, fps, frames, &out, &normalized);
+            let theirs = three_play_env(
+                &tools,
+                file,
+                Sampling { index: info.index, t0: info.start, fps, frames },
+                &out,
+                &normalized,
+            );
             let error = relative_max_error(&ours, &theirs);
             println!(
                 "gltfpack {} animation {}: {frames} frames × {} vertices, max error × diagonal against three.js: \

@@ -3,8 +3,8 @@
 //! Everything runs on small synthetic animations so the suite stays fast.
 
 use animcodec::harness::{
-    self, ladder_params, measure_point, search_target, search_target_auto, Target, TargetMetric, TargetMiss,
-    CSV_COLUMNS,
+    self, csv_columns, ladder_params, measure_point, search_target, search_target_auto, EvalError, SearchRequest,
+    SweepRow, Target, TargetMetric,
 };
 use codec_core::quant_delta::QuantDelta;
 use codec_core::synth;
@@ -25,6 +25,18 @@ fn f(v: &Value) -> f64 {
 /// A small animation: a few hundred vertices × 12 frames.
 fn small() -> Animation {
     synth::waving_flag(12, 9, 12)
+}
+
+/// The search request of these tests: `eval`'s metric options, default limits, `refine` extra
+/// points, no progress reports.
+fn request<'a>(
+    registry: &'a CodecRegistry,
+    animation: &'a Animation,
+    target: Target,
+    eval: &EvalOptions,
+    refine: usize,
+) -> SearchRequest<'a> {
+    SearchRequest { eval: *eval, refine, ..SearchRequest::new(registry, animation, target) }
 }
 
 #[test]
@@ -163,9 +175,9 @@ fn sweep_writes_json_csv_and_svg_with_monotone_ladders() {
 
     let csv = std::fs::read_to_string(&csv_path).unwrap();
     let lines: Vec<&str> = csv.lines().collect();
-    assert_eq!(lines[0], CSV_COLUMNS.join(","));
+    assert_eq!(lines[0], csv_columns().join(","));
     assert_eq!(lines.len(), 5);
-    assert!(lines[1..].iter().all(|l| l.split(',').count() == CSV_COLUMNS.len()), "{csv}");
+    assert!(lines[1..].iter().all(|l| l.split(',').count() == csv_columns().len()), "{csv}");
 
     // The SVG is complete and carries its text as SVG text (no font files involved).
     let svg = std::fs::read_to_string(&svg_path).unwrap();
@@ -262,8 +274,7 @@ fn target_search_meets_the_target_and_the_next_smaller_point_does_not() {
     for want in [1, kg.len() / 2, kg.len() - 1] {
         let target = Target { metric: TargetMetric::Kg, value: (kg[want] + kg[want - 1]) / 2.0 };
         let hit =
-            search_target(&registry, codec, &codec.default_params(), &animation, target, &eval, Limits::default(), 0)
-                .unwrap();
+            search_target(&request(&registry, &animation, target, &eval, 0), codec, &codec.default_params()).unwrap();
         assert_eq!(hit.point.ladder_index, want, "target {target}");
         assert!(hit.point.report.kg.unwrap() <= target.value);
         assert!(kg[want - 1] > target.value, "the next-smaller ladder point misses");
@@ -275,8 +286,7 @@ fn target_search_meets_the_target_and_the_next_smaller_point_does_not() {
     }
     // Exactly on a ladder point's value counts as meeting it.
     let target = Target { metric: TargetMetric::Kg, value: kg[0] };
-    let hit = search_target(&registry, codec, &codec.default_params(), &animation, target, &eval, Limits::default(), 0)
-        .unwrap();
+    let hit = search_target(&request(&registry, &animation, target, &eval, 0), codec, &codec.default_params()).unwrap();
     assert_eq!(hit.point.ladder_index, 0);
 }
 
@@ -442,15 +452,14 @@ fn auto_search_keeps_the_smallest_stream_whatever_the_order() {
     let padded = registry.by_name("padded").unwrap();
     let plain = registry.by_name("plain").unwrap();
     for order in [[padded, plain], [plain, padded]] {
-        let (best, others) =
-            search_target_auto(&registry, &order, &animation, target, &eval, Limits::default(), 0).unwrap();
+        let (best, others) = search_target_auto(&request(&registry, &animation, target, &eval, 0), &order).unwrap();
         assert_eq!(best.point.codec, "plain");
         assert_eq!(others.len(), 1);
         assert!(others[0].point.bytes > best.point.bytes);
     }
     // Nothing reachable: the error lists each codec's best.
     let target = Target { metric: TargetMetric::MaxError, value: 0.0 };
-    let e = search_target_auto(&registry, &[padded, plain], &animation, target, &eval, Limits::default(), 0)
+    let e = search_target_auto(&request(&registry, &animation, target, &eval, 0), &[padded, plain])
         .unwrap_err()
         .to_string();
     assert!(e.contains("padded") && e.contains("plain") && e.contains("best reached"), "{e}");
@@ -475,8 +484,7 @@ fn non_monotone_ladders_fall_back_to_a_linear_scan() {
     // settles on step 5 (bits 14); the check of step 3 reveals the kink and the scan finds it.
     let target = Target { metric: TargetMetric::MaxError, value: (bytes_and_err[3].1 + bytes_and_err[4].1) / 2.0 };
     assert!(bytes_and_err[4].1 > target.value && bytes_and_err[3].1 <= target.value);
-    let hit = search_target(&registry, codec, &codec.default_params(), &animation, target, &eval, Limits::default(), 0)
-        .unwrap();
+    let hit = search_target(&request(&registry, &animation, target, &eval, 0), codec, &codec.default_params()).unwrap();
     // The smallest passing stream among all steps.
     let best = bytes_and_err.iter().filter(|(_, e)| *e <= target.value).map(|(b, _)| *b).min().unwrap();
     assert_eq!(hit.point.bytes, best);
@@ -490,19 +498,14 @@ fn target_miss_names_the_best_point() {
     let codec = registry.by_name("quant-delta").unwrap();
     let target = Target { metric: TargetMetric::Kg, value: 0.0 };
     let e = search_target(
-        &registry,
+        &request(&registry, &small(), target, &EvalOptions::default(), 0),
         codec,
         &codec.default_params(),
-        &small(),
-        target,
-        &EvalOptions::default(),
-        Limits::default(),
-        0,
     )
     .unwrap_err();
-    let miss = e.downcast_ref::<TargetMiss>().unwrap();
+    let EvalError::TargetMiss(miss) = e else { panic!("expected a TargetMiss, got {e}") };
     assert_eq!(miss.best.as_ref().unwrap().ladder_index, codec.rate_ladder(&codec.default_params()).steps.len() - 1);
-    let _ = harness::point_json(miss.best.as_ref().unwrap());
+    let _ = SweepRow::from(miss.best.as_ref().unwrap()).to_json();
 }
 
 #[test]
@@ -517,9 +520,9 @@ fn refinement_between_ladder_steps_finds_a_smaller_stream_that_meets_the_target(
     let (at7, _) =
         measure_point(&registry, codec, &with_bits, ("bits", 0), &animation, &eval, Limits::default()).unwrap();
     let target = Target { metric: TargetMetric::Kg, value: at7.report.kg.unwrap() };
-    let coarse = search_target(&registry, codec, &base, &animation, target, &eval, Limits::default(), 0).unwrap();
+    let coarse = search_target(&request(&registry, &animation, target, &eval, 0), codec, &base).unwrap();
     assert_eq!(coarse.point.params.int("bits").unwrap(), 8);
-    let fine = search_target(&registry, codec, &base, &animation, target, &eval, Limits::default(), 3).unwrap();
+    let fine = search_target(&request(&registry, &animation, target, &eval, 3), codec, &base).unwrap();
     assert_eq!(fine.point.params.int("bits").unwrap(), 7, "the bisection between 6 (miss) and 8 finds 7");
     assert!(fine.point.bytes < coarse.point.bytes);
     assert!(fine.point.report.kg.unwrap() <= target.value);
@@ -534,50 +537,39 @@ fn progress_sees_every_point_the_target_search_measures() {
     let animation = small();
     let eval = EvalOptions { compute_sted: false, compute_hausdorff: false, ..Default::default() };
     let target = Target { metric: TargetMetric::Kg, value: 1.0 };
-    let seen = std::cell::RefCell::new(Vec::new());
-    let record = |p: &harness::Point| seen.borrow_mut().push((p.codec, p.bytes));
+    let seen = std::sync::Mutex::new(Vec::new());
+    let record = |p: &harness::Point| seen.lock().unwrap().push((p.codec, p.bytes));
 
     let codec = registry.by_name("quant-delta").unwrap();
     let base = codec.default_params();
-    let hit = harness::search_target_with_progress(
-        &registry,
+    let hit = harness::search_target(
+        &SearchRequest { progress: &record, ..request(&registry, &animation, target, &eval, 2) },
         codec,
         &base,
-        &animation,
-        target,
-        &eval,
-        Limits::default(),
-        2,
-        &record,
     )
     .unwrap();
     // `tried` lists ladder steps in ladder order, then refinements; progress sees them as measured.
     let mut tried: Vec<_> = hit.tried.iter().map(|p| (p.codec, p.bytes)).collect();
-    let mut calls = seen.borrow().clone();
+    let mut calls = seen.lock().unwrap().clone();
     tried.sort();
     calls.sort();
     assert_eq!(calls, tried, "one call per measured point");
-    // The progress-free entry point gives the same answer.
-    let plain = search_target(&registry, codec, &base, &animation, target, &eval, Limits::default(), 2).unwrap();
+    // Without progress reports the search gives the same answer.
+    let plain = search_target(&request(&registry, &animation, target, &eval, 2), codec, &base).unwrap();
     assert_eq!((plain.point.bytes, plain.tried.len()), (hit.point.bytes, hit.tried.len()));
 
-    seen.borrow_mut().clear();
+    seen.lock().unwrap().clear();
     let codecs = [registry.by_name("quant-delta").unwrap(), registry.by_name("pca-aoi").unwrap()];
-    let (best, others) = harness::search_target_auto_with_progress(
-        &registry,
+    let (best, others) = harness::search_target_auto(
+        &SearchRequest { progress: &record, ..request(&registry, &animation, target, &eval, 0) },
         &codecs,
-        &animation,
-        target,
-        &eval,
-        Limits::default(),
-        0,
-        &record,
     )
     .unwrap();
     let all: usize = best.tried.len() + others.iter().map(|h| h.tried.len()).sum::<usize>();
-    assert_eq!(seen.borrow().len(), all);
+    assert_eq!(seen.lock().unwrap().len(), all);
     assert!(
-        seen.borrow().iter().any(|(c, _)| *c == "quant-delta") && seen.borrow().iter().any(|(c, _)| *c == "pca-aoi")
+        seen.lock().unwrap().iter().any(|(c, _)| *c == "quant-delta")
+            && seen.lock().unwrap().iter().any(|(c, _)| *c == "pca-aoi")
     );
 }
 

@@ -36,7 +36,7 @@ fn json_describes_a_tiling_segmentation() {
     let mut next = 0;
     for (i, s) in segments.iter().enumerate() {
         assert_eq!(as_usize(&s["index"]), i);
-        let (first, count) = (as_usize(&s["first_frame"]), as_usize(&s["frame_count"]));
+        let (first, count) = (as_usize(&s["first_frame"]), as_usize(&s["frames"]));
         assert_eq!(first, next, "segments tile the frames");
         assert_eq!(as_usize(&s["last_frame"]), first + count - 1);
         if i > 0 {

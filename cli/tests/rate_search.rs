@@ -2,7 +2,9 @@
 //! (issue 26): `harness::search_space_target`, the envelope sweep, and the default quality of
 //! `animcodec encode` without `-p`.
 
-use animcodec::harness::{self, search_space_target, search_target, Target, TargetMetric, DEFAULT_TARGET};
+use animcodec::harness::{
+    self, search_space_target, search_target, SearchRequest, Target, TargetMetric, DEFAULT_TARGET,
+};
 use codec_core::quant_delta::QuantDelta;
 use codec_core::synth;
 use codec_core::{
@@ -16,6 +18,18 @@ use common::*;
 
 fn small() -> Animation {
     synth::waving_flag(12, 9, 12)
+}
+
+/// The search request of these tests: `eval`'s metric options, default limits, `refine` extra
+/// points, no progress reports.
+fn request<'a>(
+    registry: &'a CodecRegistry,
+    animation: &'a Animation,
+    target: Target,
+    eval: &EvalOptions,
+    refine: usize,
+) -> SearchRequest<'a> {
+    SearchRequest { eval: *eval, refine, ..SearchRequest::new(registry, animation, target) }
 }
 
 fn in_pool<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> T {
@@ -35,16 +49,10 @@ fn space_search_chooses_the_same_stream_with_one_and_two_threads() {
         let run = |threads| {
             in_pool(threads, || {
                 search_space_target(
-                    &registry,
+                    &request(&registry, &animation, target, &eval, 2),
                     codec,
                     &codec.default_params(),
                     &[],
-                    &animation,
-                    target,
-                    &eval,
-                    Limits::default(),
-                    2,
-                    &|_| {},
                 )
                 .unwrap()
             })
@@ -84,10 +92,8 @@ fn space_search_is_never_worse_than_the_ladder_alone() {
     for name in ["hosvd", "pca-aoi"] {
         let codec = registry.by_name(name).unwrap();
         let base = codec.default_params();
-        let ladder = search_target(&registry, codec, &base, &animation, target, &eval, Limits::default(), 0).unwrap();
-        let space =
-            search_space_target(&registry, codec, &base, &[], &animation, target, &eval, Limits::default(), 0, &|_| {})
-                .unwrap();
+        let ladder = search_target(&request(&registry, &animation, target, &eval, 0), codec, &base).unwrap();
+        let space = search_space_target(&request(&registry, &animation, target, &eval, 0), codec, &base, &[]).unwrap();
         if !ladder.linear_fallback {
             assert!(space.point.bytes <= ladder.point.bytes, "{name}: {} > {}", space.point.bytes, ladder.point.bytes);
         }
@@ -102,16 +108,10 @@ fn fixed_parameters_are_not_searched() {
     let base = codec.default_params().with(&codec.param_specs(), "rigid", ParamValue::Bool(false)).unwrap();
     let target = Target { metric: TargetMetric::Kg, value: 1.0 };
     let hit = search_space_target(
-        &registry,
+        &request(&registry, &small(), target, &EvalOptions::default(), 0),
         codec,
         &base,
         &["rigid"],
-        &small(),
-        target,
-        &EvalOptions::default(),
-        Limits::default(),
-        0,
-        &|_| {},
     )
     .unwrap();
     assert!(hit.tried.iter().all(|p| !p.params.bool("rigid").unwrap()));
@@ -213,16 +213,10 @@ fn candidates_decoding_to_non_finite_coordinates_are_rejected() {
     for metric in [TargetMetric::Kg, TargetMetric::MaxError] {
         let target = Target { metric, value: 1e-2 };
         let hit = search_space_target(
-            &registry,
+            &request(&registry, &small(), target, &EvalOptions::default(), 0),
             codec,
             &codec.default_params(),
             &[],
-            &small(),
-            target,
-            &EvalOptions::default(),
-            Limits::default(),
-            0,
-            &|_| {},
         )
         .unwrap();
         assert_eq!(hit.point.params.int("level").unwrap(), 19, "{target}");
@@ -310,7 +304,7 @@ fn default_quality_lands_within_its_band_of_the_target() {
     for codec in ["hosvd", "pca-aoi", "quant-delta"] {
         let codec = registry.by_name(codec).unwrap();
         for (name, anim) in &inputs {
-            let hit = harness::search_default_quality(&registry, codec, anim, &eval, Limits::default(), 4, &|_| {})
+            let hit = harness::search_default_quality(&request(&registry, anim, DEFAULT_TARGET, &eval, 4), codec)
                 .unwrap_or_else(|e| panic!("{} on {name}: {e}", codec.name()));
             let kg = hit.point.report.kg.unwrap();
             assert!(kg <= DEFAULT_TARGET.value, "{} on {name}: KG {kg}", codec.name());

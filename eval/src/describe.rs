@@ -5,18 +5,10 @@
 use std::io::{Read, Seek};
 
 use codec_core::container::{self, Header, IndexEntry, INDEX_ENTRY_BYTES, TRAILER_BYTES};
-use codec_core::{AnimationCodec, CodecRegistry, Limits, ParamKind, ParamSpec, ParamValue};
+use codec_core::{AnimationCodec, CodecRegistry, Limits, ParamKind, ParamSpec};
 use serde_json::{json, Map, Value};
 
-/// A parameter value as JSON (numbers, booleans, strings).
-pub fn param_value_json(value: &ParamValue) -> Value {
-    match value {
-        ParamValue::Int(v) => Value::from(*v),
-        ParamValue::Float(v) => Value::from(*v),
-        ParamValue::Bool(v) => Value::from(*v),
-        ParamValue::Choice(v) => Value::from(*v),
-    }
-}
+use crate::params::param_value_json;
 
 /// One codec as JSON: `{name, fourcc, stream_version, summary, params, rate_ladder,
 /// search_space}` (`search_space`: `{primary, secondary: [{param, values}]}`, what
@@ -123,13 +115,14 @@ pub fn info_json(registry: &CodecRegistry, header: &Header, index: &[IndexEntry]
     let info = &header.info;
     let codec = registry.by_fourcc(info.fourcc).ok().map(|c| c.name());
     let (v, f, t) = (info.vertex_count(), info.frame_count, info.topology.triangle_count());
-    let bpvf = |bytes: u64| bytes as f64 * 8.0 / (v as f64 * f as f64);
+    // `read_index` refuses containers without vertices or frames, so bpvf is always defined.
+    let bpvf = |bytes: u64| metrics::bpvf(bytes, v, f).ok();
     let packets: Vec<_> = index
         .iter()
         .map(|e| {
             json!({
                 "first_frame": e.first_frame,
-                "frame_count": e.frame_count,
+                "frames": e.frame_count,
                 "keyframe": e.keyframe,
                 "bytes": e.payload_bytes,
                 "offset": e.offset,
@@ -139,7 +132,7 @@ pub fn info_json(registry: &CodecRegistry, header: &Header, index: &[IndexEntry]
     json!({
         "codec": codec,
         "fourcc": info.fourcc.to_string(),
-        "codec_version": info.codec_version,
+        "stream_version": info.codec_version,
         "container_version": header.container_version,
         "frames": f,
         "vertices": v,

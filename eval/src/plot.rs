@@ -7,10 +7,12 @@
 //! pulling a plotting library into its build.
 
 use std::fmt::Write as _;
+use std::path::Path;
 
 use metrics::MetricReport;
 
-use crate::harness::Point;
+use crate::error::Result;
+use crate::harness::{write_text, Point};
 
 const WIDTH: f64 = 1200.0;
 const HEIGHT: f64 = 520.0;
@@ -21,6 +23,12 @@ const MARGIN: (f64, f64, f64, f64) = (84.0, 24.0, 40.0, 56.0);
 const TICKS: usize = 6;
 /// Distinct line colours, cycled (a colour-blind-safe qualitative palette, Okabe–Ito).
 const PALETTE: [&str; 8] = ["#0072B2", "#D55E00", "#009E73", "#CC79A7", "#E69F00", "#56B4E9", "#000000", "#F0E442"];
+
+/// Writes the rate-distortion plot of `points` ([`rd_svg`]) to `path` (replacing it, through a
+/// temporary file: [`write_text`]).
+pub fn write_rd_svg(path: &Path, title: &str, points: &[Point]) -> Result<()> {
+    write_text(path, &rd_svg(title, points))
+}
 
 /// The SVG document of the two panels under `title`.
 pub fn rd_svg(title: &str, points: &[Point]) -> String {

@@ -62,9 +62,11 @@ pub struct MetricReport {
     pub sted_params: StedParams,
     /// Reference bounding-box diagonal over all frames (`diag` above).
     pub bbox_diagonal: f64,
-    /// Vertices per frame.
+    /// Vertices per frame (JSON `vertices`, the spelling of every animcodec document: docs/json.md).
+    #[serde(rename = "vertices")]
     pub vertex_count: usize,
-    /// Frames.
+    /// Frames (JSON `frames`).
+    #[serde(rename = "frames")]
     pub frame_count: usize,
     /// Why a metric is missing, and other remarks.
     pub notes: Vec<String>,

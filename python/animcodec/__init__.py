@@ -268,10 +268,14 @@ def encode_to_target(
     (metric, value), = given.items()
     if int(refine) < 0:
         raise ValueError(f"refine must be ≥ 0; got {refine}")
-    stream, summary = _native.encode_to_target(
-        _positions(positions), _faces(faces), str(codec), _fps(fps), f"{metric}={float(value)!r}", int(refine),
-        params or None, bool(ladder), progress,
-    )
+    search = {
+        "target": f"{metric}={float(value)!r}",
+        "refine": int(refine),
+        "params": params or None,
+        "ladder": bool(ladder),
+        "progress": progress,
+    }
+    stream, summary = _native.encode_to_target(_positions(positions), _faces(faces), str(codec), _fps(fps), search)
     return TargetEncoding(stream, summary["codec"], summary["params"], summary["reached"], summary["bpvf"], summary)
 
 
@@ -326,7 +330,7 @@ def evaluate(
 
     Returns a dict with ``kg``, ``sted``, ``sted_spatial``, ``sted_temporal``, ``hausdorff``,
     ``hausdorff_mean``, ``hausdorff_relative``, ..., ``mse``, ``rmse``, ``max_error``,
-    ``sted_params``, ``bbox_diagonal``, ``vertex_count``, ``frame_count``, ``notes``,
+    ``sted_params``, ``bbox_diagonal``, ``vertices``, ``frames``, ``notes``,
     ``reference``, ``candidate``, ``eval_seconds``. Undefined metrics are ``None``.
     """
     names = []

@@ -6,7 +6,7 @@ C-contiguous ``(F, V, 3)``, faces uint32 C-contiguous ``(T, 3)``. Use the functi
 """
 
 from os import PathLike
-from typing import Any, Dict, List, Optional, Tuple, Union
+from typing import Any, Callable, Dict, List, Optional, Tuple, TypedDict, Union
 
 import numpy as np
 import numpy.typing as npt
@@ -20,14 +20,17 @@ _Path = Union[str, PathLike[str]]
 
 def codecs() -> List[Dict[str, Any]]: ...
 def encode(positions: _F32, faces: _U32, codec: str, fps: float, params: Optional[Dict[str, Any]] = None) -> bytes: ...
+class TargetSearch(TypedDict):
+    """What ``encode_to_target`` searches for (every key present)."""
+
+    target: str
+    refine: int
+    params: Optional[Dict[str, Any]]
+    ladder: bool
+    progress: Optional[Callable[[Dict[str, Any]], None]]
+
 def encode_to_target(
-    positions: _F32,
-    faces: _U32,
-    codec: str,
-    fps: float,
-    target: str,
-    refine: int = 0,
-    params: Optional[Dict[str, Any]] = None,
+    positions: _F32, faces: _U32, codec: str, fps: float, search: TargetSearch
 ) -> Tuple[bytes, Dict[str, Any]]: ...
 def decode(data: bytes) -> Tuple[Tuple[_F32, _U32, float], str]: ...
 def decode_frame(data: bytes, t: int) -> _F32: ...
@@ -42,36 +45,46 @@ def save(
     path: _Path, positions: _F32, faces: _U32, fps: float, force: bool = False, topology_obj: bool = True
 ) -> List[str]: ...
 def sweep_plan(series: List[Tuple[str, Optional[Dict[str, Any]]]], points: Optional[int] = None) -> List[Dict[str, Any]]: ...
-def sweep_point(
-    input: str,
-    codec: str,
-    params: Optional[Dict[str, Any]],
-    step: int,
-    eval: Optional[Dict[str, Any]] = None,
-    topology: Optional[_Path] = None,
-    fps: Optional[float] = None,
-    arrays: Optional[Tuple[_F32, _U32, float]] = None,
-) -> Dict[str, Any]: ...
-def sweep_local(
-    input: str,
-    series: List[Tuple[str, Optional[Dict[str, Any]]]],
-    points: Optional[int] = None,
-    eval: Optional[Dict[str, Any]] = None,
-    jobs: Optional[int] = 1,
-    topology: Optional[_Path] = None,
-    fps: Optional[float] = None,
-) -> Dict[str, Any]: ...
+class SweepJob(TypedDict):
+    """One sweep job (every key present)."""
+
+    input: str
+    codec: str
+    params: Optional[Dict[str, Any]]
+    step: int
+    eval: Optional[Dict[str, Any]]
+    topology: Optional[_Path]
+    fps: Optional[float]
+    arrays: Optional[Tuple[_F32, _U32, float]]
+
+def sweep_point(job: SweepJob) -> Dict[str, Any]: ...
+
+class LocalSweep(TypedDict):
+    """A single-process sweep of one input (every key present)."""
+
+    input: str
+    series: List[Tuple[str, Optional[Dict[str, Any]]]]
+    points: Optional[int]
+    eval: Optional[Dict[str, Any]]
+    jobs: Optional[int]
+    topology: Optional[_Path]
+    fps: Optional[float]
+
+def sweep_local(sweep: LocalSweep) -> Dict[str, Any]: ...
 def check_outputs(outputs: List[_Path], inputs: List[_Path], force: bool = False) -> None: ...
-def sweep_document(
-    input: str,
-    vertices: int,
-    frames: int,
-    rows: List[Dict[str, Any]],
-    failures: List[Dict[str, Any]],
-    eval: Optional[Dict[str, Any]] = None,
-    total_seconds: Optional[float] = None,
-    jobs: Any = None,
-    json: Optional[_Path] = None,
-    csv: Optional[_Path] = None,
-    plot: Optional[_Path] = None,
-) -> Dict[str, Any]: ...
+class GatheredSweep(TypedDict):
+    """Gathered rows of one input and the files to write (every key present)."""
+
+    input: str
+    vertices: int
+    frames: int
+    rows: List[Dict[str, Any]]
+    failures: List[Dict[str, Any]]
+    eval: Optional[Dict[str, Any]]
+    total_seconds: Optional[float]
+    jobs: Any
+    json: Optional[_Path]
+    csv: Optional[_Path]
+    plot: Optional[_Path]
+
+def sweep_document(gathered: GatheredSweep) -> Dict[str, Any]: ...

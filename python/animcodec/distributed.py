@@ -204,7 +204,17 @@ def run_job(
     if animation is not None:
         arrays = (_positions(animation.positions), _faces(animation.faces), float(animation.fps))
     try:
-        return _native.sweep_point(input_name, codec, params, int(step), eval_options, topology, fps, arrays)
+        job = {
+            "input": input_name,
+            "codec": codec,
+            "params": params,
+            "step": int(step),
+            "eval": eval_options,
+            "topology": topology,
+            "fps": fps,
+            "arrays": arrays,
+        }
+        return _native.sweep_point(job)
     except AnimcodecError as e:
         return {"error": str(e)}
 
@@ -401,9 +411,21 @@ def sweep(
         if dims is None and items[i][1] is not None:
             dims = (items[i][1].vertices, items[i][1].frames)
         files = next(((j, c, p) for k, j, c, p in outputs if k == i), (None, None, None))
+        json_path, csv_path, plot_path = files
         doc = _native.sweep_document(
-            name, dims[0] if dims else 0, dims[1] if dims else 0, rows, failures, eval_options, wall, "dask",
-            *files,
+            {
+                "input": name,
+                "vertices": dims[0] if dims else 0,
+                "frames": dims[1] if dims else 0,
+                "rows": rows,
+                "failures": failures,
+                "eval": eval_options,
+                "total_seconds": wall,
+                "jobs": "dask",
+                "json": json_path,
+                "csv": csv_path,
+                "plot": plot_path,
+            }
         )
         if dims is None:
             doc["vertices"] = doc["frames"] = None
@@ -452,8 +474,15 @@ def sweep_local(
     ``animcodec sweep INPUT --json``, in this process): the sweep document. ``jobs=1`` measures
     the points one after another, ``None`` on all cores."""
     return _native.sweep_local(
-        os.fspath(input), _series_list(codecs, params, series), points, _eval_dict(sted, hausdorff, sted_options),
-        jobs, topology, fps,
+        {
+            "input": os.fspath(input),
+            "series": _series_list(codecs, params, series),
+            "points": points,
+            "eval": _eval_dict(sted, hausdorff, sted_options),
+            "jobs": jobs,
+            "topology": topology,
+            "fps": fps,
+        }
     )
 
 

@@ -1,7 +1,8 @@
 //! `animcodec._native`: the Rust side of the `animcodec` Python package.
 //!
-//! Thin wrappers over the library crates — the `animcodec` facade (`cli/`: registry, file
-//! formats, sweep harness, descriptions), `codec-core` and `metrics` — so Python gets exactly
+//! Thin wrappers over the library crates — the `animcodec` facade (`animcodec/`: registry, and
+//! the file formats, sweep harness and descriptions it re-exports), `codec-core` and
+//! `metrics` — so Python gets exactly
 //! what the command line computes. The pure-Python layer (`python/animcodec/`) checks and
 //! converts numpy arrays (dtype, shape, contiguity) before calling in here; these functions
 //! still check everything they receive. Long calls (encode, decode, evaluate, sweep jobs)
@@ -16,8 +17,11 @@ use std::time::Instant;
 
 use animcodec::describe;
 use animcodec::formats::{self, ReadOptions, WriteOptions};
-use animcodec::harness::{self, Sweep, SweepOptions, SweepSeries, Target};
+use animcodec::harness::{
+    self, FailureRow, SearchRequest, Sweep, SweepDocument, SweepOptions, SweepRow, SweepSeries, Target,
+};
 use animcodec::output::OutputPolicy;
+use animcodec::params::params_json;
 use codec_core::synth::{self as gen, SynthSize};
 use codec_core::{
     Animation, AnimationCodec, CodecRegistry, Limits, ParamKind, ParamSet, ParamValue, StreamDecoder, Topology,
@@ -340,18 +344,20 @@ fn encode<'py>(
     let registry = registry();
     let animation = animation_from(&positions, &faces, fps)?;
     if params.is_none_or(|p| p.is_empty()) {
-        let target = harness::DEFAULT_TARGET;
-        let report = progress_reporter(progress, target);
-        let (eval, limits, refine) = (EvalOptions::default(), Limits::default(), DEFAULT_REFINE);
+        let report = progress_reporter(progress, harness::DEFAULT_TARGET);
+        let request = SearchRequest {
+            refine: DEFAULT_REFINE,
+            progress: &report,
+            ..SearchRequest::default_quality(registry, &animation)
+        };
         let hit = py
-            .detach(|| {
+            .detach(|| -> Result<_, BoxError> {
                 if codec == "auto" {
                     let all: Vec<&dyn AnimationCodec> = registry.iter().collect();
-                    harness::search_space_target_auto(registry, &all, &animation, target, &eval, limits, refine, &report)
-                        .map(|(h, _)| h)
+                    Ok(harness::search_space_target_auto(&request, &all).map(|(h, _)| h)?)
                 } else {
                     let c = registry.by_name(codec)?;
-                    harness::search_default_quality(registry, c, &animation, &eval, limits, refine, &report)
+                    Ok(harness::search_default_quality(&request, c)?)
                 }
             })
             .map_err(to_py)?;
@@ -375,7 +381,7 @@ fn progress_reporter(callback: Option<Py<PyAny>>, target: Target) -> impl Fn(&ha
         let Some(cb) = &callback else { return };
         let row = serde_json::json!({
             "codec": p.codec,
-            "params": harness::params_json(&p.params),
+            "params": params_json(&p.params),
             "bytes": p.bytes,
             "bpvf": p.bpvf,
             target.metric.name(): target.metric.value(&p.report),
@@ -389,24 +395,34 @@ fn progress_reporter(callback: Option<Py<PyAny>>, target: Target) -> impl Fn(&ha
     }
 }
 
-/// The smallest stream meeting `target` (`"kg=0.5"`, `"sted=0.02"`, …) of one codec (on its
-/// rate ladder, the other parameters from `params`) or of every codec (`codec="auto"`), as
+/// What `encode_to_target` searches for, as a dict of every key: `target` (`"kg=0.5"`, …),
+/// `refine` (extra points between ladder steps), `params` (fixed parameters, or `None`),
+/// `ladder` (the rate ladder alone instead of the declared search space), `progress` (a
+/// callable or `None`).
+#[derive(FromPyObject)]
+#[pyo3(from_item_all)]
+struct TargetSearch<'py> {
+    target: String,
+    refine: usize,
+    params: Option<Bound<'py, PyDict>>,
+    ladder: bool,
+    progress: Option<Py<PyAny>>,
+}
+
+/// The smallest stream meeting `search.target` of one codec (on its search space or rate
+/// ladder, the other parameters from `search.params`) or of every codec (`codec="auto"`), as
 /// `animcodec encode --target` finds it. Returns `(bytes, summary dict)`.
 #[pyfunction]
-#[pyo3(signature = (positions, faces, codec, fps, target, refine=0, params=None, ladder=false, progress=None))]
-#[allow(clippy::too_many_arguments)]
 fn encode_to_target<'py>(
     py: Python<'py>,
     positions: PyReadonlyArray3<'py, f32>,
     faces: PyReadonlyArray2<'py, u32>,
     codec: &str,
     fps: f32,
-    target: &str,
-    refine: usize,
-    params: Option<&Bound<'py, PyDict>>,
-    ladder: bool,
-    progress: Option<Py<PyAny>>,
+    search: TargetSearch<'py>,
 ) -> PyResult<(Bound<'py, PyBytes>, Py<PyAny>)> {
+    let TargetSearch { target, refine, params, ladder, progress } = search;
+    let params = params.as_ref();
     let target: Target = target.parse().map_err(to_py)?;
     let registry = registry();
     let chosen = if codec == "auto" {
@@ -427,32 +443,23 @@ fn encode_to_target<'py>(
         Some((c, base))
     };
     let animation = animation_from(&positions, &faces, fps)?;
-    let eval = EvalOptions::default();
-    let limits = Limits::default();
     let fixed: Vec<String> = match params {
         Some(p) => p.keys().iter().map(|k| k.extract::<String>()).collect::<PyResult<_>>()?,
         None => Vec::new(),
     };
     let report = progress_reporter(progress, target);
+    let request = SearchRequest { refine, progress: &report, ..SearchRequest::new(registry, &animation, target) };
     let (hit, others) = py
         .detach(|| {
             let fixed: Vec<&str> = fixed.iter().map(String::as_str).collect();
             let all: Vec<&dyn AnimationCodec> = registry.iter().collect();
             match (chosen, ladder) {
-                (Some((c, base)), true) => harness::search_target_with_progress(
-                    registry, c, &base, &animation, target, &eval, limits, refine, &report,
-                )
-                .map(|h| (h, Vec::new())),
-                (Some((c, base)), false) => harness::search_space_target(
-                    registry, c, &base, &fixed, &animation, target, &eval, limits, refine, &report,
-                )
-                .map(|h| (h, Vec::new())),
-                (None, true) => harness::search_target_auto_with_progress(
-                    registry, &all, &animation, target, &eval, limits, refine, &report,
-                ),
-                (None, false) => {
-                    harness::search_space_target_auto(registry, &all, &animation, target, &eval, limits, refine, &report)
+                (Some((c, base)), true) => harness::search_target(&request, c, &base).map(|h| (h, Vec::new())),
+                (Some((c, base)), false) => {
+                    harness::search_space_target(&request, c, &base, &fixed).map(|h| (h, Vec::new()))
                 }
+                (None, true) => harness::search_target_auto(&request, &all),
+                (None, false) => harness::search_space_target_auto(&request, &all),
             }
         })
         .map_err(to_py)?;
@@ -460,7 +467,7 @@ fn encode_to_target<'py>(
     let p = &hit.point;
     let summary = serde_json::json!({
         "codec": p.codec,
-        "params": harness::params_json(&p.params),
+        "params": params_json(&p.params),
         "target": { "metric": target.metric.name(), "value": target.value },
         "reached": value_of(p),
         "bytes": p.bytes,
@@ -469,14 +476,14 @@ fn encode_to_target<'py>(
         "rejected": hit.rejected,
         "tried": hit.tried.iter().map(|t| serde_json::json!({
             "ladder_index": t.ladder_index,
-            "params": harness::params_json(&t.params),
+            "params": params_json(&t.params),
             "bytes": t.bytes,
             "bpvf": t.bpvf,
             "value": value_of(t),
         })).collect::<Vec<_>>(),
         "other_codecs": others.iter().map(|h| serde_json::json!({
             "codec": h.point.codec,
-            "params": harness::params_json(&h.point.params),
+            "params": params_json(&h.point.params),
             "bytes": h.point.bytes,
             "bpvf": h.point.bpvf,
             "value": value_of(&h.point),
@@ -619,7 +626,7 @@ fn sweep_plan(py: Python<'_>, series: &Bound<'_, PyList>, points: Option<usize>)
             serde_json::json!({
                 "codec": s.codec.name(),
                 "series": s.label,
-                "params": harness::params_json(&s.base),
+                "params": params_json(&s.base),
                 "ladder_param": ladder.param,
                 "steps": harness::ladder_indices(ladder.steps.len(), points),
             })
@@ -628,72 +635,84 @@ fn sweep_plan(py: Python<'_>, series: &Bound<'_, PyList>, points: Option<usize>)
     value_to_py(py, &Value::Array(plan))
 }
 
-/// One sweep job: series `(codec, params)` at ladder step `step` on `input` (a path or
-/// `synth:NAME[:SIZE]`, loaded once per worker process and kept) or on the animation
-/// `arrays = (positions, faces, fps)`. Returns `{"row": …, "vertices", "frames"}`; the row is
-/// what `animcodec sweep --json` writes for that point (the same harness function measures it).
-#[pyfunction]
-#[pyo3(signature = (input, codec, params, step, eval=None, topology=None, fps=None, arrays=None))]
-#[allow(clippy::too_many_arguments)]
-fn sweep_point<'py>(
-    py: Python<'py>,
-    input: &str,
+/// One sweep job, as a dict of every key: series `(codec, params)` at ladder step `step` on
+/// `input` (a path or `synth:NAME[:SIZE]`, read with `topology` and `fps`, loaded once per
+/// worker process and kept) or on the animation `arrays = (positions, faces, fps)` (or
+/// `None`); `eval` the metric options (or `None`).
+#[derive(FromPyObject)]
+#[pyo3(from_item_all)]
+struct SweepJob<'py> {
+    input: String,
     codec: String,
     params: Option<Bound<'py, PyDict>>,
     step: usize,
-    eval: Option<&Bound<'py, PyDict>>,
+    eval: Option<Bound<'py, PyDict>>,
     topology: Option<PathBuf>,
     fps: Option<f32>,
     arrays: Option<(PyReadonlyArray3<'py, f32>, PyReadonlyArray2<'py, u32>, f32)>,
-) -> PyResult<Py<PyAny>> {
+}
+
+/// Runs one sweep job. Returns `{"row": …, "vertices", "frames"}`; the row is what
+/// `animcodec sweep --json` writes for that point (the same harness function measures it).
+#[pyfunction]
+fn sweep_point<'py>(py: Python<'py>, job: SweepJob<'py>) -> PyResult<Py<PyAny>> {
+    let SweepJob { input, codec, params, step, eval, topology, fps, arrays } = job;
     let registry = registry();
     let list = PyList::new(py, [(codec, params)])?;
     let series = series_from(registry, &list)?;
-    let options = SweepOptions { points: None, jobs: Some(1), eval: eval_options(eval)?, limits: Limits::default() };
+    let options =
+        SweepOptions { points: None, jobs: Some(1), eval: eval_options(eval.as_ref())?, limits: Limits::default() };
     let animation = match arrays {
         Some((positions, faces, fps)) => Arc::new(animation_from(&positions, &faces, fps)?),
-        None => py.detach(|| load_cached(input, topology, fps)).map_err(to_py)?,
+        None => py.detach(|| load_cached(&input, topology, fps)).map_err(to_py)?,
     };
     let point = py.detach(|| harness::sweep_point(registry, &series[0], step, &animation, &options)).map_err(to_py)?;
     let value = serde_json::json!({
-        "row": harness::point_json(&point),
+        "row": SweepRow::from(&point).to_json(),
         "vertices": animation.vertex_count(),
         "frames": animation.frame_count(),
     });
     value_to_py(py, &value)
 }
 
-/// The command line's single-process sweep of one input (`animcodec sweep INPUT --json`, the
-/// same harness call): the sweep document as a dict. `jobs=1` runs the points one after the
-/// other, `None` on rayon's pool.
-#[pyfunction]
-#[pyo3(signature = (input, series, points=None, eval=None, jobs=Some(1), topology=None, fps=None))]
-#[allow(clippy::too_many_arguments)]
-fn sweep_local(
-    py: Python<'_>,
-    input: &str,
-    series: &Bound<'_, PyList>,
+/// A single-process sweep of one input, as a dict of every key: `input` (read with `topology`
+/// and `fps`), `series` (`[(codec, params or None), …]`), `points` per series (or `None`:
+/// every step), `eval` (or `None`), `jobs` (`1`: one point after the other; `None`: rayon's
+/// pool).
+#[derive(FromPyObject)]
+#[pyo3(from_item_all)]
+struct LocalSweep<'py> {
+    input: String,
+    series: Bound<'py, PyList>,
     points: Option<usize>,
-    eval: Option<&Bound<'_, PyDict>>,
+    eval: Option<Bound<'py, PyDict>>,
     jobs: Option<usize>,
     topology: Option<PathBuf>,
     fps: Option<f32>,
-) -> PyResult<Py<PyAny>> {
+}
+
+/// The command line's single-process sweep of one input (`animcodec sweep INPUT --json`, the
+/// same harness call): the sweep document as a dict.
+#[pyfunction]
+fn sweep_local<'py>(py: Python<'py>, sweep: LocalSweep<'py>) -> PyResult<Py<PyAny>> {
+    let LocalSweep { input, series, points, eval, jobs, topology, fps } = sweep;
     let registry = registry();
-    let series = series_from(registry, series)?;
-    let options = SweepOptions { points, jobs, eval: eval_options(eval)?, limits: Limits::default() };
+    let series = series_from(registry, &series)?;
+    let options = SweepOptions { points, jobs, eval: eval_options(eval.as_ref())?, limits: Limits::default() };
     let (animation, result, seconds) = py
         .detach(|| -> Result<_, BoxError> {
-            let animation = load_input(input, topology, fps, None)?;
+            let animation = load_input(&input, topology, fps, None)?;
             let start = Instant::now();
             let result = harness::sweep(registry, &series, &animation, &options, &|| {})?;
             Ok((animation, result, start.elapsed().as_secs_f64()))
         })
         .map_err(to_py)?;
-    let mut value = harness::sweep_json(input, &animation, &options.eval, &result);
-    value["total_seconds"] = seconds.into();
-    value["jobs"] = jobs.map_or_else(|| "rayon".into(), |j| j.into());
-    value_to_py(py, &value)
+    let document = SweepDocument {
+        total_seconds: Some(seconds),
+        jobs: Some(jobs.map_or_else(|| "rayon".into(), |j| j.into())),
+        ..SweepDocument::new(&input, (animation.vertex_count(), animation.frame_count()), &options.eval, &result)
+    };
+    value_to_py(py, &document.to_json().map_err(to_py)?)
 }
 
 /// Refuses outputs that exist (unless `force`) or are an input, before a long sweep — the
@@ -711,66 +730,65 @@ fn check_outputs(outputs: Vec<PathBuf>, inputs: Vec<PathBuf>, force: bool) -> Py
     Ok(())
 }
 
-/// Assembles gathered rows of one input into the command line's sweep document (rows sorted by
-/// series order then ladder index, failures, monotonicity) and writes the requested files with
-/// the command line's writers (`--json`, `--csv`, `--plot`). Returns the document.
-#[pyfunction]
-#[pyo3(signature = (input, vertices, frames, rows, failures, eval=None, total_seconds=None, jobs=None, json=None, csv=None, plot=None))]
-#[allow(clippy::too_many_arguments)]
-fn sweep_document(
-    py: Python<'_>,
-    input: &str,
+/// Gathered rows of one input and where to write them, as a dict of every key: `input`, its
+/// `vertices` and `frames`, `rows` (as `sweep_point` returned them), `failures`
+/// (`{codec, series, ladder_index, error}`), `eval` (or `None`), `total_seconds` and `jobs` (or
+/// `None`: left out of the document), and the files `json`, `csv`, `plot` (or `None`).
+#[derive(FromPyObject)]
+#[pyo3(from_item_all)]
+struct GatheredSweep<'py> {
+    input: String,
     vertices: usize,
     frames: usize,
-    rows: &Bound<'_, PyList>,
-    failures: &Bound<'_, PyList>,
-    eval: Option<&Bound<'_, PyDict>>,
+    rows: Bound<'py, PyList>,
+    failures: Bound<'py, PyList>,
+    eval: Option<Bound<'py, PyDict>>,
     total_seconds: Option<f64>,
-    jobs: Option<&Bound<'_, PyAny>>,
+    jobs: Option<Bound<'py, PyAny>>,
     json: Option<PathBuf>,
     csv: Option<PathBuf>,
     plot: Option<PathBuf>,
-) -> PyResult<Py<PyAny>> {
+}
+
+/// Assembles gathered rows of one input into the command line's sweep document (rows read back
+/// through the same serde types, failures, monotonicity, envelopes) and writes the requested
+/// files with the command line's writers (`--json`, `--csv`, `--plot`). Returns the document.
+#[pyfunction]
+fn sweep_document<'py>(py: Python<'py>, gathered: GatheredSweep<'py>) -> PyResult<Py<PyAny>> {
+    let GatheredSweep { input, vertices, frames, rows, failures, eval, total_seconds, jobs, json, csv, plot } =
+        gathered;
     let registry = registry();
-    let eval = eval_options(eval)?;
-    let mut sweep = Sweep::default();
-    for row in rows.iter() {
-        let value = py_to_value(&row)?;
-        sweep.points.push(harness::point_from_row(registry, &value, &eval, (vertices, frames)).map_err(to_py)?);
-    }
+    let eval = eval_options(eval.as_ref())?;
+    let rows: Vec<Value> = rows.iter().map(|row| py_to_value(&row)).collect::<PyResult<_>>()?;
+    let mut sweep = Sweep {
+        points: harness::points_from_rows(registry, &rows, &eval, (vertices, frames)).map_err(to_py)?,
+        failures: Vec::new(),
+    };
     for f in failures.iter() {
-        let f = py_to_value(&f)?;
-        let text = |k: &str| f.get(k).and_then(Value::as_str).unwrap_or_default().to_string();
-        let codec = registry.by_name(&text("codec")).map_err(to_py)?.name();
-        sweep.failures.push(harness::Failure {
-            codec,
-            series: text("series"),
-            ladder_index: f.get("ladder_index").and_then(Value::as_u64).unwrap_or(0) as usize,
-            message: text("error"),
-        });
+        let row: FailureRow = serde_json::from_value(py_to_value(&f)?)
+            .map_err(|e| to_py(format!("sweep failure {}: {e}", sweep.failures.len())))?;
+        sweep.failures.push(row.to_failure(registry).map_err(to_py)?);
     }
-    let mut value = harness::sweep_json_sized(input, (vertices, frames), &eval, &sweep);
-    if let Some(s) = total_seconds {
-        value["total_seconds"] = s.into();
-    }
-    if let Some(j) = jobs {
-        value["jobs"] = py_to_value(j)?;
-    }
+    let document = SweepDocument {
+        total_seconds,
+        jobs: jobs.as_ref().map(py_to_value).transpose()?,
+        ..SweepDocument::new(&input, (vertices, frames), &eval, &sweep)
+    };
     py.detach(|| -> Result<(), BoxError> {
         if let Some(path) = &json {
-            harness::write_text(path, &(serde_json::to_string_pretty(&value)? + "\n"))?;
+            harness::write_text(path, &document.to_json_text()?)?;
         }
         if let Some(path) = &csv {
-            harness::write_text(path, &harness::csv_text(&sweep.points))?;
+            harness::write_text(path, &harness::csv_text(&sweep.points)?)?;
         }
         if let Some(path) = &plot {
             let title = format!("{input}: {frames} frames × {vertices} vertices");
-            harness::plot_svg(path, &title, &sweep.points)?;
+            animcodec::plot::write_rd_svg(path, &title, &sweep.points)?;
         }
         Ok(())
     })
     .map_err(to_py)?;
-    value_to_py(py, &value)
+    value_to_py(py, &document.to_json().map_err(to_py)?)
 }
 
 /// The extension module.

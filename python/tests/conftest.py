@@ -53,7 +53,7 @@ def _cli_binary():
         if candidate.is_file():
             return str(candidate)
     if shutil.which("cargo") and (REPO / "Cargo.toml").is_file():
-        subprocess.run(["cargo", "build", "-q", "-p", "animcodec", "--bin", "animcodec"], cwd=REPO, check=True)
+        subprocess.run(["cargo", "build", "-q", "-p", "animcodec-cli", "--bin", "animcodec"], cwd=REPO, check=True)
         candidate = target / "debug" / "animcodec"
         if candidate.is_file():
             return str(candidate)

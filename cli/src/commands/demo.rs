@@ -10,7 +10,7 @@ use codec_core::{encode_animation_fed, Animation, AnimationCodec, CodecRegistry,
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use serde_json::{json, Value};
 
-use super::{bpvf, emit, emit_json, CmdResult};
+use super::{emit, emit_json, CmdResult};
 use crate::DemoArgs;
 
 /// Frames handed to the encoder per call, small enough that multi-packet streaming is exercised.
@@ -221,7 +221,7 @@ fn run_json(r: &Run) -> Value {
         "vertices": r.vertices,
         "frames": r.frames,
         "bytes": r.bytes,
-        "bpvf": bpvf(r.bytes, r.vertices, r.frames),
+        "bpvf": metrics::bpvf(r.bytes, r.vertices, r.frames).ok(),
         "kg": r.kg,
         "sted": r.sted,
         "max_error": r.stats.max_vertex_error,
@@ -230,7 +230,7 @@ fn run_json(r: &Run) -> Value {
         "encode_seconds": finite(r.encode_seconds),
         "decode_seconds": finite(r.decode_seconds),
         "ok": r.failure.is_none(),
-        "failure": r.failure,
+        "error": r.failure,
     })
 }
 
@@ -258,7 +258,7 @@ fn table(size: SynthSize, animations: &[(&str, usize, usize, f64)], runs: &[Run]
             r.animation,
             r.codec,
             r.bytes,
-            bpvf(r.bytes, r.vertices, r.frames),
+            metrics::bpvf(r.bytes, r.vertices, r.frames).unwrap_or(f64::NAN),
             r.kg.map_or_else(|| "-".to_string(), |x| if x >= 0.01 { format!("{x:.4}") } else { format!("{x:.2e}") }),
             metric(r.sted),
             r.stats.max_vertex_error,

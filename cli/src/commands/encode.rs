@@ -4,17 +4,18 @@ use std::io::{IsTerminal, Write};
 use std::time::{Duration, Instant};
 
 use animcodec::formats::ReadOptions;
-use animcodec::harness::{self, Target, TargetHit};
+use animcodec::harness::{self, SearchRequest, Target, TargetHit};
 use animcodec::output::{OutputPolicy, PendingFile};
+use animcodec::params::params_json;
 use codec_core::params::find_spec;
 use codec_core::synth;
 use codec_core::{Animation, AnimationCodec, Limits, ParamSet, StreamDecoder, StreamEncoder, Topology};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use metrics::{EvalOptions, MetricReport};
-use serde_json::{json, Map, Value};
+use serde_json::{json, Value};
 
 use super::eval::sted_params;
-use super::{bpvf, emit, emit_json, load_animation, param_json, raw_bytes, CmdResult, WithContext};
+use super::{emit, emit_json, load_animation, raw_bytes, CmdResult, WithContext};
 use crate::EncodeArgs;
 
 /// Builds the parameter set of `codec` from `key=value` strings (defaults for the rest).
@@ -119,7 +120,7 @@ pub fn run(args: &EncodeArgs, limits: Limits) -> CmdResult {
     }
 
     let (v, f, t) = (topology.vertex_count(), frame_count, topology.triangle_count());
-    let rate = bpvf(bytes, v, f);
+    let rate = metrics::bpvf(bytes, v, f)?;
     let ratio = raw_bytes(v, f) as f64 / bytes as f64;
     // --eval measures the stream as written, before it replaces anything: a failed measurement
     // leaves the old output untouched and no new file.
@@ -130,13 +131,9 @@ pub fn run(args: &EncodeArgs, limits: Limits) -> CmdResult {
     };
     file.commit()?;
     if args.json {
-        let mut p = Map::new();
-        for (name, value) in params.iter() {
-            p.insert(name.into(), param_json(value));
-        }
         let mut out = json!({
             "codec": codec.name(),
-            "params": Value::Object(p),
+            "params": params_json(&params),
             "input": args.input,
             "output": args.output.display().to_string(),
             "bytes": bytes,
@@ -390,31 +387,25 @@ fn run_target(args: &EncodeArgs, target: Target, by_default: bool, limits: Limit
         let knob = p.ladder_value().map_or_else(String::new, |v| format!("{}={v} ", p.ladder_param));
         bar.set_message(format!("last: {} {knob}→ {}={value} at {:.3} bpvf", p.codec, target.metric.name(), p.bpvf));
     };
-    let refine = args.refine as usize;
     let fixed: Vec<&str> = args.params.iter().filter_map(|p| p.split_once('=').map(|(k, _)| k.trim())).collect();
+    let request = SearchRequest {
+        eval,
+        limits,
+        refine: args.refine as usize,
+        progress: &progress,
+        ..SearchRequest::new(&registry, &animation, target)
+    };
+    let every_codec: Vec<&dyn AnimationCodec> = registry.iter().collect();
     let found = match (chosen, args.ladder) {
         (Some((codec, _)), false) if by_default => {
-            harness::search_default_quality(&registry, codec, &animation, &eval, limits, refine, &progress)
-                .map(|hit| (hit, Vec::new()))
+            harness::search_default_quality(&request, codec).map(|hit| (hit, Vec::new()))
         }
-        (Some((codec, params)), true) => harness::search_target_with_progress(
-            &registry, codec, &params, &animation, target, &eval, limits, refine, &progress,
-        )
-        .map(|hit| (hit, Vec::new())),
-        (Some((codec, params)), false) => harness::search_space_target(
-            &registry, codec, &params, &fixed, &animation, target, &eval, limits, refine, &progress,
-        )
-        .map(|hit| (hit, Vec::new())),
-        (None, true) => {
-            let codecs: Vec<&dyn AnimationCodec> = registry.iter().collect();
-            harness::search_target_auto_with_progress(
-                &registry, &codecs, &animation, target, &eval, limits, refine, &progress,
-            )
+        (Some((codec, params)), true) => harness::search_target(&request, codec, &params).map(|hit| (hit, Vec::new())),
+        (Some((codec, params)), false) => {
+            harness::search_space_target(&request, codec, &params, &fixed).map(|hit| (hit, Vec::new()))
         }
-        (None, false) => {
-            let codecs: Vec<&dyn AnimationCodec> = registry.iter().collect();
-            harness::search_space_target_auto(&registry, &codecs, &animation, target, &eval, limits, refine, &progress)
-        }
+        (None, true) => harness::search_target_auto(&request, &every_codec),
+        (None, false) => harness::search_space_target_auto(&request, &every_codec),
     };
     bar.finish_and_clear();
     let (hit, others) = found?;
@@ -436,7 +427,7 @@ fn run_target(args: &EncodeArgs, target: Target, by_default: bool, limits: Limit
         let summary = |h: &TargetHit| {
             json!({
                 "codec": h.point.codec,
-                "params": harness::params_json(&h.point.params),
+                "params": params_json(&h.point.params),
                 "bytes": h.point.bytes,
                 "bpvf": h.point.bpvf,
                 "value": target.metric.value(&h.point.report),
@@ -444,7 +435,7 @@ fn run_target(args: &EncodeArgs, target: Target, by_default: bool, limits: Limit
         };
         let mut out = json!({
             "codec": p.codec,
-            "params": harness::params_json(&p.params),
+            "params": params_json(&p.params),
             "input": args.input,
             "output": args.output.display().to_string(),
             "target": { "metric": target.metric.name(), "value": target.value },
@@ -466,7 +457,7 @@ fn run_target(args: &EncodeArgs, target: Target, by_default: bool, limits: Limit
             "linear_fallback": hit.linear_fallback,
             "tried": hit.tried.iter().map(|t| json!({
                 "ladder_index": t.ladder_index,
-                "params": harness::params_json(&t.params),
+                "params": params_json(&t.params),
                 "bytes": t.bytes,
                 "bpvf": t.bpvf,
                 "value": target.metric.value(&t.report),

@@ -13,7 +13,7 @@ use metrics::EvalOptions;
 use serde_json::json;
 
 use super::eval::{load_any, sted_params};
-use super::{bpvf, emit, emit_json, CmdResult, WithContext};
+use super::{emit, emit_json, CmdResult, WithContext};
 use crate::ExportArgs;
 
 /// Runs `export`.
@@ -64,7 +64,7 @@ pub fn run(args: &ExportArgs, limits: Limits) -> CmdResult {
     let report = metrics::evaluate(&animation, &played, &eval)
         .context(|| format!("comparing {} with {} as played back", args.input, args.output.display()))?;
     policy.write(&args.output, &bytes)?;
-    let rate = bpvf(bytes.len() as u64, animation.vertex_count(), animation.frame_count());
+    let rate = metrics::bpvf(bytes.len() as u64, animation.vertex_count(), animation.frame_count())?;
     if args.json {
         return emit_json(&json!({
             "input": args.input,
@@ -80,7 +80,7 @@ pub fn run(args: &ExportArgs, limits: Limits) -> CmdResult {
             "metrics": harness::report_json(&report),
             "frames": animation.frame_count(),
             "vertices": animation.vertex_count(),
-            "fps": animation.frame_rate(),
+            "frame_rate": animation.frame_rate(),
             "export_seconds": seconds,
         }));
     }

@@ -8,7 +8,7 @@ use codec_core::container;
 use codec_core::Limits;
 
 use super::decode::open;
-use super::{bpvf, emit, emit_json, CmdResult, WithContext};
+use super::{emit, emit_json, CmdResult, WithContext};
 use crate::InfoArgs;
 
 /// Packets listed by the text output unless `--all-packets` is given.
@@ -44,8 +44,9 @@ pub fn run(args: &InfoArgs, limits: Limits) -> CmdResult {
     let registry = animcodec::registry();
     let codec = registry.by_fourcc(info.fourcc).ok().map(|c| c.name());
     let (v, f, t) = (info.vertex_count(), info.frame_count, info.topology.triangle_count());
-    let rate = bpvf(total, v, f);
-    let geometry_rate = bpvf(payload_bytes, v, f);
+    // `read_index` refuses containers without vertices or frames.
+    let rate = metrics::bpvf(total, v, f)?;
+    let geometry_rate = metrics::bpvf(payload_bytes, v, f)?;
     let keyframes = index.iter().filter(|e| e.keyframe).count();
 
     if args.json {

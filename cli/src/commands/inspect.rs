@@ -10,10 +10,12 @@ use animcodec::formats::ReadOptions;
 use animcodec::output::{commit_all, OutputPolicy};
 use codec_core::{Animation, ParamSet};
 use codec_stseg::{segment_animation, BlockKind, Segment, Segmentation, StsegParams};
-use serde_json::{json, Map, Value};
+use serde_json::{json, Value};
 
 use super::encode::parse_params;
-use super::{emit, load_animation, param_json, CmdResult};
+use animcodec::params::params_json;
+
+use super::{emit, load_animation, CmdResult};
 use crate::InspectArgs;
 
 /// Mesh formats `--mesh` writes, chosen by extension.
@@ -194,14 +196,6 @@ fn label_sets(segmentation: &Segmentation) -> (Vec<&[u8]>, Vec<usize>) {
     (sets, index)
 }
 
-fn params_json(params: &ParamSet) -> Value {
-    let mut p = Map::new();
-    for (name, value) in params.iter() {
-        p.insert(name.into(), param_json(value));
-    }
-    Value::Object(p)
-}
-
 /// The JSON document of `--json`, as text ending in a newline.
 ///
 /// `Segmentation::to_json` repeats the labels in every segment; here each distinct labelling
@@ -226,7 +220,7 @@ fn segmentation_json(
                 "index": i,
                 "first_frame": s.first_frame,
                 "last_frame": s.first_frame + s.frame_count - 1,
-                "frame_count": s.frame_count,
+                "frames": s.frame_count,
                 "case": s.kind.case(),
                 "kind": kind_name(s.kind),
                 "detected_boundary": s.detected_boundary,

@@ -1,5 +1,5 @@
 //! The subcommands, one module each, and what they share: error reporting, stdout output,
-//! input loading and JSON conversions.
+//! input loading. (Parameters as JSON: `animcodec::params`; bpvf: `metrics::bpvf`.)
 
 pub mod animations;
 pub mod decode;
@@ -20,7 +20,7 @@ use std::path::Path;
 
 use animcodec::formats::{self, ReadOptions};
 use codec_core::synth::{self as gen, SynthSize};
-use codec_core::{Animation, Limits, ParamValue};
+use codec_core::{Animation, Limits};
 use serde_json::Value;
 
 /// What every subcommand returns. Errors are codec-core errors, I/O errors, or plain messages.
@@ -174,21 +174,6 @@ pub fn io_message(context: &str, e: &std::io::Error) -> String {
         _ => e.to_string(),
     };
     format!("{context}: {reason}")
-}
-
-/// A parameter value as JSON (numbers, booleans, strings).
-pub fn param_json(value: &ParamValue) -> Value {
-    match value {
-        ParamValue::Int(v) => Value::from(*v),
-        ParamValue::Float(v) => Value::from(*v),
-        ParamValue::Bool(v) => Value::from(*v),
-        ParamValue::Choice(v) => Value::from(*v),
-    }
-}
-
-/// Bits per vertex per frame.
-pub fn bpvf(bytes: u64, vertices: usize, frames: usize) -> f64 {
-    bytes as f64 * 8.0 / (vertices as f64 * frames as f64)
 }
 
 /// Bytes of the animation stored as raw `f32` coordinates.

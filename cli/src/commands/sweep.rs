@@ -8,8 +8,9 @@ use std::time::Instant;
 
 use crate::viewer;
 use animcodec::formats::ReadOptions;
-use animcodec::harness::{self, monotone_report, Point, Sweep, SweepOptions, SweepSeries, TargetMetric};
+use animcodec::harness::{self, monotone_report, Point, Sweep, SweepDocument, SweepOptions, SweepSeries, TargetMetric};
 use animcodec::output::{commit_all, OutputPolicy};
+use animcodec::params::params_json;
 use codec_core::{AnimationCodec, CodecRegistry, Limits};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
@@ -99,14 +100,17 @@ pub fn run(args: &SweepArgs, limits: Limits) -> CmdResult {
         staged.push(policy.stage(path, text.as_bytes())?);
         Ok(())
     };
+    let dims = (animation.vertex_count(), animation.frame_count());
+    let document = SweepDocument {
+        total_seconds: Some(seconds),
+        jobs: Some(options.jobs.map_or_else(|| "rayon".into(), |j| j.into())),
+        ..SweepDocument::new(input, dims, &eval, &result)
+    };
     if let Some(path) = args.json.as_ref().filter(|_| !to_stdout) {
-        let mut value = harness::sweep_json(input, &animation, &eval, &result);
-        value["total_seconds"] = seconds.into();
-        value["jobs"] = options.jobs.map_or_else(|| "rayon".into(), |j| j.into());
-        stage(path, &(serde_json::to_string_pretty(&value)? + "\n"))?;
+        stage(path, &document.to_json_text()?)?;
     }
     if let Some(path) = &args.csv {
-        stage(path, &harness::csv_text(&result.points))?;
+        stage(path, &harness::csv_text(&result.points)?)?;
     }
     if let Some(path) = &args.plot {
         let title = format!("{input}: {} frames × {} vertices", animation.frame_count(), animation.vertex_count());
@@ -118,10 +122,7 @@ pub fn run(args: &SweepArgs, limits: Limits) -> CmdResult {
     }
     commit_all(staged, &[])?;
     if to_stdout {
-        let mut value = harness::sweep_json(input, &animation, &eval, &result);
-        value["total_seconds"] = seconds.into();
-        value["jobs"] = options.jobs.map_or_else(|| "rayon".into(), |j| j.into());
-        emit_json(&value)?;
+        emit_json(&document.to_json()?)?;
     } else {
         emit(&table(input, &animation, &result, seconds, envelope_mode))?;
     }
@@ -176,7 +177,7 @@ fn html_report(
             animation: &decoded,
             info: serde_json::json!({
                 "codec": point.codec,
-                "params": harness::params_json(&point.params),
+                "params": params_json(&point.params),
                 "bytes": point.bytes,
                 "bpvf": point.bpvf,
             }),
@@ -189,7 +190,8 @@ fn html_report(
         };
         viewers.push(viewer::viewer_data(animation, &[candidate], &options)?);
     }
-    let mut value = harness::sweep_json(input, animation, eval, sweep);
+    let dims = (animation.vertex_count(), animation.frame_count());
+    let mut value = SweepDocument::new(input, dims, eval, sweep).to_json()?;
     value["title"] = format!("Rate-distortion report: {input}").into();
     value["viewers"] = viewers.into();
     Ok(viewer::report_page(&format!("animcodec sweep: {input}"), &value))
@@ -324,5 +326,5 @@ fn series_on<'r>(codec: &'r dyn AnimationCodec, pairs: &[String]) -> CmdResult<S
             format!("{}: '{p}' sets the parameter the sweep walks ({walked}); leave it out", codec.name()).into()
         );
     }
-    SweepSeries::with_base(codec, base)
+    Ok(SweepSeries::with_base(codec, base)?)
 }

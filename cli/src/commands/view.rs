@@ -6,8 +6,8 @@ use std::time::Instant;
 
 use crate::viewer::{self, Candidate, HeatMetric, ViewerOptions};
 use animcodec::formats::ReadOptions;
-use animcodec::harness;
 use animcodec::output::OutputPolicy;
+use animcodec::params::params_json;
 use codec_core::{Animation, CodecRegistry, Limits, StreamDecoder};
 use metrics::EvalOptions;
 use serde_json::{json, Value};
@@ -103,7 +103,7 @@ fn load_candidate(
                 label: spec.to_string(),
                 info: json!({
                     "codec": codec.name(),
-                    "params": harness::params_json(&params),
+                    "params": params_json(&params),
                     "bytes": size,
                     "bpvf": metrics::bpvf(size, reference.vertex_count(), reference.frame_count())?,
                 }),

@@ -1,0 +1,157 @@
+//! The default encode's search (no parameters, no target): one encode at the codec's defaults
+//! when it lands near [`DEFAULT_TARGET`], otherwise a short gallop and bisection along the rate
+//! ladder.
+
+use codec_core::{Animation, AnimationCodec, CodecRegistry, ParamSet};
+
+use super::measured::Point;
+use super::point::{ladder_params, measure_point};
+use super::search::{midpoint, SearchRequest};
+use super::target::{meets, usable, Target, TargetHit, TargetMetric, TargetMiss};
+use crate::error::{EvalError, Result};
+
+/// The quality every command aims at when given neither parameters nor a target: KG ≤ 0.5 %
+/// (see the README's "Quality by default" and `docs/notes/issue-26-rate-control.md` for the
+/// measurements behind the choice).
+pub const DEFAULT_TARGET: Target = Target { metric: TargetMetric::Kg, value: 0.5 };
+
+/// How far below [`DEFAULT_TARGET`] a codec's own defaults may land and still be the default
+/// encode's answer: a first encode whose error lies in `[target / band, target]` is kept as it
+/// is. A factor of 3 keeps the default quality within 3× across inputs (issue 26: the largest
+/// KG at most 3× the smallest over one character's clips) while most inputs cost one encode.
+pub const DEFAULT_QUALITY_BAND: f64 = 3.0;
+
+/// Once the default encode has searched, it refines between two ladder steps while its answer
+/// is more than this factor below [`DEFAULT_TARGET`] (a stream at a third of the target error
+/// can be half again too large; within 1.25× the next encode buys little).
+pub const DEFAULT_REFINE_BAND: f64 = 1.25;
+
+/// The default encode (no parameters, no target): one encode at the codec's defaults, kept
+/// when its error lies within [`DEFAULT_QUALITY_BAND`] of [`DEFAULT_TARGET`]. Otherwise (a
+/// short clip the codec's size model overshoots, a smooth one it undershoots) the search
+/// starts from there: it gallops along the rate ladder towards the target (1, 2, 4 … steps),
+/// bisects the bracket it finds, and refines between the two ladder steps up to `refine`
+/// times while the answer is more than [`DEFAULT_REFINE_BAND`] below the target. Typically
+/// one to four encodes; the whole declared parameter space
+/// ([`search_space_target`](super::search_space_target)) is for an explicit `--target`, where
+/// tens of encodes buy smaller streams.
+///
+/// The target is `request.target`: [`DEFAULT_TARGET`] for the default encode
+/// ([`SearchRequest::default_quality`]); the bands are relative to it.
+pub fn search_default_quality(request: &SearchRequest<'_>, codec: &dyn AnimationCodec) -> Result<TargetHit> {
+    let SearchRequest { registry, animation, target, limits, refine, progress, .. } = *request;
+    let eval = request.metric_options();
+    let base = codec.default_params();
+    let ladder = codec.rate_ladder(&base);
+    let n = ladder.steps.len();
+    if n == 0 {
+        return Err(EvalError::EmptyLadder { codec: codec.name() });
+    }
+    let start = ladder.steps.iter().position(|v| base.get(ladder.param) == Some(v));
+    let mut tried: Vec<(Point, Vec<u8>)> = Vec::new();
+    let mut rejected: Vec<String> = Vec::new();
+    // Measures `params` (at ladder position `index`); true when it meets the target. A codec
+    // refusal counts as a miss and its reason is kept (hosvd's one-frame advice, say).
+    let measure = |params: &ParamSet,
+                   index: usize,
+                   tried: &mut Vec<(Point, Vec<u8>)>,
+                   rejected: &mut Vec<String>|
+     -> Result<bool> {
+        match measure_point(registry, codec, params, (ladder.param, index), animation, &eval, limits) {
+            Ok((point, stream)) => {
+                progress(&point);
+                let pass = usable(&point) && meets(target, &point);
+                tried.push((point, stream));
+                Ok(pass)
+            }
+            Err(e) => {
+                rejected.push(e.to_string());
+                Ok(false)
+            }
+        }
+    };
+    let at = |i: usize| ladder_params(codec, &base, &ladder, i);
+    // The codec's defaults first (they are a ladder step for every registered codec; if not,
+    // the middle of the ladder).
+    let first = start.unwrap_or(n / 2);
+    let first_pass = measure(&base, first, &mut tried, &mut rejected)?;
+    let in_band = |p: &Point| target.metric.value(&p.report).is_some_and(|v| v >= target.value / DEFAULT_QUALITY_BAND);
+    if first_pass && tried.last().is_some_and(|(p, _)| in_band(p)) {
+        let (point, stream) = tried.pop().expect("measured above");
+        return Ok(TargetHit { tried: vec![point.clone()], point, stream, linear_fallback: false, rejected });
+    }
+    // Gallop towards the target: up the ladder (larger streams) after a miss, down after a
+    // pass far below the target, until the outcome flips or the ladder ends.
+    let (mut fail, mut pass): (Option<usize>, Option<usize>) =
+        if first_pass { (None, Some(first)) } else { (Some(first), None) };
+    let mut stride = 1;
+    loop {
+        let next =
+            if first_pass { pass.map(|p| p.saturating_sub(stride)) } else { fail.map(|f| (f + stride).min(n - 1)) };
+        let Some(i) = next.filter(|&i| Some(i) != fail && Some(i) != pass) else { break };
+        if measure(&at(i)?, i, &mut tried, &mut rejected)? {
+            pass = Some(i);
+            if !first_pass {
+                break;
+            }
+        } else {
+            fail = Some(i);
+            if first_pass {
+                break;
+            }
+        }
+        stride *= 2;
+    }
+    // Bisect the ladder bracket to adjacent steps.
+    if let (Some(mut f), Some(mut p)) = (fail, pass) {
+        while f.abs_diff(p) > 1 {
+            let mid = (f + p) / 2;
+            if measure(&at(mid)?, mid, &mut tried, &mut rejected)? {
+                p = mid;
+            } else {
+                f = mid;
+            }
+        }
+        // Between the two steps, while the answer is far below the target.
+        let (mut fail_value, mut pass_value) = (ladder.steps[f].clone(), ladder.steps[p].clone());
+        let specs = codec.param_specs();
+        for _ in 0..refine {
+            let far_below = tried
+                .iter()
+                .filter(|(pt, _)| usable(pt) && meets(target, pt))
+                .min_by_key(|(pt, _)| pt.bytes)
+                .is_some_and(|(pt, _)| {
+                    target.metric.value(&pt.report).is_some_and(|v| v < target.value / DEFAULT_REFINE_BAND)
+                });
+            let Some(mid) = midpoint(&fail_value, &pass_value).filter(|_| far_below) else { break };
+            let Ok(params) = base.clone().with(&specs, ladder.param, mid.clone()) else { break };
+            if codec.validate(&params).is_err() {
+                break;
+            }
+            if measure(&params, p, &mut tried, &mut rejected)? {
+                pass_value = mid;
+            } else {
+                fail_value = mid;
+            }
+        }
+    }
+    let best = tried.iter().filter(|(p, _)| usable(p) && meets(target, p)).min_by_key(|(p, _)| p.bytes).cloned();
+    match best {
+        Some((point, stream)) => Ok(TargetHit {
+            point,
+            stream,
+            tried: tried.into_iter().map(|(p, _)| p).collect(),
+            linear_fallback: false,
+            rejected,
+        }),
+        None => Err(TargetMiss::new(codec.name(), target, tried.iter().map(|(p, _)| p), rejected).into()),
+    }
+}
+
+impl<'a> SearchRequest<'a> {
+    /// The default encode's request: [`DEFAULT_TARGET`] on `animation`, default metric options
+    /// and limits, no refinement, no progress reports.
+    pub fn default_quality(registry: &'a CodecRegistry, animation: &'a Animation) -> Self {
+        Self::new(registry, animation, DEFAULT_TARGET)
+    }
+}

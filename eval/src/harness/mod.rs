@@ -1,0 +1,212 @@
+//! The evaluation harness behind `animcodec eval`, `animcodec sweep` and
+//! `animcodec encode --target`: rate-ladder sweeps, rate-distortion tables and plots, and
+//! target-error search. Everything here works on in-memory [`Animation`](codec_core::Animation)s
+//! so it can be tested without the binary.
+//!
+//! Modules by job, each importing only those above it in this list:
+//!
+//! * `point`: [`measure_point`] encodes one animation at one parameter set,
+//!   decodes the stream (the decoder sees nothing but the bytes) and measures it with
+//!   [`metrics::evaluate`]; [`ladder_indices`] and [`ladder_params`] pick ladder steps.
+//! * `target`: [`Target`] (`kg=0.5`), what a search found ([`TargetHit`]) or missed
+//!   ([`TargetMiss`]), and which points are [`usable`].
+//! * `curve`: [`monotone_report`] (bpvf rises and the errors fall along each ladder) and each
+//!   codec's lower [`envelope`].
+//! * `sweep`: [`sweep`] walks the rate ladder of every series, in parallel with rayon or
+//!   sequentially (`jobs = 1`, for timing), and returns the rows sorted by series then ladder
+//!   position whatever the scheduling; [`sweep_point`] is one job of it; [`envelope_sweep`]
+//!   the default sweep over each codec's declared search space.
+//! * `rows`: [`SweepRow`] and [`SweepDocument`], the serde types `sweep --json` and
+//!   `sweep --csv` write ([`csv_text`]), and rows read back ([`points_from_rows`]).
+//! * `search`: [`SearchRequest`], and [`search_target`] along one rate ladder
+//!   ([`search_target_auto`]: over several codecs).
+//! * `space`: [`search_space_target`] over a codec's declared search space
+//!   ([`search_space_target_auto`]).
+//! * `default_quality`: [`search_default_quality`], the default encode's short search.
+
+mod csv;
+mod curve;
+mod default_quality;
+mod measured;
+mod point;
+mod rows;
+mod search;
+mod space;
+mod sweep;
+pub(crate) mod target;
+
+pub use curve::{envelope, monotone_report, Monotonicity};
+pub use default_quality::{search_default_quality, DEFAULT_QUALITY_BAND, DEFAULT_REFINE_BAND, DEFAULT_TARGET};
+pub use measured::Point;
+pub use point::{ladder_indices, ladder_params, measure_point};
+pub use rows::{
+    csv_columns, csv_text, points_from_rows, report_json, write_text, Envelopes, FailureRow, SweepDocument, SweepRow,
+};
+pub use search::{search_target, search_target_auto, SearchRequest};
+pub use space::{search_space_target, search_space_target_auto};
+pub use sweep::{envelope_sweep, sweep, sweep_jobs, sweep_point, Failure, Sweep, SweepOptions, SweepSeries};
+pub use target::{usable, Target, TargetHit, TargetMetric, TargetMiss, DEGENERATE_KG};
+
+/// What every harness function fails with (matched by variant: a search that found nothing is
+/// [`EvalError::TargetMiss`]).
+pub use crate::error::{EvalError, Result};
+
+#[cfg(test)]
+mod tests {
+    use super::search::midpoint;
+    use super::*;
+    use crate::error::EvalError;
+    use codec_core::{synth, CodecRegistry, ParamValue};
+    use serde_json::Value;
+
+    /// The harness takes its codecs from the caller; these tests use the baseline and one
+    /// transform codec (the facade crate's `registry()` is above this crate).
+    fn test_registry() -> CodecRegistry {
+        CodecRegistry::new(vec![Box::new(codec_core::quant_delta::QuantDelta), Box::new(codec_pca_aoi::PcaAoi)])
+            .expect("unique codec names")
+    }
+
+    #[test]
+    fn ladder_indices_spread_evenly_and_keep_ends() {
+        assert_eq!(ladder_indices(9, None), (0..9).collect::<Vec<_>>());
+        assert_eq!(ladder_indices(9, Some(20)), (0..9).collect::<Vec<_>>());
+        assert_eq!(ladder_indices(9, Some(3)), vec![0, 4, 8]);
+        assert_eq!(ladder_indices(9, Some(2)), vec![0, 8]);
+        assert_eq!(ladder_indices(9, Some(1)), vec![8]);
+        assert_eq!(ladder_indices(0, Some(3)), Vec::<usize>::new());
+        for len in 2..30 {
+            for n in 2..len {
+                let v = ladder_indices(len, Some(n));
+                assert_eq!(v.len(), n, "len {len} n {n}");
+                assert_eq!((v[0], v[n - 1]), (0, len - 1));
+                assert!(v.windows(2).all(|w| w[0] < w[1]));
+            }
+        }
+    }
+
+    #[test]
+    fn midpoints_are_rounded_and_stop_when_the_bracket_closes() {
+        let f = |x| ParamValue::Float(x);
+        assert_eq!(midpoint(&f(0.9), &f(0.85)), Some(f(0.875)));
+        assert_eq!(midpoint(&f(0.9), &f(0.875)), Some(f(0.8875)));
+        assert_eq!(midpoint(&f(0.8968), &f(0.8969)), Some(f(0.89685)));
+        assert_eq!(midpoint(&f(1.0), &f(1.0)), None);
+        assert_eq!(midpoint(&ParamValue::Int(6), &ParamValue::Int(8)), Some(ParamValue::Int(7)));
+        assert_eq!(midpoint(&ParamValue::Int(8), &ParamValue::Int(7)), None);
+        assert_eq!(midpoint(&ParamValue::Int(250), &ParamValue::Int(160)), Some(ParamValue::Int(205)));
+        assert_eq!(midpoint(&ParamValue::Bool(false), &ParamValue::Bool(true)), None);
+    }
+
+    #[test]
+    fn targets_parse() {
+        assert_eq!("kg=0.5".parse::<Target>().unwrap(), Target { metric: TargetMetric::Kg, value: 0.5 });
+        assert_eq!("max-error=1e-3".parse::<Target>().unwrap().metric, TargetMetric::MaxError);
+        assert_eq!("STED = 0.01".parse::<Target>().unwrap().metric, TargetMetric::Sted);
+        assert!("kg".parse::<Target>().unwrap_err().contains("METRIC=VALUE"));
+        assert!("psnr=3".parse::<Target>().unwrap_err().contains("kg, sted, hausdorff"));
+        assert!("kg=-1".parse::<Target>().is_err());
+        assert!("kg=nan".parse::<Target>().is_err());
+        assert!("kg=x".parse::<Target>().is_err());
+    }
+
+    #[test]
+    fn sweep_points_and_rows_read_back_give_the_sweep_rows() {
+        let registry = test_registry();
+        let a = synth::tumbling_body_sized(8, 6, 4);
+        let series: Vec<SweepSeries<'_>> = registry.iter().take(2).map(SweepSeries::defaults).collect();
+        let options = SweepOptions { points: Some(2), jobs: Some(1), ..Default::default() };
+        let swept = sweep(&registry, &series, &a, &options, &|| {}).unwrap();
+        assert_eq!(swept.points.len(), 4);
+        let without_timings = |p: &Point| {
+            let mut v = SweepRow::from(p).to_json();
+            v["encode_seconds"] = Value::Null;
+            v["decode_seconds"] = Value::Null;
+            v
+        };
+        // One job on its own measures what the sweep measured at that point.
+        for (p, &(c, step)) in swept.points.iter().zip(&sweep_jobs(&series, options.points)) {
+            let alone = sweep_point(&registry, &series[c], step, &a, &options).unwrap();
+            assert_eq!(without_timings(&alone), without_timings(p));
+        }
+        // Rows gathered elsewhere come back as the same rows, table and document.
+        let dims = (a.vertex_count(), a.frame_count());
+        let rows: Vec<Value> = swept.points.iter().map(|p| SweepRow::from(p).to_json()).collect();
+        let back = points_from_rows(&registry, &rows, &options.eval, dims).unwrap();
+        assert_eq!(back.iter().map(|p| SweepRow::from(p).to_json()).collect::<Vec<_>>(), rows);
+        assert_eq!(csv_text(&back).unwrap(), csv_text(&swept.points).unwrap());
+        let rebuilt = Sweep { points: back, failures: Vec::new() };
+        assert_eq!(
+            SweepDocument::new("x", dims, &options.eval, &rebuilt).to_json().unwrap(),
+            SweepDocument::new("x", dims, &options.eval, &swept).to_json().unwrap()
+        );
+        let mut broken = rows.clone();
+        broken[1].as_object_mut().unwrap().remove("bpvf");
+        let e = points_from_rows(&registry, &broken, &options.eval, dims).unwrap_err().to_string();
+        assert!(e.contains("'bpvf' is missing") && e.contains("row 1"), "{e}");
+    }
+
+    /// The CSV is the rows' own serialization: the old hand-written writer's document, byte for
+    /// byte (its header, `key=value;…` parameters in the codec's order, empty cells for missing
+    /// metrics, `Display` numbers, a quoted series label).
+    #[test]
+    fn csv_lines_are_the_rows_in_column_order() {
+        let registry = test_registry();
+        let a = synth::tumbling_body_sized(8, 6, 4);
+        let codec = registry.by_name("pca-aoi").unwrap();
+        let base = codec.default_params();
+        let ladder = codec.rate_ladder(&base);
+        let params = ladder_params(codec, &base, &ladder, 0).unwrap();
+        let eval = metrics::EvalOptions { compute_sted: false, ..Default::default() };
+        let (mut p, _) =
+            measure_point(&registry, codec, &params, (ladder.param, 0), &a, &eval, codec_core::Limits::default())
+                .unwrap();
+        p.series = "pca-aoi[a=1,b=\"2\"]".into();
+        p.encode_seconds = 100.0;
+        p.decode_seconds = 0.000031;
+        let text = csv_text(&[p.clone()]).unwrap();
+        let lines: Vec<&str> = text.lines().collect();
+        assert_eq!(
+            lines[0],
+            "codec,series,params,ladder_index,bytes,bpvf,kg,sted,sted_spatial,sted_temporal,hausdorff,\
+             hausdorff_relative,mse,rmse,max_error,encode_seconds,decode_seconds"
+        );
+        let r = &p.report;
+        let params: Vec<String> = p.params.iter().map(|(n, v)| format!("{n}={v}")).collect();
+        let opt = |v: Option<f64>| v.map(|x| format!("{x}")).unwrap_or_default();
+        let expected = [
+            "pca-aoi".to_string(),
+            "\"pca-aoi[a=1,b=\"\"2\"\"]\"".to_string(),
+            params.join(";"),
+            "0".into(),
+            p.bytes.to_string(),
+            format!("{}", p.bpvf),
+            opt(r.kg),
+            opt(r.sted),
+            opt(r.sted_spatial),
+            opt(r.sted_temporal),
+            opt(r.hausdorff),
+            opt(r.hausdorff_relative),
+            format!("{}", r.mse),
+            format!("{}", r.rmse),
+            format!("{}", r.max_error),
+            "100".into(),
+            "0.000031".into(),
+        ];
+        assert_eq!(lines[1], expected.join(","));
+        assert!(r.sted.is_none(), "STED was not computed: an empty cell");
+    }
+
+    #[test]
+    fn miss_reports_the_best_point() {
+        let registry = test_registry();
+        let codec = registry.by_name("quant-delta").unwrap();
+        let a = synth::tumbling_body_sized(8, 6, 4);
+        let target = Target { metric: TargetMetric::MaxError, value: 0.0 };
+        let e = search_target(&SearchRequest::new(&registry, &a, target), codec, &codec.default_params()).unwrap_err();
+        let EvalError::TargetMiss(miss) = e else { panic!("expected a TargetMiss, got {e}") };
+        let top = codec.rate_ladder(&codec.default_params()).steps.len() - 1;
+        assert_eq!(miss.best.as_ref().unwrap().ladder_index, top);
+        let text = miss.to_string();
+        assert!(text.contains("best reached is max_error=") && text.contains("quant-delta"), "{text}");
+    }
+}

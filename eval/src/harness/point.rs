@@ -1,0 +1,92 @@
+//! One measured point: encode an animation at one parameter set, decode the stream from its
+//! bytes alone, measure the decoded animation. Everything else in the harness is built on
+//! [`measure_point`].
+
+use std::time::Instant;
+
+use codec_core::{
+    encode_animation_fed, Animation, AnimationCodec, CodecRegistry, Limits, ParamSet, RateLadder, StreamDecoder,
+};
+use metrics::EvalOptions;
+
+use super::measured::Point;
+use crate::error::{EvalError, Result};
+
+/// Indices of `points` ladder steps spread evenly over a ladder of `len` steps, always
+/// including both ends (`None`, or `points ≥ len`: every step). Sorted, without repeats.
+pub fn ladder_indices(len: usize, points: Option<usize>) -> Vec<usize> {
+    match points {
+        _ if len == 0 => Vec::new(),
+        None => (0..len).collect(),
+        Some(n) if n >= len => (0..len).collect(),
+        Some(0) => Vec::new(),
+        Some(1) => vec![len - 1],
+        Some(n) => {
+            // Rounded positions i·(len−1)/(n−1); distinct because n < len.
+            let mut v: Vec<usize> = (0..n).map(|i| (i * (len - 1) + (n - 1) / 2) / (n - 1)).collect();
+            v.dedup();
+            v
+        }
+    }
+}
+
+/// `base` with the ladder's parameter set to `step`, validated by the codec (so a step that
+/// conflicts with a fixed parameter is an error naming both).
+pub fn ladder_params(
+    codec: &dyn AnimationCodec,
+    base: &ParamSet,
+    ladder: &RateLadder,
+    step: usize,
+) -> Result<ParamSet> {
+    let value = ladder.steps.get(step).ok_or(EvalError::NoSuchLadderStep {
+        codec: codec.name(),
+        step,
+        steps: ladder.steps.len(),
+    })?;
+    let params = base.clone().with(&codec.param_specs(), ladder.param, value.clone())?;
+    codec.validate(&params)?;
+    Ok(params)
+}
+
+/// Encodes `animation` with `codec` at `params`, decodes it through the container and
+/// measures it. Also returns the container bytes.
+pub fn measure_point(
+    registry: &CodecRegistry,
+    codec: &dyn AnimationCodec,
+    params: &ParamSet,
+    (ladder_param, ladder_index): (&'static str, usize),
+    animation: &Animation,
+    eval: &EvalOptions,
+    limits: Limits,
+) -> Result<(Point, Vec<u8>)> {
+    let start = Instant::now();
+    let encoded = encode_animation_fed(codec, params, animation, false, animation.frame_count())?;
+    let bytes = encoded.bytes;
+    let encode_seconds = start.elapsed().as_secs_f64();
+    let start = Instant::now();
+    let decoded = StreamDecoder::new(bytes.as_slice(), registry, limits)?.decode_all()?;
+    let decode_seconds = start.elapsed().as_secs_f64();
+    // A stream that decodes to non-finite coordinates is garbage whatever its metrics say
+    // (issue 26): never a measured point, so never chosen by a search.
+    if decoded.positions().iter().any(|x| !x.is_finite()) {
+        return Err(EvalError::NonFiniteDecode { codec: codec.name() });
+    }
+    let mut report = metrics::evaluate(animation, &decoded, eval)?;
+    // The encoder's warnings (a fallback it took to stay within its bound, issue 26) travel with
+    // the point, so a search's answer reports them as a plain encode does.
+    report.notes.extend(encoded.notes.into_iter().map(|n| format!("encoder: {n}")));
+    let size = bytes.len() as u64;
+    let point = Point {
+        codec: codec.name(),
+        series: codec.name().to_string(),
+        params: params.clone(),
+        ladder_param,
+        ladder_index,
+        bytes: size,
+        bpvf: metrics::bpvf(size, animation.vertex_count(), animation.frame_count())?,
+        report,
+        encode_seconds,
+        decode_seconds,
+    };
+    Ok((point, bytes))
+}

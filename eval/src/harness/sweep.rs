@@ -1,0 +1,230 @@
+//! Sweeps: every chosen series walked along its rate ladder ([`sweep`]), one job of it
+//! ([`sweep_point`], for other schedulers), and the default envelope sweep over each codec's
+//! declared search space ([`envelope_sweep`]).
+
+use codec_core::{Animation, AnimationCodec, CodecRegistry, Limits, ParamSet, RateLadder};
+use metrics::EvalOptions;
+use rayon::prelude::*;
+use serde::Serialize;
+
+use super::measured::Point;
+use super::point::{ladder_indices, ladder_params, measure_point};
+use crate::error::{EvalError, Result};
+
+/// How [`sweep`] runs.
+#[derive(Debug, Clone, Default)]
+pub struct SweepOptions {
+    /// Ladder points per codec, spread evenly (`None`: every step).
+    pub points: Option<usize>,
+    /// Points measured at once: `None` uses rayon's pool, `Some(1)` runs sequentially (for
+    /// timing: parallel encodes compete for the cores), `Some(n)` a pool of `n` threads.
+    pub jobs: Option<usize>,
+    /// Metrics to compute.
+    pub eval: EvalOptions,
+    /// Decoder limits.
+    pub limits: Limits,
+}
+
+/// A sweep point that failed, with the reason (in the sweep document as
+/// `{codec, series, ladder_index, error}`).
+#[derive(Debug, Clone, Serialize)]
+pub struct Failure {
+    /// Codec name.
+    pub codec: &'static str,
+    /// Curve name (see [`Point::series`]).
+    pub series: String,
+    /// Position on the ladder.
+    pub ladder_index: usize,
+    /// What went wrong.
+    #[serde(rename = "error")]
+    pub message: String,
+}
+
+/// Result of [`sweep`]: measured points sorted by codec (in the order given) then ladder
+/// position, and the points that failed.
+#[derive(Debug, Clone, Default)]
+pub struct Sweep {
+    /// Measured points.
+    pub points: Vec<Point>,
+    /// Points that could not be measured.
+    pub failures: Vec<Failure>,
+}
+
+/// One curve of a sweep: a codec and the parameters its rate ladder is walked on.
+#[derive(Clone)]
+pub struct SweepSeries<'a> {
+    /// The codec.
+    pub codec: &'a dyn AnimationCodec,
+    /// Parameters every ladder step starts from (the step then sets the ladder parameter).
+    pub base: ParamSet,
+    /// Curve name in tables, JSON and plots.
+    pub label: String,
+    /// Ladder positions to measure on this curve (`None`: the sweep's `points`, spread evenly).
+    pub steps: Option<Vec<usize>>,
+}
+
+impl<'a> SweepSeries<'a> {
+    /// The codec at its defaults, labelled with its name.
+    pub fn defaults(codec: &'a dyn AnimationCodec) -> Self {
+        Self { codec, base: codec.default_params(), label: codec.name().to_string(), steps: None }
+    }
+
+    /// The codec on `base`, labelled `codec[key=value,…]` with the parameters that differ from
+    /// the defaults (just the codec name when none do). Fails if `base` does not validate.
+    pub fn with_base(codec: &'a dyn AnimationCodec, base: ParamSet) -> Result<Self> {
+        codec.validate(&base)?;
+        let defaults = codec.default_params();
+        let changed: Vec<String> =
+            base.iter().filter(|(n, v)| defaults.get(n) != Some(*v)).map(|(n, v)| format!("{n}={v}")).collect();
+        let label = if changed.is_empty() {
+            codec.name().to_string()
+        } else {
+            format!("{}[{}]", codec.name(), changed.join(","))
+        };
+        Ok(Self { codec, base, label, steps: None })
+    }
+
+    fn ladder(&self) -> RateLadder {
+        self.codec.rate_ladder(&self.base)
+    }
+}
+
+/// Walks the rate ladder of every series on `animation`. `progress` is called once per
+/// finished point (from worker threads). Output order (series, then ladder step) does not
+/// depend on scheduling.
+pub fn sweep(
+    registry: &CodecRegistry,
+    series: &[SweepSeries<'_>],
+    animation: &Animation,
+    options: &SweepOptions,
+    progress: &(dyn Fn() + Sync),
+) -> Result<Sweep> {
+    let jobs = sweep_jobs(series, options.points);
+    let run = |&(c, step): &(usize, usize)| -> (usize, usize, Result<Point>) {
+        let result = sweep_point(registry, &series[c], step, animation, options);
+        progress();
+        (c, step, result)
+    };
+    let mut results: Vec<(usize, usize, Result<Point>)> = match options.jobs {
+        Some(1) => jobs.iter().map(run).collect(),
+        None => jobs.par_iter().map(run).collect(),
+        Some(n) => rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .build()
+            .map_err(|source| EvalError::ThreadPool { threads: n, source })?
+            .install(|| jobs.par_iter().map(run).collect()),
+    };
+    // `collect` keeps input order already; sorting states the contract explicitly.
+    results.sort_by_key(|(c, step, _)| (*c, *step));
+    let mut out = Sweep::default();
+    for (c, step, r) in results {
+        match r {
+            Ok(p) => out.points.push(p),
+            Err(e) => out.failures.push(Failure {
+                codec: series[c].codec.name(),
+                series: series[c].label.clone(),
+                ladder_index: step,
+                message: e.to_string(),
+            }),
+        }
+    }
+    Ok(out)
+}
+
+/// One sweep job: `entry` at step `step` of its rate ladder on `animation`, measured as
+/// [`sweep`] measures each of its points (it calls this). Exposed so that other schedulers
+/// (the Python package's Dask sweep runs one job per (input, series, step)) produce rows
+/// identical to the command line's.
+pub fn sweep_point(
+    registry: &CodecRegistry,
+    entry: &SweepSeries<'_>,
+    step: usize,
+    animation: &Animation,
+    options: &SweepOptions,
+) -> Result<Point> {
+    let ladder = entry.ladder();
+    let params = ladder_params(entry.codec, &entry.base, &ladder, step)?;
+    let (mut point, _) =
+        measure_point(registry, entry.codec, &params, (ladder.param, step), animation, &options.eval, options.limits)?;
+    point.series.clone_from(&entry.label);
+    Ok(point)
+}
+
+/// The (series position, ladder step) pairs a sweep measures.
+pub fn sweep_jobs(series: &[SweepSeries<'_>], points: Option<usize>) -> Vec<(usize, usize)> {
+    series
+        .iter()
+        .enumerate()
+        .flat_map(|(c, entry)| {
+            let steps = entry.steps.clone().unwrap_or_else(|| ladder_indices(entry.ladder().steps.len(), points));
+            steps.into_iter().map(move |s| (c, s))
+        })
+        .collect()
+}
+
+/// Errors that mark the part of a rate-distortion curve the envelope sweep looks at closely:
+/// KG 0.05–4 % or STED 0.01–0.2 (the targets of the issues and the README tables, with room).
+const ENVELOPE_KG: (f64, f64) = (0.05, 4.0);
+const ENVELOPE_STED: (f64, f64) = (0.01, 0.2);
+
+/// The default sweep: each codec's lower envelope over its declared search space
+/// ([`AnimationCodec::search_space`] on `base`, minus the `fixed` parameters). First every
+/// codec's first configuration on its whole ladder (the points of today's single-axis sweep,
+/// `options.points` applies), then every other configuration at `per_config` ladder positions
+/// spread evenly over the positions where the first configuration's KG or STED fell in the
+/// range the targets live in (every position if none did). Curves are labelled
+/// `codec[key=value,…]`; [`envelope`] picks the points on the lower envelope. Results are in
+/// a fixed order (the first phase's series, then the others) whatever the scheduling.
+pub fn envelope_sweep<'a>(
+    registry: &CodecRegistry,
+    codecs: &[(&'a dyn AnimationCodec, ParamSet, Vec<&'static str>)],
+    animation: &Animation,
+    options: &SweepOptions,
+    per_config: usize,
+    progress: &(dyn Fn(usize) + Sync),
+) -> Result<Sweep> {
+    let mut first = Vec::new();
+    let mut rest: Vec<Vec<SweepSeries<'a>>> = Vec::new();
+    for (codec, base, fixed) in codecs {
+        let specs = codec.param_specs();
+        let space = codec.search_space(base).without(fixed);
+        let mut series: Vec<SweepSeries<'a>> = space
+            .configurations()
+            .iter()
+            .filter_map(|config| {
+                let params = codec_core::SearchSpace::apply(base, &specs, config).ok()?;
+                SweepSeries::with_base(*codec, params).ok()
+            })
+            .collect();
+        if series.is_empty() {
+            return Err(EvalError::NoValidConfiguration { codec: codec.name(), on: None });
+        }
+        first.push(series.remove(0));
+        rest.push(series);
+    }
+    progress(sweep_jobs(&first, options.points).len());
+    let mut result = sweep(registry, &first, animation, options, &|| progress(0))?;
+    let mut second = Vec::new();
+    for (head, others) in first.iter().zip(rest) {
+        let curve: Vec<&Point> = result.points.iter().filter(|p| p.series == head.label).collect();
+        let within = |v: Option<f64>, (lo, hi): (f64, f64)| v.is_some_and(|v| v >= lo && v <= hi);
+        let mut region: Vec<usize> = curve
+            .iter()
+            .filter(|p| within(p.report.kg, ENVELOPE_KG) || within(p.report.sted, ENVELOPE_STED))
+            .map(|p| p.ladder_index)
+            .collect();
+        region.sort_unstable();
+        region.dedup();
+        for mut s in others {
+            let positions = if region.is_empty() { (0..s.ladder().steps.len()).collect() } else { region.clone() };
+            let picked = ladder_indices(positions.len(), Some(per_config)).into_iter().map(|i| positions[i]).collect();
+            s.steps = Some(picked);
+            second.push(s);
+        }
+    }
+    progress(sweep_jobs(&second, options.points).len());
+    let more = sweep(registry, &second, animation, options, &|| progress(0))?;
+    result.points.extend(more.points);
+    result.failures.extend(more.failures);
+    Ok(result)
+}
