@@ -163,10 +163,11 @@ fn a_scaffolded_codec_passes_every_test_with_no_other_edit() {
 
     // Every test that concerns a new codec, on it: conformance suite (restricted to it, the
     // other codecs are tested by the real workspace's run), golden streams, fuzz corpora and
-    // their wiring, the README tables, parameter declarations; and the format check. Not its
-    // unit tests (`cargo test -p codec-NAME`): they are the template's, which run as
-    // `codec-template` in every workspace run, and selecting one package makes cargo resolve
-    // dependency features differently from `--workspace`, rebuilding faer, serde and the rest.
+    // their wiring, the README tables, parameter declarations, the crate floors (architecture);
+    // and the format check. Not its unit tests (`cargo test -p codec-NAME`): they are the
+    // template's, which run as `codec-template` in every workspace run, and selecting one
+    // package makes cargo resolve dependency features differently from `--workspace`,
+    // rebuilding faer, serde and the rest.
     cargo(
         &ws,
         &target,
@@ -187,6 +188,8 @@ fn a_scaffolded_codec_passes_every_test_with_no_other_edit() {
             "codec_tables",
             "--test",
             "param_declarations",
+            "--test",
+            "architecture",
         ],
         &[("ANIMCODEC_CODECS", NAME)],
     );
