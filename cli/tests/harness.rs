@@ -27,18 +27,6 @@ fn small() -> Animation {
     synth::waving_flag(12, 9, 12)
 }
 
-/// The search request of these tests: `eval`'s metric options, default limits, `refine` extra
-/// points, no progress reports.
-fn request<'a>(
-    registry: &'a CodecRegistry,
-    animation: &'a Animation,
-    target: Target,
-    eval: &EvalOptions,
-    refine: usize,
-) -> SearchRequest<'a> {
-    SearchRequest { eval: *eval, refine, ..SearchRequest::new(registry, animation, target) }
-}
-
 #[test]
 fn eval_identical_files_gives_zeros_and_anim_candidates_are_decoded() {
     let s = Scratch::new("eval");

@@ -2,9 +2,7 @@
 //! (issue 26): `harness::search_space_target`, the envelope sweep, and the default quality of
 //! `animcodec encode` without `-p`.
 
-use animcodec::harness::{
-    self, search_space_target, search_target, SearchRequest, Target, TargetMetric, DEFAULT_TARGET,
-};
+use animcodec::harness::{self, search_space_target, search_target, Target, TargetMetric, DEFAULT_TARGET};
 use codec_core::quant_delta::QuantDelta;
 use codec_core::synth;
 use codec_core::{
@@ -18,18 +16,6 @@ use common::*;
 
 fn small() -> Animation {
     synth::waving_flag(12, 9, 12)
-}
-
-/// The search request of these tests: `eval`'s metric options, default limits, `refine` extra
-/// points, no progress reports.
-fn request<'a>(
-    registry: &'a CodecRegistry,
-    animation: &'a Animation,
-    target: Target,
-    eval: &EvalOptions,
-    refine: usize,
-) -> SearchRequest<'a> {
-    SearchRequest { eval: *eval, refine, ..SearchRequest::new(registry, animation, target) }
 }
 
 fn in_pool<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> T {

@@ -1,5 +1,6 @@
 //! Helpers shared by the end-to-end tests of the `animcodec` binary (`cli.rs`, `harness.rs`,
-//! `inspect.rs`): run it, expect success or a one-line error, scratch directories.
+//! `inspect.rs`, `rate_search.rs`, …): run it, expect success or a one-line error, scratch
+//! directories, and the harness search request the library-level tests share.
 
 // Each test binary compiles this module and uses a different subset of it.
 #![allow(dead_code)]
@@ -7,6 +8,9 @@
 use std::path::PathBuf;
 use std::process::{Command, Output};
 
+use animcodec::core::{Animation, CodecRegistry};
+use animcodec::harness::{SearchRequest, Target};
+use animcodec::metrics::EvalOptions;
 use serde_json::Value;
 
 /// Runs the `animcodec` binary built for these tests.
@@ -79,3 +83,15 @@ impl Drop for Scratch {
 
 #[allow(unused_imports)]
 pub use codec_core::error::looks_like_debug as has_debug_value;
+
+/// The search request of these tests: `eval`'s metric options, default limits, `refine` extra
+/// points, no progress reports.
+pub fn request<'a>(
+    registry: &'a CodecRegistry,
+    animation: &'a Animation,
+    target: Target,
+    eval: &EvalOptions,
+    refine: usize,
+) -> SearchRequest<'a> {
+    SearchRequest { eval: *eval, refine, ..SearchRequest::new(registry, animation, target) }
+}
