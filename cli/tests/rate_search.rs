@@ -312,3 +312,50 @@ fn default_quality_lands_within_its_band_of_the_target() {
         }
     }
 }
+
+/// What a target search walks for each kind of error is part of what `sweep` measures (the
+/// full space), for every registered codec: an envelope never lacks a configuration a
+/// target search could choose.
+#[test]
+fn each_kind_of_target_searches_within_the_full_space() {
+    use codec_core::DistortionKind;
+    let registry = animcodec::registry();
+    for codec in registry.iter() {
+        let base = codec.default_params();
+        let full = codec.search_space(&base);
+        let specs = codec.param_specs();
+        let apply = |config: &[(&'static str, ParamValue)]| SearchSpace::apply(&base, &specs, config).unwrap();
+        let full_sets: Vec<ParamSet> = full.configurations().iter().map(|c| apply(c)).collect();
+        for kind in [DistortionKind::Position, DistortionKind::Shape] {
+            let part = codec.search_space_for(&base, kind);
+            assert_eq!(part.primary, full.primary, "{}: {kind:?}", codec.name());
+            for config in part.configurations() {
+                let set = apply(&config);
+                assert!(full_sets.contains(&set), "{} {kind:?}: {set} is not in the full space", codec.name());
+            }
+        }
+    }
+}
+
+/// A STED target searches hosvd's shape-preserving half of its space (edge distortion in the
+/// RD rule, the noise cap), a KG target the other half; both find streams that meet them.
+#[test]
+fn hosvd_target_searches_walk_the_half_of_the_space_for_their_error() {
+    let registry = animcodec::registry();
+    let codec = registry.by_name("hosvd").unwrap();
+    let animation = small();
+    let eval = EvalOptions::default();
+    let sted = Target { metric: TargetMetric::Sted, value: 0.05 };
+    let hit = search_space_target(&request(&registry, &animation, sted, &eval, 2), codec, &codec.default_params(), &[])
+        .unwrap();
+    assert!(hit
+        .tried
+        .iter()
+        .all(|p| p.params.float("edge_noise").unwrap() == 0.012 && p.params.float("edge_weight").unwrap() == 1.0));
+    assert!(hit.tried.iter().any(|p| !p.params.bool("rigid").unwrap()));
+    let kg = Target { metric: TargetMetric::Kg, value: 0.5 };
+    let hit = search_space_target(&request(&registry, &animation, kg, &eval, 2), codec, &codec.default_params(), &[])
+        .unwrap();
+    assert!(hit.tried.iter().all(|p| p.params.float("edge_noise").unwrap() == 0.0));
+    assert!(TargetMetric::Kg.value(&hit.point.report).unwrap() <= 0.5);
+}

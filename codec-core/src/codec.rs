@@ -12,7 +12,7 @@ use std::fmt;
 use crate::animation::{Animation, Topology};
 use crate::error::Result;
 use crate::limits::Limits;
-use crate::params::{ParamSet, ParamSpec, RateLadder, SearchSpace};
+use crate::params::{DistortionKind, ParamSet, ParamSpec, RateLadder, SearchSpace};
 
 /// Four-character code identifying a codec inside a stream (never a list index).
 #[derive(Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -188,6 +188,15 @@ pub trait AnimationCodec: Send + Sync {
     /// [`SearchSpace::without`]).
     fn search_space(&self, base: &ParamSet) -> SearchSpace {
         SearchSpace::ladder_only(self.rate_ladder(base))
+    }
+
+    /// The part of [`search_space`](Self::search_space) a target search for an error of
+    /// `kind` walks: the configurations that can give the smallest stream for such a target.
+    /// The full space (what `sweep` measures for its envelopes) must contain every
+    /// configuration returned here. Default: the full space.
+    fn search_space_for(&self, base: &ParamSet, kind: DistortionKind) -> SearchSpace {
+        let _ = kind;
+        self.search_space(base)
     }
 
     /// Checks a full parameter set, including constraints between parameters; errors state

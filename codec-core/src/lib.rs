@@ -31,7 +31,8 @@ pub use codec::{
 pub use error::{Error, Result};
 pub use limits::Limits;
 pub use params::{
-    DeclaredParams, ParamChoice, ParamKind, ParamSet, ParamSpec, ParamValue, RateLadder, SearchAxis, SearchSpace,
+    DeclaredParams, DistortionKind, ParamChoice, ParamKind, ParamSet, ParamSpec, ParamValue, RateLadder, SearchAxis,
+    SearchSpace,
 };
 pub use quant::Quantizer;
 pub use registry::CodecRegistry;

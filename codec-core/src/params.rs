@@ -270,6 +270,17 @@ pub struct RateLadder {
     pub steps: Vec<ParamValue>,
 }
 
+/// The kind of error a quality target bounds, so a codec can offer its rate control the
+/// configurations worth searching for it (a lever that buys local shape at the price of
+/// positional error is wasted on a positional target, and the other way round).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum DistortionKind {
+    /// Vertex positions: KG, RMSE, the largest displacement, Hausdorff distance.
+    Position,
+    /// Local shape: relative changes of edge lengths in space and time (STED).
+    Shape,
+}
+
 /// One secondary axis of a codec's rate search: a parameter and the values the search may
 /// give it, the first being the value of the codec's usual configuration.
 #[derive(Debug, Clone, PartialEq)]

@@ -1,33 +1,110 @@
-//! Target search over a codec's declared search space ([`search_space_target`]): every
-//! configuration of its secondary parameters, each walked along the rate ladder, then refined
-//! between ladder steps by secant steps.
+//! Target search over a codec's declared search space ([`search_space_target`]): the
+//! configurations of its secondary parameters worth trying for the target's kind of error, each
+//! searched along its rate ladder as a continuous axis (secant steps in log(error) between and
+//! beyond ladder steps).
 
 use codec_core::{AnimationCodec, ParamSet, ParamValue, RateLadder};
 use metrics::EvalOptions;
 use rayon::prelude::*;
 
 use super::measured::Point;
-use super::point::{ladder_params, measure_point};
-use super::search::{midpoint, smallest_over_codecs, SearchRequest};
+use super::point::measure_point;
+use super::search::{smallest_over_codecs, SearchRequest};
 use super::target::{meets, usable, Target, TargetHit, TargetMiss};
 use crate::error::{EvalError, Result};
 
-/// One candidate of a space search: its ladder position and what measuring it gave (the
-/// point and stream, or why it was rejected).
+/// One candidate of a space search: where on its ladder it lies (a fractional position lies
+/// between two steps), the ladder value measured, and what measuring it gave (the point and
+/// stream, or why it was rejected).
 struct Candidate {
-    index: usize,
+    position: f64,
+    value: ParamValue,
     outcome: Result<(Point, Vec<u8>), String>,
 }
 
 /// One configuration of the secondary axes as searched: its parameters, ladder and
-/// candidates in measuring order, the lowest passing ladder position and the highest failing
-/// one below it.
+/// candidates in measuring order.
 struct ConfigRun {
     params: ParamSet,
     ladder: RateLadder,
     candidates: Vec<Candidate>,
-    pass: Option<usize>,
-    fail_below: Option<usize>,
+}
+
+/// What the first configuration's search learned, which starts every other configuration's
+/// search: where its answer lies, how fast the error and the size change along the ladder
+/// there, and its answer's size (the bound the others must beat).
+#[derive(Clone, Copy, Debug)]
+struct Prior {
+    position: f64,
+    error_slope: Option<f64>,
+    size_slope: Option<f64>,
+    best_bytes: Option<u64>,
+}
+
+/// A refined point meeting the target within this fraction of it ends a configuration's search.
+const REFINE_CLOSE: f64 = 0.97;
+/// Secant steps aim at this fraction of the target (just under it, so the point likely passes).
+const REFINE_AIM: f64 = 0.985;
+/// d ln(error) / d(ladder position) assumed before two points are known: hosvd's `ss` and
+/// pca-aoi's `kg` ladders fall by 0.3–0.45 per step in KG and STED on the dev animations.
+const DEFAULT_ERROR_SLOPE: f64 = -0.35;
+/// A step taken before the error is bracketed moves at least this far along the ladder, and
+/// at most [`MAX_STEP`].
+const MIN_STEP: f64 = 0.5;
+const MAX_STEP: f64 = 3.0;
+/// A warm-started configuration is abandoned when its stream at the target is predicted
+/// (from its own point and the slopes) to exceed the first configuration's answer by more
+/// than this factor: its passing streams would be larger.
+const ABANDON_MARGIN: f64 = 1.08;
+/// The same once the configuration's own points give the slopes (an interpolation, not an
+/// extrapolation from another configuration).
+const ABANDON_MARGIN_OWN: f64 = 1.03;
+/// A bracket narrower than this (in ladder positions) is not refined further: the error is a
+/// step function of some ladders (hosvd's ranks), and the stream hardly changes inside it.
+const MIN_WIDTH: f64 = 0.1;
+
+/// The ladder value at `position` and the position that value actually has: a step at an
+/// integral position (or when `fractional` is false, the nearest step); between two numeric
+/// steps, the interpolated value rounded to two digits below the steps' difference (floats:
+/// 0.9168, not 0.916812…), integers rounded. Choices and booleans have only their steps.
+fn value_at(ladder: &RateLadder, position: f64, fractional: bool) -> Option<(f64, ParamValue)> {
+    let n = ladder.steps.len();
+    if n == 0 || !position.is_finite() {
+        return None;
+    }
+    let position = position.clamp(0.0, (n - 1) as f64);
+    let step = |i: usize| Some((i as f64, ladder.steps[i].clone()));
+    let lower = position.floor() as usize;
+    let t = position - lower as f64;
+    if !fractional || t < 1e-9 || lower + 1 >= n {
+        return step(position.round() as usize);
+    }
+    let interpolated = match (&ladder.steps[lower], &ladder.steps[lower + 1]) {
+        (ParamValue::Float(a), ParamValue::Float(b)) if a != b => {
+            let unit = 10f64.powf(((b - a).abs().log10() - 2.0).floor());
+            let x = ((a + t * (b - a)) / unit).round() * unit;
+            let x = format!("{x:.12}").parse::<f64>().unwrap_or(x);
+            (x.is_finite() && x != *a && x != *b).then(|| (lower as f64 + (x - a) / (b - a), ParamValue::Float(x)))
+        }
+        (ParamValue::Int(a), ParamValue::Int(b)) if a != b => {
+            let x = (*a as f64 + t * (*b - *a) as f64).round() as i64;
+            (x != *a && x != *b).then(|| (lower as f64 + (x - a) as f64 / (b - a) as f64, ParamValue::Int(x)))
+        }
+        _ => None,
+    };
+    interpolated.or_else(|| step(position.round() as usize))
+}
+
+/// Whether the ladder's values can be interpolated (numbers), so that positions between
+/// steps exist.
+fn numeric(ladder: &RateLadder) -> bool {
+    ladder.steps.iter().all(|v| matches!(v, ParamValue::Float(_) | ParamValue::Int(_)))
+}
+
+/// The slope of `y` over `x` through two points, when defined.
+fn slope((x0, y0): (f64, f64), (x1, y1): (f64, f64)) -> Option<f64> {
+    let s = (y1 - y0) / (x1 - x0);
+    (s.is_finite() && (x1 - x0).abs() > 1e-9).then_some(s)
 }
 
 /// What a space search needs for every measurement: the request, the codec searched, and the
@@ -40,8 +117,11 @@ struct SpaceSearcher<'a> {
 }
 
 impl SpaceSearcher<'_> {
-    fn measure(&self, params: &ParamSet, ladder_param: &'static str, index: usize) -> Candidate {
+    fn measure(&self, params: &ParamSet, ladder_param: &'static str, position: f64, value: ParamValue) -> Candidate {
         let request = self.request;
+        // A point between two steps carries the index of the step above it (the larger
+        // stream), as the refined points of the single-ladder search do.
+        let index = position.ceil() as usize;
         let outcome = measure_point(
             request.registry,
             self.codec,
@@ -55,196 +135,224 @@ impl SpaceSearcher<'_> {
         if let Ok((p, _)) = &outcome {
             (self.request.progress)(p);
         }
-        Candidate { index, outcome }
+        Candidate { position, value, outcome }
     }
 
     fn passes(&self, c: &Candidate) -> bool {
         c.outcome.as_ref().is_ok_and(|(p, _)| usable(p) && meets(self.target, p))
     }
 
-    fn step(&self, run: &ConfigRun, index: usize) -> Result<ParamSet> {
-        ladder_params(self.codec, &run.params, &run.ladder, index)
+    /// The target metric's value of a usable measured candidate (`None` for a rejected or
+    /// degenerate one, whose error says nothing about its neighbours).
+    fn error(&self, c: &Candidate) -> Option<f64> {
+        let (p, _) = c.outcome.as_ref().ok()?;
+        let v = self.target.metric.value(&p.report)?;
+        (usable(p) && v.is_finite() && v > 0.0).then_some(v)
     }
 
-    /// Measures ladder position `index` of `run` (once) and says whether it meets the target.
-    fn visit(&self, run: &mut ConfigRun, index: usize) -> Result<bool> {
-        if let Some(c) = run.candidates.iter().find(|c| c.index == index) {
-            return Ok(self.passes(c));
+    fn bytes(c: &Candidate) -> Option<u64> {
+        c.outcome.as_ref().ok().map(|(p, _)| p.bytes)
+    }
+
+    /// The lowest passing candidate and the highest failing one below it (the bracket).
+    fn bracket<'r>(&self, run: &'r ConfigRun) -> (Option<&'r Candidate>, Option<&'r Candidate>) {
+        let pass = run.candidates.iter().filter(|c| self.passes(c)).min_by(|a, b| a.position.total_cmp(&b.position));
+        let fail = run
+            .candidates
+            .iter()
+            .filter(|c| !self.passes(c) && pass.is_none_or(|p| c.position < p.position))
+            .max_by(|a, b| a.position.total_cmp(&b.position));
+        (fail, pass)
+    }
+
+    /// d ln(error)/d position and d ln(bytes)/d position near the answer: from the bracket's
+    /// two ends when both have errors, else from the two measured points nearest it, else
+    /// `None`.
+    fn slopes(&self, run: &ConfigRun) -> (Option<f64>, Option<f64>) {
+        let mut known: Vec<(f64, f64, f64)> = run
+            .candidates
+            .iter()
+            .filter_map(|c| Some((c.position, self.error(c)?.ln(), (Self::bytes(c)? as f64).ln())))
+            .collect();
+        if known.len() < 2 {
+            return (None, None);
         }
-        let params = self.step(run, index)?;
-        let c = self.measure(&params, run.ladder.param, index);
-        let pass = self.passes(&c);
-        run.candidates.push(c);
-        Ok(pass)
+        let aim = (REFINE_AIM * self.target.value).ln();
+        known.sort_by(|a, b| (a.1 - aim).abs().total_cmp(&(b.1 - aim).abs()));
+        // The pair nearest the target along which the error falls (errors are step functions
+        // of some ladders, so two near points can share one value).
+        for (i, a) in known.iter().enumerate() {
+            for b in &known[i + 1..] {
+                if let Some(e) = slope((a.0, a.1), (b.0, b.1)).filter(|s| *s < 0.0) {
+                    return (Some(e), slope((a.0, a.2), (b.0, b.2)));
+                }
+            }
+        }
+        (None, None)
     }
 
-    fn bytes_at(run: &ConfigRun, index: usize) -> Option<u64> {
-        run.candidates.iter().find(|c| c.index == index).and_then(|c| c.outcome.as_ref().ok()).map(|(p, _)| p.bytes)
-    }
-
-    /// The first configuration, searched cold: a binary search for the first passing step.
-    /// The top step (the largest, slowest stream) is measured only if nothing below it
-    /// passes; if it misses too, nothing on this ladder meets the target.
-    fn search_cold(&self, run: &mut ConfigRun) -> Result<()> {
+    /// Searches one configuration from ladder position `start`: each next position by the
+    /// secant in log(error) (errors fall about exponentially along a rate axis) — inside the
+    /// bracket once a failing and a passing point are known (kept within its middle 70%, so
+    /// it always shrinks), else a step of 0.5–3 positions toward the target using the slope
+    /// known so far (own points, `prior`, or [`DEFAULT_ERROR_SLOPE`]). Ends when a passing
+    /// point is within [`REFINE_CLOSE`] of the target, when the bracket closes (adjacent
+    /// steps without refinement; `request.refine` points between steps with it), at a
+    /// ladder end, or — for a warm-started configuration (`prior.best_bytes` set) — when a
+    /// failing stream is already as large as the first configuration's answer or its stream
+    /// at the target is predicted to exceed that answer by [`ABANDON_MARGIN`].
+    fn search(&self, run: &mut ConfigRun, start: f64, prior: &Prior) -> Result<()> {
         let n = run.ladder.steps.len();
         if n == 0 {
             return Ok(());
         }
-        let (mut lo, mut hi) = (0, n - 1);
-        while lo < hi {
-            let mid = (lo + hi) / 2;
-            if self.visit(run, mid)? {
-                hi = mid;
-            } else {
-                lo = mid + 1;
+        let last = (n - 1) as f64;
+        let refine = self.request.refine;
+        let fractional = refine > 0 && numeric(&run.ladder);
+        let specs = self.codec.param_specs();
+        let max_points = 2 * n + refine;
+        let aim = REFINE_AIM * self.target.value;
+        let mut next = start.clamp(0.0, last);
+        let mut refined = 0;
+        while run.candidates.len() < max_points {
+            let Some((position, value)) = value_at(&run.ladder, next, fractional) else { break };
+            if run.candidates.iter().any(|c| c.value == value) {
+                break;
             }
+            let params = run.params.clone().with(&specs, run.ladder.param, value.clone())?;
+            self.codec.validate(&params)?;
+            if position.fract() != 0.0 {
+                refined += 1;
+            }
+            let candidate = self.measure(&params, run.ladder.param, position, value);
+            run.candidates.push(candidate);
+
+            let (fail, pass) = self.bracket(run);
+            let (own_error_slope, own_size_slope) = self.slopes(run);
+            if let Some(bound) = prior.best_bytes {
+                let last = run.candidates.last().expect("just pushed");
+                if !self.passes(last) && Self::bytes(last).is_some_and(|b| b >= bound) {
+                    break;
+                }
+                let (error_slope, size_slope, margin) = match (own_error_slope, own_size_slope) {
+                    (Some(e), Some(b)) => (Some(e), Some(b), ABANDON_MARGIN_OWN),
+                    _ => (prior.error_slope, prior.size_slope, ABANDON_MARGIN),
+                };
+                if let (Some(e), Some(b), Some(es), Some(ss)) =
+                    (self.error(last), Self::bytes(last), error_slope, size_slope)
+                {
+                    let predicted = (b as f64).ln() + ss * (aim.ln() - e.ln()) / es;
+                    if predicted > (bound as f64 * margin).ln() {
+                        break;
+                    }
+                }
+            }
+            let error_slope = own_error_slope.or(prior.error_slope).unwrap_or(DEFAULT_ERROR_SLOPE);
+            next = match (fail, pass) {
+                (Some(f), Some(p)) => {
+                    if fractional && self.error(p).is_some_and(|e| e >= REFINE_CLOSE * self.target.value) {
+                        break;
+                    }
+                    let width = p.position - f.position;
+                    if width <= 1.0 + 1e-9 && (!fractional || refined >= refine) || width < MIN_WIDTH {
+                        break;
+                    }
+                    let t = match (self.error(f), self.error(p)) {
+                        (Some(ef), Some(ep)) if ef > ep => {
+                            ((aim.ln() - ef.ln()) / (ep.ln() - ef.ln())).clamp(0.15, 0.85)
+                        }
+                        _ => 0.5,
+                    };
+                    let x = f.position + t * width;
+                    if width > 1.0 + 1e-9 {
+                        // Close in on the ladder's own steps first: the step nearest the
+                        // secant strictly inside the bracket (an open interval longer than
+                        // one position holds one).
+                        let (lo, hi) = (f.position.floor() + 1.0, p.position.ceil() - 1.0);
+                        if lo > hi {
+                            break;
+                        }
+                        x.round().clamp(lo, hi)
+                    } else {
+                        x
+                    }
+                }
+                (None, Some(p)) => {
+                    let close = self.error(p).is_some_and(|e| e >= REFINE_CLOSE * self.target.value);
+                    if p.position <= 0.0 || fractional && close {
+                        break;
+                    }
+                    let e = self.error(p).unwrap_or(aim);
+                    let delta = ((aim.ln() - e.ln()) / error_slope).clamp(-MAX_STEP, -MIN_STEP);
+                    // Before a bracket exists, only the ladder's own steps.
+                    (p.position + delta).round().min(p.position.ceil() - 1.0).max(0.0)
+                }
+                (Some(f), None) => {
+                    if f.position >= last {
+                        break;
+                    }
+                    let delta = self
+                        .error(f)
+                        .map_or(MAX_STEP, |e| ((aim.ln() - e.ln()) / error_slope).clamp(MIN_STEP, MAX_STEP));
+                    (f.position + delta).round().max(f.position.floor() + 1.0).min(last)
+                }
+                (None, None) => break,
+            };
         }
-        if !self.visit(run, hi)? {
-            return Ok(());
-        }
-        run.pass = Some(hi);
-        run.fail_below = hi.checked_sub(1);
         Ok(())
     }
 
-    /// Another configuration, warm-started at `start` (the first configuration's answer;
-    /// neighbouring configurations land on nearby steps): down while it passes, or up until it
-    /// passes. Early stop: going up, a failing step whose stream already has `bound` bytes or
-    /// more (the smallest passing stream found so far) ends the walk, since every larger step
-    /// makes a larger stream.
-    fn search_warm(&self, run: &mut ConfigRun, start: usize, bound: Option<u64>) -> Result<()> {
-        let n = run.ladder.steps.len();
-        if n == 0 {
-            return Ok(());
-        }
-        let mut i = start.min(n - 1);
-        if self.visit(run, i)? {
-            while i > 0 && self.visit(run, i - 1)? {
-                i -= 1;
-            }
-            run.pass = Some(i);
-            run.fail_below = i.checked_sub(1);
-            return Ok(());
-        }
-        loop {
-            let over = matches!((bound, Self::bytes_at(run, i)), (Some(b), Some(x)) if x >= b);
-            if over || i + 1 >= n {
-                return Ok(());
-            }
-            i += 1;
-            if self.visit(run, i)? {
-                run.pass = Some(i);
-                run.fail_below = Some(i - 1);
-                return Ok(());
-            }
-        }
-    }
-
-    /// Refines the ladder parameter between the failing step below the answer and the
-    /// answer, up to `refine` points (ladders are coarse): each point by the secant in
-    /// log(error) (errors fall about exponentially along a rate axis), aimed just under the
-    /// target and kept inside the middle 70% of the bracket so it always shrinks (bisection
-    /// when the secant is undefined). Stops early once a passing point is within
-    /// [`REFINE_CLOSE`] of the target (the stream cannot get much smaller). Refined points
-    /// carry the answer's index.
-    fn refine(&self, run: &mut ConfigRun, refine: usize) {
-        let (Some(k), Some(f)) = (run.pass, run.fail_below) else { return };
-        if f + 1 != k {
-            return;
-        }
-        let value_at = |run: &ConfigRun, index: usize| {
-            run.candidates
-                .iter()
-                .find(|c| c.index == index)
-                .and_then(|c| c.outcome.as_ref().ok())
-                .and_then(|(p, _)| self.target.metric.value(&p.report))
-        };
-        let mut fail = (run.ladder.steps[f].clone(), value_at(run, f));
-        let mut pass = (run.ladder.steps[k].clone(), value_at(run, k));
-        let specs = self.codec.param_specs();
-        for _ in 0..refine {
-            if pass.1.is_some_and(|v| v >= REFINE_CLOSE * self.target.value) {
-                break;
-            }
-            let Some(next) =
-                secant(&fail, &pass, REFINE_AIM * self.target.value).or_else(|| midpoint(&fail.0, &pass.0))
-            else {
-                break;
-            };
-            let Ok(params) = run.params.clone().with(&specs, run.ladder.param, next.clone()) else { break };
-            if self.codec.validate(&params).is_err() {
-                break;
-            }
-            let c = self.measure(&params, run.ladder.param, k);
-            let value = c.outcome.as_ref().ok().and_then(|(p, _)| self.target.metric.value(&p.report));
-            if self.passes(&c) {
-                pass = (next, value);
-            } else {
-                fail = (next, value);
-            }
-            run.candidates.push(c);
+    /// What the search of `run` tells the configurations started from it.
+    fn prior(&self, run: &ConfigRun) -> Prior {
+        let (_, pass) = self.bracket(run);
+        let (error_slope, size_slope) = self.slopes(run);
+        let best = run.candidates.iter().filter(|c| self.passes(c)).min_by_key(|c| Self::bytes(c));
+        Prior {
+            position: pass.map_or((run.ladder.steps.len().saturating_sub(1)) as f64, |p| p.position),
+            error_slope,
+            size_slope,
+            best_bytes: best.and_then(Self::bytes),
         }
     }
 }
 
-/// A refined point meeting the target within this fraction of it ends the refinement.
-const REFINE_CLOSE: f64 = 0.97;
-/// The secant aims at this fraction of the target (just under it, so the point likely passes).
-const REFINE_AIM: f64 = 0.985;
-
-/// The parameter value where the error is expected to reach `aim`, by linear interpolation of
-/// log(error) between the failing and passing ends of a bracket, kept within the middle 70%
-/// of the bracket and rounded as [`midpoint`] rounds; `None` when the errors are missing or
-/// not ordered, or the bracket holds nothing in between.
-fn secant(fail: &(ParamValue, Option<f64>), pass: &(ParamValue, Option<f64>), aim: f64) -> Option<ParamValue> {
-    let (Some(vf), Some(vp)) = (fail.1, pass.1) else { return None };
-    if !(vf > vp && vp > 0.0 && aim > 0.0) {
-        return None;
-    }
-    let t = ((aim.ln() - vf.ln()) / (vp.ln() - vf.ln())).clamp(0.15, 0.85);
-    match (&fail.0, &pass.0) {
-        (ParamValue::Int(a), ParamValue::Int(b)) => {
-            let x = (*a as f64 + t * (*b - *a) as f64).round() as i64;
-            (x != *a && x != *b && (x - a).signum() == (b - a).signum()).then_some(ParamValue::Int(x))
-        }
-        (ParamValue::Float(a), ParamValue::Float(b)) if a != b => {
-            let unit = 10f64.powf(((b - a).abs().log10() - 2.0).floor());
-            let x = ((a + t * (b - a)) / unit).round() * unit;
-            let x = format!("{x:.12}").parse::<f64>().unwrap_or(x);
-            (x.is_finite() && x != *a && x != *b).then_some(ParamValue::Float(x))
-        }
-        _ => None,
-    }
+/// Where a cold search starts on `ladder`: at the base parameters' own value when it is a
+/// step (the codec's usual operating point), else in the middle.
+fn start_position(ladder: &RateLadder, base: &ParamSet) -> f64 {
+    let own = base.get(ladder.param).and_then(|v| ladder.steps.iter().position(|s| s == v));
+    own.unwrap_or(ladder.steps.len().saturating_sub(1) / 2) as f64
 }
 
-/// Finds the smallest stream `codec` makes of `animation` meeting `target` over the codec's
-/// declared [`SearchSpace`](codec_core::SearchSpace) on top of `base`: every configuration of
-/// the secondary axes (minus the parameters in `fixed`, which the user set), each walked along
+/// Finds the smallest stream `codec` makes of `animation` meeting `target` over the part of
+/// the codec's declared search space meant for the target's kind of error
+/// ([`AnimationCodec::search_space_for`]) on top of `base`: every configuration of its
+/// secondary axes (minus the parameters in `fixed`, which the user set), each searched along
 /// the primary rate ladder.
 ///
-/// Search: the first configuration (the codec's usual one) cold, by a binary search over its
-/// ladder (its top step measured only when nothing below passes); then every other configuration in parallel (rayon), each warm-started at the first
-/// one's answer and walked up or down one step at a time, abandoned once a failing step's
-/// stream is as large as the first configuration's answer (an early stop: its passing steps
-/// can only be larger). Then the ladder parameter is bisected `refine` times between the last
-/// failing and the first passing step (secant steps, see `SpaceSearcher::refine`), for the
-/// best configuration and, in parallel, the runner-up when its answer is within 3% of the
-/// best's bytes. Each configuration's walk
-/// depends only on the first configuration's result, never on another running at the same
-/// time, and the results are combined in configuration order: the chosen stream does not
+/// Search (issue 26: few encodes): the first configuration (the one the codec lists first for
+/// this kind of error) alone, from the base parameters' ladder step, by secant steps in
+/// log(error) along the ladder taken as a continuous axis (see `SpaceSearcher::search`: the
+/// ladder's own steps until the target is bracketed, then up to `request.refine` points
+/// between two steps, ending once a passing point is within 3% of the target). Then every
+/// other configuration in parallel (rayon), started at the first one's answer with its slopes,
+/// and abandoned as soon as its own measurement predicts a stream more than 8% larger than
+/// the first configuration's answer (or a failing stream is already larger). Each
+/// configuration's search depends only on its own points and the first configuration's
+/// result, and the results are combined in configuration order: the chosen stream does not
 /// depend on the thread count. Only measured points are ever chosen; a candidate that fails
 /// to encode or decodes to non-finite coordinates is rejected (listed in
 /// [`TargetHit::rejected`]), never chosen. Invalid configurations are skipped.
 ///
-/// Assumes errors fall along each ladder (as [`search_target`] does); the single-axis
-/// [`search_target`] remains for `--ladder`.
+/// Assumes errors fall along each ladder (as [`search_target`](super::search_target) does);
+/// the single-axis search remains for `--ladder`.
 pub fn search_space_target(
     request: &SearchRequest<'_>,
     codec: &dyn AnimationCodec,
     base: &ParamSet,
     fixed: &[&str],
 ) -> Result<TargetHit> {
-    let space = codec.search_space(base).without(fixed);
+    let target = request.target;
+    let space = codec.search_space_for(base, target.metric.distortion_kind()).without(fixed);
     let specs = codec.param_specs();
     let mut runs: Vec<ConfigRun> = space
         .configurations()
@@ -253,34 +361,18 @@ pub fn search_space_target(
             let params = codec_core::SearchSpace::apply(base, &specs, config).ok()?;
             codec.validate(&params).ok()?;
             let ladder = codec.rate_ladder(&params);
-            Some(ConfigRun { params, ladder, candidates: Vec::new(), pass: None, fail_below: None })
+            Some(ConfigRun { params, ladder, candidates: Vec::new() })
         })
         .collect();
     if runs.is_empty() {
         return Err(EvalError::NoValidConfiguration { codec: codec.name(), on: Some(base.to_string()) });
     }
-    let target = request.target;
     let searcher = SpaceSearcher { request, codec, target, eval: request.metric_options() };
     let (first, others) = runs.split_first_mut().expect("checked non-empty");
-    searcher.search_cold(first)?;
-    let start = first.pass.unwrap_or(first.ladder.steps.len().saturating_sub(1));
-    let bound = first.pass.and_then(|k| SpaceSearcher::bytes_at(first, k));
-    others.par_iter_mut().map(|run| searcher.search_warm(run, start, bound)).collect::<Result<Vec<()>>>()?;
-
-    // Refinement of the best configuration and a close runner-up, chosen in configuration order.
-    let mut ranked: Vec<(u64, usize)> = runs
-        .iter()
-        .enumerate()
-        .filter_map(|(i, run)| run.pass.and_then(|k| SpaceSearcher::bytes_at(run, k)).map(|b| (b, i)))
-        .collect();
-    ranked.sort();
-    if let Some(&(best, _)) = ranked.first() {
-        let chosen: Vec<usize> =
-            ranked.iter().take(2).filter(|(b, _)| (*b as f64) <= best as f64 * 1.03).map(|(_, i)| *i).collect();
-        runs.par_iter_mut().enumerate().filter(|(i, _)| chosen.contains(i)).for_each(|(_, run)| {
-            searcher.refine(run, request.refine);
-        });
-    }
+    let cold = Prior { position: 0.0, error_slope: None, size_slope: None, best_bytes: None };
+    searcher.search(first, start_position(&first.ladder, base), &cold)?;
+    let prior = searcher.prior(first);
+    others.par_iter_mut().map(|run| searcher.search(run, prior.position, &prior)).collect::<Result<Vec<()>>>()?;
 
     let mut tried = Vec::new();
     let mut rejected = Vec::new();
@@ -315,4 +407,48 @@ pub fn search_space_target_auto(
     smallest_over_codecs(codecs, request.target, |codec| {
         search_space_target(request, codec, &codec.default_params(), &[])
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn floats(steps: &[f64]) -> RateLadder {
+        RateLadder { param: "ss", steps: steps.iter().map(|&s| ParamValue::Float(s)).collect() }
+    }
+
+    #[test]
+    fn positions_between_float_steps_interpolate_and_round() {
+        let ladder = floats(&[0.99, 0.98, 0.95, 0.9]);
+        assert_eq!(value_at(&ladder, 2.0, true), Some((2.0, ParamValue::Float(0.95))));
+        // 0.98 + 0.3 · (0.95 − 0.98) = 0.971, rounded to 1e-4 (two digits below the 0.03 step).
+        let (position, value) = value_at(&ladder, 1.3, true).unwrap();
+        assert_eq!(value, ParamValue::Float(0.971));
+        assert!((position - 1.3).abs() < 1e-9, "{position}");
+        // Without refinement only the ladder's steps exist: the nearest one.
+        assert_eq!(value_at(&ladder, 1.3, false), Some((1.0, ParamValue::Float(0.98))));
+        // Positions beyond the ends are clamped.
+        assert_eq!(value_at(&ladder, 7.5, true), Some((3.0, ParamValue::Float(0.9))));
+        assert_eq!(value_at(&ladder, -1.0, true), Some((0.0, ParamValue::Float(0.99))));
+        assert_eq!(value_at(&ladder, f64::NAN, true), None);
+    }
+
+    #[test]
+    fn positions_between_integer_steps_round_to_integers_and_choices_have_only_steps() {
+        let ints = RateLadder { param: "bits", steps: vec![ParamValue::Int(4), ParamValue::Int(8)] };
+        let (position, value) = value_at(&ints, 0.4, true).unwrap();
+        assert_eq!(value, ParamValue::Int(6));
+        assert!((position - 0.5).abs() < 1e-9, "the value's own position: {position}");
+        // Rounding onto an end gives that step.
+        assert_eq!(value_at(&ints, 0.1, true), Some((0.0, ParamValue::Int(4))));
+        let choices = RateLadder { param: "mode", steps: vec![ParamValue::Choice("a"), ParamValue::Choice("b")] };
+        assert!(!numeric(&choices));
+        assert_eq!(value_at(&choices, 0.6, true), Some((1.0, ParamValue::Choice("b"))));
+    }
+
+    #[test]
+    fn slopes_come_from_points_where_the_error_falls() {
+        assert_eq!(slope((0.0, 1.0), (2.0, 0.0)), Some(-0.5));
+        assert_eq!(slope((1.0, 1.0), (1.0, 0.0)), None);
+    }
 }

@@ -4,6 +4,7 @@
 use std::fmt;
 use std::str::FromStr;
 
+use codec_core::DistortionKind;
 use metrics::{EvalOptions, MetricReport};
 
 use super::measured::Point;
@@ -46,6 +47,17 @@ impl TargetMetric {
             TargetMetric::Hausdorff => report.hausdorff,
             TargetMetric::MaxError => Some(report.max_error),
             TargetMetric::Rmse => Some(report.rmse),
+        }
+    }
+
+    /// The kind of error the metric measures, which selects the part of a codec's search
+    /// space a target search walks ([`AnimationCodec::search_space_for`](codec_core::AnimationCodec::search_space_for)).
+    pub fn distortion_kind(self) -> DistortionKind {
+        match self {
+            TargetMetric::Sted => DistortionKind::Shape,
+            TargetMetric::Kg | TargetMetric::Hausdorff | TargetMetric::MaxError | TargetMetric::Rmse => {
+                DistortionKind::Position
+            }
         }
     }
 
