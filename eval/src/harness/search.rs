@@ -176,16 +176,22 @@ pub fn search_target(request: &SearchRequest<'_>, codec: &dyn AnimationCodec, ba
 pub(crate) fn midpoint(a: &ParamValue, b: &ParamValue) -> Option<ParamValue> {
     match (a, b) {
         (ParamValue::Int(a), ParamValue::Int(b)) if a.abs_diff(*b) > 1 => Some(ParamValue::Int(a + (b - a) / 2)),
-        (ParamValue::Float(a), ParamValue::Float(b)) if a != b => {
-            // Rounded to two digits below the bracket's width, so values read like 0.8969
-            // rather than 0.8968750000000001; stop once rounding reaches an end.
-            let unit = 10f64.powf(((b - a).abs().log10() - 2.0).floor());
-            let mid = ((a + (b - a) / 2.0) / unit).round() * unit;
-            let mid = format!("{mid:.12}").parse::<f64>().unwrap_or(mid);
-            (mid.is_finite() && mid != *a && mid != *b).then_some(ParamValue::Float(mid))
-        }
+        (ParamValue::Float(a), ParamValue::Float(b)) => round_between(*a, *b, 0.5).map(ParamValue::Float),
         _ => None,
     }
+}
+
+/// `a + t·(b − a)` rounded to two digits below the bracket's width, so values read like
+/// 0.8969 rather than 0.8968750000000001; `None` once rounding reaches an end (nothing
+/// between them) or `a = b`.
+pub(crate) fn round_between(a: f64, b: f64, t: f64) -> Option<f64> {
+    if a == b {
+        return None;
+    }
+    let unit = 10f64.powf(((b - a).abs().log10() - 2.0).floor());
+    let x = ((a + t * (b - a)) / unit).round() * unit;
+    let x = format!("{x:.12}").parse::<f64>().unwrap_or(x);
+    (x.is_finite() && x != a && x != b).then_some(x)
 }
 
 /// [`search_target`] for every codec in `codecs` (each at its default parameters), keeping

@@ -9,7 +9,7 @@ use rayon::prelude::*;
 
 use super::measured::Point;
 use super::point::measure_point;
-use super::search::{smallest_over_codecs, SearchRequest};
+use super::search::{round_between, smallest_over_codecs, SearchRequest};
 use super::target::{meets, usable, Target, TargetHit, TargetMiss};
 use crate::error::{EvalError, Result};
 
@@ -80,11 +80,8 @@ fn value_at(ladder: &RateLadder, position: f64, fractional: bool) -> Option<(f64
         return step(position.round() as usize);
     }
     let interpolated = match (&ladder.steps[lower], &ladder.steps[lower + 1]) {
-        (ParamValue::Float(a), ParamValue::Float(b)) if a != b => {
-            let unit = 10f64.powf(((b - a).abs().log10() - 2.0).floor());
-            let x = ((a + t * (b - a)) / unit).round() * unit;
-            let x = format!("{x:.12}").parse::<f64>().unwrap_or(x);
-            (x.is_finite() && x != *a && x != *b).then(|| (lower as f64 + (x - a) / (b - a), ParamValue::Float(x)))
+        (ParamValue::Float(a), ParamValue::Float(b)) => {
+            round_between(*a, *b, t).map(|x| (lower as f64 + (x - a) / (b - a), ParamValue::Float(x)))
         }
         (ParamValue::Int(a), ParamValue::Int(b)) if a != b => {
             let x = (*a as f64 + t * (*b - *a) as f64).round() as i64;
