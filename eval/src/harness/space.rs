@@ -52,6 +52,9 @@ const DEFAULT_ERROR_SLOPE: f64 = -0.35;
 /// at most [`MAX_STEP`].
 const MIN_STEP: f64 = 0.5;
 const MAX_STEP: f64 = 3.0;
+/// With refinement, a step predicted to reach the target within one position goes there, but
+/// at least this far.
+const MIN_FRACTIONAL_STEP: f64 = 0.1;
 /// A warm-started configuration is abandoned when its stream at the target is predicted
 /// (from its own point and the slopes) to exceed the first configuration's answer by more
 /// than this factor: its passing streams would be larger.
@@ -191,8 +194,10 @@ impl SpaceSearcher<'_> {
     /// Searches one configuration from ladder position `start`: each next position by the
     /// secant in log(error) (errors fall about exponentially along a rate axis) — inside the
     /// bracket once a failing and a passing point are known (kept within its middle 70%, so
-    /// it always shrinks), else a step of 0.5–3 positions toward the target using the slope
-    /// known so far (own points, `prior`, or [`DEFAULT_ERROR_SLOPE`]). Ends when a passing
+    /// it always shrinks), else a step toward the target using the slope known so far (own
+    /// points, `prior`, or [`DEFAULT_ERROR_SLOPE`]): to the predicted position when that is
+    /// within one position and the search stands between two steps (a warm start; with
+    /// refinement on), else 0.5–3 positions rounded to a ladder step. Ends when a passing
     /// point is within [`REFINE_CLOSE`] of the target, when the bracket closes (adjacent
     /// steps without refinement; `request.refine` points between steps with it), at a
     /// ladder end, or — for a warm-started configuration (`prior.best_bytes` set) — when a
@@ -218,7 +223,8 @@ impl SpaceSearcher<'_> {
             }
             let params = run.params.clone().with(&specs, run.ladder.param, value.clone())?;
             self.codec.validate(&params)?;
-            if position.fract() != 0.0 {
+            let (fail, pass) = self.bracket(run);
+            if fail.is_some() && pass.is_some() {
                 refined += 1;
             }
             let candidate = self.measure(&params, run.ladder.param, position, value);
@@ -280,18 +286,30 @@ impl SpaceSearcher<'_> {
                         break;
                     }
                     let e = self.error(p).unwrap_or(aim);
-                    let delta = ((aim.ln() - e.ln()) / error_slope).clamp(-MAX_STEP, -MIN_STEP);
-                    // Before a bracket exists, only the ladder's own steps.
-                    (p.position + delta).round().min(p.position.ceil() - 1.0).max(0.0)
+                    let delta = (aim.ln() - e.ln()) / error_slope;
+                    if fractional && delta > -1.0 && p.position.fract() != 0.0 {
+                        // Started between two steps (from another configuration's answer)
+                        // and the target is predicted within one position: step there (at
+                        // least a tenth of a position) rather than to the next step, which on
+                        // a coarse ladder can be far off.
+                        (p.position + delta.min(-MIN_FRACTIONAL_STEP)).max(0.0)
+                    } else {
+                        // Otherwise the ladder's own steps until the target is bracketed.
+                        let delta = delta.clamp(-MAX_STEP, -MIN_STEP);
+                        (p.position + delta).round().min(p.position.ceil() - 1.0).max(0.0)
+                    }
                 }
                 (Some(f), None) => {
                     if f.position >= last {
                         break;
                     }
-                    let delta = self
-                        .error(f)
-                        .map_or(MAX_STEP, |e| ((aim.ln() - e.ln()) / error_slope).clamp(MIN_STEP, MAX_STEP));
-                    (f.position + delta).round().max(f.position.floor() + 1.0).min(last)
+                    let delta = self.error(f).map_or(MAX_STEP, |e| (aim.ln() - e.ln()) / error_slope);
+                    if fractional && delta < 1.0 && f.position.fract() != 0.0 {
+                        (f.position + delta.max(MIN_FRACTIONAL_STEP)).min(last)
+                    } else {
+                        let delta = delta.clamp(MIN_STEP, MAX_STEP);
+                        (f.position + delta).round().max(f.position.floor() + 1.0).min(last)
+                    }
                 }
                 (None, None) => break,
             };
