@@ -165,9 +165,9 @@ impl SpaceSearcher<'_> {
         (fail, pass)
     }
 
-    /// d ln(error)/d position and d ln(bytes)/d position near the answer: from the bracket's
-    /// two ends when both have errors, else from the two measured points nearest it, else
-    /// `None`.
+    /// d ln(error)/d position and d ln(bytes)/d position near the answer: through the two
+    /// usable points nearest the target in ln(error) between which the error falls; `None`
+    /// while there is no such pair.
     fn slopes(&self, run: &ConfigRun) -> (Option<f64>, Option<f64>) {
         let mut known: Vec<(f64, f64, f64)> = run
             .candidates
