@@ -152,14 +152,19 @@ impl CacheReader {
             return Ok(0);
         }
         let per_frame = self.vertex_count() * 3;
-        self.bytes.resize(n * per_frame * 4, 0);
-        read_exact(&mut self.reader, &mut self.bytes, &self.file, "positions")?;
+        // One frame of bytes at a time: the byte buffer stays one frame, whatever `frames` is.
+        self.bytes.resize(per_frame * 4, 0);
         out.reserve(n * per_frame);
-        match self.endian {
-            Endian::Little => {
-                out.extend(self.bytes.chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]])))
+        for _ in 0..n {
+            read_exact(&mut self.reader, &mut self.bytes, &self.file, "positions")?;
+            match self.endian {
+                Endian::Little => {
+                    out.extend(self.bytes.chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]])))
+                }
+                Endian::Big => {
+                    out.extend(self.bytes.chunks_exact(4).map(|c| f32::from_be_bytes([c[0], c[1], c[2], c[3]])))
+                }
             }
-            Endian::Big => out.extend(self.bytes.chunks_exact(4).map(|c| f32::from_be_bytes([c[0], c[1], c[2], c[3]]))),
         }
         codec_core::animation::check_finite(out, self.vertex_count(), self.frames_read)
             .map_err(|e| in_file(&self.file, e))?;
