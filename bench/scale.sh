@@ -26,7 +26,7 @@ mkdir -p "$DIR"
 params() {
   case "$1" in
     quant-delta) echo "bits=12" ;;
-    pca-aoi) echo "block=120" ;;
+    pca-aoi) echo "block=40" ;;
     hosvd) echo "ss=0.9" ;;
     *) echo "level=19" ;;
   esac
@@ -58,7 +58,7 @@ for size in "$@"; do
     anim="$DIR/flag-$size.$codec.anim"
     out="$DIR/flag-$size.$codec.decoded.pc2"
     read -r enc_s enc_kb < <(measure "$BIN" encode "$pc2" -c "$codec" -p "$(params "$codec")" --memory "$MEMORY" -o "$anim" -f --json)
-    bpvf=$(python3 -c 'import json,sys; print(f"{json.load(open(sys.argv[1]))["bpvf"]:.3f}")' "$DIR/out.txt" 2>/dev/null || echo nan)
+    bpvf=$(python3 -c 'import json,sys; print("%.3f" % json.load(open(sys.argv[1]))["bpvf"])' "$DIR/out.txt" 2>/dev/null || echo nan)
     read -r dec_s dec_kb < <(measure "$BIN" decode "$anim" -o "$out" -f)
     python3 - "$v" "$frames" "$codec" "$enc_s" "$enc_kb" "$raw_s" "$dec_s" "$dec_kb" "$bpvf" <<'PY'
 import sys

@@ -149,3 +149,55 @@ fn hosvd_blocked_budget(vertices: usize, frames: usize) -> (String, u64) {
     }
     panic!("no budget blocks {frames} frames of {vertices} vertices");
 }
+
+#[test]
+fn pca_aoi_shortens_a_block_that_does_not_fit_the_budget() {
+    let registry = animcodec::registry();
+    let pca = registry.by_name("pca-aoi").unwrap();
+    let params = pca.default_params();
+    let block = |p: &animcodec::core::ParamSet| match p.get("block") {
+        Some(animcodec::core::ParamValue::Int(b)) => *b as usize,
+        other => panic!("block is {other:?}"),
+    };
+    let (v, f) = (100_000, 1000);
+    // A budget that holds the default block keeps it.
+    assert_eq!(block(&pca.fit_memory(&params, v, f, 64 << 30).unwrap()), block(&params));
+    // One that does not: a shorter block, equal blocks over the frames, and it fits.
+    let budget = 400 << 20;
+    let fitted = pca.fit_memory(&params, v, f, budget).unwrap();
+    let b = block(&fitted);
+    assert!(b >= 8 && b < block(&params), "{b}");
+    assert!(b * f.div_ceil(b) - f < f.div_ceil(b), "{b} frames per block leaves a short last block");
+    assert!(codec_pca_aoi_fits(v, b, budget));
+    // One that holds no block of 8 frames: an error naming the budget.
+    let e = pca.fit_memory(&params, v, f, 1 << 20).unwrap_err().to_string();
+    assert!(e.contains("budget") && e.contains("pca-aoi"), "{e}");
+
+    // End to end: the budget's block is what the stream uses, and it decodes.
+    let s = Scratch::new("stream-memory-pca");
+    let pc2 = flag_cache(&s, "f.pc2", "40x30x60");
+    let small = pca.fit_memory(&params, 1200, 60, 69 << 20).unwrap();
+    assert!(block(&small) < block(&params), "the budget must shorten the block here");
+    let anim = s.path("p.anim");
+    let j = ok_json(&[
+        "encode",
+        &pc2,
+        "-c",
+        "pca-aoi",
+        "-p",
+        "mode=baoi",
+        "--memory",
+        &(69u64 << 20).to_string(),
+        "-o",
+        &anim,
+        "--json",
+    ]);
+    assert_eq!(j["params"]["block"].as_u64(), Some(block(&small) as u64), "{j}");
+    ok(&["decode", &anim, "-o", &s.path("p.pc2")]);
+}
+
+/// Whether pca-aoi's model (bytes per coordinate of a block, per vertex, fixed) fits `budget`:
+/// the documented 32 B · 3 V · frames + 1 KiB · V + 64 MiB.
+fn codec_pca_aoi_fits(vertices: usize, frames: usize, budget: u64) -> bool {
+    32 * vertices as u64 * 3 * frames as u64 + 1024 * vertices as u64 + (64 << 20) <= budget
+}

@@ -261,6 +261,32 @@ impl AnimationCodec for PcaAoi {
     fn validate(&self, params: &ParamSet) -> Result<()> {
         PcaAoiParams::from_param_set(params).map(|_| ())
     }
+    /// Issue 30: a block (one packet, analysed at once) whose modelled peak
+    /// ([`block_memory`]) exceeds `budget` is shortened to the fewest equal blocks that fit;
+    /// a block that fits is kept. Fails, naming the budget, when 8 frames do not fit.
+    fn fit_memory(&self, params: &ParamSet, vertices: usize, frames: usize, budget: u64) -> Result<ParamSet> {
+        let p = PcaAoiParams::from_param_set(params)?;
+        let block = (p.block as usize).min(frames.max(1));
+        if block_memory(vertices, block) <= budget {
+            return Ok(params.clone());
+        }
+        let least = MIN_MEMORY_BLOCK.min(block);
+        let Some(fits) = (least..block).rev().find(|&b| block_memory(vertices, b) <= budget) else {
+            return Err(Error::parameter(
+                NAME,
+                "block",
+                format!(
+                    "a memory budget of {budget} bytes does not hold a block of {least} frames of {vertices} vertices \
+                     (about {} bytes); give a larger budget",
+                    block_memory(vertices, least)
+                ),
+            ));
+        };
+        let chosen = frames.div_ceil(frames.div_ceil(fits));
+        let mut out = params.clone();
+        out.set(&PcaAoiParams::specs(), "block", ParamValue::Int(chosen as i64))?;
+        Ok(out)
+    }
     fn error_bound(&self, params: &ParamSet, animation: &Animation) -> Result<ErrorBound> {
         let p = PcaAoiParams::from_param_set(params)?;
         Ok(error_bound(&p, animation))
@@ -272,6 +298,17 @@ impl AnimationCodec for PcaAoi {
     fn new_decoder(&self, info: &StreamInfo, config: &[u8], limits: &Limits) -> Result<Box<dyn FrameDecoder>> {
         Ok(Box::new(PcaAoiDecoder::new(info, config, limits)?))
     }
+}
+
+/// Fewest frames per block [`AnimationCodec::fit_memory`] chooses.
+pub const MIN_MEMORY_BLOCK: usize = 8;
+
+/// Peak bytes of an encode with blocks of `frames` frames of `vertices` vertices, the whole
+/// process (stream driver and self-check included): fitted on peak RSS of streamed PC2 encodes
+/// (`docs/notes/issue-30.md`: 107 MiB at 10 000 vertices × 120-frame blocks, 356 MiB at
+/// 40 000 × 120; ≈ 23 bytes a coordinate of the block), rounded up for headroom.
+pub fn block_memory(vertices: usize, frames: usize) -> u64 {
+    32 * vertices as u64 * 3 * frames as u64 + 1024 * vertices as u64 + (64 << 20)
 }
 
 /// The relative RMS bound (see the README, "Error bound"): the projection never removes more
