@@ -318,6 +318,15 @@ pub struct EncodeArgs {
     #[arg(long, value_name = "N", default_value_t = 32, value_parser = clap::value_parser!(u32).range(1..))]
     pub feed: u32,
 
+    /// Memory budget of an encode with -p (bytes; K, M, G suffixes are powers of 1024), e.g.
+    /// 4G. A .pc2/.mdd input (or synth:flag:CxRxF) is read frame by frame, so the encode holds
+    /// what the codec buffers; a codec whose analysis holds a whole block of frames (hosvd with
+    /// block=0) chooses temporal blocks that fit the budget. The stream depends on the budget,
+    /// never on the machine. Default: none (hosvd decomposes the whole sequence at once).
+    /// Not with --target or the default-quality search, which hold the whole animation.
+    #[arg(long, value_name = "BYTES", value_parser = commands::parse_bytes)]
+    pub memory: Option<u64>,
+
     /// Search the codec's declared parameter space (its rate ladder on every configuration of
     /// its secondary parameters; `animcodec describe`) for the smallest stream whose decoded
     /// error meets METRIC=VALUE (metrics: kg [%], sted, hausdorff, max_error, rmse; absolute
@@ -602,7 +611,9 @@ impl From<SizeArg> for SynthSize {
 #[derive(Debug, Args)]
 pub struct SynthArgs {
     /// Animation: flag (waving cloth), cylinder (two-bone skinned bend + twist), tumble (rigid
-    /// body), phases (motion changing character at frames F/4, F/2, 3F/4).
+    /// body), phases (motion changing character at frames F/4, F/2, 3F/4); or
+    /// flag:COLSxROWSxFRAMES, a flag of any size written frame by frame to a .pc2/.mdd (never
+    /// held in memory; for scale tests).
     #[arg(value_name = "NAME")]
     pub name: String,
 

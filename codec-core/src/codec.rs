@@ -206,6 +206,18 @@ pub trait AnimationCodec: Send + Sync {
     /// The error this codec promises for `animation` at `params`.
     fn error_bound(&self, params: &ParamSet, animation: &Animation) -> Result<ErrorBound>;
 
+    /// Issue 30: `params` adapted so that encoding `vertices × frames` holds at most about
+    /// `budget` bytes (the user's `encode --memory`). A codec whose analysis holds a whole
+    /// block of frames at once (hosvd's `block=0`, the whole sequence) chooses a temporal
+    /// block that fits; parameters the user fixed otherwise are kept. The choice depends only
+    /// on the arguments (never on the machine), so the stream does too. Fails when no setting
+    /// fits, naming the least budget that would. Default: `params` unchanged (the codec's
+    /// memory is already bounded by its packets, or it has no block to choose).
+    fn fit_memory(&self, params: &ParamSet, vertices: usize, frames: usize, budget: u64) -> Result<ParamSet> {
+        let _ = (vertices, frames, budget);
+        Ok(params.clone())
+    }
+
     /// A streaming encoder.
     fn new_encoder(&self, params: &ParamSet, setup: &EncoderSetup<'_>) -> Result<Box<dyn FrameEncoder>>;
 

@@ -70,14 +70,8 @@ impl AnimationCodec for QuantDelta {
     }
     fn error_bound(&self, params: &ParamSet, animation: &Animation) -> Result<ErrorBound> {
         let p = QuantDeltaParams::from_param_set(params)?;
-        // Each packet's range lies inside the whole animation's, so its step is no larger.
         let (lo, hi) = animation.bounding_box();
-        let bound = (0..3)
-            .map(|a| Quantizer::new(lo[a], hi[a], p.bits).map(|q| q.max_error()))
-            .collect::<Result<Vec<_>>>()?
-            .into_iter()
-            .fold(0.0, f64::max);
-        Ok(ErrorBound { max_coordinate_error: Some(bound), relative_rms_error: None })
+        bound_of_box(&p, lo, hi)
     }
     fn new_encoder(&self, params: &ParamSet, setup: &EncoderSetup<'_>) -> Result<Box<dyn FrameEncoder>> {
         let p = QuantDeltaParams::from_param_set(params)?;
@@ -87,6 +81,8 @@ impl AnimationCodec for QuantDelta {
             want_reconstruction: setup.want_reconstruction,
             pending: Vec::new(),
             next_frame: 0,
+            lo: [f32::INFINITY; 3],
+            hi: [f32::NEG_INFINITY; 3],
         }))
     }
     fn new_decoder(&self, info: &StreamInfo, config: &[u8], limits: &Limits) -> Result<Box<dyn FrameDecoder>> {
@@ -100,12 +96,26 @@ impl AnimationCodec for QuantDelta {
     }
 }
 
+/// The bound of an animation whose bounding box is `lo..hi`: each packet's range lies inside
+/// the whole animation's, so its step is no larger.
+fn bound_of_box(p: &QuantDeltaParams, lo: [f32; 3], hi: [f32; 3]) -> Result<ErrorBound> {
+    let bound = (0..3)
+        .map(|a| Quantizer::new(lo[a], hi[a], p.bits).map(|q| q.max_error()))
+        .collect::<Result<Vec<_>>>()?
+        .into_iter()
+        .fold(0.0, f64::max);
+    Ok(ErrorBound { max_coordinate_error: Some(bound), relative_rms_error: None })
+}
+
 struct QuantDeltaEncoder {
     params: QuantDeltaParams,
     vertex_count: usize,
     want_reconstruction: bool,
     pending: Vec<f32>,
     next_frame: u32,
+    /// Bounding box of every frame pushed ([`FrameEncoder::declared_bound`]).
+    lo: [f32; 3],
+    hi: [f32; 3],
 }
 
 impl QuantDeltaEncoder {
@@ -177,6 +187,12 @@ impl FrameEncoder for QuantDeltaEncoder {
     }
 
     fn push_frames(&mut self, frames: &[f32]) -> Result<Vec<EncodedPacket>> {
+        for p in frames.chunks_exact(3) {
+            for a in 0..3 {
+                self.lo[a] = self.lo[a].min(p[a]);
+                self.hi[a] = self.hi[a].max(p[a]);
+            }
+        }
         self.pending.extend_from_slice(frames);
         let block = self.params.block as usize;
         let mut out = Vec::new();
@@ -184,6 +200,18 @@ impl FrameEncoder for QuantDeltaEncoder {
             out.push(self.encode_block(block)?);
         }
         Ok(out)
+    }
+
+    /// [`AnimationCodec::error_bound`] from the bounding box of the frames pushed.
+    fn declared_bound(&self) -> Option<ErrorBound> {
+        let (lo, hi) = if self.next_frame == 0 && self.pending.is_empty() {
+            ([0.0; 3], [0.0; 3]) // as `bounding_box` of no positions
+        } else {
+            (self.lo, self.hi)
+        };
+        // An empty or degenerate box still gives a valid quantizer; an error here means the
+        // parameters are invalid, which `validate` already refused.
+        bound_of_box(&self.params, lo, hi).ok()
     }
 
     fn finish(&mut self) -> Result<Vec<EncodedPacket>> {

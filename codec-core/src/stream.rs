@@ -22,7 +22,11 @@ use crate::registry::CodecRegistry;
 /// else [`AnimationCodec::error_bound`]). Otherwise `finish` fails with an error naming the
 /// codec and the cause, and no index is written (the CLI then leaves no file): a stream that
 /// exceeds its bound never leaves the encoder. Cost: one decode of every packet, and a copy of
-/// the input frames while the stream is coded (the error is measured at the end).
+/// the input frames until the packet holding them is checked (issue 30: each packet is compared
+/// with its input as it is written, the error accumulated and those frames dropped, so memory
+/// is bounded by the encoder's own buffering). Only when the encoder declares no bound of its
+/// own ([`FrameEncoder::declared_bound`] is `None` before the first frame) is the whole input
+/// kept, for [`AnimationCodec::error_bound`] at the end.
 pub struct StreamEncoder<'c, W: Write> {
     codec: &'static str,
     codec_ref: &'c dyn AnimationCodec,
@@ -83,7 +87,12 @@ impl<'c, W: Write> StreamEncoder<'c, W> {
             decoder: codec.new_decoder(&info, &encoder.config(), &Limits::UNLIMITED)?,
             topology: topology_in.clone(),
             frame_rate,
+            keep_input: encoder.declared_bound().is_none(),
             input: Vec::new(),
+            input_first: 0,
+            lo: [f32::INFINITY; 3],
+            hi: [f32::NEG_INFINITY; 3],
+            coordinates: 0,
             checked_frames: 0,
             max_error: 0.0,
             sum_squared: 0.0,
@@ -138,7 +147,7 @@ impl<'c, W: Write> StreamEncoder<'c, W> {
         }
         check_finite(frames, self.vertex_count, self.frames_pushed)?;
         self.frames_pushed += n;
-        self.check.input.extend_from_slice(frames);
+        self.check.push(frames);
         let packets = self.encoder.push_frames(frames)?;
         self.write(packets)
     }
@@ -192,11 +201,14 @@ impl<'c, W: Write> StreamEncoder<'c, W> {
                 self.check.checked_frames, self.frame_count
             )));
         }
-        let (lo, hi) = crate::animation::bounding_box(&self.check.input);
+        let (lo, hi) = if self.check.coordinates < 3 { ([0.0; 3], [0.0; 3]) } else { (self.check.lo, self.check.hi) };
         let diagonal = (0..3).map(|a| (hi[a] as f64 - lo[a] as f64).powi(2)).sum::<f64>().sqrt();
-        let coordinates = self.check.input.len();
+        let coordinates = self.check.coordinates;
         let bound = match self.encoder.declared_bound() {
             Some(b) => b,
+            None if !self.check.keep_input => {
+                return Err(refuse("the encoder declared a bound before the first frame but none at the end".into()))
+            }
             None => {
                 // The bound of the input as the user gave it (as the conformance suite asks).
                 let input = std::mem::take(&mut self.check.input);
@@ -212,8 +224,18 @@ impl<'c, W: Write> StreamEncoder<'c, W> {
 struct SelfCheck {
     /// The codec's decoder, fed every packet in order.
     decoder: Box<dyn FrameDecoder>,
-    /// The input frames pushed so far (frame-major), and their topology and rate as given.
+    /// Whether every input frame is kept to the end (the encoder declares no bound, so
+    /// [`AnimationCodec::error_bound`] needs the whole animation); else frames are dropped once
+    /// their packet is checked.
+    keep_input: bool,
+    /// The input frames pushed and kept (frame-major) from frame `input_first` on, and their
+    /// topology and rate as given.
     input: Vec<f32>,
+    input_first: usize,
+    /// Bounding box and coordinate count of every frame pushed (for the relative RMS bound).
+    lo: [f32; 3],
+    hi: [f32; 3],
+    coordinates: usize,
     topology: Topology,
     frame_rate: f32,
     /// Frames decoded and compared so far.
@@ -225,6 +247,18 @@ struct SelfCheck {
 }
 
 impl SelfCheck {
+    /// Keeps `frames` until their packet is checked, and extends the bounding box.
+    fn push(&mut self, frames: &[f32]) {
+        for p in frames.chunks_exact(3) {
+            for a in 0..3 {
+                self.lo[a] = self.lo[a].min(p[a]);
+                self.hi[a] = self.hi[a].max(p[a]);
+            }
+        }
+        self.coordinates += frames.len();
+        self.input.extend_from_slice(frames);
+    }
+
     /// Decodes `p`, checks it against the encoder's reconstruction and accumulates its error.
     fn packet(&mut self, codec: &'static str, vertices: usize, p: &EncodedPacket) -> Result<()> {
         let refuse = |cause: String| Error::Unsupported {
@@ -237,9 +271,10 @@ impl SelfCheck {
             return Err(refuse(format!("packet starts at frame {first}, expected {}", self.checked_frames)));
         }
         let per_frame = vertices * 3;
+        let local = first - self.input_first;
         let input = self
             .input
-            .get(first * per_frame..(first + frames) * per_frame)
+            .get(local * per_frame..(local + frames) * per_frame)
             .ok_or_else(|| refuse(format!("packet covers frames {first}..{} not pushed yet", first + frames)))?;
         let decoded =
             self.decoder.decode_packet(&p.packet).map_err(|e| refuse(format!("decoding a packet failed: {e}")))?;
@@ -261,6 +296,11 @@ impl SelfCheck {
             self.sum_squared += d * d;
         }
         self.checked_frames += frames;
+        if !self.keep_input {
+            // Checked: these frames are no longer needed (bounded memory for long inputs).
+            self.input.drain(..(local + frames) * per_frame);
+            self.input_first = self.checked_frames;
+        }
         Ok(())
     }
 
@@ -383,8 +423,22 @@ fn packet_alloc(header: &Header, frames: u64) -> u64 {
 }
 
 impl<R: Read> StreamDecoder<R> {
-    /// Reads the header and makes the decoder of the codec named by its FourCC.
+    /// Reads the header and makes the decoder of the codec named by its FourCC. The decoded
+    /// animation is charged to `limits` whole (what [`StreamDecoder::decode_all`] holds).
     pub fn new(src: R, registry: &CodecRegistry, limits: Limits) -> Result<Self> {
+        Self::open(src, registry, limits, true)
+    }
+
+    /// [`StreamDecoder::new`] for a caller that takes packets one by one with
+    /// [`StreamDecoder::next_packet`] and drops each before the next (issue 30: `decode` to a
+    /// PC2/MDD file writes frames as they are decoded): only one decoded packet at a time is
+    /// charged to `limits`, so a stream far larger than the budget decodes within it.
+    /// [`StreamDecoder::decode_all`] still checks the whole animation against `limits`.
+    pub fn new_streaming(src: R, registry: &CodecRegistry, limits: Limits) -> Result<Self> {
+        Self::open(src, registry, limits, false)
+    }
+
+    fn open(src: R, registry: &CodecRegistry, limits: Limits, whole: bool) -> Result<Self> {
         let reader = ContainerReader::new(src, limits)?;
         let header = reader.header();
         let codec = registry.by_fourcc(header.info.fourcc)?;
@@ -401,9 +455,12 @@ impl<R: Read> StreamDecoder<R> {
         // `Limits` bound the total a decode holds: the decoded animation (what `decode_all`
         // keeps; a caller taking packets one by one is charged the same) and the topology are
         // held throughout, so the codec's decoder gets what is left of the memory budget.
-        let decoder_limits = limits
-            .reserve(codec.name(), "the decoded animation", packet_alloc(header, header.info.frame_count as u64))?
-            .reserve(codec.name(), "the topology", header.info.topology.triangle_count() as u64 * 12)?;
+        let held = if whole { packet_alloc(header, header.info.frame_count as u64) } else { 0 };
+        let decoder_limits = limits.reserve(codec.name(), "the decoded animation", held)?.reserve(
+            codec.name(),
+            "the topology",
+            header.info.topology.triangle_count() as u64 * 12,
+        )?;
         let decoder = codec.new_decoder(&header.info, &header.config, &decoder_limits)?;
         Ok(Self { codec: codec.name(), reader, decoder, index: None })
     }

@@ -199,6 +199,28 @@ impl HosvdParams {
     }
 }
 
+/// Fewest frames per block [`AnimationCodec::fit_memory`] chooses: below it the frame mode has
+/// too little to reduce (see [`block_params`]) and the per-block side data dominates.
+pub const MIN_MEMORY_BLOCK: usize = 8;
+
+/// Peak bytes an encode of blocks of `frames` frames of `vertices` vertices holds, the whole
+/// process (the stream driver's copy of the block and its self-check included): a model fitted
+/// to measured peak RSS (`docs/notes/issue-30.md`, "hosvd memory model"), rounded up.
+pub fn block_memory(vertices: usize, frames: usize) -> u64 {
+    let coordinates = vertices as u64 * 3 * frames as u64;
+    let k = vertices as u64;
+    // Per coordinate of the block: f32 copies (pending, self-check) and f64 working tensors.
+    // Per vertex: topology, coding order, mesh graph. Plus the program itself.
+    BYTES_PER_COORDINATE * coordinates + BYTES_PER_VERTEX * k + BASE_BYTES
+}
+
+// Fitted on `synth flag:200x200x300` (40 000 vertices) encoded with block = 25, 50, 100, 150
+// and 300 frames: 290, 441, 799, 1110 and 2049 MiB peak RSS, 56 bytes a coordinate of the block
+// and about 130 MiB besides; 10 000 vertices × 300 frames: 552 MiB. Rounded up for headroom.
+const BYTES_PER_COORDINATE: u64 = 64;
+const BYTES_PER_VERTEX: u64 = 2048;
+const BASE_BYTES: u64 = 64 << 20;
+
 /// The `hosvd` codec.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct Hosvd;
@@ -288,6 +310,35 @@ impl AnimationCodec for Hosvd {
     }
     fn validate(&self, params: &ParamSet) -> Result<()> {
         HosvdParams::from_param_set(params).map(|_| ())
+    }
+    /// With `block=0` (the whole sequence in one decomposition), the frames per block that fit
+    /// `budget` by [`block_memory`]; equal blocks (`⌈F / n⌉` frames for the fewest `n` that fit),
+    /// so no short remainder block is decomposed on its own. An explicit `block` is kept.
+    fn fit_memory(&self, params: &ParamSet, vertices: usize, frames: usize, budget: u64) -> Result<ParamSet> {
+        let p = HosvdParams::from_param_set(params)?;
+        if p.block != 0 || frames == 0 {
+            return Ok(params.clone());
+        }
+        let fits = (1..=frames).rev().find(|&b| block_memory(vertices, b) <= budget);
+        let block = match fits {
+            Some(b) if b >= frames => return Ok(params.clone()),
+            Some(b) if b >= MIN_MEMORY_BLOCK.min(frames) => frames.div_ceil(frames.div_ceil(b)),
+            _ => {
+                let need = block_memory(vertices, MIN_MEMORY_BLOCK.min(frames));
+                return Err(Error::parameter(
+                    NAME,
+                    "block",
+                    format!(
+                        "a memory budget of {budget} bytes does not hold a block of {} frames of {vertices} vertices \
+                         (about {need} bytes); give a larger budget",
+                        MIN_MEMORY_BLOCK.min(frames)
+                    ),
+                ));
+            }
+        };
+        let mut out = params.clone();
+        out.set(&HosvdParams::specs(), "block", ParamValue::Int(block as i64))?;
+        Ok(out)
     }
     /// Runs the encoder's analysis and returns the bound derived in [`BlockStats::error_bound`]
     /// (truncation error from the core energies plus worst-case quantization terms, mapped

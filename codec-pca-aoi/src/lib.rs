@@ -261,6 +261,32 @@ impl AnimationCodec for PcaAoi {
     fn validate(&self, params: &ParamSet) -> Result<()> {
         PcaAoiParams::from_param_set(params).map(|_| ())
     }
+    /// Issue 30: a block (one packet, analysed at once) whose modelled peak
+    /// ([`block_memory`]) exceeds `budget` is shortened to the fewest equal blocks that fit;
+    /// a block that fits is kept. Fails, naming the budget, when 8 frames do not fit.
+    fn fit_memory(&self, params: &ParamSet, vertices: usize, frames: usize, budget: u64) -> Result<ParamSet> {
+        let p = PcaAoiParams::from_param_set(params)?;
+        let block = (p.block as usize).min(frames.max(1));
+        if block_memory(vertices, block) <= budget {
+            return Ok(params.clone());
+        }
+        let least = MIN_MEMORY_BLOCK.min(block);
+        let Some(fits) = (least..block).rev().find(|&b| block_memory(vertices, b) <= budget) else {
+            return Err(Error::parameter(
+                NAME,
+                "block",
+                format!(
+                    "a memory budget of {budget} bytes does not hold a block of {least} frames of {vertices} vertices \
+                     (about {} bytes); give a larger budget",
+                    block_memory(vertices, least)
+                ),
+            ));
+        };
+        let chosen = frames.div_ceil(frames.div_ceil(fits));
+        let mut out = params.clone();
+        out.set(&PcaAoiParams::specs(), "block", ParamValue::Int(chosen as i64))?;
+        Ok(out)
+    }
     fn error_bound(&self, params: &ParamSet, animation: &Animation) -> Result<ErrorBound> {
         let p = PcaAoiParams::from_param_set(params)?;
         Ok(error_bound(&p, animation))
@@ -274,13 +300,86 @@ impl AnimationCodec for PcaAoi {
     }
 }
 
+/// Fewest frames per block [`AnimationCodec::fit_memory`] chooses.
+pub const MIN_MEMORY_BLOCK: usize = 8;
+
+/// Peak bytes of an encode with blocks of `frames` frames of `vertices` vertices, the whole
+/// process (stream driver and self-check included): fitted on peak RSS of streamed PC2 encodes
+/// (`docs/notes/issue-30.md`: 107 MiB at 10 000 vertices × 120-frame blocks, 356 MiB at
+/// 40 000 × 120; ≈ 23 bytes a coordinate of the block), rounded up for headroom.
+pub fn block_memory(vertices: usize, frames: usize) -> u64 {
+    32 * vertices as u64 * 3 * frames as u64 + 1024 * vertices as u64 + (64 << 20)
+}
+
 /// The relative RMS bound (see the README, "Error bound"): the projection never removes more
 /// than the data's spread around each frame's centroid, scaled by how far the quantized
 /// dictionary is from orthonormal, plus the feature quantization error and `f32` rounding.
 fn error_bound(p: &PcaAoiParams, animation: &Animation) -> ErrorBound {
-    let v = animation.vertex_count();
-    let diag = animation.bounding_box_diagonal();
-    let max_abs = animation.positions().iter().fold(0.0f64, |m, &x| m.max(x.abs() as f64));
+    let mut stats = BoundStats::new(animation.vertex_count());
+    stats.push(animation.positions());
+    stats.bound(p)
+}
+
+/// What [`error_bound`] needs of the input, accumulated frame by frame (issue 30: the encoder
+/// declares its bound from the frames it was pushed, so the stream driver's self-check keeps
+/// no copy of the whole input). The same arithmetic in the same order as on the whole
+/// animation, so both give the same bound bit for bit.
+#[derive(Debug, Clone)]
+struct BoundStats {
+    v: usize,
+    lo: [f32; 3],
+    hi: [f32; 3],
+    max_abs: f64,
+    centered: f64,
+    coords: usize,
+}
+
+impl BoundStats {
+    fn new(v: usize) -> Self {
+        Self { v, lo: [f32::INFINITY; 3], hi: [f32::NEG_INFINITY; 3], max_abs: 0.0, centered: 0.0, coords: 0 }
+    }
+
+    /// Adds whole frames (frame-major).
+    fn push(&mut self, frames: &[f32]) {
+        let v = self.v;
+        if v == 0 {
+            return;
+        }
+        for frame in frames.chunks_exact(v * 3) {
+            let mut c = [0.0f64; 3];
+            for q in frame.chunks_exact(3) {
+                for a in 0..3 {
+                    self.lo[a] = self.lo[a].min(q[a]);
+                    self.hi[a] = self.hi[a].max(q[a]);
+                    self.max_abs = self.max_abs.max(q[a].abs() as f64);
+                    c[a] += q[a] as f64;
+                }
+            }
+            for x in &mut c {
+                *x /= v as f64;
+            }
+            for q in frame.chunks_exact(3) {
+                for a in 0..3 {
+                    self.centered += (q[a] as f64 - c[a]).powi(2);
+                }
+            }
+            self.coords += frame.len();
+        }
+    }
+
+    fn bound(&self, p: &PcaAoiParams) -> ErrorBound {
+        let v = self.v;
+        // As `Animation::bounding_box_diagonal` (zero for an empty animation).
+        let diag = if self.coords < 3 {
+            0.0
+        } else {
+            (0..3).map(|a| (self.hi[a] as f64 - self.lo[a] as f64).powi(2)).sum::<f64>().sqrt()
+        };
+        bound_from(p, v, diag, self.max_abs, self.centered, self.coords)
+    }
+}
+
+fn bound_from(p: &PcaAoiParams, v: usize, diag: f64, max_abs: f64, centered: f64, coords: usize) -> ErrorBound {
     if diag == 0.0 {
         // Every vertex of every frame at one point: centered blocks are zero and the stored
         // f32 means are exact.
@@ -289,24 +388,7 @@ fn error_bound(p: &PcaAoiParams, animation: &Animation) -> ErrorBound {
             relative_rms_error: None,
         };
     }
-    let mut centered = 0.0f64;
-    for frame in animation.frames() {
-        let mut c = [0.0f64; 3];
-        for q in frame.chunks_exact(3) {
-            for a in 0..3 {
-                c[a] += q[a] as f64;
-            }
-        }
-        for x in &mut c {
-            *x /= v as f64;
-        }
-        for q in frame.chunks_exact(3) {
-            for a in 0..3 {
-                centered += (q[a] as f64 - c[a]).powi(2);
-            }
-        }
-    }
-    let coords = (animation.positions().len()) as f64;
+    let coords = coords as f64;
     let rounding = 3.0 * (max_abs + diag) * f32::EPSILON as f64;
     if p.coding == Coding::Toolkit {
         // The toolkit encoder keeps every cluster's block error below its spread about the
@@ -378,6 +460,8 @@ pub struct PcaAoiEncoder {
     next_frame: u32,
     reconstruct: Option<PcaAoiDecoder>,
     stats: Vec<BlockStats>,
+    /// What the error bound needs of the frames pushed ([`FrameEncoder::declared_bound`]).
+    bound: BoundStats,
 }
 
 impl PcaAoiEncoder {
@@ -416,6 +500,7 @@ impl PcaAoiEncoder {
             next_frame: 0,
             reconstruct: None,
             stats: Vec::new(),
+            bound: BoundStats::new(topology.vertex_count()),
         };
         if setup.want_reconstruction {
             let coding = match params.coding {
@@ -491,6 +576,11 @@ impl PcaAoiEncoder {
 }
 
 impl FrameEncoder for PcaAoiEncoder {
+    /// [`AnimationCodec::error_bound`] of the frames pushed, accumulated as they arrive.
+    fn declared_bound(&self) -> Option<ErrorBound> {
+        Some(self.bound.bound(&self.params))
+    }
+
     fn config(&self) -> Vec<u8> {
         let mut w = ByteWriter::new();
         match self.params.coding {
@@ -510,6 +600,7 @@ impl FrameEncoder for PcaAoiEncoder {
     }
 
     fn push_frames(&mut self, frames: &[f32]) -> Result<Vec<EncodedPacket>> {
+        self.bound.push(frames);
         let per_block = self.params.block as usize * self.vertex_count * 3;
         let mut out = Vec::new();
         let mut rest = frames;

@@ -5,6 +5,7 @@ use std::io::BufReader;
 use std::path::Path;
 use std::time::Instant;
 
+use animcodec::formats::stream::{self as cache_stream, CacheWriter};
 use animcodec::formats::{self, WriteOptions};
 use animcodec::output::OutputPolicy;
 use codec_core::{Limits, StreamDecoder};
@@ -31,6 +32,9 @@ pub fn run(args: &DecodeArgs, limits: Limits) -> CmdResult {
         options.policy.check(&args.output)?;
     }
     let registry = animcodec::registry();
+    if cache_stream::is_streamable_output(&args.output) {
+        return run_streaming(args, limits, &options);
+    }
     let start = Instant::now();
     let name = || args.input.display().to_string();
     let decoder = StreamDecoder::new(open(&args.input)?, &registry, limits).in_file(&name())?;
@@ -62,6 +66,57 @@ pub fn run(args: &DecodeArgs, limits: Limits) -> CmdResult {
          → {out} ({files}, written in {write_seconds:.2} s)\n",
         input = args.input.display(),
         fps = animation.frame_rate(),
+        out = args.output.display(),
+        files = if written.len() == 1 { "1 file".to_owned() } else { format!("{} files", written.len()) },
+    ))
+}
+
+/// `decode` to a `.pc2`/`.mdd` file (issue 30): each packet's frames are written as soon as they
+/// are decoded, so memory holds one packet (and the codec decoder's state), never the whole
+/// animation; `limits` are charged the same way ([`StreamDecoder::new_streaming`]). The file is
+/// pending until the last frame is written: a failure leaves nothing.
+fn run_streaming(args: &DecodeArgs, limits: Limits, options: &WriteOptions) -> CmdResult {
+    let registry = animcodec::registry();
+    let name = || args.input.display().to_string();
+    let mut decoder = StreamDecoder::new_streaming(open(&args.input)?, &registry, limits).in_file(&name())?;
+    let codec = decoder.codec_name();
+    let info = decoder.header().info.clone();
+    let mut writer = CacheWriter::create(&args.output, &info.topology, info.frame_count, info.frame_rate, options)?;
+    let start = Instant::now();
+    let (mut decode_seconds, mut write_seconds) = (0.0, 0.0);
+    loop {
+        let t = Instant::now();
+        let Some(packet) = decoder.next_packet() else { break };
+        let packet = packet.in_file(&name())?;
+        decode_seconds += t.elapsed().as_secs_f64();
+        let t = Instant::now();
+        writer.write_frames(&packet.positions)?;
+        write_seconds += t.elapsed().as_secs_f64();
+    }
+    let t = Instant::now();
+    let written = writer.finish()?;
+    write_seconds += t.elapsed().as_secs_f64();
+    let _ = start;
+    let (v, f, t) = (info.vertex_count(), info.frame_count, info.topology.triangle_count());
+    if args.json {
+        return emit_json(&json!({
+            "codec": codec,
+            "input": args.input.display().to_string(),
+            "output": args.output.display().to_string(),
+            "files": written.iter().map(|f| f.display().to_string()).collect::<Vec<_>>(),
+            "frames": f,
+            "vertices": v,
+            "triangles": t,
+            "frame_rate": info.frame_rate,
+            "decode_seconds": decode_seconds,
+            "write_seconds": write_seconds,
+        }));
+    }
+    emit(&format!(
+        "{input}: {codec}, {f} frames × {v} vertices, {t} triangles, {fps} fps, decoded in {decode_seconds:.2} s\n\
+         → {out} ({files}, written frame by frame in {write_seconds:.2} s)\n",
+        input = args.input.display(),
+        fps = info.frame_rate,
         out = args.output.display(),
         files = if written.len() == 1 { "1 file".to_owned() } else { format!("{} files", written.len()) },
     ))

@@ -3,6 +3,7 @@
 use std::io::{IsTerminal, Write};
 use std::time::{Duration, Instant};
 
+use animcodec::formats::stream::{self as cache_stream, CacheReader};
 use animcodec::formats::ReadOptions;
 use animcodec::harness::{self, SearchRequest, Target, TargetHit};
 use animcodec::output::{OutputPolicy, PendingFile};
@@ -70,6 +71,12 @@ pub fn run(args: &EncodeArgs, limits: Limits) -> CmdResult {
         }
     }
     let policy = output_policy(args);
+    if args.memory.is_some() && (args.target.is_some() || args.params.is_empty()) {
+        return Err("--memory bounds an encode with fixed parameters (-p KEY=VALUE): --target and the \
+                    default-quality search (no -p) decode and compare whole animations, so they hold the \
+                    whole input in memory"
+            .into());
+    }
     if let Some(target) = args.target {
         return run_target(args, target, false, limits, &policy);
     }
@@ -91,7 +98,7 @@ pub fn run(args: &EncodeArgs, limits: Limits) -> CmdResult {
     policy.check(&args.output)?;
 
     let read_start = Instant::now();
-    let source = match parse_streamed_flag(&args.input)? {
+    let mut source = match parse_streamed_flag(&args.input)? {
         Some((cols, rows, frames)) => Source::Flag { cols, rows, frames },
         None => {
             let options = ReadOptions {
@@ -99,19 +106,31 @@ pub fn run(args: &EncodeArgs, limits: Limits) -> CmdResult {
                 frame_rate: args.fps,
                 animation: args.animation.clone(),
             };
-            Source::Whole(load_animation(&args.input, &options)?)
+            // A PC2/MDD cache is read frame by frame as the encoder takes it (issue 30), unless
+            // --eval needs the whole input in memory to measure the stream against it.
+            let path = std::path::Path::new(&args.input);
+            if !args.eval && cache_stream::is_streamable(path) {
+                Source::Cache(CacheReader::open(path, &options)?)
+            } else {
+                Source::Whole(load_animation(&args.input, &options)?)
+            }
         }
     };
     let topology = source.topology();
     let (frame_count, frame_rate) = source.frames_and_rate(args.fps);
     let read_seconds = read_start.elapsed().as_secs_f64();
+    // Issue 30: a codec with a whole-block analysis chooses its blocks by the budget.
+    let params = match args.memory {
+        Some(budget) => codec.fit_memory(&params, topology.vertex_count(), frame_count, budget)?,
+        None => params,
+    };
 
     let start = Instant::now();
     // Written to a temporary file renamed into place when complete: a failure or an interruption
     // leaves whatever was at the output path before.
     let file = policy.create(&args.output)?;
     let (mut file, bytes, notes) =
-        encode_to_file(codec, &params, &source, (&topology, frame_count, frame_rate), file, args.feed as usize)?;
+        encode_to_file(codec, &params, &mut source, (&topology, frame_count, frame_rate), file, args.feed as usize)?;
     let encode_seconds = start.elapsed().as_secs_f64();
     // The encoder's warnings (e.g. a fallback it took to stay within its bound, issue 26) also go
     // to stderr, whatever the output format; `--json` lists them under "notes".
@@ -127,7 +146,7 @@ pub fn run(args: &EncodeArgs, limits: Limits) -> CmdResult {
     let evaluation = match (&source, args.eval) {
         (_, false) => None,
         (Source::Whole(input), true) => Some(evaluate_written(args, input, file.finish()?, limits)?),
-        (Source::Flag { .. }, true) => return Err(EVAL_NEEDS_MEMORY.into()),
+        (Source::Flag { .. } | Source::Cache(_), true) => return Err(EVAL_NEEDS_MEMORY.into()),
     };
     file.commit()?;
     if args.json {
@@ -201,10 +220,12 @@ fn evaluate_written(
     Ok((report, start.elapsed().as_secs_f64()))
 }
 
-/// Where the frames come from: a loaded animation, or a synthetic flag generated one frame
-/// at a time (so sequences far larger than memory can be encoded).
+/// Where the frames come from: a loaded animation, a PC2/MDD cache read frame by frame, or a
+/// synthetic flag generated one frame at a time (so sequences far larger than memory can be
+/// encoded).
 enum Source {
     Whole(Animation),
+    Cache(CacheReader),
     Flag { cols: usize, rows: usize, frames: usize },
 }
 
@@ -212,6 +233,7 @@ impl Source {
     fn topology(&self) -> Topology {
         match self {
             Source::Whole(a) => a.topology().clone(),
+            Source::Cache(c) => c.topology().clone(),
             Source::Flag { cols, rows, .. } => synth::flag_topology(*cols, *rows),
         }
     }
@@ -219,13 +241,14 @@ impl Source {
     fn frames_and_rate(&self, fps: Option<f32>) -> (usize, f32) {
         match self {
             Source::Whole(a) => (a.frame_count(), a.frame_rate()),
+            Source::Cache(c) => (c.frame_count(), c.frame_rate()),
             Source::Flag { frames, .. } => (*frames, fps.unwrap_or(synth::FRAME_RATE)),
         }
     }
 }
 
 /// Recognises `synth:flag:COLSxROWSxFRAMES`, the streamed form of the synthetic flag.
-fn parse_streamed_flag(input: &str) -> CmdResult<Option<(usize, usize, usize)>> {
+pub(crate) fn parse_streamed_flag(input: &str) -> CmdResult<Option<(usize, usize, usize)>> {
     let Some(dims) = input.strip_prefix("synth:flag:") else { return Ok(None) };
     if !dims.contains('x') {
         return Ok(None); // a size preset such as `synth:flag:small`
@@ -265,7 +288,7 @@ fn output_policy(args: &EncodeArgs) -> OutputPolicy {
 fn encode_to_file(
     codec: &dyn AnimationCodec,
     params: &ParamSet,
-    source: &Source,
+    source: &mut Source,
     (topology, frame_count, frame_rate): (&Topology, usize, f32),
     file: PendingFile,
     feed: usize,
@@ -284,6 +307,12 @@ fn encode_to_file(
         Source::Whole(animation) => {
             for block in animation.positions().chunks(feed.max(1) * per_frame) {
                 encoder.push_frames(block)?;
+            }
+        }
+        Source::Cache(reader) => {
+            let mut block = Vec::new();
+            while reader.read_frames(feed.max(1), &mut block)? > 0 {
+                encoder.push_frames(&block)?;
             }
         }
         Source::Flag { cols, rows, frames } => {

@@ -38,18 +38,8 @@ pub struct MddData {
 /// Parses an MDD file held in memory. `file` names the source in errors. Sizes are checked against
 /// the length of `bytes` before anything is allocated, and every coordinate must be finite.
 pub fn parse_mdd(bytes: &[u8], file: &str) -> Result<MddData> {
-    if bytes.len() < 8 {
-        return Err(Error::Truncated { context: file.to_owned().into(), field: "header".into() });
-    }
-    let frames = i32_be(bytes, 0);
-    let vertices = i32_be(bytes, 4);
-    if frames < 0 {
-        return Err(Error::malformed(file.to_owned(), "frame_count", format!("is negative ({frames})")));
-    }
-    if vertices < 0 {
-        return Err(Error::malformed(file.to_owned(), "vertex_count", format!("is negative ({vertices})")));
-    }
-    let times_bytes = frames as u64 * 4;
+    let (frames, vertices) = parse_counts(bytes, file)?;
+    let times_bytes = frames * 4;
     if times_bytes > (bytes.len() - 8) as u64 {
         return Err(Error::malformed(
             file.to_owned(),
@@ -61,7 +51,7 @@ pub fn parse_mdd(bytes: &[u8], file: &str) -> Result<MddData> {
         ));
     }
     let body = &bytes[8 + times_bytes as usize..];
-    let floats = check_cache_sizes(file, frames as u64, vertices as u64, body.len() as u64)?;
+    let floats = check_cache_sizes(file, frames, vertices, body.len() as u64)?;
     let times = bytes[8..8 + times_bytes as usize]
         .chunks_exact(4)
         .map(|c| f32::from_be_bytes([c[0], c[1], c[2], c[3]]))
@@ -70,6 +60,23 @@ pub fn parse_mdd(bytes: &[u8], file: &str) -> Result<MddData> {
     positions.extend(body.chunks_exact(4).map(|c| f32::from_be_bytes([c[0], c[1], c[2], c[3]])));
     check_finite_in(file, &positions, vertices as usize)?;
     Ok(MddData { vertex_count: vertices as usize, times, positions })
+}
+
+/// Parses the 8-byte header at the start of `bytes`: `(frame count, vertex count)`, neither
+/// negative; not yet checked against the file's size.
+pub fn parse_counts(bytes: &[u8], file: &str) -> Result<(u64, u64)> {
+    if bytes.len() < 8 {
+        return Err(Error::Truncated { context: file.to_owned().into(), field: "header".into() });
+    }
+    let frames = i32_be(bytes, 0);
+    let vertices = i32_be(bytes, 4);
+    if frames < 0 {
+        return Err(Error::malformed(file.to_owned(), "frame_count", format!("is negative ({frames})")));
+    }
+    if vertices < 0 {
+        return Err(Error::malformed(file.to_owned(), "vertex_count", format!("is negative ({vertices})")));
+    }
+    Ok((frames as u64, vertices as u64))
 }
 
 /// The frame rate implied by MDD times, if they are sane (see the module docs).

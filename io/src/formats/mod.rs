@@ -22,6 +22,7 @@ mod gltf_scene;
 pub mod mdd;
 pub mod obj;
 pub mod pc2;
+pub mod stream;
 
 use std::cmp::Ordering;
 use std::io::Write as _;
@@ -167,7 +168,7 @@ pub fn write_animation_with(path: &Path, animation: &Animation, options: &WriteO
     if companion_obj {
         options.policy.check(&companion)?;
     } else if matches!(extension(path).as_deref(), Some("pc2" | "mdd")) {
-        check_existing_companion(path, &companion, animation)?;
+        check_existing_companion(path, &companion, animation.vertex_count(), animation.triangles())?;
     }
     let mut files = vec![PendingFile::new(path)?];
     files[0].write_all(&bytes).map_err(|e| files[0].error(e))?;
@@ -211,12 +212,12 @@ fn check_reads_back(path: &Path, bytes: &[u8], animation: &Animation) -> Result<
 /// A cache written without its topology OBJ is read back with the `STEM.obj` beside it: when
 /// one is there, it must hold this animation's mesh, or a later read would silently pair
 /// another mesh's triangles (same vertex count) with these positions.
-fn check_existing_companion(cache: &Path, companion: &Path, animation: &Animation) -> Result<()> {
+fn check_existing_companion(cache: &Path, companion: &Path, vertex_count: usize, triangles: &[[u32; 3]]) -> Result<()> {
     if std::fs::symlink_metadata(companion).is_err() {
         return Ok(());
     }
-    let why = match cache_topology(cache, Some(companion), animation.vertex_count()) {
-        Ok(topology) if topology.triangles() == animation.triangles() => return Ok(()),
+    let why = match cache_topology(cache, Some(companion), vertex_count) {
+        Ok(topology) if topology.triangles() == triangles => return Ok(()),
         Ok(_) => "holds other triangles".to_owned(),
         Err(e) => format!("is not this animation's mesh ({e})"),
     };
@@ -285,6 +286,15 @@ pub fn reader_limits() -> Limits {
 /// and against the number of position bytes the file can hold, before anything is allocated.
 /// Returns the number of position floats.
 fn check_cache_sizes(file: &str, frames: u64, vertices: u64, position_bytes_available: u64) -> Result<usize> {
+    let needed = check_cache_layout(file, frames, vertices, position_bytes_available)?;
+    reader_limits().check_alloc("formats", "positions", needed)?;
+    Ok((frames * vertices * 3) as usize)
+}
+
+/// [`check_cache_sizes`] without the allocation of the whole: the counts against
+/// [`reader_limits`] and the file's size; returns the bytes of positions. A streamed read
+/// ([`stream::CacheReader`]) holds a chunk at a time.
+fn check_cache_layout(file: &str, frames: u64, vertices: u64, position_bytes_available: u64) -> Result<u64> {
     let limits = reader_limits();
     if vertices == 0 {
         return Err(Error::malformed(file.to_owned(), "vertex_count", "is 0: the cache has no vertices"));
@@ -330,8 +340,7 @@ fn check_cache_sizes(file: &str, frames: u64, vertices: u64, position_bytes_avai
             ),
         ));
     }
-    limits.check_alloc("formats", "positions", needed)?;
-    Ok((frames * vertices * 3) as usize)
+    Ok(needed)
 }
 
 /// Loads the triangles of a PC2/MDD cache: from `topology` when given, else from the OBJ with the

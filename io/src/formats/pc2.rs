@@ -46,6 +46,18 @@ fn f32_le(b: &[u8], at: usize) -> f32 {
 /// errors. Sizes are checked against the length of `bytes` before anything is allocated, and every
 /// coordinate must be finite (the error names file, frame, vertex and axis).
 pub fn parse_pc2(bytes: &[u8], file: &str) -> Result<(Pc2Header, Vec<f32>)> {
+    let header = parse_header(bytes, file)?;
+    let body = &bytes[HEADER_BYTES..];
+    let floats = check_cache_sizes(file, header.frame_count as u64, header.vertex_count as u64, body.len() as u64)?;
+    let mut positions = Vec::with_capacity(floats);
+    positions.extend(body.chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]])));
+    check_finite_in(file, &positions, header.vertex_count)?;
+    Ok((header, positions))
+}
+
+/// Parses and checks the 32-byte header at the start of `bytes` (magic, version, counts not
+/// negative); the counts are not yet checked against the file's size.
+pub fn parse_header(bytes: &[u8], file: &str) -> Result<Pc2Header> {
     if bytes.len() < HEADER_BYTES {
         return Err(Error::Truncated { context: file.to_owned().into(), field: "header".into() });
     }
@@ -67,18 +79,12 @@ pub fn parse_pc2(bytes: &[u8], file: &str) -> Result<(Pc2Header, Vec<f32>)> {
     if frames < 0 {
         return Err(Error::malformed(file.to_owned(), "frame_count", format!("is negative ({frames})")));
     }
-    let body = &bytes[HEADER_BYTES..];
-    let floats = check_cache_sizes(file, frames as u64, vertices as u64, body.len() as u64)?;
-    let header = Pc2Header {
+    Ok(Pc2Header {
         vertex_count: vertices as usize,
         start_frame: f32_le(bytes, 20),
         sample_rate: f32_le(bytes, 24),
         frame_count: frames as usize,
-    };
-    let mut positions = Vec::with_capacity(floats);
-    positions.extend(body.chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]])));
-    check_finite_in(file, &positions, header.vertex_count)?;
-    Ok((header, positions))
+    })
 }
 
 /// Reads a PC2 cache. Triangles come from `topology` when given, else from the OBJ with the same

@@ -1,0 +1,78 @@
+#!/usr/bin/env bash
+# Scale benchmark of issue 30 (not a test): for each size COLSxROWSxFRAMES, writes the synthetic
+# flag as a PC2 frame by frame (`animcodec synth flag:…`), then for each codec measures the
+# streamed encode (PC2 → .anim, fixed parameters, --memory budget) and the streamed decode
+# (.anim → PC2): wall time, peak RSS (/usr/bin/time), throughput in vertex-frames per second and
+# as a ratio to reading the raw file (`cat FILE > /dev/null`, same page cache state: the file was
+# just written). Prints one Markdown table row per codec and size.
+#
+#   cargo build -p animcodec-cli --release
+#   bench/scale.sh 100x100x1000 400x250x1000 1000x1000x1000
+#
+# Environment: ANIMCODEC (binary; default target/release/animcodec), SCALE_DIR (where the big
+# files go; default /work/scale), CODECS (default "quant-delta pca-aoi hosvd"), MEMORY (encode
+# --memory; default 4G), KEEP_FREE_GB (refuse a size that would leave less disk free; default 15).
+# Every file written is deleted when its size is done.
+set -euo pipefail
+BIN=${ANIMCODEC:-target/release/animcodec}
+DIR=${SCALE_DIR:-/work/scale}
+CODECS=${CODECS:-"quant-delta pca-aoi hosvd"}
+MEMORY=${MEMORY:-4G}
+KEEP_FREE_GB=${KEEP_FREE_GB:-15}
+mkdir -p "$DIR"
+
+# Fixed parameters equal to each codec's defaults: with -p the encode streams (without it, encode
+# searches for the default quality, which holds the whole animation).
+params() {
+  case "$1" in
+    quant-delta) echo "bits=12" ;;
+    pca-aoi) echo "block=40" ;;
+    hosvd) echo "ss=0.9" ;;
+    *) echo "level=19" ;;
+  esac
+}
+
+# Runs a command under /usr/bin/time; prints "WALL_SECONDS PEAK_RSS_KB".
+measure() {
+  /usr/bin/time -f "%e %M" -o "$DIR/time.txt" "$@" > "$DIR/out.txt" 2> "$DIR/err.txt" || {
+    echo "FAILED: $*" >&2; cat "$DIR/err.txt" >&2; echo "nan nan"; return 0; }
+  cat "$DIR/time.txt"
+}
+
+echo "| vertices × frames | codec | encode wall s | encode peak RSS MB | encode Mvf/s | encode ÷ raw read | decode wall s | decode peak RSS MB | decode Mvf/s | bpvf |"
+echo "|---|---|---|---|---|---|---|---|---|---|"
+for size in "$@"; do
+  IFS=x read -r cols rows frames <<< "$size"
+  v=$((cols * rows)); vf=$((v * frames)); bytes=$((vf * 12 + 32))
+  free_kb=$(df -k --output=avail "$DIR" | tail -1)
+  # The PC2, the decoded PC2 and a stream: at most 2.2 × the raw size at once.
+  need_kb=$(( (bytes * 22 / 10) / 1024 ))
+  if (( free_kb - need_kb < KEEP_FREE_GB * 1024 * 1024 )); then
+    echo "skip $size: needs $((need_kb / 1048576)) GB, $((free_kb / 1048576)) GB free, $KEEP_FREE_GB GB must stay free" >&2
+    continue
+  fi
+  pc2="$DIR/flag-$size.pc2"
+  "$BIN" synth "flag:$size" -o "$pc2" -f > /dev/null
+  read -r raw_s _ < <(measure cat "$pc2")
+  for codec in $CODECS; do
+    anim="$DIR/flag-$size.$codec.anim"
+    out="$DIR/flag-$size.$codec.decoded.pc2"
+    read -r enc_s enc_kb < <(measure "$BIN" encode "$pc2" -c "$codec" -p "$(params "$codec")" --memory "$MEMORY" -o "$anim" -f --json)
+    bpvf=$(python3 -c 'import json,sys; print("%.3f" % json.load(open(sys.argv[1]))["bpvf"])' "$DIR/out.txt" 2>/dev/null || echo nan)
+    read -r dec_s dec_kb < <(measure "$BIN" decode "$anim" -o "$out" -f)
+    python3 - "$v" "$frames" "$codec" "$enc_s" "$enc_kb" "$raw_s" "$dec_s" "$dec_kb" "$bpvf" <<'PY'
+import sys
+v, f, codec, es, ek, rs, ds, dk, bpvf = sys.argv[1:]
+v, f = int(v), int(f)
+def num(x):
+    try: return float(x)
+    except ValueError: return float("nan")
+es, ek, rs, ds, dk = map(num, (es, ek, rs, ds, dk))
+vf = v * f
+print(f"| {v:,} × {f:,} | {codec} | {es:.1f} | {ek/1024:.0f} | {vf/es/1e6:.2f} | {es/max(rs,0.01):.1f} | {ds:.1f} | {dk/1024:.0f} | {vf/ds/1e6:.2f} | {bpvf} |")
+PY
+    rm -f "$anim" "$out" "${out%.pc2}.obj"
+  done
+  rm -f "$pc2" "${pc2%.pc2}.obj"
+done
+rm -f "$DIR/time.txt" "$DIR/out.txt" "$DIR/err.txt"

@@ -1,0 +1,445 @@
+//! Streamed reading of PC2 and MDD caches (issue 30): the header is read and checked against
+//! [`reader_limits`](super::reader_limits) and the file's size before anything else, then frames
+//! are handed out in chunks as they are read, so a cache far larger than memory (a 1 000 000-vertex,
+//! 1 000-frame PC2 is 12 GB) can be encoded by a streaming encoder.
+//!
+//! The frames, topology and frame rate are exactly those of [`read_animation`](super::read_animation)
+//! on the same file and options (tested), and the same errors are raised (a non-finite coordinate
+//! names the file, frame, vertex and axis), only later: a bad coordinate in frame 900 is found
+//! when frame 900 is read.
+
+use std::fs::File;
+use std::io::{BufReader, Read, Write};
+use std::path::Path;
+
+use codec_core::{Error, Result, Topology};
+
+use super::{
+    cache_topology, check_cache_layout, check_existing_companion, extension, in_file, mdd, name, obj, pc2, ReadOptions,
+    WriteOptions, DEFAULT_FRAME_RATE,
+};
+use crate::output::{commit_all, PendingFile};
+
+/// Byte order of the positions.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Endian {
+    Little,
+    Big,
+}
+
+/// A PC2 or MDD cache opened for reading frame by frame.
+#[derive(Debug)]
+pub struct CacheReader {
+    file: String,
+    reader: BufReader<File>,
+    endian: Endian,
+    topology: Topology,
+    frame_rate: f32,
+    frame_count: usize,
+    frames_read: usize,
+    bytes: Vec<u8>,
+}
+
+/// Whether `path` names a cache [`CacheReader::open`] reads (`.pc2`, `.mdd`, any case).
+pub fn is_streamable(path: &Path) -> bool {
+    matches!(extension(path).as_deref(), Some("pc2" | "mdd")) && path.is_file()
+}
+
+fn read_exact(reader: &mut impl Read, buf: &mut [u8], file: &str, field: &str) -> Result<()> {
+    reader.read_exact(buf).map_err(|e| {
+        if e.kind() == std::io::ErrorKind::UnexpectedEof {
+            Error::Truncated { context: file.to_owned().into(), field: field.to_owned().into() }
+        } else {
+            Error::io(file.to_owned(), e)
+        }
+    })
+}
+
+impl CacheReader {
+    /// Opens a `.pc2` or `.mdd` cache: reads and checks its header (counts against the reader
+    /// limits, position bytes against the file's size), its topology (as [`pc2::read_pc2`]) and,
+    /// for MDD, its frame times (for the frame rate). No positions are read yet.
+    pub fn open(path: &Path, options: &ReadOptions) -> Result<Self> {
+        let frame_rate = options.checked_frame_rate()?;
+        let file = name(path);
+        let handle = File::open(path).map_err(|e| Error::io(file.clone(), e))?;
+        let size = handle.metadata().map_err(|e| Error::io(file.clone(), e))?.len();
+        let mut reader = BufReader::with_capacity(1 << 20, handle);
+        let (endian, vertices, frames, fps) = match extension(path).as_deref() {
+            Some("pc2") => {
+                let mut h = [0u8; pc2::HEADER_BYTES];
+                read_exact(&mut reader, &mut h, &file, "header")?;
+                // The header is parsed by the in-memory parser, so both agree on every check.
+                let header = pc2::parse_header(&h, &file)?;
+                let (v, f) = (header.vertex_count as u64, header.frame_count as u64);
+                check_cache_layout(&file, f, v, size.saturating_sub(pc2::HEADER_BYTES as u64))?;
+                (Endian::Little, v as usize, f as usize, frame_rate.unwrap_or(DEFAULT_FRAME_RATE))
+            }
+            Some("mdd") => {
+                let mut h = [0u8; 8];
+                read_exact(&mut reader, &mut h, &file, "header")?;
+                let (frames, vertices) = mdd::parse_counts(&h, &file)?;
+                let times_bytes = frames * 4;
+                if times_bytes > size.saturating_sub(8) {
+                    return Err(Error::malformed(
+                        file.clone(),
+                        "times",
+                        format!(
+                            "file is truncated: {frames} frame times need {times_bytes} bytes, only {} present",
+                            size.saturating_sub(8)
+                        ),
+                    ));
+                }
+                check_cache_layout(&file, frames, vertices, size - 8 - times_bytes)?;
+                let mut t = vec![0u8; times_bytes as usize];
+                read_exact(&mut reader, &mut t, &file, "times")?;
+                let times: Vec<f32> = t.chunks_exact(4).map(|c| f32::from_be_bytes([c[0], c[1], c[2], c[3]])).collect();
+                let fps = frame_rate.or_else(|| mdd::frame_rate_from_times(&times)).unwrap_or(DEFAULT_FRAME_RATE);
+                (Endian::Big, vertices as usize, frames as usize, fps)
+            }
+            _ => {
+                return Err(Error::Unsupported {
+                    context: "formats".into(),
+                    detail: format!("cannot stream {file}: only .pc2 and .mdd caches are read frame by frame"),
+                })
+            }
+        };
+        let topology = cache_topology(path, options.topology.as_deref(), vertices)?;
+        Ok(Self {
+            file,
+            reader,
+            endian,
+            topology,
+            frame_rate: fps,
+            frame_count: frames,
+            frames_read: 0,
+            bytes: Vec::new(),
+        })
+    }
+
+    /// The triangles (from the topology OBJ).
+    pub fn topology(&self) -> &Topology {
+        &self.topology
+    }
+
+    /// Vertices per frame.
+    pub fn vertex_count(&self) -> usize {
+        self.topology.vertex_count()
+    }
+
+    /// Frames in the cache.
+    pub fn frame_count(&self) -> usize {
+        self.frame_count
+    }
+
+    /// Frames per second (as [`read_animation`](super::read_animation) gives it).
+    pub fn frame_rate(&self) -> f32 {
+        self.frame_rate
+    }
+
+    /// Frames read so far.
+    pub fn frames_read(&self) -> usize {
+        self.frames_read
+    }
+
+    /// Reads the next `frames` frames (fewer at the end of the cache) into `out` (cleared
+    /// first, frame-major `n × vertices × 3`) and returns how many; 0 at the end. Every
+    /// coordinate is checked finite (the error names the file, frame, vertex and axis).
+    pub fn read_frames(&mut self, frames: usize, out: &mut Vec<f32>) -> Result<usize> {
+        out.clear();
+        let n = frames.min(self.frame_count - self.frames_read);
+        if n == 0 {
+            return Ok(0);
+        }
+        let per_frame = self.vertex_count() * 3;
+        // One frame of bytes at a time: the byte buffer stays one frame, whatever `frames` is.
+        self.bytes.resize(per_frame * 4, 0);
+        out.reserve(n * per_frame);
+        for _ in 0..n {
+            read_exact(&mut self.reader, &mut self.bytes, &self.file, "positions")?;
+            match self.endian {
+                Endian::Little => {
+                    out.extend(self.bytes.chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]])))
+                }
+                Endian::Big => {
+                    out.extend(self.bytes.chunks_exact(4).map(|c| f32::from_be_bytes([c[0], c[1], c[2], c[3]])))
+                }
+            }
+        }
+        codec_core::animation::check_finite(out, self.vertex_count(), self.frames_read)
+            .map_err(|e| in_file(&self.file, e))?;
+        self.frames_read += n;
+        Ok(n)
+    }
+}
+
+/// A PC2 or MDD cache written frame by frame (issue 30: `decode` writes frames as each packet
+/// decodes), through the pending-file mechanism ([`crate::output`]): the cache (and its
+/// `STEM.obj` companion when asked for) is written under a temporary name and renamed into
+/// place by [`CacheWriter::finish`] only when every frame is there, so a failure or an
+/// interruption loses nothing. The bytes equal [`write_animation_with`](super::write_animation_with)'s
+/// on the same animation and options (tested).
+#[derive(Debug)]
+pub struct CacheWriter {
+    file: PendingFile,
+    endian: Endian,
+    vertex_count: usize,
+    frame_count: usize,
+    frames_written: usize,
+    /// The companion OBJ to write (its path and the triangles), when asked for.
+    companion: Option<(std::path::PathBuf, Vec<[u32; 3]>, String)>,
+    companion_file: Option<PendingFile>,
+    bytes: Vec<u8>,
+}
+
+/// Whether `path` names an output [`CacheWriter::create`] writes (`.pc2`, `.mdd`, any case).
+pub fn is_streamable_output(path: &Path) -> bool {
+    matches!(extension(path).as_deref(), Some("pc2" | "mdd"))
+}
+
+impl CacheWriter {
+    /// Checks the outputs against `options.policy` (and an existing companion OBJ against
+    /// `topology`, as [`write_animation_with`](super::write_animation_with) does), creates the
+    /// pending file and writes the header.
+    pub fn create(
+        path: &Path,
+        topology: &Topology,
+        frame_count: usize,
+        frame_rate: f32,
+        options: &WriteOptions,
+    ) -> Result<Self> {
+        let endian = match extension(path).as_deref() {
+            Some("pc2") => Endian::Little,
+            Some("mdd") => Endian::Big,
+            _ => {
+                return Err(Error::Unsupported {
+                    context: "formats".into(),
+                    detail: format!("cannot stream to {}: only .pc2 and .mdd are written frame by frame", name(path)),
+                })
+            }
+        };
+        let context = if endian == Endian::Little { "pc2" } else { "mdd" };
+        let too_many =
+            |what: &str| Error::Unsupported { context: context.into(), detail: format!("more than 2^31-1 {what}") };
+        let vertices = i32::try_from(topology.vertex_count()).map_err(|_| too_many("vertices"))?;
+        let frames = i32::try_from(frame_count).map_err(|_| too_many("frames"))?;
+        let companion = path.with_extension("obj");
+        options.policy.check(path)?;
+        if options.topology_obj {
+            options.policy.check(&companion)?;
+        } else {
+            check_existing_companion(path, &companion, topology.vertex_count(), topology.triangles())?;
+        }
+        let mut header = Vec::new();
+        match endian {
+            Endian::Little => {
+                header.extend_from_slice(pc2::MAGIC);
+                header.extend_from_slice(&1i32.to_le_bytes());
+                header.extend_from_slice(&vertices.to_le_bytes());
+                header.extend_from_slice(&0f32.to_le_bytes());
+                header.extend_from_slice(&1f32.to_le_bytes());
+                header.extend_from_slice(&frames.to_le_bytes());
+            }
+            Endian::Big => {
+                header.extend_from_slice(&frames.to_be_bytes());
+                header.extend_from_slice(&vertices.to_be_bytes());
+                let fps = frame_rate as f64;
+                for t in 0..frame_count {
+                    header.extend_from_slice(&((t as f64 / fps) as f32).to_be_bytes());
+                }
+            }
+        }
+        let mut file = PendingFile::new(path)?;
+        file.write_all(&header).map_err(|e| file.error(e))?;
+        let companion = options.topology_obj.then(|| {
+            let comment = format!(
+                "animcodec: topology of {} (frame 0 of {frame_count}, {} vertices, {} triangles)",
+                path.file_name().map(|f| f.to_string_lossy().into_owned()).unwrap_or_default(),
+                topology.vertex_count(),
+                topology.triangle_count()
+            );
+            (companion, topology.triangles().to_vec(), comment)
+        });
+        Ok(Self {
+            file,
+            endian,
+            vertex_count: topology.vertex_count(),
+            frame_count,
+            frames_written: 0,
+            companion,
+            companion_file: None,
+            bytes: Vec::new(),
+        })
+    }
+
+    /// Appends whole frames (frame-major `n × vertices × 3`, finite).
+    pub fn write_frames(&mut self, positions: &[f32]) -> Result<()> {
+        let per_frame = self.vertex_count * 3;
+        if per_frame == 0 || positions.len() % per_frame != 0 {
+            return Err(Error::InvalidAnimation(format!(
+                "{} coordinates is not a whole number of frames of {} vertices",
+                positions.len(),
+                self.vertex_count
+            )));
+        }
+        let n = positions.len() / per_frame;
+        if self.frames_written + n > self.frame_count {
+            return Err(Error::InvalidAnimation(format!(
+                "{} frames written to {}, which was declared with {}",
+                self.frames_written + n,
+                self.file.target().display(),
+                self.frame_count
+            )));
+        }
+        if self.frames_written == 0 && n > 0 {
+            if let Some((path, triangles, comment)) = &self.companion {
+                let text = obj::obj_text(path, &positions[..per_frame], triangles, comment)?;
+                let mut f = PendingFile::new(path)?;
+                f.write_all(text.as_bytes()).map_err(|e| f.error(e))?;
+                self.companion_file = Some(f);
+            }
+        }
+        self.bytes.clear();
+        self.bytes.reserve(positions.len() * 4);
+        match self.endian {
+            Endian::Little => positions.iter().for_each(|x| self.bytes.extend_from_slice(&x.to_le_bytes())),
+            Endian::Big => positions.iter().for_each(|x| self.bytes.extend_from_slice(&x.to_be_bytes())),
+        }
+        self.file.write_all(&self.bytes).map_err(|e| self.file.error(e))?;
+        self.frames_written += n;
+        Ok(())
+    }
+
+    /// Checks that every declared frame was written and renames the file(s) into place;
+    /// returns the files written.
+    pub fn finish(self) -> Result<Vec<std::path::PathBuf>> {
+        if self.frames_written != self.frame_count {
+            return Err(Error::InvalidAnimation(format!(
+                "{} of {} frames written to {}",
+                self.frames_written,
+                self.frame_count,
+                self.file.target().display()
+            )));
+        }
+        let mut files = vec![self.file];
+        files.extend(self.companion_file);
+        let written = files.iter().map(|f| f.target().to_path_buf()).collect();
+        commit_all(files, &[])?;
+        Ok(written)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::{read_animation, test_animation, write_animation, write_animation_with, TempDir};
+    use super::*;
+    use crate::output::OutputPolicy;
+
+    fn streamed(path: &Path, options: &ReadOptions, chunk: usize) -> Result<(Vec<f32>, CacheReader)> {
+        let mut r = CacheReader::open(path, options)?;
+        let (mut all, mut buf) = (Vec::new(), Vec::new());
+        while r.read_frames(chunk, &mut buf)? > 0 {
+            all.extend_from_slice(&buf);
+        }
+        Ok((all, r))
+    }
+
+    #[test]
+    fn streamed_frames_equal_the_whole_read_for_pc2_and_mdd() {
+        let dir = TempDir::new("stream-read");
+        let anim = test_animation(7, 11, 24.0);
+        for ext in ["pc2", "mdd"] {
+            let path = dir.path(&format!("a.{ext}"));
+            write_animation(&path, &anim).unwrap();
+            let options = ReadOptions::default();
+            let whole = read_animation(&path, &options).unwrap();
+            for chunk in [1, 3, 11, 100] {
+                let (all, r) = streamed(&path, &options, chunk).unwrap();
+                assert_eq!(all, whole.positions(), "{ext}, chunks of {chunk}");
+                assert_eq!(r.frame_count(), whole.frame_count());
+                assert_eq!(r.frame_rate(), whole.frame_rate(), "{ext}");
+                assert_eq!(r.topology().triangles(), whole.triangles());
+            }
+        }
+    }
+
+    #[test]
+    fn a_header_that_does_not_match_the_file_is_refused_before_reading() {
+        let dir = TempDir::new("stream-bad");
+        let anim = test_animation(4, 3, 30.0);
+        let path = dir.path("a.pc2");
+        write_animation(&path, &anim).unwrap();
+        let mut bytes = std::fs::read(&path).unwrap();
+        // Claim 2^20 frames: the file holds 3.
+        bytes[28..32].copy_from_slice(&(1i32 << 20).to_le_bytes());
+        std::fs::write(&path, &bytes).unwrap();
+        let e = CacheReader::open(&path, &ReadOptions::default()).unwrap_err().to_string();
+        assert!(e.contains("truncated"), "{e}");
+        // MDD claiming more frame times than the file holds.
+        let path = dir.path("b.mdd");
+        write_animation(&path, &anim).unwrap();
+        let mut bytes = std::fs::read(&path).unwrap();
+        bytes[0..4].copy_from_slice(&(1i32 << 30).to_be_bytes());
+        std::fs::write(&path, &bytes).unwrap();
+        assert!(CacheReader::open(&path, &ReadOptions::default()).is_err());
+    }
+
+    #[test]
+    fn a_non_finite_coordinate_names_its_frame() {
+        let dir = TempDir::new("stream-nan");
+        let anim = test_animation(4, 3, 30.0);
+        let path = dir.path("a.pc2");
+        write_animation(&path, &anim).unwrap();
+        let mut bytes = std::fs::read(&path).unwrap();
+        // Frame 2, vertex 1, axis y.
+        let at = pc2::HEADER_BYTES + (2 * 4 * 3 + 3 + 1) * 4;
+        bytes[at..at + 4].copy_from_slice(&f32::NAN.to_le_bytes());
+        std::fs::write(&path, &bytes).unwrap();
+        let whole = read_animation(&path, &ReadOptions::default()).unwrap_err().to_string();
+        let e = streamed(&path, &ReadOptions::default(), 1).unwrap_err().to_string();
+        assert_eq!(e, whole);
+        assert!(e.contains("frame 2"), "{e}");
+    }
+
+    #[test]
+    fn streamed_writes_equal_the_whole_write_and_leave_nothing_on_failure() {
+        let dir = TempDir::new("stream-write");
+        let anim = test_animation(6, 9, 24.0);
+        for ext in ["pc2", "mdd"] {
+            for topology_obj in [false, true] {
+                let whole = dir.path(&format!("whole-{topology_obj}-{ext}.{ext}"));
+                let options = WriteOptions { policy: OutputPolicy::new(false), topology_obj };
+                write_animation_with(&whole, &anim, &options).unwrap();
+                let streamed = dir.path(&format!("streamed-{topology_obj}-{ext}.{ext}"));
+                let mut w = CacheWriter::create(&streamed, anim.topology(), 9, 24.0, &options).unwrap();
+                for chunk in anim.positions().chunks(4 * 6 * 3) {
+                    w.write_frames(chunk).unwrap();
+                }
+                let files = w.finish().unwrap();
+                assert_eq!(files.len(), 1 + topology_obj as usize);
+                assert_eq!(std::fs::read(&whole).unwrap(), std::fs::read(&streamed).unwrap(), "{ext}");
+                if topology_obj {
+                    let (a, b) = (
+                        std::fs::read_to_string(whole.with_extension("obj")).unwrap(),
+                        std::fs::read_to_string(streamed.with_extension("obj")).unwrap(),
+                    );
+                    // The comment names the file; the rest is the same.
+                    assert_eq!(a.lines().skip(1).collect::<Vec<_>>(), b.lines().skip(1).collect::<Vec<_>>());
+                }
+            }
+            // A writer dropped before its last frame leaves no file.
+            let partial = dir.path(&format!("partial-{ext}.{ext}"));
+            let options = WriteOptions { policy: OutputPolicy::new(false), topology_obj: true };
+            let mut w = CacheWriter::create(&partial, anim.topology(), 9, 24.0, &options).unwrap();
+            w.write_frames(&anim.positions()[..6 * 3]).unwrap();
+            assert!(w.finish().is_err());
+            assert!(!partial.exists() && !partial.with_extension("obj").exists());
+        }
+        let leftovers: Vec<_> = std::fs::read_dir(&dir.0)
+            .unwrap()
+            .flatten()
+            .filter(|e| e.file_name().to_string_lossy().ends_with(".tmp"))
+            .collect();
+        assert!(leftovers.is_empty(), "{leftovers:?}");
+    }
+}
