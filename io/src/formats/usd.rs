@@ -196,7 +196,9 @@ impl<'a> Lexer<'a> {
             c if c.is_ascii_alphabetic() || c == b'_' || c >= 0x80 => {
                 self.pos += 1;
                 while self.pos < b.len()
-                    && (b[self.pos].is_ascii_alphanumeric() || matches!(b[self.pos], b'_' | b':' | b'.') || b[self.pos] >= 0x80)
+                    && (b[self.pos].is_ascii_alphanumeric()
+                        || matches!(b[self.pos], b'_' | b':' | b'.')
+                        || b[self.pos] >= 0x80)
                 {
                     self.pos += 1;
                 }
@@ -209,7 +211,9 @@ impl<'a> Lexer<'a> {
                 }
                 Ok(Tok::Ident(&self.text[start..self.pos]))
             }
-            _ => Err(self.error(format!("unexpected character {:?}", self.text[start..].chars().next().unwrap_or('?')))),
+            _ => {
+                Err(self.error(format!("unexpected character {:?}", self.text[start..].chars().next().unwrap_or('?'))))
+            }
         }
     }
 
@@ -414,7 +418,11 @@ impl<'a> Parser<'a, '_> {
         self.depth_check(depth)?;
         let specifier = match self.bump()? {
             Tok::Ident(s @ ("def" | "over" | "class")) => s,
-            other => return Err(self.lexer.error(format!("expected a prim (`def`, `over`, `class`), found {}", describe(other)))),
+            other => {
+                return Err(self
+                    .lexer
+                    .error(format!("expected a prim (`def`, `over`, `class`), found {}", describe(other))))
+            }
         };
         let type_name = match self.peek()? {
             Tok::Ident(t) => {
@@ -430,7 +438,8 @@ impl<'a> Parser<'a, '_> {
         let mut active = true;
         if self.eat(b'(')? {
             self.metadata(depth + 1, &mut |key, value| {
-                if key == "active" && matches!(value, Value::Atom(Tok::Ident("false")) | Value::Atom(Tok::Number("0"))) {
+                if key == "active" && matches!(value, Value::Atom(Tok::Ident("false")) | Value::Atom(Tok::Number("0")))
+                {
                     active = false;
                 }
                 Ok(())
@@ -503,7 +512,10 @@ impl<'a> Parser<'a, '_> {
     /// .spline] [= value] [(metadata)]`, or `rel name [= targets]`.
     fn property(&mut self, depth: usize, mesh: &mut MeshSpec<'a>, transforms: &mut bool) -> Result<()> {
         let mut tok = self.bump()?;
-        while matches!(tok, Tok::Ident("custom" | "uniform" | "varying" | "config" | "add" | "append" | "prepend" | "delete")) {
+        while matches!(
+            tok,
+            Tok::Ident("custom" | "uniform" | "varying" | "config" | "add" | "append" | "prepend" | "delete")
+        ) {
             tok = self.bump()?;
         }
         let is_rel = tok == Tok::Ident("rel");
@@ -711,7 +723,9 @@ impl<'a> Parser<'a, '_> {
 fn describe(tok: Tok) -> String {
     match tok {
         Tok::Punct(p) => format!("`{}`", p as char),
-        Tok::Ident(s) | Tok::Number(s) => format!("`{}`", super::gltf::printable(&s.chars().take(40).collect::<String>())),
+        Tok::Ident(s) | Tok::Number(s) => {
+            format!("`{}`", super::gltf::printable(&s.chars().take(40).collect::<String>()))
+        }
         Tok::Str(_) => "a string".into(),
         Tok::Other(_) => "a path or asset".into(),
         Tok::Eof => "the end of the file".into(),
@@ -964,9 +978,9 @@ pub fn encode_usda(animation: &Animation) -> Result<Vec<u8>> {
         let mut lo = [f32::INFINITY; 3];
         let mut hi = [f32::NEG_INFINITY; 3];
         for p in frame.chunks_exact(3) {
-            for k in 0..3 {
-                lo[k] = lo[k].min(p[k]);
-                hi[k] = hi[k].max(p[k]);
+            for ((l, h), &x) in lo.iter_mut().zip(hi.iter_mut()).zip(p) {
+                *l = l.min(x);
+                *h = h.max(x);
             }
         }
         let _ = write!(s, "            {t}: [(");
@@ -1149,7 +1163,8 @@ def Scope "world" (
             let e = parse(text).unwrap_err().to_string();
             assert!(e.contains(needle), "{text:?}: {e}");
         }
-        let deep = format!("#usda 1.0\ndef Mesh \"m\" {{ int[] x = {}{} }}\n", "[".repeat(100_000), "]".repeat(100_000));
+        let deep =
+            format!("#usda 1.0\ndef Mesh \"m\" {{ int[] x = {}{} }}\n", "[".repeat(100_000), "]".repeat(100_000));
         assert!(parse(&deep).unwrap_err().to_string().contains("nested"));
         let deep = format!("#usda 1.0\n{}", "def \"a\" {".repeat(100_000));
         assert!(parse(&deep).unwrap_err().to_string().contains("nested"));
