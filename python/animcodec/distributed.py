@@ -469,10 +469,14 @@ def sweep_local(
     sted_options: Optional[Dict[str, Any]] = None,
     topology: Optional[str] = None,
     fps: Optional[float] = None,
+    progress: Optional[Any] = None,
 ) -> Dict[str, Any]:
     """The command line's single-process sweep of one input (the same harness call as
     ``animcodec sweep INPUT --json``, in this process): the sweep document. ``jobs=1`` measures
-    the points one after another, ``None`` on all cores."""
+    the points one after another, ``None`` on all cores. ``progress``, if given, is called with
+    ``{"event": "started"|"finished", "series", "ladder_index", "done", "total"}`` as each point
+    starts and finishes (from the sweep's worker threads, the GIL taken for the call; the sweep
+    itself runs with the GIL released)."""
     return _native.sweep_local(
         {
             "input": os.fspath(input),
@@ -482,6 +486,7 @@ def sweep_local(
             "jobs": jobs,
             "topology": topology,
             "fps": fps,
+            "progress": progress,
         }
     )
 

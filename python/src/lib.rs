@@ -689,21 +689,49 @@ struct LocalSweep<'py> {
     jobs: Option<usize>,
     topology: Option<PathBuf>,
     fps: Option<f32>,
+    progress: Option<Py<PyAny>>,
 }
 
 /// The command line's single-process sweep of one input (`animcodec sweep INPUT --json`, the
 /// same harness call): the sweep document as a dict.
 #[pyfunction]
 fn sweep_local<'py>(py: Python<'py>, sweep: LocalSweep<'py>) -> PyResult<Py<PyAny>> {
-    let LocalSweep { input, series, points, eval, jobs, topology, fps } = sweep;
+    let LocalSweep { input, series, points, eval, jobs, topology, fps, progress } = sweep;
     let registry = registry();
     let series = series_from(registry, &series)?;
     let options = SweepOptions { points, jobs, eval: eval_options(eval.as_ref())?, limits: Limits::default() };
+    let total = harness::sweep_jobs(&series, options.points).len();
+    let done = std::sync::atomic::AtomicUsize::new(0);
+    // Called from the sweep's worker threads (the GIL released around the sweep), each taking
+    // the GIL for the call; a callback that raises is reported as unraisable and the sweep goes on.
+    let report = |event: harness::SweepEvent<'_>| {
+        let Some(cb) = &progress else { return };
+        let (kind, series, step) = match event {
+            harness::SweepEvent::Started { series, step } => ("started", series, step),
+            harness::SweepEvent::Finished { series, step } => {
+                done.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                ("finished", series, step)
+            }
+            harness::SweepEvent::Planned(_) => return,
+        };
+        let row = serde_json::json!({
+            "event": kind,
+            "series": series,
+            "ladder_index": step,
+            "done": done.load(std::sync::atomic::Ordering::Relaxed),
+            "total": total,
+        });
+        Python::attach(|py| {
+            if let Err(e) = value_to_py(py, &row).and_then(|arg| cb.call1(py, (arg,))) {
+                e.write_unraisable(py, None);
+            }
+        });
+    };
     let (animation, result, seconds) = py
         .detach(|| -> Result<_, BoxError> {
             let animation = load_input(&input, topology, fps, None)?;
             let start = Instant::now();
-            let result = harness::sweep(registry, &series, &animation, &options, &|| {})?;
+            let result = harness::sweep(registry, &series, &animation, &options, &report)?;
             Ok((animation, result, start.elapsed().as_secs_f64()))
         })
         .map_err(to_py)?;

@@ -134,3 +134,20 @@ def test_module_entry_point_runs_a_corpus(client, tmp_path):
     doc = json.loads((out / "flag.json").read_text())
     local = animcodec.sweep_local(str(corpus / "flag.pc2"), ["quant-delta"], points=2)
     assert strip_timings(doc["rows"]) == strip_timings(local["rows"])
+
+
+def test_sweep_local_reports_progress_per_point():
+    events = []
+    doc = animcodec.sweep_local("synth:flag", ["quant-delta", "pca-aoi"], points=2, jobs=None, progress=events.append)
+    total = len(doc["rows"]) + len(doc.get("failures", []))
+    started = [e for e in events if e["event"] == "started"]
+    finished = [e for e in events if e["event"] == "finished"]
+    assert len(started) == len(finished) == total == 4
+    assert all(e["total"] == total for e in events)
+    assert sorted(e["done"] for e in finished) == list(range(1, total + 1))
+    assert {e["series"] for e in started} == {"quant-delta", "pca-aoi"}
+    # A callback that raises does not stop the sweep.
+    def boom(_):
+        raise RuntimeError("callback failure")
+    again = animcodec.sweep_local("synth:flag", ["quant-delta"], points=2, progress=boom)
+    assert len(again["rows"]) == 2

@@ -14,7 +14,7 @@
 //!   further one a packet of `1 + kind / 2` frames (keyframe if `kind` is odd). They are
 //!   written into a valid container (right FourCC and version, the [`fuzz_topology`], frame
 //!   count = the packets' sum, every checksum right), so the codec's own parser sees them.
-//! - `read_pc2`, `read_mdd`, `read_obj`, `read_gltf`: the file readers on any bytes.
+//! - `read_pc2`, `read_mdd`, `read_obj`, `read_gltf`, `read_usd`: the file readers on any bytes.
 
 use std::io::Cursor;
 use std::path::{Path, PathBuf};
@@ -30,7 +30,7 @@ pub fn targets() -> Vec<String> {
     for codec in animcodec::registry().iter() {
         t.push(format!("codec_{}", codec.name().replace('-', "_")));
     }
-    t.extend(["read_pc2", "read_mdd", "read_obj", "read_gltf"].map(String::from));
+    t.extend(["read_pc2", "read_mdd", "read_obj", "read_gltf", "read_usd"].map(String::from));
     t
 }
 
@@ -42,6 +42,7 @@ pub fn run(target: &str, data: &[u8]) {
         "read_mdd" => read_mdd(data),
         "read_obj" => read_obj(data),
         "read_gltf" => read_gltf(data),
+        "read_usd" => read_usd(data),
         t => match t.strip_prefix("codec_") {
             Some(codec) => codec_stream(&codec.replace('_', "-"), data),
             None => panic!("unknown fuzz target '{t}'"),
@@ -229,6 +230,21 @@ pub fn read_gltf(data: &[u8]) {
     });
 }
 
+/// Target `read_usd` (a USD text layer; crate files and packages are refused by their magic).
+/// The read's own memory budget is a quarter of the target's, so a layer whose cache would be
+/// far larger than the file (a long animated mesh beside a large static one) is refused
+/// before anything is allocated.
+pub fn read_usd(data: &[u8]) {
+    let budget = reader_budget(data.len());
+    within("read_usd", budget, || {
+        if let Ok(a) = animcodec::formats::usd::parse_usda(data, "fuzz.usda", None, Some(budget / 4)) {
+            assert!(a.positions().iter().all(|x| x.is_finite()));
+            let n = a.vertex_count() as u32;
+            assert!(a.triangles().iter().flatten().all(|&i| i < n), "triangle index out of range");
+        }
+    });
+}
+
 /// `fuzz/corpus`: one folder per target (cargo-fuzz's layout), committed.
 pub fn corpus_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("..").join("fuzz").join("corpus")
@@ -289,6 +305,7 @@ fn decodes(target: &str, data: &[u8]) -> bool {
         "read_mdd" => animcodec::formats::mdd::parse_mdd(data, "seed.mdd").is_ok(),
         "read_obj" => animcodec::formats::obj::parse_obj(data, "seed.obj").is_ok(),
         "read_gltf" => animcodec::formats::gltf::parse_gltf(data, None, "seed.glb", synth::FRAME_RATE).is_ok(),
+        "read_usd" => animcodec::formats::usd::parse_usda(data, "seed.usda", None, None).is_ok(),
         t => t
             .strip_prefix("codec_")
             .and_then(|c| codec_container(&c.replace('_', "-"), data))
@@ -411,7 +428,11 @@ pub fn seeds() -> Vec<(String, String, Vec<u8>)> {
             animcodec::formats::obj::obj_text(std::path::Path::new("seed.obj"), anim.frame(0), anim.triangles(), name)
                 .expect("obj");
         out.push(("read_obj".into(), name.into(), text.into_bytes()));
+        out.push(("read_usd".into(), name.into(), animcodec::formats::usd::encode_usda(&anim).expect("usda")));
     }
+    // What usd-core writes (two meshes, polygons, a left-handed one, a class and an inactive
+    // prim, metadata and dictionaries the reader must skip).
+    out.push(("read_usd".into(), "usd-core-style".into(), SEED_USDA.as_bytes().to_vec()));
     out.push((
         "read_obj".into(),
         "polygons".into(),
@@ -477,3 +498,50 @@ pub fn seed_gltf() -> Vec<u8> {
     });
     serde_json::to_vec(&doc).expect("json")
 }
+
+/// A USD text layer in the style usd-core writes, with the constructs the reader skips or
+/// refuses nearby (seed of `read_usd`).
+pub const SEED_USDA: &str = r#"#usda 1.0
+(
+    defaultPrim = "root"
+    endTimeCode = 2
+    startTimeCode = 0
+    timeCodesPerSecond = 24
+    upAxis = "Y"
+    customLayerData = {
+        string creator = "seed"
+        int[] n = [1, 2]
+    }
+)
+
+class "Proto" { def Mesh "m" { point3f[] points = [(0, 0, 0)] } }
+
+def Xform "root" (
+    kind = "component"
+)
+{
+    def Mesh "quad" (
+        prepend apiSchemas = ["MaterialBindingAPI"]
+    )
+    {
+        float3[] extent = [(0, 0, 0), (1, 1, 0)]
+        int[] faceVertexCounts = [4]
+        int[] faceVertexIndices = [0, 1, 2, 3]
+        uniform token orientation = "leftHanded"
+        point3f[] points.timeSamples = {
+            0: [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0)],
+            1: [(0, 0, 0.5), (1, 0, 0.5), (1, 1, 0.5), (0, 1, 0.5)],
+            2: [(0, 0, 1), (1, 0, 1), (1, 1, 1), (0, 1, 1)],
+        }
+        rel material:binding = </root/mat>
+        uniform token subdivisionScheme = "none"
+    }
+    def Mesh "tri" (active = true)
+    {
+        int[] faceVertexCounts = [3]
+        int[] faceVertexIndices = [0, 2, 1]
+        point3f[] points = [(-1.5, 2.25, -0), (3e-3, 4, 5), (6, 7, 8)]
+    }
+    def Mesh "off" (active = false) { point3f[] points = [(1, 2, 3)] }
+}
+"#;

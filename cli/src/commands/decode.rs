@@ -36,6 +36,8 @@ pub fn run(args: &DecodeArgs, limits: Limits) -> CmdResult {
         return run_streaming(args, limits, &options);
     }
     let start = Instant::now();
+    let stages = crate::progress::Stages::new("decode", 2, args.json);
+    stages.stage(format!("decoding {}", args.input.display()));
     let name = || args.input.display().to_string();
     let decoder = StreamDecoder::new(open(&args.input)?, &registry, limits).in_file(&name())?;
     let codec = decoder.codec_name();
@@ -43,7 +45,9 @@ pub fn run(args: &DecodeArgs, limits: Limits) -> CmdResult {
     let decode_seconds = start.elapsed().as_secs_f64();
 
     let write_start = Instant::now();
+    stages.stage(format!("writing {}", args.output.display()));
     let written = formats::write_animation_with(&args.output, &animation, &options)?;
+    drop(stages);
     let write_seconds = write_start.elapsed().as_secs_f64();
 
     let (v, f, t) = (animation.vertex_count(), animation.frame_count(), animation.triangles().len());

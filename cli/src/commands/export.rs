@@ -31,6 +31,8 @@ pub fn run(args: &ExportArgs, limits: Limits) -> CmdResult {
     policy.check(&args.output)?;
     let eval = EvalOptions { sted: sted_params(&args.sted)?, compute_hausdorff: false, ..EvalOptions::default() };
     let read = ReadOptions { topology: args.topology.clone(), frame_rate: args.fps, animation: args.animation.clone() };
+    let stages = crate::progress::Stages::new("export", 4, args.json);
+    stages.stage(format!("reading {}", args.input));
     let animation = load_any(&args.input, &read, limits)?;
     let layout = match args.layout.as_str() {
         "basis" => GltfLayout::Basis,
@@ -55,15 +57,23 @@ pub fn run(args: &ExportArgs, limits: Limits) -> CmdResult {
     };
     let options = GltfOptions { layout, targets: args.targets, target_kg, name, compress: !args.no_compress, rigid };
     let start = Instant::now();
+    stages.stage(format!(
+        "encoding {} frames × {} vertices as glTF morph targets",
+        animation.frame_count(),
+        animation.vertex_count()
+    ));
     let (bytes, summary) = encode_gltf(&animation, &options, glb)?;
     let seconds = start.elapsed().as_secs_f64();
     // What an engine plays: the file's bytes read back by our own glTF reader and measured,
     // before they replace anything (a file that fails either is never written).
+    stages.stage("reading the glTF back and measuring it as played");
     let played = gltf::parse_gltf(&bytes, None, &args.output.display().to_string(), animation.frame_rate())
         .context(|| "the glTF written does not read back".to_owned())?;
     let report = metrics::evaluate(&animation, &played, &eval)
         .context(|| format!("comparing {} with {} as played back", args.input, args.output.display()))?;
+    stages.stage(format!("writing {}", args.output.display()));
     policy.write(&args.output, &bytes)?;
+    drop(stages);
     let rate = metrics::bpvf(bytes.len() as u64, animation.vertex_count(), animation.frame_count())?;
     if args.json {
         return emit_json(&json!({

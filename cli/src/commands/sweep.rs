@@ -53,10 +53,15 @@ pub fn run(args: &SweepArgs, limits: Limits) -> CmdResult {
     let total = if envelope_mode { 0 } else { harness::sweep_jobs(&series, options.points).len() as u64 };
     let bar = if std::io::stderr().is_terminal() {
         let bar = ProgressBar::with_draw_target(Some(total), ProgressDrawTarget::stderr());
-        if let Ok(style) = ProgressStyle::with_template("{bar:30} {pos}/{len} {elapsed} sweeping {msg}") {
+        // ETA: indicatif's estimate from the points done so far (points differ in cost, so it
+        // firms up as the sweep goes); the message names the point that started last.
+        if let Ok(style) =
+            ProgressStyle::with_template("{bar:30} {pos}/{len} {elapsed} (ETA {eta}) sweeping {prefix}: {msg}")
+        {
             bar.set_style(style);
         }
-        bar.set_message(input.to_string());
+        bar.set_prefix(input.to_string());
+        bar.enable_steady_tick(std::time::Duration::from_millis(500));
         bar
     } else {
         ProgressBar::hidden()
@@ -79,15 +84,11 @@ pub fn run(args: &SweepArgs, limits: Limits) -> CmdResult {
         };
         let codecs: Vec<_> = series.iter().map(|s| (s.codec, s.base.clone(), fixed.clone())).collect();
         let per_config = args.config_points as usize;
-        harness::envelope_sweep(&registry, &codecs, &animation, &options, per_config, &|more| {
-            if more > 0 {
-                bar.inc_length(more as u64);
-            } else {
-                bar.inc(1);
-            }
+        harness::envelope_sweep(&registry, &codecs, &animation, &options, per_config, &|event| {
+            show_progress(&bar, event)
         })?
     } else {
-        harness::sweep(&registry, &series, &animation, &options, &|| bar.inc(1))?
+        harness::sweep(&registry, &series, &animation, &options, &|event| show_progress(&bar, event))?
     };
     let seconds = start.elapsed().as_secs_f64();
     bar.finish_and_clear();
@@ -327,4 +328,14 @@ fn series_on<'r>(codec: &'r dyn AnimationCodec, pairs: &[String]) -> CmdResult<S
         );
     }
     Ok(SweepSeries::with_base(codec, base)?)
+}
+
+/// Shows a sweep's progress on `bar`: planned points extend it, a started point's name becomes
+/// the message, a finished point advances it.
+fn show_progress(bar: &ProgressBar, event: harness::SweepEvent<'_>) {
+    match event {
+        harness::SweepEvent::Planned(n) => bar.inc_length(n as u64),
+        harness::SweepEvent::Started { series, step } => bar.set_message(format!("{series} ladder step {step}")),
+        harness::SweepEvent::Finished { .. } => bar.inc(1),
+    }
 }

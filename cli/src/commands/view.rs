@@ -38,15 +38,20 @@ pub fn run(args: &ViewArgs, limits: Limits) -> CmdResult {
     policy.check(&args.output)?;
     let registry = animcodec::registry();
     let read = ReadOptions { topology: args.topology.clone(), frame_rate: None, animation: args.animation.clone() };
+    // Stages: the reference, each candidate, the measurements, the page.
+    let stages = crate::progress::Stages::new("view", 3 + args.candidates.len() as u64, false);
+    stages.stage(format!("reading {}", args.reference));
     let reference = load_any(&args.reference, &read, limits)?;
     let sted = sted_params(&args.sted)?;
     let mut loaded = Vec::new();
     // --animation chooses the reference's animation; a glTF candidate plays its first.
     let read_candidate = ReadOptions { animation: None, ..read };
     for spec in &args.candidates {
+        stages.stage(format!("candidate {spec}"));
         loaded.push(load_candidate(&registry, spec, &reference, &read_candidate, limits)?);
     }
     let eval = EvalOptions { sted, ..EvalOptions::default() };
+    stages.stage("measuring the candidates (KG, STED, Hausdorff, per-vertex errors)");
     let mut candidates = Vec::new();
     for c in &loaded {
         let report = metrics::evaluate(&reference, &c.animation, &eval)
@@ -66,9 +71,11 @@ pub fn run(args: &ViewArgs, limits: Limits) -> CmdResult {
             format!("{}: {} frames × {} vertices", args.reference, reference.frame_count(), reference.vertex_count())
         }),
     };
+    stages.stage("building the page");
     let data = viewer::viewer_data(&reference, &candidates, &options)?;
     let page = viewer::viewer_page(&data);
     policy.write(&args.output, page.as_bytes())?;
+    drop(stages);
     emit(&format!(
         "{}: reference + {} candidate(s), {} frames × {} vertices, heat {} up to {:.4e}; {} bytes written in {:.2} s\n",
         args.output.display(),

@@ -44,7 +44,9 @@ pub use rows::{
 };
 pub use search::{search_target, search_target_auto, SearchRequest};
 pub use space::{search_space_target, search_space_target_auto};
-pub use sweep::{envelope_sweep, sweep, sweep_jobs, sweep_point, Failure, Sweep, SweepOptions, SweepSeries};
+pub use sweep::{
+    envelope_sweep, sweep, sweep_jobs, sweep_point, Failure, Sweep, SweepEvent, SweepOptions, SweepSeries,
+};
 pub use target::{usable, Target, TargetHit, TargetMetric, TargetMiss, DEGENERATE_KG};
 
 /// What every harness function fails with (matched by variant: a search that found nothing is
@@ -115,7 +117,7 @@ mod tests {
         let a = synth::tumbling_body_sized(8, 6, 4);
         let series: Vec<SweepSeries<'_>> = registry.iter().take(2).map(SweepSeries::defaults).collect();
         let options = SweepOptions { points: Some(2), jobs: Some(1), ..Default::default() };
-        let swept = sweep(&registry, &series, &a, &options, &|| {}).unwrap();
+        let swept = sweep(&registry, &series, &a, &options, &|_| {}).unwrap();
         assert_eq!(swept.points.len(), 4);
         let without_timings = |p: &Point| {
             let mut v = SweepRow::from(p).to_json();

@@ -50,6 +50,28 @@ pub struct Sweep {
     pub failures: Vec<Failure>,
 }
 
+/// What [`sweep`] and [`envelope_sweep`] report while they run (from worker threads), for a
+/// progress display: the number of points grows as the envelope sweep plans its second phase.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SweepEvent<'a> {
+    /// `n` more points are planned.
+    Planned(usize),
+    /// A point started: its curve's label and ladder position.
+    Started {
+        /// Curve name (see [`Point::series`]).
+        series: &'a str,
+        /// Position on the ladder.
+        step: usize,
+    },
+    /// A point finished (measured or failed).
+    Finished {
+        /// Curve name.
+        series: &'a str,
+        /// Position on the ladder.
+        step: usize,
+    },
+}
+
 /// One curve of a sweep: a codec and the parameters its rate ladder is walked on.
 #[derive(Clone)]
 pub struct SweepSeries<'a> {
@@ -89,20 +111,21 @@ impl<'a> SweepSeries<'a> {
     }
 }
 
-/// Walks the rate ladder of every series on `animation`. `progress` is called once per
-/// finished point (from worker threads). Output order (series, then ladder step) does not
+/// Walks the rate ladder of every series on `animation`. `progress` hears of every point as it
+/// starts and as it finishes (from worker threads; [`SweepEvent`]). Output order (series, then ladder step) does not
 /// depend on scheduling.
 pub fn sweep(
     registry: &CodecRegistry,
     series: &[SweepSeries<'_>],
     animation: &Animation,
     options: &SweepOptions,
-    progress: &(dyn Fn() + Sync),
+    progress: &(dyn Fn(SweepEvent<'_>) + Sync),
 ) -> Result<Sweep> {
     let jobs = sweep_jobs(series, options.points);
     let run = |&(c, step): &(usize, usize)| -> (usize, usize, Result<Point>) {
+        progress(SweepEvent::Started { series: &series[c].label, step });
         let result = sweep_point(registry, &series[c], step, animation, options);
-        progress();
+        progress(SweepEvent::Finished { series: &series[c].label, step });
         (c, step, result)
     };
     let mut results: Vec<(usize, usize, Result<Point>)> = match options.jobs {
@@ -181,7 +204,7 @@ pub fn envelope_sweep<'a>(
     animation: &Animation,
     options: &SweepOptions,
     per_config: usize,
-    progress: &(dyn Fn(usize) + Sync),
+    progress: &(dyn Fn(SweepEvent<'_>) + Sync),
 ) -> Result<Sweep> {
     let mut first = Vec::new();
     let mut rest: Vec<Vec<SweepSeries<'a>>> = Vec::new();
@@ -202,8 +225,8 @@ pub fn envelope_sweep<'a>(
         first.push(series.remove(0));
         rest.push(series);
     }
-    progress(sweep_jobs(&first, options.points).len());
-    let mut result = sweep(registry, &first, animation, options, &|| progress(0))?;
+    progress(SweepEvent::Planned(sweep_jobs(&first, options.points).len()));
+    let mut result = sweep(registry, &first, animation, options, progress)?;
     let mut second = Vec::new();
     for (head, others) in first.iter().zip(rest) {
         let curve: Vec<&Point> = result.points.iter().filter(|p| p.series == head.label).collect();
@@ -222,8 +245,8 @@ pub fn envelope_sweep<'a>(
             second.push(s);
         }
     }
-    progress(sweep_jobs(&second, options.points).len());
-    let more = sweep(registry, &second, animation, options, &|| progress(0))?;
+    progress(SweepEvent::Planned(sweep_jobs(&second, options.points).len()));
+    let more = sweep(registry, &second, animation, options, progress)?;
     result.points.extend(more.points);
     result.failures.extend(more.failures);
     Ok(result)
