@@ -86,9 +86,13 @@ fn value_at(ladder: &RateLadder, position: f64, fractional: bool) -> Option<(f64
         (ParamValue::Float(a), ParamValue::Float(b)) => {
             round_between(*a, *b, t).map(|x| (lower as f64 + (x - a) / (b - a), ParamValue::Float(x)))
         }
-        (ParamValue::Int(a), ParamValue::Int(b)) if a != b => {
+        (ParamValue::Int(a), ParamValue::Int(b)) if a.abs_diff(*b) > 1 => {
+            // Rounded, but kept strictly between the steps: a position between two steps asks
+            // for a value between them (bits 9 between 8 and 10, even when aimed near 8).
             let x = (*a as f64 + t * (*b - *a) as f64).round() as i64;
-            (x != *a && x != *b).then(|| (lower as f64 + (x - a) as f64 / (b - a) as f64, ParamValue::Int(x)))
+            let (low, high) = (a.min(b) + 1, a.max(b) - 1);
+            let x = x.clamp(low, high);
+            Some((lower as f64 + (x - a) as f64 / (b - a) as f64, ParamValue::Int(x)))
         }
         _ => None,
     };
@@ -454,8 +458,13 @@ mod tests {
         let (position, value) = value_at(&ints, 0.4, true).unwrap();
         assert_eq!(value, ParamValue::Int(6));
         assert!((position - 0.5).abs() < 1e-9, "the value's own position: {position}");
-        // Rounding onto an end gives that step.
-        assert_eq!(value_at(&ints, 0.1, true), Some((0.0, ParamValue::Int(4))));
+        // Near an end, still the integer strictly between (a step already measured would end
+        // the search); adjacent integers have nothing between them.
+        let (position, value) = value_at(&ints, 0.1, true).unwrap();
+        assert_eq!(value, ParamValue::Int(5));
+        assert!((position - 0.25).abs() < 1e-9, "{position}");
+        let adjacent = RateLadder { param: "bits", steps: vec![ParamValue::Int(8), ParamValue::Int(9)] };
+        assert_eq!(value_at(&adjacent, 0.4, true), Some((0.0, ParamValue::Int(8))));
         let choices = RateLadder { param: "mode", steps: vec![ParamValue::Choice("a"), ParamValue::Choice("b")] };
         assert!(!numeric(&choices));
         assert_eq!(value_at(&choices, 0.6, true), Some((1.0, ParamValue::Choice("b"))));
