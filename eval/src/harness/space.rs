@@ -264,8 +264,13 @@ impl SpaceSearcher<'_> {
                     if width <= 1.0 + 1e-9 && (!fractional || refined >= refine) || width < MIN_WIDTH {
                         break;
                     }
+                    // Bisection instead of the secant when the last two refinements landed on
+                    // the same side: the error is then far from linear in the position (stseg's
+                    // ω near 1), and the secant would creep toward the fixed end.
+                    let recent: Vec<bool> = run.candidates.iter().rev().take(2).map(|c| self.passes(c)).collect();
+                    let creeping = refined >= 2 && recent.len() == 2 && recent[0] == recent[1];
                     let t = match (self.error(f), self.error(p)) {
-                        (Some(ef), Some(ep)) if ef > ep => {
+                        (Some(ef), Some(ep)) if ef > ep && !creeping => {
                             ((aim.ln() - ef.ln()) / (ep.ln() - ef.ln())).clamp(0.15, 0.85)
                         }
                         _ => 0.5,
