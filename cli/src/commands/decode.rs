@@ -50,29 +50,17 @@ pub fn run(args: &DecodeArgs, limits: Limits) -> CmdResult {
     drop(stages);
     let write_seconds = write_start.elapsed().as_secs_f64();
 
-    let (v, f, t) = (animation.vertex_count(), animation.frame_count(), animation.triangles().len());
-    if args.json {
-        return emit_json(&json!({
-            "codec": codec,
-            "input": args.input.display().to_string(),
-            "output": args.output.display().to_string(),
-            "files": written.iter().map(|f| f.display().to_string()).collect::<Vec<_>>(),
-            "frames": f,
-            "vertices": v,
-            "triangles": t,
-            "frame_rate": animation.frame_rate(),
-            "decode_seconds": decode_seconds,
-            "write_seconds": write_seconds,
-        }));
-    }
-    emit(&format!(
-        "{input}: {codec}, {f} frames × {v} vertices, {t} triangles, {fps} fps, decoded in {decode_seconds:.2} s\n\
-         → {out} ({files}, written in {write_seconds:.2} s)\n",
-        input = args.input.display(),
-        fps = animation.frame_rate(),
-        out = args.output.display(),
-        files = if written.len() == 1 { "1 file".to_owned() } else { format!("{} files", written.len()) },
-    ))
+    let report = Report {
+        codec,
+        frames: animation.frame_count(),
+        vertices: animation.vertex_count(),
+        triangles: animation.triangles().len(),
+        frame_rate: animation.frame_rate(),
+        decode_seconds,
+        write_seconds,
+        how: "written",
+    };
+    report.emit(args, &written)
 }
 
 /// `decode` to a `.pc2`/`.mdd` file (issue 30): each packet's frames are written as soon as they
@@ -86,7 +74,6 @@ fn run_streaming(args: &DecodeArgs, limits: Limits, options: &WriteOptions) -> C
     let codec = decoder.codec_name();
     let info = decoder.header().info.clone();
     let mut writer = CacheWriter::create(&args.output, &info.topology, info.frame_count, info.frame_rate, options)?;
-    let start = Instant::now();
     let (mut decode_seconds, mut write_seconds) = (0.0, 0.0);
     loop {
         let t = Instant::now();
@@ -100,28 +87,55 @@ fn run_streaming(args: &DecodeArgs, limits: Limits, options: &WriteOptions) -> C
     let t = Instant::now();
     let written = writer.finish()?;
     write_seconds += t.elapsed().as_secs_f64();
-    let _ = start;
-    let (v, f, t) = (info.vertex_count(), info.frame_count, info.topology.triangle_count());
-    if args.json {
-        return emit_json(&json!({
-            "codec": codec,
-            "input": args.input.display().to_string(),
-            "output": args.output.display().to_string(),
-            "files": written.iter().map(|f| f.display().to_string()).collect::<Vec<_>>(),
-            "frames": f,
-            "vertices": v,
-            "triangles": t,
-            "frame_rate": info.frame_rate,
-            "decode_seconds": decode_seconds,
-            "write_seconds": write_seconds,
-        }));
+    let report = Report {
+        codec,
+        frames: info.frame_count,
+        vertices: info.vertex_count(),
+        triangles: info.topology.triangle_count(),
+        frame_rate: info.frame_rate,
+        decode_seconds,
+        write_seconds,
+        how: "written frame by frame",
+    };
+    report.emit(args, &written)
+}
+
+/// What `decode` reports, by either path.
+struct Report {
+    codec: &'static str,
+    frames: usize,
+    vertices: usize,
+    triangles: usize,
+    frame_rate: f32,
+    decode_seconds: f64,
+    write_seconds: f64,
+    /// How the output was written, for the text line.
+    how: &'static str,
+}
+
+impl Report {
+    fn emit(&self, args: &DecodeArgs, written: &[std::path::PathBuf]) -> CmdResult {
+        let Report { codec, frames, vertices, triangles, frame_rate, decode_seconds, write_seconds, how } = *self;
+        if args.json {
+            return emit_json(&json!({
+                "codec": codec,
+                "input": args.input.display().to_string(),
+                "output": args.output.display().to_string(),
+                "files": written.iter().map(|f| f.display().to_string()).collect::<Vec<_>>(),
+                "frames": frames,
+                "vertices": vertices,
+                "triangles": triangles,
+                "frame_rate": frame_rate,
+                "decode_seconds": decode_seconds,
+                "write_seconds": write_seconds,
+            }));
+        }
+        emit(&format!(
+            "{input}: {codec}, {frames} frames × {vertices} vertices, {triangles} triangles, {frame_rate} fps, \
+             decoded in {decode_seconds:.2} s\n→ {out} ({files}, {how} in {write_seconds:.2} s)\n",
+            input = args.input.display(),
+            out = args.output.display(),
+            files = if written.len() == 1 { "1 file".to_owned() } else { format!("{} files", written.len()) },
+        ))
     }
-    emit(&format!(
-        "{input}: {codec}, {f} frames × {v} vertices, {t} triangles, {fps} fps, decoded in {decode_seconds:.2} s\n\
-         → {out} ({files}, written frame by frame in {write_seconds:.2} s)\n",
-        input = args.input.display(),
-        fps = info.frame_rate,
-        out = args.output.display(),
-        files = if written.len() == 1 { "1 file".to_owned() } else { format!("{} files", written.len()) },
-    ))
 }
