@@ -236,8 +236,13 @@ fn limit_errors_name_bytes_not_frames() {
     let s = Scratch::new("limits");
     let out = s.path("t.anim");
     ok(&["encode", "synth:flag", "-c", "quant-delta", "-o", &out]);
-    let e = fails(&["--max-memory", "100K", "decode", &out, "-o", &s.path("t.pc2")], &["bytes", "102400", "limit"]);
+    // A whole-animation decode (to OBJ) is charged the whole animation; a streamed one (to PC2,
+    // issue 30) one packet at a time, so it needs a smaller budget to fail.
+    let e = fails(&["--max-memory", "100K", "decode", &out, "-o", &s.path("t.obj")], &["bytes", "102400", "limit"]);
     assert!(!e.contains("frame_count"), "{e}");
+    let e = fails(&["--max-memory", "4K", "decode", &out, "-o", &s.path("t.pc2")], &["bytes", "4096", "limit"]);
+    assert!(!e.contains("frame_count"), "{e}");
+    assert!(!s.0.join("t.pc2").exists(), "a refused decode leaves no file");
 }
 
 #[test]
