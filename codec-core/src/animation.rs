@@ -167,13 +167,19 @@ pub fn bounding_box(positions: &[f32]) -> ([f32; 3], [f32; 3]) {
     }
     let mut lo = [f32::INFINITY; 3];
     let mut hi = [f32::NEG_INFINITY; 3];
+    extend_bounding_box(&mut lo, &mut hi, positions);
+    (lo, hi)
+}
+
+/// Grows the box `(lo, hi)` to hold interleaved xyz `positions` (a box built frame by frame
+/// from `[∞; 3]`, `[−∞; 3]` as streaming encoders and the self-check do).
+pub fn extend_bounding_box(lo: &mut [f32; 3], hi: &mut [f32; 3], positions: &[f32]) {
     for p in positions.chunks_exact(3) {
-        for a in 0..3 {
-            lo[a] = lo[a].min(p[a]);
-            hi[a] = hi[a].max(p[a]);
+        for ((l, h), &x) in lo.iter_mut().zip(hi.iter_mut()).zip(p) {
+            *l = l.min(x);
+            *h = h.max(x);
         }
     }
-    (lo, hi)
 }
 
 /// Checks that every coordinate is finite; the error names frame, vertex and axis.

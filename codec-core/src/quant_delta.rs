@@ -187,12 +187,7 @@ impl FrameEncoder for QuantDeltaEncoder {
     }
 
     fn push_frames(&mut self, frames: &[f32]) -> Result<Vec<EncodedPacket>> {
-        for p in frames.chunks_exact(3) {
-            for a in 0..3 {
-                self.lo[a] = self.lo[a].min(p[a]);
-                self.hi[a] = self.hi[a].max(p[a]);
-            }
-        }
+        crate::animation::extend_bounding_box(&mut self.lo, &mut self.hi, frames);
         self.pending.extend_from_slice(frames);
         let block = self.params.block as usize;
         let mut out = Vec::new();

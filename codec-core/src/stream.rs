@@ -249,12 +249,7 @@ struct SelfCheck {
 impl SelfCheck {
     /// Keeps `frames` until their packet is checked, and extends the bounding box.
     fn push(&mut self, frames: &[f32]) {
-        for p in frames.chunks_exact(3) {
-            for a in 0..3 {
-                self.lo[a] = self.lo[a].min(p[a]);
-                self.hi[a] = self.hi[a].max(p[a]);
-            }
-        }
+        crate::animation::extend_bounding_box(&mut self.lo, &mut self.hi, frames);
         self.coordinates += frames.len();
         self.input.extend_from_slice(frames);
     }
