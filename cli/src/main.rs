@@ -328,9 +328,9 @@ pub struct EncodeArgs {
     #[arg(long, value_name = "BYTES", value_parser = commands::parse_bytes)]
     pub memory: Option<u64>,
 
-    /// Search the codec's declared parameter space (its rate ladder on every configuration of
-    /// its secondary parameters; `animcodec describe`) for the smallest stream whose decoded
-    /// error meets METRIC=VALUE (metrics: kg [%], sted, hausdorff, max_error, rmse; absolute
+    /// Search the codec's declared parameter space (its rate ladder on the configurations of
+    /// its secondary parameters meant for the metric's kind of error, positional or STED;
+    /// `animcodec describe`) for the smallest stream whose decoded error meets METRIC=VALUE (metrics: kg [%], sted, hausdorff, max_error, rmse; absolute
     /// values in model units except kg). Parameters given with `-p` stay fixed. With `-c auto`,
     /// every codec is searched and the smallest stream kept. Fails, stating the best error
     /// reached, when no point meets the target. Without -p and without --target, encode aims
