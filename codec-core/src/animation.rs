@@ -159,6 +159,19 @@ impl Animation {
     }
 }
 
+/// How many whole frames of `vertex_count` vertices `coordinates` interleaved xyz values hold;
+/// an error when they do not make whole frames (or there are no vertices). Shared by every
+/// path that takes frames in chunks (the stream encoder, the streaming cache writer).
+pub fn whole_frames(coordinates: usize, vertex_count: usize) -> Result<usize> {
+    let per_frame = vertex_count * 3;
+    if per_frame == 0 || coordinates % per_frame != 0 {
+        return Err(Error::InvalidAnimation(format!(
+            "{coordinates} coordinates is not a whole number of frames of {vertex_count} vertices"
+        )));
+    }
+    Ok(coordinates / per_frame)
+}
+
 /// Axis-aligned bounding box of interleaved xyz positions: `(min, max)`.
 /// Returns `([0; 3], [0; 3])` for an empty slice.
 pub fn bounding_box(positions: &[f32]) -> ([f32; 3], [f32; 3]) {

@@ -129,15 +129,7 @@ impl<'c, W: Write> StreamEncoder<'c, W> {
     /// Pushes the next frames (frame-major, a whole number of frames), writes the packets
     /// they complete and returns them with their reconstructions if those were asked for.
     pub fn push_frames(&mut self, frames: &[f32]) -> Result<Vec<EncodedPacket>> {
-        let per_frame = self.vertex_count * 3;
-        if frames.len() % per_frame != 0 {
-            return Err(Error::InvalidAnimation(format!(
-                "{} coordinates is not a whole number of frames of {} vertices",
-                frames.len(),
-                self.vertex_count
-            )));
-        }
-        let n = frames.len() / per_frame;
+        let n = crate::animation::whole_frames(frames.len(), self.vertex_count)?;
         if self.frames_pushed + n > self.frame_count {
             return Err(Error::InvalidAnimation(format!(
                 "{} frames pushed, but the stream was declared with {}",

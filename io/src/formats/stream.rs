@@ -274,15 +274,7 @@ impl CacheWriter {
 
     /// Appends whole frames (frame-major `n × vertices × 3`, finite).
     pub fn write_frames(&mut self, positions: &[f32]) -> Result<()> {
-        let per_frame = self.vertex_count * 3;
-        if per_frame == 0 || positions.len() % per_frame != 0 {
-            return Err(Error::InvalidAnimation(format!(
-                "{} coordinates is not a whole number of frames of {} vertices",
-                positions.len(),
-                self.vertex_count
-            )));
-        }
-        let n = positions.len() / per_frame;
+        let n = codec_core::animation::whole_frames(positions.len(), self.vertex_count)?;
         if self.frames_written + n > self.frame_count {
             return Err(Error::InvalidAnimation(format!(
                 "{} frames written to {}, which was declared with {}",
@@ -293,7 +285,7 @@ impl CacheWriter {
         }
         if self.frames_written == 0 && n > 0 {
             if let Some((path, triangles, comment)) = &self.companion {
-                let text = obj::obj_text(path, &positions[..per_frame], triangles, comment)?;
+                let text = obj::obj_text(path, &positions[..self.vertex_count * 3], triangles, comment)?;
                 let mut f = PendingFile::new(path)?;
                 f.write_all(text.as_bytes()).map_err(|e| f.error(e))?;
                 self.companion_file = Some(f);
