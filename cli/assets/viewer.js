@@ -65,8 +65,13 @@ function headerLines(anim) {
   const info = anim.info || {};
   const first = ['codec', 'params', 'bytes', 'bpvf'];
   const keys = [...first.filter((k) => k in info), ...Object.keys(info).filter((k) => !first.includes(k))];
-  if (keys.length) {
-    lines.push(keys.map((k) => `${k} ${typeof info[k] === 'object' ? JSON.stringify(info[k]) : fmt(info[k])}`).join(' · '));
+  // Parameters as `k=v` on a line of their own (hosvd has 21), the rest on one line.
+  const simple = keys.filter((k) => k !== 'params' || typeof info[k] !== 'object' || info[k] === null);
+  if (simple.length) {
+    lines.push(simple.map((k) => `${k} ${typeof info[k] === 'object' ? JSON.stringify(info[k]) : fmt(info[k])}`).join(' · '));
+  }
+  if (info.params && typeof info.params === 'object') {
+    lines.push(Object.entries(info.params).map(([k, v]) => `${k}=${typeof v === 'object' ? JSON.stringify(v) : v}`).join(' '));
   }
   if (anim.metrics) {
     const m = anim.metrics;
@@ -103,7 +108,9 @@ async function mountViewer(root, data, THREE, OrbitControls) {
   // Per-frame centre and size of the reference: an animation that travels (a walk across
   // the scene) is followed by the camera, framed by its own size rather than the whole path.
   const centres = new Float32Array(F * 3);
-  let frameRadius = 0;
+  const frameHalf = [0, 0, 0]; // largest half-extent of one frame, per axis
+  const refLo = [Infinity, Infinity, Infinity];
+  const refHi = [-Infinity, -Infinity, -Infinity];
   {
     const q = anims[0].q;
     for (let f = 0; f < F; f++) {
@@ -115,8 +122,12 @@ async function mountViewer(root, data, THREE, OrbitControls) {
         if (x < mn[k]) mn[k] = x;
         if (x > mx[k]) mx[k] = x;
       }
-      for (let k = 0; k < 3; k++) centres[3 * f + k] = lo[k] + 0.5 * (mn[k] + mx[k]) * step[k];
-      frameRadius = Math.max(frameRadius, 0.5 * Math.hypot(...[0, 1, 2].map((k) => (mx[k] - mn[k]) * step[k])));
+      for (let k = 0; k < 3; k++) {
+        centres[3 * f + k] = lo[k] + 0.5 * (mn[k] + mx[k]) * step[k];
+        frameHalf[k] = Math.max(frameHalf[k], 0.5 * (mx[k] - mn[k]) * step[k]);
+        refLo[k] = Math.min(refLo[k], lo[k] + mn[k] * step[k]);
+        refHi[k] = Math.max(refHi[k], lo[k] + mx[k] * step[k]);
+      }
     }
   }
 
@@ -153,8 +164,17 @@ async function mountViewer(root, data, THREE, OrbitControls) {
   const maxText = (data.heat_metric === 'euclidean'
     ? `≥ ${fmt(data.heat_max)} ${unit} = ${fmt((100 * data.heat_max) / data.diagonal)} % of the bounding-box diagonal`
     : `≥ ${fmt(data.heat_max)} (${unit})`) + ` [${data.heat_max_rule}; largest ${fmt(data.heat_largest)}]`;
-  bar.append(el('span', { text: '0' }), el('div', { class: 'ramp' }),
-    el('span', { text: maxText }), el('span', { class: 'heat-name', text: ` heat: ${data.heat_metric}` }));
+  // The ramp with five labelled ticks (0, ¼, ½, ¾ and all of the top value), then what the
+  // top means.
+  const rampBox = el('div', { class: 'ramp-box' }, [el('div', { class: 'ramp' })]);
+  const ticks = el('div', { class: 'ticks' });
+  for (let i = 0; i <= 4; i++) {
+    const t = el('span', { class: 'tick', text: fmt((i / 4) * data.heat_max, 3) });
+    t.style.left = `${25 * i}%`;
+    ticks.appendChild(t);
+  }
+  rampBox.appendChild(ticks);
+  bar.append(rampBox, el('span', { text: maxText }), el('span', { class: 'heat-name', text: ` heat: ${data.heat_metric}` }));
   root.removeChild(status);
   root.append(title, controls, stage);
   if (anims.length > 1) root.append(bar);
@@ -162,25 +182,49 @@ async function mountViewer(root, data, THREE, OrbitControls) {
   ramp.style.background = `linear-gradient(to right, ${HEAT_STOPS.map(([t, c]) =>
     `rgb(${c.map((x) => Math.round(255 * x)).join(',')}) ${100 * t}%`).join(', ')})`;
 
-  // three.js: one renderer, one scene per panel, one shared camera.
-  const renderer = new THREE.WebGLRenderer({ canvas, antialias: true, preserveDrawingBuffer: true });
+  // three.js: one renderer, one scene per panel, one shared camera. Without WebGL (disabled,
+  // blocked, no GPU and no software fallback) the panels would stay empty: say so instead; the
+  // panel headers (sizes, KG, STED) and a report's plots and table do not need it.
+  let renderer;
+  try {
+    renderer = new THREE.WebGLRenderer({ canvas, antialias: true, preserveDrawingBuffer: true });
+  } catch (e) {
+    const why = e && e.message ? e.message : String(e);
+    const message = el('div', { class: 'webgl-message', role: 'alert' }, [
+      el('strong', { text: 'The 3D view cannot start: this browser gave the page no WebGL context.' }),
+      el('p', { text: `(${why}) Turn on hardware acceleration or WebGL in the browser's settings, or open ` +
+        'the file in another browser. The numbers in the panel headers are exact without it.' }),
+    ]);
+    stage.appendChild(message);
+    controls.style.display = 'none';
+    bar.style.display = 'none';
+    return {
+      webgl: false, message: message.textContent, loadSeconds: (performance.now() - started) / 1000,
+      frameCount: F, vertexCount: V, canvas, pause() {}, setFrame() {}, frame: () => 0, render() {}, project: () => null,
+    };
+  }
   renderer.setPixelRatio(window.devicePixelRatio || 1);
   renderer.setScissorTest(true);
-  const boxCenter = new THREE.Vector3((lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, (lo[2] + hi[2]) / 2);
-  const boxRadius = Math.max(1e-9, 0.5 * Math.hypot(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]));
-  let follow = frameRadius < 0.5 * boxRadius;
+  // Framed on the reference's own box (the shared box also holds the candidates' errors).
+  const boxCenter = new THREE.Vector3(...[0, 1, 2].map((k) => (refLo[k] + refHi[k]) / 2));
+  const boxHalf = [0, 1, 2].map((k) => (refHi[k] - refLo[k]) / 2);
+  const boxRadius = Math.max(1e-9, Math.hypot(...boxHalf));
+  let follow = false;
   followToggle.checked = follow;
   const frameCentre = (f) => new THREE.Vector3(centres[3 * f], centres[3 * f + 1], centres[3 * f + 2]);
   const center = () => (follow ? frameCentre(frame) : boxCenter);
-  const fitRadius = () => (follow ? Math.max(1e-9, frameRadius) : boxRadius);
+  const fitHalf = () => (follow ? frameHalf : boxHalf);
   const radius = boxRadius;
   const camera = new THREE.PerspectiveCamera(35, 1, radius / 100, radius * 100);
-  // Fit the bounding sphere in the narrower of the panel's two fields of view.
+  // Fit the box, seen from +z, in the panel: its face nearest the camera (the widest in view)
+  // must fit both fields of view; 6 % margin. (A bounding sphere left a flat model at half the
+  // panel.)
   const home = () => {
     const r = panels[0].getBoundingClientRect();
     const aspect = r.width / Math.max(1, r.height);
-    const half = THREE.MathUtils.degToRad(camera.fov / 2);
-    const distance = (1.1 * fitRadius()) / Math.sin(Math.min(half, Math.atan(Math.tan(half) * aspect)));
+    const tanV = Math.tan(THREE.MathUtils.degToRad(camera.fov / 2));
+    const [hx, hy, hz] = fitHalf();
+    const distance = Math.max(1e-9, 1.06 * (hz + Math.max(hx / (tanV * aspect), hy / tanV)));
     const c = center();
     camera.position.set(c.x, c.y, c.z + distance);
     camera.up.set(0, 1, 0);
@@ -189,6 +233,23 @@ async function mountViewer(root, data, THREE, OrbitControls) {
   };
   let frame = 0;
   const orbit = new OrbitControls(camera, grid);
+  // Follow the reference's frame centre when framing the whole path would leave the model off
+  // centre (it travels more than a tenth of the panel) or small (its frames fit a view 20 %
+  // closer): the model then fills its panel at every frame; the box switch undoes it.
+  {
+    const r = panels[0].getBoundingClientRect();
+    const aspect = r.width / Math.max(1, r.height);
+    const tanV = Math.tan(THREE.MathUtils.degToRad(camera.fov / 2));
+    const distance = (h) => h[2] + Math.max(h[0] / (tanV * aspect), h[1] / tanV);
+    const whole = Math.max(1e-12, distance(boxHalf));
+    let drift = 0; // largest offset of a frame's centre, as a fraction of the panel
+    for (let f = 0; f < F; f++) {
+      drift = Math.max(drift, Math.abs(centres[3 * f] - boxCenter.x) / (2 * whole * tanV * aspect),
+        Math.abs(centres[3 * f + 1] - boxCenter.y) / (2 * whole * tanV));
+    }
+    follow = drift > 0.1 || distance(frameHalf) < 0.8 * whole;
+    followToggle.checked = follow;
+  }
   home();
   const meshes = anims.map((a, i) => {
     const scene = new THREE.Scene();
@@ -315,19 +376,26 @@ async function mountViewer(root, data, THREE, OrbitControls) {
   return api;
 }
 
-// The sweep report: an interactive rate-distortion plot (bpvf against KG and STED, log
-// scale, hover for a point's parameters and metrics), the table, and a viewer per chosen point.
+// The sweep report: interactive rate-distortion plots (bpvf against KG and STED, both axes
+// logarithmic so a 0.3-bpvf codec and a 30-bpvf one stay readable side by side; each codec's
+// lower envelope drawn as its line, every other point faint; hover for a point's parameters
+// and metrics), the table (the parameters that vary as columns, the full set on hover), and a
+// viewer per chosen point.
 async function mountReport(root, data, THREE, OrbitControls) {
   root.appendChild(el('h1', { text: data.title }));
   root.appendChild(el('p', { text: `${data.input}: ${data.frames} frames × ${data.vertices} vertices; ${data.rows.length} points` }));
-  const codecs = [...new Set(data.rows.map((r) => r.series || r.codec))];
+  const codecs = [...new Set(data.rows.map((r) => r.codec))];
   const palette = ['#1f77b4', '#d62728', '#2ca02c', '#9467bd', '#ff7f0e', '#17becf', '#8c564b', '#e377c2'];
+  const colour = (codec) => palette[codecs.indexOf(codec) % palette.length];
+  const envelope = {};
+  for (const metric of ['kg', 'sted']) envelope[metric] = new Set((data.envelope && data.envelope[metric]) || []);
   const tip = el('div', { class: 'tooltip' });
   document.body.appendChild(tip);
   const plots = el('div', { class: 'plots' });
   root.appendChild(plots);
   const legend = el('div', { class: 'legend' });
-  codecs.forEach((c, i) => legend.appendChild(el('span', { style: `color:${palette[i % palette.length]}`, text: `● ${c} ` })));
+  codecs.forEach((c) => legend.appendChild(el('span', { style: `color:${colour(c)}`, text: `● ${c} ` })));
+  legend.appendChild(el('span', { class: 'legend-note', text: ' line and filled dots: the codec\'s lower envelope; open dots: its other points' }));
   root.appendChild(legend);
   for (const metric of ['kg', 'sted']) plots.appendChild(plot(metric));
   root.appendChild(table());
@@ -340,19 +408,47 @@ async function mountReport(root, data, THREE, OrbitControls) {
   }
   return { viewers, points: data.rows.length };
 
+  // Ticks of a log axis over [a, b] (powers of ten): every decade, with 2 and 5 between
+  // when the axis spans at most three decades.
+  function logTicks(a, b) {
+    const ticks = [];
+    const mantissas = b - a <= 3 ? [1, 2, 5] : [1];
+    for (let e = Math.floor(a); e <= Math.ceil(b); e++) {
+      for (const m of mantissas) {
+        const t = Math.log10(m) + e;
+        if (t >= a - 1e-9 && t <= b + 1e-9) ticks.push({ at: t, major: m === 1, value: m * 10 ** e });
+      }
+    }
+    return ticks;
+  }
+
+  function tickLabel(value) {
+    const e = Math.round(Math.log10(value));
+    if (Math.abs(value - 10 ** e) < 1e-9 * value && (e < -3 || e > 4)) return `1e${e}`;
+    return value >= 1e-3 && value < 1e5 ? String(Number(value.toPrecision(3))) : value.toExponential(0);
+  }
+
   function plot(metric) {
-    const W = 520, H = 360, M = { l: 60, r: 12, t: 24, b: 40 };
-    const rows = data.rows.filter((r) => r[metric] > 0 && r.bpvf > 0);
+    const W = 560, H = 380, M = { l: 60, r: 14, t: 24, b: 40 };
+    const rows = data.rows.map((r, i) => ({ r, i })).filter(({ r }) => r[metric] > 0 && r.bpvf > 0);
     const ns = 'http://www.w3.org/2000/svg';
     const svg = document.createElementNS(ns, 'svg');
     svg.setAttribute('viewBox', `0 0 ${W} ${H}`);
     svg.setAttribute('class', 'rd');
-    const xs = rows.map((r) => r.bpvf);
-    const ys = rows.map((r) => Math.log10(r[metric]));
-    const [x0, x1] = [0, Math.max(...xs, 1) * 1.05];
-    const [y0, y1] = [Math.floor(Math.min(...ys, 0)), Math.ceil(Math.max(...ys, 0))];
+    svg.dataset.metric = metric;
+    const xs = rows.map(({ r }) => Math.log10(r.bpvf));
+    const ys = rows.map(({ r }) => Math.log10(r[metric]));
+    // A little room around the points; at least a decade on each axis.
+    const span = (v) => {
+      let [a, b] = [Math.min(...v), Math.max(...v)];
+      if (!Number.isFinite(a)) [a, b] = [0, 1];
+      const pad = Math.max(0.05 * (b - a), 0.5 * Math.max(0, 1 - (b - a)));
+      return [a - pad, b + pad];
+    };
+    const [x0, x1] = span(xs);
+    const [y0, y1] = span(ys);
     const X = (x) => M.l + ((x - x0) / (x1 - x0)) * (W - M.l - M.r);
-    const Y = (y) => H - M.b - ((y - y0) / Math.max(1e-9, y1 - y0)) * (H - M.t - M.b);
+    const Y = (y) => H - M.b - ((y - y0) / (y1 - y0)) * (H - M.t - M.b);
     const add = (tag, attrs, text) => {
       const e = document.createElementNS(ns, tag);
       for (const [k, v] of Object.entries(attrs)) e.setAttribute(k, v);
@@ -360,52 +456,89 @@ async function mountReport(root, data, THREE, OrbitControls) {
       svg.appendChild(e);
       return e;
     };
-    add('text', { x: W / 2, y: 16, 'text-anchor': 'middle', class: 'axis-title' }, `${metric === 'kg' ? 'KG (%)' : 'STED'} against bpvf`);
-    for (let e = y0; e <= y1; e++) {
-      add('line', { x1: M.l, x2: W - M.r, y1: Y(e), y2: Y(e), class: 'gridline' });
-      add('text', { x: M.l - 6, y: Y(e) + 4, 'text-anchor': 'end' }, `1e${e}`);
+    add('text', { x: W / 2, y: 16, 'text-anchor': 'middle', class: 'axis-title' }, `${metric === 'kg' ? 'KG (%)' : 'STED'} against bpvf (log–log)`);
+    for (const t of logTicks(y0, y1)) {
+      add('line', { x1: M.l, x2: W - M.r, y1: Y(t.at), y2: Y(t.at), class: t.major ? 'gridline' : 'gridline minor' });
+      add('text', { x: M.l - 6, y: Y(t.at) + 4, 'text-anchor': 'end', class: 'y-tick' }, tickLabel(t.value));
     }
-    const xStep = x1 > 40 ? 10 : x1 > 10 ? 2 : 1;
-    for (let x = 0; x <= x1; x += xStep) add('text', { x: X(x), y: H - M.b + 16, 'text-anchor': 'middle' }, String(x));
+    for (const t of logTicks(x0, x1)) {
+      add('line', { x1: X(t.at), x2: X(t.at), y1: M.t, y2: H - M.b, class: t.major ? 'gridline' : 'gridline minor' });
+      add('text', { x: X(t.at), y: H - M.b + 16, 'text-anchor': 'middle', class: 'x-tick' }, tickLabel(t.value));
+    }
+    add('rect', { x: M.l, y: M.t, width: W - M.l - M.r, height: H - M.t - M.b, class: 'frame' });
     add('text', { x: W / 2, y: H - 6, 'text-anchor': 'middle' }, 'bits per vertex per frame');
-    const seriesPoints = (c) => rows.filter((r) => (r.series || r.codec) === c).sort((a, b) => a.bpvf - b.bpvf);
-    // Every series' line first, then every point: a later series' line must not cover (and
-    // take the pointer from) an earlier series' points.
-    codecs.forEach((c, ci) => {
-      const pts = seriesPoints(c);
-      add('polyline', {
-        points: pts.map((r) => `${X(r.bpvf)},${Y(Math.log10(r[metric]))}`).join(' '),
-        fill: 'none',
-        stroke: palette[ci % palette.length],
-        'pointer-events': 'none',
+    const at = ({ r }) => [X(Math.log10(r.bpvf)), Y(Math.log10(r[metric]))];
+    // Envelope lines first, then the faint points, then the envelope points on top: a line
+    // must not take the pointer from a point.
+    for (const c of codecs) {
+      const pts = rows.filter((p) => p.r.codec === c && envelope[metric].has(p.i)).sort((a, b) => a.r.bpvf - b.r.bpvf);
+      add('polyline', { points: pts.map((p) => at(p).join(',')).join(' '), class: 'envelope', stroke: colour(c), 'pointer-events': 'none' });
+    }
+    const ordered = [...rows.filter((p) => !envelope[metric].has(p.i)), ...rows.filter((p) => envelope[metric].has(p.i))];
+    for (const p of ordered) {
+      const r = p.r;
+      const onEnvelope = envelope[metric].has(p.i);
+      const [cx, cy] = at(p);
+      const dot = add('circle', {
+        cx, cy, r: onEnvelope ? 4 : 3, class: onEnvelope ? 'point on-envelope' : 'point off-envelope',
+        fill: onEnvelope ? colour(r.codec) : '#fff', stroke: colour(r.codec), 'data-codec': r.codec,
       });
-    });
-    codecs.forEach((c, ci) => {
-      const pts = seriesPoints(c);
-      const color = palette[ci % palette.length];
-      for (const r of pts) {
-        const dot = add('circle', { cx: X(r.bpvf), cy: Y(Math.log10(r[metric])), r: 4, fill: color, class: 'point' });
-        dot.addEventListener('mouseenter', (ev) => {
-          tip.textContent = `${r.codec} ${JSON.stringify(r.params)}\n${r.bytes} bytes, ${fmt(r.bpvf)} bpvf\n` +
-            `KG ${fmt(r.kg)} %, STED ${fmt(r.sted)}\nHausdorff ${fmt(r.hausdorff)}, MSE ${fmt(r.mse)}, RMSE ${fmt(r.rmse)}\n` +
-            `max error ${fmt(r.max_error)}; encode ${fmt(r.encode_seconds, 3)} s, decode ${fmt(r.decode_seconds, 3)} s`;
-          tip.style.display = 'block';
-          tip.style.left = `${ev.pageX + 12}px`;
-          tip.style.top = `${ev.pageY + 12}px`;
-        });
-        dot.addEventListener('mouseleave', () => { tip.style.display = 'none'; });
-      }
-    });
+      dot.addEventListener('mouseenter', (ev) => {
+        tip.textContent = `${r.series || r.codec}${onEnvelope ? ' (on its lower envelope)' : ''}\n${JSON.stringify(r.params)}\n` +
+          `${r.bytes} bytes, ${fmt(r.bpvf)} bpvf\n` +
+          `KG ${fmt(r.kg)} %, STED ${fmt(r.sted)}\nHausdorff ${fmt(r.hausdorff)}, MSE ${fmt(r.mse)}, RMSE ${fmt(r.rmse)}\n` +
+          `max error ${fmt(r.max_error)}; encode ${fmt(r.encode_seconds, 3)} s, decode ${fmt(r.decode_seconds, 3)} s`;
+        tip.style.display = 'block';
+        tip.style.left = `${ev.pageX + 12}px`;
+        tip.style.top = `${ev.pageY + 12}px`;
+      });
+      dot.addEventListener('mouseleave', () => { tip.style.display = 'none'; });
+    }
     return svg;
   }
 
-  function table() {
-    const cols = ['codec', 'params', 'bytes', 'bpvf', 'kg', 'sted', 'hausdorff', 'mse', 'rmse', 'max_error', 'encode_seconds', 'decode_seconds'];
-    const t = el('table', { class: 'rows' });
-    t.appendChild(el('tr', {}, cols.map((c) => el('th', { text: c }))));
-    for (const r of data.rows) {
-      t.appendChild(el('tr', {}, cols.map((c) => el('td', { text: c === 'params' ? JSON.stringify(r.params) : fmt(r[c]) }))));
+  // The parameters whose value differs between two rows of the same codec, per codec in the
+  // order it declares them: a sweep over `ss` shows an `ss` column, not 21 keys of JSON.
+  function varyingParams() {
+    const columns = [];
+    for (const c of codecs) {
+      const rows = data.rows.filter((r) => r.codec === c);
+      for (const k of Object.keys(rows[0].params || {})) {
+        if (new Set(rows.map((r) => JSON.stringify(r.params[k]))).size > 1) columns.push({ codec: c, key: k });
+      }
     }
+    return columns;
+  }
+
+  function table() {
+    const params = varyingParams();
+    const metrics = ['bytes', 'bpvf', 'kg', 'sted', 'hausdorff', 'rmse', 'max_error', 'encode_seconds', 'decode_seconds'];
+    const heads = { kg: 'KG (%)', sted: 'STED', max_error: 'max error', encode_seconds: 'enc s', decode_seconds: 'dec s' };
+    const t = el('table', { class: 'rows' });
+    // Two header rows: the codec each group of parameter columns belongs to, then the names.
+    const groups = [];
+    for (const p of params) {
+      if (groups.length && groups[groups.length - 1].codec === p.codec) groups[groups.length - 1].span++;
+      else groups.push({ codec: p.codec, span: 1 });
+    }
+    const spanRows = (text, attrs = {}) => el('th', { rowspan: '2', text, ...attrs });
+    t.appendChild(el('tr', {}, [
+      spanRows('codec'),
+      ...groups.map((g) => el('th', { colspan: String(g.span), class: 'param-group', text: g.codec, title: `parameters of ${g.codec} that vary between its rows` })),
+      spanRows('envelope', { title: 'on the codec\'s lower envelope by KG and/or STED' }),
+      ...metrics.map((m) => spanRows(heads[m] || m)),
+    ]));
+    t.appendChild(el('tr', {}, params.map((p) => el('th', { class: 'param', text: p.key, title: `${p.codec}: ${p.key}` }))));
+    data.rows.forEach((r, i) => {
+      const on = ['kg', 'sted'].filter((m) => envelope[m].has(i)).map((m) => (m === 'kg' ? 'KG' : 'STED'));
+      const cells = [
+        el('td', { class: 'codec', text: r.codec }),
+        ...params.map((p) => el('td', { class: 'param', text: r.codec === p.codec && r.params && p.key in r.params ? fmt(r.params[p.key]) : '' })),
+        el('td', { class: 'envelope', text: on.join(' · ') }),
+        ...metrics.map((m) => el('td', { text: fmt(r[m]) })),
+      ];
+      t.appendChild(el('tr', { class: on.length ? 'on-envelope' : '', title: `${r.series || r.codec} ${JSON.stringify(r.params)}` }, cells));
+    });
     return t;
   }
 }

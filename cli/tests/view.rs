@@ -150,9 +150,10 @@ fn browser() -> Result<PathBuf, String> {
     Ok(dir.join("check_page.mjs"))
 }
 
-fn run_browser(script: &Path, page: &str, shot: &Path, samples: Option<&Path>) -> Value {
+/// Runs `check_page.mjs` on `page`; `env` sets its switches (`NO_WEBGL`, `VIEWPORT`, `FULL_PAGE`).
+fn run_browser_with(script: &Path, page: &str, shot: &Path, samples: Option<&Path>, env: &[(&str, &str)]) -> Value {
     let mut cmd = Command::new("node");
-    cmd.arg(script).arg(page).arg(shot);
+    cmd.arg(script).arg(page).arg(shot).envs(env.iter().copied());
     if let Some(s) = samples {
         cmd.arg(s);
     }
@@ -161,9 +162,42 @@ fn run_browser(script: &Path, page: &str, shot: &Path, samples: Option<&Path>) -
     let v: Value = serde_json::from_str(text.trim())
         .unwrap_or_else(|e| panic!("{e}: {text} {}", String::from_utf8_lossy(&out.stderr)));
     assert!(v.get("failure").is_none(), "{v}");
-    assert_eq!(v["consoleErrors"], serde_json::json!([]), "{v}");
     assert!(shot.exists() && std::fs::metadata(shot).unwrap().len() > 10_000, "screenshot {}", shot.display());
     v
+}
+
+fn run_browser(script: &Path, page: &str, shot: &Path, samples: Option<&Path>) -> Value {
+    let v = run_browser_with(script, page, shot, samples, &[]);
+    assert_eq!(v["consoleErrors"], serde_json::json!([]), "{v}");
+    v
+}
+
+fn number(v: &Value, what: &str) -> f64 {
+    v.as_f64().unwrap_or_else(|| panic!("{what}: {v}"))
+}
+
+/// The reference fills its panel (its larger side ≥ 70 % of the panel's) and sits in the
+/// middle (centre within 10 % of the panel's).
+fn assert_framed(v: &Value) {
+    let f = &v["framing"];
+    let fill = number(&f["fillX"], "fillX").max(number(&f["fillY"], "fillY"));
+    assert!((0.7..=1.0).contains(&fill), "the model fills {fill:.2} of its panel: {f}");
+    for k in ["offX", "offY"] {
+        assert!(number(&f[k], k).abs() <= 0.1, "off centre: {f}");
+    }
+}
+
+/// Five colour-bar ticks from 0 up to the top value, increasing.
+fn assert_colour_bar_ticks(v: &Value) {
+    let ticks: Vec<f64> = v["colorbarTicks"]
+        .as_array()
+        .unwrap_or_else(|| panic!("{v}"))
+        .iter()
+        .map(|t| t.as_str().unwrap().parse::<f64>().unwrap())
+        .collect();
+    assert_eq!(ticks.len(), 5, "{v}");
+    assert_eq!(ticks[0], 0.0);
+    assert!(ticks.windows(2).all(|w| w[1] > w[0]), "{ticks:?}");
 }
 
 #[test]
@@ -186,6 +220,9 @@ fn pages_work_in_headless_chromium() {
     assert_eq!(v["kind"], "viewer");
     assert_eq!(v["frameChangesImage"], true, "{v}");
     assert!(v["nonBackgroundPixels"].as_u64().unwrap() > 10_000, "{v}");
+    assert_eq!(v["webgl"], true, "{v}");
+    assert_framed(&v);
+    assert_colour_bar_ticks(&v);
     // Zero error is the colour bar's blue end, the shifted half its red end (lighting scales
     // the channels, the dominant one stays).
     let colours = v["samples"].as_array().unwrap();
@@ -209,4 +246,42 @@ fn pages_work_in_headless_chromium() {
     let tip = v["tooltip"].as_str().unwrap();
     assert!(tip.contains("bytes") && tip.contains("KG") && tip.contains("STED"), "{tip}");
     assert_eq!(v["frameChangesImage"], true, "{v}");
+    // The table: the swept parameters (quant-delta's bits, hosvd's ss) as columns, no column of
+    // whole parameter JSON, the full set on hover, and sizes and errors on a 1400-px screen.
+    let table = &v["table"];
+    let heads: Vec<&str> = table["heads"].as_array().unwrap().iter().map(|h| h.as_str().unwrap()).collect();
+    for column in ["bits", "ss", "bytes", "bpvf", "KG (%)", "STED"] {
+        assert!(heads.contains(&column), "no {column} column: {heads:?}");
+    }
+    for constant in ["params", "level", "quant", "edge_weight"] {
+        assert!(!heads.contains(&constant), "{constant} does not vary here: {heads:?}");
+    }
+    let title = table["firstRowTitle"].as_str().unwrap();
+    assert!(title.contains("\"level\":"), "full parameters on hover: {title}");
+    for column in ["bytes", "KG (%)", "STED"] {
+        assert!(number(&table["right"][column], column) <= 1400.0, "{column} off a 1400-px screen: {table}");
+    }
+    // The plots: each codec's points spread over at least a fifth of the plot width (a
+    // 30-bpvf codec must not squeeze a 1-bpvf one into a corner); one envelope line per codec.
+    for plot in v["plotSpread"].as_array().unwrap() {
+        assert_eq!(plot["envelopeLines"], 2, "{plot}");
+        for (codec, spread) in plot["spread"].as_object().unwrap() {
+            assert!(number(spread, codec) >= 0.2, "{codec} squeezed into {spread} of the {} plot", plot["metric"]);
+        }
+    }
+    assert_framed(&v);
+
+    // Without WebGL the viewer says so, on screen, instead of showing empty panels; the only
+    // console errors are three.js's own about the missing context.
+    let page = s.path("v.html");
+    let shot = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("view-no-webgl.png");
+    let v = run_browser_with(&script, &page, &shot, None, &[("NO_WEBGL", "1")]);
+    println!("no WebGL: {v}");
+    assert_eq!((v["kind"].as_str(), v["webgl"].as_bool()), (Some("viewer"), Some(false)), "{v}");
+    let message = &v["webglMessage"];
+    assert_eq!(message["visible"], true, "{v}");
+    assert!(message["text"].as_str().unwrap().contains("WebGL"), "{message}");
+    for e in v["consoleErrors"].as_array().unwrap() {
+        assert!(e.as_str().unwrap().starts_with("THREE.WebGLRenderer"), "unexpected console error {e}");
+    }
 }

@@ -7,15 +7,20 @@ import { chromium } from 'playwright-core';
 import { readFileSync } from 'node:fs';
 import { resolve } from 'node:path';
 
+// NO_WEBGL=1 starts Chromium with WebGL switched off (the viewer must say so, visibly);
+// FULL_PAGE=1 takes the screenshot of the whole page; VIEWPORT=WxH (default 1280x720).
 const [pagePath, shotPath, samplesPath] = process.argv.slice(2);
+const noWebgl = process.env.NO_WEBGL === '1';
+const [vw, vh] = (process.env.VIEWPORT || '1280x720').split('x').map(Number);
 const browser = await chromium.launch({
   executablePath: process.env.CHROMIUM || '/usr/bin/chromium',
   args: ['--no-sandbox', '--disable-gpu', '--disable-quic', '--no-first-run', '--disable-background-networking',
-    '--disable-component-update', '--disable-sync', '--use-angle=swiftshader', '--enable-unsafe-swiftshader'],
+    '--disable-component-update', '--disable-sync', '--use-angle=swiftshader', '--enable-unsafe-swiftshader',
+    ...(noWebgl ? ['--disable-webgl', '--disable-3d-apis'] : [])],
 });
 const out = { consoleErrors: [] };
 try {
-  const page = await browser.newPage({ viewport: { width: 1280, height: 720 } });
+  const page = await browser.newPage({ viewport: { width: vw, height: vh } });
   page.on('console', (m) => { if (m.type() === 'error') out.consoleErrors.push(m.text()); });
   page.on('pageerror', (e) => out.consoleErrors.push(String(e)));
   const t0 = Date.now();
@@ -28,12 +33,48 @@ try {
     out.reportViewers = await page.evaluate(() => window.animcodecReport.viewers.length);
     out.plotPoints = await page.evaluate(() => document.querySelectorAll('svg.rd circle.point').length);
     // Hovering a point shows its parameters and metrics.
-    await page.hover('svg.rd circle.point');
+    // The last point drawn is on top of any it overlaps.
+    await page.locator('svg.rd circle.point').last().hover();
     out.tooltip = await page.evaluate(() => document.querySelector('.tooltip').textContent);
+    out.table = await page.evaluate(() => {
+      const t = document.querySelector('table.rows');
+      const heads = [...t.querySelectorAll('th')].map((h) => h.textContent);
+      const first = t.querySelector('tr.on-envelope, tr:nth-child(3)');
+      const box = t.getBoundingClientRect();
+      // Every column's right edge, so a test can ask whether bytes/KG/STED are on screen.
+      const right = Object.fromEntries([...t.querySelectorAll('th')].map((h) => [h.textContent, h.getBoundingClientRect().right]));
+      return { heads, width: box.width, right, firstRowTitle: first.getAttribute('title'), paramCells: t.querySelectorAll('td.param').length };
+    });
+    // How much of each plot's width each codec's points spread over (log axes keep a
+    // low-rate codec from being squeezed into a corner by a high-rate one).
+    out.plotSpread = await page.evaluate(() => [...document.querySelectorAll('svg.rd')].map((svg) => {
+      const frame = svg.querySelector('rect.frame');
+      const width = Number(frame.getAttribute('width'));
+      const byCodec = {};
+      for (const c of svg.querySelectorAll('circle.point')) {
+        const k = c.getAttribute('data-codec');
+        const x = Number(c.getAttribute('cx'));
+        byCodec[k] = byCodec[k] || [x, x];
+        byCodec[k] = [Math.min(byCodec[k][0], x), Math.max(byCodec[k][1], x)];
+      }
+      return { metric: svg.dataset.metric, spread: Object.fromEntries(Object.entries(byCodec).map(([k, [a, b]]) => [k, (b - a) / width])),
+        envelopeLines: svg.querySelectorAll('polyline.envelope').length };
+    }));
   }
   const viewer = out.kind === 'viewer' ? 'window.animcodecViewer' : 'window.animcodecReport.viewers[0]';
   const hasViewer = await page.evaluate(`Boolean(${viewer})`);
-  if (hasViewer) {
+  out.webgl = hasViewer ? await page.evaluate(`${viewer}.webgl !== false`) : null;
+  if (hasViewer && !out.webgl) {
+    // The message must be on screen: its box inside the viewport, not zero-sized.
+    out.webglMessage = await page.evaluate(() => {
+      const m = document.querySelector('.webgl-message');
+      if (!m) return null;
+      const r = m.getBoundingClientRect();
+      return { text: m.textContent, visible: r.width > 100 && r.height > 20 && r.top >= 0 && r.bottom <= window.innerHeight };
+    });
+  }
+  out.colorbarTicks = await page.evaluate(() => [...document.querySelectorAll('.colorbar .tick')].map((t) => t.textContent));
+  if (hasViewer && out.webgl) {
     // Fingerprint of the drawn image: the frame slider must change it.
     const digest = (frame) => page.evaluate(`(() => {
       const v = ${viewer};
@@ -54,6 +95,26 @@ try {
     out.nonBackgroundPixels = first.lit;
     out.frameChangesImage = first.h !== mid.h;
     await page.evaluate(`${viewer}.setFrame(0)`);
+    // Framing: the box of the reference (panel 0) as drawn at frame 0, as fractions of its
+    // panel, and how far its centre is from the panel's centre.
+    out.framing = await page.evaluate(`(() => {
+      const v = ${viewer};
+      const panel = document.querySelectorAll('.panel')[0].getBoundingClientRect();
+      const canvas = v.canvas.getBoundingClientRect();
+      const n = v.vertexCount;
+      const stride = Math.max(1, Math.floor(n / 4000));
+      let x0 = Infinity, x1 = -Infinity, y0 = Infinity, y1 = -Infinity;
+      for (let i = 0; i < n; i += stride) {
+        const p = v.project(0, i);
+        x0 = Math.min(x0, p.x); x1 = Math.max(x1, p.x); y0 = Math.min(y0, p.y); y1 = Math.max(y1, p.y);
+      }
+      const left = panel.left - canvas.left, top = panel.top - canvas.top;
+      return {
+        fillX: (x1 - x0) / panel.width, fillY: (y1 - y0) / panel.height,
+        offX: ((x0 + x1) / 2 - left - panel.width / 2) / panel.width,
+        offY: ((y0 + y1) / 2 - top - panel.height / 2) / panel.height,
+      };
+    })()`);
     if (samplesPath) {
       const samples = JSON.parse(readFileSync(samplesPath, 'utf8'));
       out.samples = await page.evaluate(`(() => {
@@ -75,7 +136,7 @@ try {
       })()`);
     }
   }
-  await page.screenshot({ path: shotPath });
+  await page.screenshot({ path: shotPath, fullPage: process.env.FULL_PAGE === '1' });
 } catch (e) {
   out.failure = String(e && e.stack ? e.stack : e);
 } finally {
