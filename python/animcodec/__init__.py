@@ -118,8 +118,10 @@ class TargetEncoding:
 def _positions(positions: Any, name: str = "positions") -> np.ndarray:
     """``positions`` as a C-contiguous float32 array of shape (F, V, 3), copying only if needed."""
     arr = np.asarray(positions)
-    if arr.dtype.kind not in "fiu":
-        raise TypeError(f"{name} must hold real numbers (float32 or float64); got dtype {arr.dtype}")
+    # Only the two float types the docs promise: integer coordinates (a quantized cache read
+    # raw, an index array passed by mistake) would be taken as model units without a word.
+    if arr.dtype not in (np.float32, np.float64):
+        raise TypeError(f"{name} must be float32 or float64; got dtype {arr.dtype} (convert explicitly, e.g. .astype(np.float32))")
     if arr.ndim != 3 or arr.shape[2] != 3:
         raise ValueError(f"{name} must have shape (frames, vertices, 3); got {arr.shape}")
     if arr.shape[0] == 0 or arr.shape[1] == 0:

@@ -55,6 +55,7 @@ class SweepJob(TypedDict):
     eval: Optional[Dict[str, Any]]
     topology: Optional[_Path]
     fps: Optional[float]
+    animation: Optional[str]
     arrays: Optional[Tuple[_F32, _U32, float]]
 
 def sweep_point(job: SweepJob) -> Dict[str, Any]: ...
@@ -63,12 +64,15 @@ class LocalSweep(TypedDict):
     """A single-process sweep of one input (every key present)."""
 
     input: str
+    arrays: Optional[Tuple[_F32, _U32, float]]
+    animation: Optional[str]
     series: List[Tuple[str, Optional[Dict[str, Any]]]]
     points: Optional[int]
     eval: Optional[Dict[str, Any]]
     jobs: Optional[int]
     topology: Optional[_Path]
     fps: Optional[float]
+    progress: Optional[Any]
 
 def sweep_local(sweep: LocalSweep) -> Dict[str, Any]: ...
 def check_outputs(outputs: List[_Path], inputs: List[_Path], force: bool = False) -> None: ...

@@ -98,6 +98,8 @@ def _input_list(inputs: Any) -> List[Tuple[str, Any]]:
         isinstance(inputs, tuple) and len(inputs) == 2 and isinstance(inputs[1], Animation)
     ):
         inputs = [inputs]
+    elif not isinstance(inputs, (list, tuple)):
+        inputs = [inputs]  # reported below as an input of the wrong kind
     out: List[Tuple[str, Any]] = []
     for i, item in enumerate(inputs):
         if isinstance(item, Animation):
@@ -114,6 +116,17 @@ def _input_list(inputs: Any) -> List[Tuple[str, Any]]:
     if not out:
         raise ValueError("no inputs to sweep")
     return out
+
+
+def _animation_selector(animation: Optional[Union[str, int]]) -> Optional[str]:
+    """A glTF animation picked by name (``str``) or index (``int``), as ``--animation`` takes it."""
+    if animation is None:
+        return None
+    if isinstance(animation, bool) or not isinstance(animation, (str, int)):
+        raise TypeError(f"animation must be a name (str) or an index (int); got {animation!r}")
+    if isinstance(animation, int) and animation < 0:
+        raise ValueError(f"animation index must be >= 0; got {animation}")
+    return str(animation)
 
 
 def _typed(codec: Dict[str, Any], key: str, text: str) -> Any:
@@ -191,9 +204,12 @@ def run_job(
     topology: Optional[str] = None,
     fps: Optional[float] = None,
     animation: Any = None,
+    gltf_animation: Optional[str] = None,
 ) -> Dict[str, Any]:
     """One sweep task (runs on a worker): ``{"row", "vertices", "frames"}``, or ``{"error"}``
-    with the library's message when the point (or loading the input) fails."""
+    with the library's message when the point (or loading the input) fails. ``animation`` is
+    an :class:`~animcodec.Animation` given as arrays (or ``None``: load ``input_name``);
+    ``gltf_animation`` picks a glTF file's animation by name or index."""
     from ._native import AnimcodecError
 
     from . import _faces, _positions
@@ -212,6 +228,7 @@ def run_job(
             "eval": eval_options,
             "topology": topology,
             "fps": fps,
+            "animation": gltf_animation,
             "arrays": arrays,
         }
         return _native.sweep_point(job)
@@ -295,6 +312,7 @@ def sweep(
     sted_options: Optional[Dict[str, Any]] = None,
     topology: Optional[str] = None,
     fps: Optional[float] = None,
+    animation: Optional[Union[str, int]] = None,
     json: Optional[str] = None,
     csv: Optional[str] = None,
     plot: Optional[str] = None,
@@ -319,6 +337,9 @@ def sweep(
             number of cores) of ``threads_per_worker`` threads, closed at the end.
         sted, hausdorff, sted_options: metrics to compute and STED's parameters (as ``eval``).
         topology, fps: as ``--topology``, ``--fps`` for every path input.
+        animation: a glTF input's animation, by name or index (as ``--animation``; default the
+            first); for every path input (files without animations ignore it, as the command
+            line does).
         json, csv, plot: with one input, the files ``animcodec sweep --json/--csv/--plot``
             writes (same writers). With several inputs use ``out_dir``.
         out_dir: one ``NAME.json``, ``NAME.csv``, ``NAME.svg`` per input (``NAME`` from the
@@ -333,6 +354,7 @@ def sweep(
     from . import AnimcodecError
 
     items = _input_list(inputs)
+    gltf_animation = _animation_selector(animation)
     plan_series = _series_list(codecs, params, series)
     # Validates every series (codec, parameters, the walked one left out) before any work.
     plan = _native.sweep_plan(plan_series, points)
@@ -374,7 +396,7 @@ def sweep(
             name = items[i][0]
             future = dask_client.submit(
                 run_job, name, codec, base, step, eval_options, topology, fps, scattered.get(i),
-                pure=False, key=f"animcodec-{i}-{s}-{step}-{time.monotonic_ns()}",
+                gltf_animation, pure=False, key=f"animcodec-{i}-{s}-{step}-{time.monotonic_ns()}",
             )
             futures[future] = (i, s, step)
         from distributed import as_completed
@@ -457,7 +479,7 @@ def _output_stems(names: Sequence[str]) -> List[str]:
 
 
 def sweep_local(
-    input: str,
+    input: Any,
     codecs: Any = None,
     *,
     points: Optional[int] = None,
@@ -469,17 +491,37 @@ def sweep_local(
     sted_options: Optional[Dict[str, Any]] = None,
     topology: Optional[str] = None,
     fps: Optional[float] = None,
+    animation: Optional[Union[str, int]] = None,
     progress: Optional[Any] = None,
 ) -> Dict[str, Any]:
     """The command line's single-process sweep of one input (the same harness call as
-    ``animcodec sweep INPUT --json``, in this process): the sweep document. ``jobs=1`` measures
-    the points one after another, ``None`` on all cores. ``progress``, if given, is called with
-    ``{"event": "started"|"finished", "series", "ladder_index", "done", "total"}`` as each point
-    starts and finishes (from the sweep's worker threads, the GIL taken for the call; the sweep
-    itself runs with the GIL released)."""
+    ``animcodec sweep INPUT --json``, in this process): the sweep document.
+
+    ``input`` is a path, ``synth:NAME[:SIZE]``, an :class:`~animcodec.Animation` or
+    ``(name, Animation)`` (the document's ``input`` is then the name, ``array:0`` for a bare
+    animation), as for :func:`sweep`. ``topology``, ``fps`` and ``animation`` (a glTF file's
+    animation by name or index, default the first) apply to a path, as the command line's
+    ``--topology``, ``--fps``, ``--animation``. ``jobs=1`` measures the points one after another,
+    ``None`` on all cores. ``progress``, if given, is called with ``{"event":
+    "started"|"finished", "series", "ladder_index", "done", "total"}`` as each point starts and
+    finishes (from the sweep's worker threads, the GIL taken for the call; the sweep itself runs
+    with the GIL released)."""
+    from . import _faces, _positions
+
+    items = _input_list(input)
+    if len(items) != 1:
+        raise ValueError(f"sweep_local sweeps one input; got {len(items)} (use sweep() for several)")
+    name, given = items[0]
+    if given is not None and (topology is not None or fps is not None or animation is not None):
+        raise ValueError("topology, fps and animation apply to a file input, not to an Animation")
+    arrays = None
+    if given is not None:
+        arrays = (_positions(given.positions), _faces(given.faces), float(given.fps))
     return _native.sweep_local(
         {
-            "input": os.fspath(input),
+            "input": name,
+            "arrays": arrays,
+            "animation": _animation_selector(animation),
             "series": _series_list(codecs, params, series),
             "points": points,
             "eval": _eval_dict(sted, hausdorff, sted_options),
@@ -521,6 +563,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     parser.add_argument("--plot", default=None, help="one input: its SVG plot")
     parser.add_argument("--topology", default=None, help="OBJ giving the triangles of PC2/MDD inputs")
     parser.add_argument("--fps", type=float, default=None)
+    parser.add_argument("--animation", default=None, help="glTF inputs: the animation to sweep, by name or index "
+                        "(default: the first)")
     parser.add_argument("--no-sted", action="store_true")
     parser.add_argument("--no-hausdorff", action="store_true")
     parser.add_argument("-f", "--force", action="store_true", help="replace existing outputs")
@@ -543,7 +587,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
             inputs, args.codecs, points=args.points, params=params, series=args.series or None,
             client=args.scheduler, n_workers=args.workers, threads_per_worker=args.threads_per_worker,
             sted=not args.no_sted, hausdorff=not args.no_hausdorff, topology=args.topology, fps=args.fps,
-            json=args.json, csv=args.csv, plot=args.plot, out_dir=args.out, force=args.force,
+            animation=args.animation, json=args.json, csv=args.csv, plot=args.plot, out_dir=args.out, force=args.force,
             progress=not args.no_progress,
         )
     except (AnimcodecError, ValueError, TypeError) as e:

@@ -1,7 +1,7 @@
 """Type stubs of ``animcodec.distributed`` (Dask sweeps)."""
 
 from os import PathLike
-from typing import Any, Dict, Iterable, List, Optional, Sequence, Union
+from typing import Any, Callable, Dict, Iterable, List, Optional, Sequence, Union
 
 CORPUS_EXTENSIONS: tuple
 
@@ -26,6 +26,7 @@ def run_job(
     topology: Optional[str] = None,
     fps: Optional[float] = None,
     animation: Any = None,
+    gltf_animation: Optional[str] = None,
 ) -> Dict[str, Any]: ...
 def sweep(
     inputs: Any,
@@ -42,6 +43,7 @@ def sweep(
     sted_options: Optional[Dict[str, Any]] = None,
     topology: Optional[str] = None,
     fps: Optional[float] = None,
+    animation: Optional[Union[str, int]] = None,
     json: Optional[str] = None,
     csv: Optional[str] = None,
     plot: Optional[str] = None,
@@ -50,7 +52,7 @@ def sweep(
     progress: Optional[bool] = None,
 ) -> SweepResult: ...
 def sweep_local(
-    input: str,
+    input: Any,
     codecs: Any = None,
     *,
     points: Optional[int] = None,
@@ -62,5 +64,7 @@ def sweep_local(
     sted_options: Optional[Dict[str, Any]] = None,
     topology: Optional[str] = None,
     fps: Optional[float] = None,
+    animation: Optional[Union[str, int]] = None,
+    progress: Optional[Callable[[Dict[str, Any]], None]] = None,
 ) -> Dict[str, Any]: ...
 def main(argv: Optional[Sequence[str]] = None) -> int: ...

@@ -296,17 +296,22 @@ fn load_input(
 }
 
 /// Sweep jobs on one worker reload the same few inputs over and over: the last ones loaded
-/// stay in memory (keyed by input, topology and frame rate).
-type CacheKey = (String, Option<PathBuf>, Option<u32>);
+/// stay in memory (keyed by input, topology, frame rate and glTF animation).
+type CacheKey = (String, Option<PathBuf>, Option<u32>, Option<String>);
 static INPUT_CACHE: Mutex<Vec<(CacheKey, Arc<Animation>)>> = Mutex::new(Vec::new());
 const INPUT_CACHE_ENTRIES: usize = 2;
 
-fn load_cached(input: &str, topology: Option<PathBuf>, fps: Option<f32>) -> Result<Arc<Animation>, BoxError> {
-    let key = (input.to_string(), topology.clone(), fps.map(f32::to_bits));
+fn load_cached(
+    input: &str,
+    topology: Option<PathBuf>,
+    fps: Option<f32>,
+    animation: Option<String>,
+) -> Result<Arc<Animation>, BoxError> {
+    let key = (input.to_string(), topology.clone(), fps.map(f32::to_bits), animation.clone());
     if let Some((_, a)) = INPUT_CACHE.lock().map_err(|_| "input cache poisoned")?.iter().find(|(k, _)| *k == key) {
         return Ok(Arc::clone(a));
     }
-    let animation = Arc::new(load_input(input, topology, fps, None)?);
+    let animation = Arc::new(load_input(input, topology, fps, animation)?);
     let mut cache = INPUT_CACHE.lock().map_err(|_| "input cache poisoned")?;
     cache.retain(|(k, _)| *k != key);
     cache.insert(0, (key, Arc::clone(&animation)));
@@ -637,8 +642,9 @@ fn sweep_plan(py: Python<'_>, series: &Bound<'_, PyList>, points: Option<usize>)
 
 /// One sweep job, as a dict of every key: series `(codec, params)` at ladder step `step` on
 /// `input` (a path or `synth:NAME[:SIZE]`, read with `topology` and `fps`, loaded once per
-/// worker process and kept) or on the animation `arrays = (positions, faces, fps)` (or
-/// `None`); `eval` the metric options (or `None`).
+/// worker process and kept; `animation` picks a glTF file's animation by name or index, or
+/// `None`: the first) or on the animation `arrays = (positions, faces, fps)` (or `None`); `eval`
+/// the metric options (or `None`).
 #[derive(FromPyObject)]
 #[pyo3(from_item_all)]
 struct SweepJob<'py> {
@@ -649,14 +655,18 @@ struct SweepJob<'py> {
     eval: Option<Bound<'py, PyDict>>,
     topology: Option<PathBuf>,
     fps: Option<f32>,
-    arrays: Option<(PyReadonlyArray3<'py, f32>, PyReadonlyArray2<'py, u32>, f32)>,
+    animation: Option<String>,
+    arrays: Option<AnimationArrays<'py>>,
 }
+
+/// An animation handed over as arrays: `(positions[F, V, 3] float32, faces[T, 3] uint32, fps)`.
+type AnimationArrays<'py> = (PyReadonlyArray3<'py, f32>, PyReadonlyArray2<'py, u32>, f32);
 
 /// Runs one sweep job. Returns `{"row": …, "vertices", "frames"}`; the row is what
 /// `animcodec sweep --json` writes for that point (the same harness function measures it).
 #[pyfunction]
 fn sweep_point<'py>(py: Python<'py>, job: SweepJob<'py>) -> PyResult<Py<PyAny>> {
-    let SweepJob { input, codec, params, step, eval, topology, fps, arrays } = job;
+    let SweepJob { input, codec, params, step, eval, topology, fps, animation: gltf_animation, arrays } = job;
     let registry = registry();
     let list = PyList::new(py, [(codec, params)])?;
     let series = series_from(registry, &list)?;
@@ -664,7 +674,7 @@ fn sweep_point<'py>(py: Python<'py>, job: SweepJob<'py>) -> PyResult<Py<PyAny>> 
         SweepOptions { points: None, jobs: Some(1), eval: eval_options(eval.as_ref())?, limits: Limits::default() };
     let animation = match arrays {
         Some((positions, faces, fps)) => Arc::new(animation_from(&positions, &faces, fps)?),
-        None => py.detach(|| load_cached(&input, topology, fps)).map_err(to_py)?,
+        None => py.detach(|| load_cached(&input, topology, fps, gltf_animation)).map_err(to_py)?,
     };
     let point = py.detach(|| harness::sweep_point(registry, &series[0], step, &animation, &options)).map_err(to_py)?;
     let value = serde_json::json!({
@@ -675,14 +685,16 @@ fn sweep_point<'py>(py: Python<'py>, job: SweepJob<'py>) -> PyResult<Py<PyAny>> 
     value_to_py(py, &value)
 }
 
-/// A single-process sweep of one input, as a dict of every key: `input` (read with `topology`
-/// and `fps`), `series` (`[(codec, params or None), …]`), `points` per series (or `None`:
-/// every step), `eval` (or `None`), `jobs` (`1`: one point after the other; `None`: rayon's
-/// pool).
+/// A single-process sweep of one input, as a dict of every key: `input` (read with `topology`,
+/// `fps` and the glTF `animation`; or, when `arrays` is given, the name of that animation),
+/// `series` (`[(codec, params or None), …]`), `points` per series (or `None`: every step),
+/// `eval` (or `None`), `jobs` (`1`: one point after the other; `None`: rayon's pool).
 #[derive(FromPyObject)]
 #[pyo3(from_item_all)]
 struct LocalSweep<'py> {
     input: String,
+    arrays: Option<AnimationArrays<'py>>,
+    animation: Option<String>,
     series: Bound<'py, PyList>,
     points: Option<usize>,
     eval: Option<Bound<'py, PyDict>>,
@@ -696,7 +708,8 @@ struct LocalSweep<'py> {
 /// same harness call): the sweep document as a dict.
 #[pyfunction]
 fn sweep_local<'py>(py: Python<'py>, sweep: LocalSweep<'py>) -> PyResult<Py<PyAny>> {
-    let LocalSweep { input, series, points, eval, jobs, topology, fps, progress } = sweep;
+    let LocalSweep { input, arrays, animation: gltf_animation, series, points, eval, jobs, topology, fps, progress } =
+        sweep;
     let registry = registry();
     let series = series_from(registry, &series)?;
     let options = SweepOptions { points, jobs, eval: eval_options(eval.as_ref())?, limits: Limits::default() };
@@ -727,9 +740,13 @@ fn sweep_local<'py>(py: Python<'py>, sweep: LocalSweep<'py>) -> PyResult<Py<PyAn
             }
         });
     };
+    let given = arrays.map(|(positions, faces, fps)| animation_from(&positions, &faces, fps)).transpose()?;
     let (animation, result, seconds) = py
         .detach(|| -> Result<_, BoxError> {
-            let animation = load_input(&input, topology, fps, None)?;
+            let animation = match given {
+                Some(a) => a,
+                None => load_input(&input, topology, fps, gltf_animation)?,
+            };
             let start = Instant::now();
             let result = harness::sweep(registry, &series, &animation, &options, &report)?;
             Ok((animation, result, start.elapsed().as_secs_f64()))

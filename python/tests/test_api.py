@@ -144,8 +144,14 @@ def test_wrong_shapes_and_dtypes_are_clear_errors(flag):
         animcodec.encode(flag.positions, flag.faces.astype(np.float32), "quant-delta")
     with pytest.raises(ValueError, match="negative vertex index"):
         animcodec.encode(flag.positions, -flag.faces.astype(np.int64) - 1, "quant-delta")
-    with pytest.raises(TypeError, match="real numbers"):
-        animcodec.encode(flag.positions.astype(np.complex64), flag.faces, "quant-delta")
+    # Positions are float32 or float64, nothing else (as documented): integer coordinates are
+    # refused, not silently taken as model units.
+    for dtype in (np.complex64, np.int32, np.int64, np.uint16, np.float16, np.bool_):
+        with pytest.raises(TypeError, match="positions must be float32 or float64"):
+            animcodec.encode(flag.positions.astype(dtype), flag.faces, "quant-delta")
+    assert animcodec.encode(flag.positions.astype(np.float64), flag.faces, "quant-delta") == animcodec.encode(
+        flag.positions, flag.faces, "quant-delta"
+    )
     with pytest.raises(ValueError, match="fps"):
         animcodec.encode(flag.positions, flag.faces, "quant-delta", fps=0)
     # The extension itself refuses what the Python layer would have converted.

@@ -51,6 +51,7 @@ def test_every_dict_key_is_documented(flag, tmp_path):
             "eval": None,
             "topology": None,
             "fps": None,
+            "animation": None,
             "arrays": None,
         }
     )

@@ -151,3 +151,98 @@ def test_sweep_local_reports_progress_per_point():
         raise RuntimeError("callback failure")
     again = animcodec.sweep_local("synth:flag", ["quant-delta"], points=2, progress=boom)
     assert len(again["rows"]) == 2
+
+
+def test_sweep_local_takes_an_animation_like_its_file(tmp_path, flag):
+    # The same animation as arrays, as (name, arrays) and as a file: the same rows; the
+    # document's input is the name given.
+    path = tmp_path / "flag.pc2"
+    animcodec.save(str(path), flag)
+    from_file = animcodec.sweep_local(str(path), ["quant-delta", "pca-aoi"], points=2)
+    bare = animcodec.sweep_local(flag, ["quant-delta", "pca-aoi"], points=2)
+    named = animcodec.sweep_local(("my-flag", flag), ["quant-delta", "pca-aoi"], points=2)
+    assert strip_timings(bare["rows"]) == strip_timings(from_file["rows"]) == strip_timings(named["rows"])
+    assert (bare["input"], named["input"]) == ("array:0", "my-flag")
+    assert (named["vertices"], named["frames"]) == (flag.positions.shape[1], flag.positions.shape[0])
+    with pytest.raises(ValueError, match="apply to a file input"):
+        animcodec.sweep_local(flag, ["quant-delta"], points=2, fps=10)
+    with pytest.raises(ValueError, match="one input"):
+        animcodec.sweep_local([flag, flag], ["quant-delta"], points=2)
+    with pytest.raises(TypeError, match="expected a path"):
+        animcodec.sweep_local(42, ["quant-delta"], points=2)
+
+
+def _two_animation_glb(path):
+    """A 5 × 5 grid with one morph target (a bump) and two animations: "rise" takes the bump
+    from 0 to 1 over 4 keys, "fall" from 1 to 0 over 6 keys (1 key per second)."""
+    import struct
+
+    import numpy as np
+
+    n = 5
+    xs, ys = np.meshgrid(np.linspace(0, 1, n), np.linspace(0, 1, n))
+    base = np.stack([xs.ravel(), ys.ravel(), np.zeros(n * n)], axis=1).astype(np.float32)
+    bump = np.zeros_like(base)
+    bump[:, 2] = np.exp(-((base[:, 0] - 0.5) ** 2 + (base[:, 1] - 0.5) ** 2) * 8).astype(np.float32)
+    tris = []
+    for r in range(n - 1):
+        for c in range(n - 1):
+            v = r * n + c
+            tris += [[v, v + 1, v + n], [v + 1, v + n + 1, v + n]]
+    index = np.array(tris, dtype=np.uint32)
+    rise_t = np.arange(4, dtype=np.float32)
+    rise_w = np.linspace(0, 1, 4, dtype=np.float32)
+    fall_t = np.arange(6, dtype=np.float32)
+    fall_w = np.linspace(1, 0, 6, dtype=np.float32)
+    blobs = [base, bump, index, rise_t, rise_w, fall_t, fall_w]
+    views, accessors, data = [], [], b""
+    kinds = [(5126, "VEC3"), (5126, "VEC3"), (5125, "SCALAR"), (5126, "SCALAR"), (5126, "SCALAR"),
+             (5126, "SCALAR"), (5126, "SCALAR")]
+    for blob, (component, kind) in zip(blobs, kinds):
+        raw = blob.tobytes()
+        views.append({"buffer": 0, "byteOffset": len(data), "byteLength": len(raw)})
+        accessor = {"bufferView": len(views) - 1, "componentType": component, "type": kind,
+                    "count": int(blob.size if kind == "SCALAR" else blob.shape[0])}
+        if blob is base or blob is bump or kind == "SCALAR" and blob.dtype == np.float32:
+            flat = blob.reshape(-1, 3) if kind == "VEC3" else blob.reshape(-1, 1)
+            accessor["min"] = [float(x) for x in flat.min(axis=0)]
+            accessor["max"] = [float(x) for x in flat.max(axis=0)]
+        accessors.append(accessor)
+        data += raw + b"\0" * (-len(raw) % 4)
+
+    def animation(name, times, weights):
+        return {"name": name, "samplers": [{"input": times, "output": weights, "interpolation": "LINEAR"}],
+                "channels": [{"sampler": 0, "target": {"node": 0, "path": "weights"}}]}
+
+    doc = {
+        "asset": {"version": "2.0"},
+        "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 2, "targets": [{"POSITION": 1}]}],
+                    "weights": [0.0]}],
+        "animations": [animation("rise", 3, 4), animation("fall", 5, 6)],
+        "buffers": [{"byteLength": len(data)}], "bufferViews": views, "accessors": accessors,
+    }
+    text = json.dumps(doc).encode()
+    text += b" " * (-len(text) % 4)
+    chunks = struct.pack("<II", len(text), 0x4E4F534A) + text + struct.pack("<II", len(data), 0x004E4942) + data
+    path.write_bytes(struct.pack("<III", 0x46546C67, 2, 12 + len(chunks)) + chunks)
+
+
+def test_a_gltf_animation_is_picked_by_name_or_index(client, tmp_path):
+    path = tmp_path / "two.glb"
+    _two_animation_glb(path)
+    first = animcodec.sweep_local(str(path), ["quant-delta"], points=2)
+    fall = animcodec.sweep_local(str(path), ["quant-delta"], points=2, animation="fall")
+    by_index = animcodec.sweep_local(str(path), ["quant-delta"], points=2, animation=1)
+    assert (first["frames"], fall["frames"]) == (4, 6)
+    assert strip_timings(fall["rows"]) == strip_timings(by_index["rows"])
+    # The same as sweeping what load() picks.
+    loaded = animcodec.sweep_local(("x", animcodec.load(str(path), animation="fall")), ["quant-delta"], points=2)
+    assert strip_timings(loaded["rows"]) == strip_timings(fall["rows"])
+    # On the cluster too.
+    result = animcodec.sweep([str(path)], ["quant-delta"], points=2, client=client, animation="fall")
+    assert strip_timings(result.documents[0]["rows"]) == strip_timings(fall["rows"])
+    with pytest.raises(animcodec.AnimcodecError, match="nope"):
+        animcodec.sweep_local(str(path), ["quant-delta"], points=2, animation="nope")
+    with pytest.raises(TypeError, match="name .* or an index"):
+        animcodec.sweep_local(str(path), ["quant-delta"], points=2, animation=1.5)
