@@ -504,7 +504,7 @@ async function mountReport(root, data, THREE, OrbitControls) {
     for (const c of codecs) {
       const rows = data.rows.filter((r) => r.codec === c);
       for (const k of Object.keys(rows[0].params || {})) {
-        if (new Set(rows.map((r) => JSON.stringify(r.params[k]))).size > 1) columns.push({ codec: c, key: k });
+        if (new Set(rows.map((r) => JSON.stringify((r.params || {})[k]))).size > 1) columns.push({ codec: c, key: k });
       }
     }
     return columns;
