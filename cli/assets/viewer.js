@@ -235,7 +235,7 @@ async function mountViewer(root, data, THREE, OrbitControls) {
   const orbit = new OrbitControls(camera, grid);
   // Follow the reference's frame centre when framing the whole path would leave the model off
   // centre (it travels more than a tenth of the panel) or small (its frames fit a view 20 %
-  // closer): the model then fills its panel at every frame; the box switch undoes it.
+  // closer): the model then fills its panel at every frame; unticking "follow" frames the path.
   {
     const r = panels[0].getBoundingClientRect();
     const aspect = r.width / Math.max(1, r.height);
