@@ -317,13 +317,17 @@ impl CacheWriter {
                 self.companion_file = Some(f);
             }
         }
-        self.bytes.clear();
-        self.bytes.reserve(positions.len() * 4);
-        match self.endian {
-            Endian::Little => positions.iter().for_each(|x| self.bytes.extend_from_slice(&x.to_le_bytes())),
-            Endian::Big => positions.iter().for_each(|x| self.bytes.extend_from_slice(&x.to_be_bytes())),
+        // One frame of bytes at a time (issue 30: a whole decoded packet converted at once was
+        // another copy of it — 480 MB for a 40-frame packet of 1M vertices).
+        for frame in positions.chunks(self.vertex_count.max(1) * 3) {
+            self.bytes.clear();
+            self.bytes.reserve(frame.len() * 4);
+            match self.endian {
+                Endian::Little => frame.iter().for_each(|x| self.bytes.extend_from_slice(&x.to_le_bytes())),
+                Endian::Big => frame.iter().for_each(|x| self.bytes.extend_from_slice(&x.to_be_bytes())),
+            }
+            self.file.write_all(&self.bytes).map_err(|e| self.file.error(e))?;
         }
-        self.file.write_all(&self.bytes).map_err(|e| self.file.error(e))?;
         self.frames_written += n;
         Ok(())
     }
