@@ -44,7 +44,7 @@ fn blocks_assemble_to_the_local_encode_byte_for_byte() {
         ("hosvd", vec![("block", ParamValue::Int(9))]),
         ("hosvd", vec![("block", ParamValue::Int(14))]),
         ("hosvd", vec![]),
-        ("pca-aoi", vec![("mode", ParamValue::Choice("svd".into())), ("block", ParamValue::Int(8))]),
+        ("pca-aoi", vec![("mode", ParamValue::Choice("svd")), ("block", ParamValue::Int(8))]),
     ];
     for (name, pairs) in cases {
         let codec = reg.by_name(name).unwrap();
