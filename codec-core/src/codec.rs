@@ -218,6 +218,23 @@ pub trait AnimationCodec: Send + Sync {
         Ok(params.clone())
     }
 
+    /// Issue 30 (distributed encode): the frames per temporal block when every packet of
+    /// `params` on an animation of `frame_count` frames is coded from its own block's frames
+    /// alone — no state carried from earlier packets into the packet bytes — so that block `i`
+    /// encoded on its own (any machine, any order) gives the very packet the whole encode
+    /// writes ([`crate::blocks`]). Packets then cover frames `i × block ..` up to the next block
+    /// (the last may be shorter). Default: refused (naming the codec), for codecs whose
+    /// packets depend on earlier frames or whose analysis spans the whole sequence.
+    fn independent_blocks(&self, params: &ParamSet, frame_count: usize) -> Result<usize> {
+        let _ = (params, frame_count);
+        Err(crate::error::Error::Unsupported {
+            context: self.name().into(),
+            detail: "its packets are not coded from independent temporal blocks, so it cannot be encoded block by \
+                     block (quant-delta, hosvd and pca-aoi with mode=svd can)"
+                .into(),
+        })
+    }
+
     /// A streaming encoder.
     fn new_encoder(&self, params: &ParamSet, setup: &EncoderSetup<'_>) -> Result<Box<dyn FrameEncoder>>;
 

@@ -7,6 +7,7 @@
 //! [`encode_animation`] and [`decode_animation`] drive any codec through the container.
 
 pub mod animation;
+pub mod blocks;
 pub mod bytes;
 pub mod codec;
 pub mod connectivity;

@@ -68,6 +68,10 @@ impl AnimationCodec for QuantDelta {
     fn validate(&self, params: &ParamSet) -> Result<()> {
         QuantDeltaParams::from_param_set(params).map(|_| ())
     }
+    /// Every packet quantizes its own `block` frames (its own box) and deltas within itself.
+    fn independent_blocks(&self, params: &ParamSet, _frame_count: usize) -> Result<usize> {
+        Ok(QuantDeltaParams::from_param_set(params)?.block as usize)
+    }
     fn error_bound(&self, params: &ParamSet, animation: &Animation) -> Result<ErrorBound> {
         let p = QuantDeltaParams::from_param_set(params)?;
         let (lo, hi) = animation.bounding_box();

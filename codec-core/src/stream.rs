@@ -83,20 +83,13 @@ impl<'c, W: Write> StreamEncoder<'c, W> {
             frame_rate,
         };
         // The encoder's own stream: limits that never refuse it for its size.
-        let check = SelfCheck {
-            decoder: codec.new_decoder(&info, &encoder.config(), &Limits::UNLIMITED)?,
-            topology: topology_in.clone(),
+        let check = SelfCheck::new(
+            codec.new_decoder(&info, &encoder.config(), &Limits::UNLIMITED)?,
+            topology_in.clone(),
             frame_rate,
-            keep_input: encoder.declared_bound().is_none(),
-            input: Vec::new(),
-            input_first: 0,
-            lo: [f32::INFINITY; 3],
-            hi: [f32::NEG_INFINITY; 3],
-            coordinates: 0,
-            checked_frames: 0,
-            max_error: 0.0,
-            sum_squared: 0.0,
-        };
+            encoder.declared_bound().is_none(),
+            0,
+        );
         let writer = ContainerWriter::new(
             sink,
             codec.fourcc(),
@@ -193,8 +186,7 @@ impl<'c, W: Write> StreamEncoder<'c, W> {
                 self.check.checked_frames, self.frame_count
             )));
         }
-        let (lo, hi) = if self.check.coordinates < 3 { ([0.0; 3], [0.0; 3]) } else { (self.check.lo, self.check.hi) };
-        let diagonal = (0..3).map(|a| (hi[a] as f64 - lo[a] as f64).powi(2)).sum::<f64>().sqrt();
+        let diagonal = self.check.diagonal();
         let coordinates = self.check.coordinates;
         let bound = match self.encoder.declared_bound() {
             Some(b) => b,
@@ -212,8 +204,8 @@ impl<'c, W: Write> StreamEncoder<'c, W> {
     }
 }
 
-/// State of [`StreamEncoder`]'s self-check.
-struct SelfCheck {
+/// State of [`StreamEncoder`]'s self-check (and of [`crate::blocks::encode_block`]'s, per block).
+pub(crate) struct SelfCheck {
     /// The codec's decoder, fed every packet in order.
     decoder: Box<dyn FrameDecoder>,
     /// Whether every input frame is kept to the end (the encoder declares no bound, so
@@ -230,8 +222,8 @@ struct SelfCheck {
     coordinates: usize,
     topology: Topology,
     frame_rate: f32,
-    /// Frames decoded and compared so far.
-    checked_frames: usize,
+    /// Frames decoded and compared so far (counted from frame 0 of the stream).
+    pub(crate) checked_frames: usize,
     /// Largest coordinate error so far.
     max_error: f64,
     /// Sum of squared coordinate errors so far.
@@ -239,15 +231,50 @@ struct SelfCheck {
 }
 
 impl SelfCheck {
+    /// A check whose first packet starts at frame `first` (0 for a whole stream).
+    pub(crate) fn new(
+        decoder: Box<dyn FrameDecoder>,
+        topology: Topology,
+        frame_rate: f32,
+        keep_input: bool,
+        first: usize,
+    ) -> Self {
+        Self {
+            decoder,
+            topology,
+            frame_rate,
+            keep_input,
+            input: Vec::new(),
+            input_first: first,
+            lo: [f32::INFINITY; 3],
+            hi: [f32::NEG_INFINITY; 3],
+            coordinates: 0,
+            checked_frames: first,
+            max_error: 0.0,
+            sum_squared: 0.0,
+        }
+    }
+
+    /// Coordinates pushed so far.
+    pub(crate) fn coordinates(&self) -> usize {
+        self.coordinates
+    }
+
+    /// Diagonal of the bounding box of every frame pushed (0 when none was).
+    pub(crate) fn diagonal(&self) -> f64 {
+        let (lo, hi) = if self.coordinates < 3 { ([0.0; 3], [0.0; 3]) } else { (self.lo, self.hi) };
+        (0..3).map(|a| (hi[a] as f64 - lo[a] as f64).powi(2)).sum::<f64>().sqrt()
+    }
+
     /// Keeps `frames` until their packet is checked, and extends the bounding box.
-    fn push(&mut self, frames: &[f32]) {
+    pub(crate) fn push(&mut self, frames: &[f32]) {
         crate::animation::extend_bounding_box(&mut self.lo, &mut self.hi, frames);
         self.coordinates += frames.len();
         self.input.extend_from_slice(frames);
     }
 
     /// Decodes `p`, checks it against the encoder's reconstruction and accumulates its error.
-    fn packet(&mut self, codec: &'static str, vertices: usize, p: &EncodedPacket) -> Result<()> {
+    pub(crate) fn packet(&mut self, codec: &'static str, vertices: usize, p: &EncodedPacket) -> Result<()> {
         let refuse = |cause: String| Error::Unsupported {
             context: codec.into(),
             detail: format!("self-check: {cause}; the stream was not written"),
@@ -294,7 +321,12 @@ impl SelfCheck {
     /// The accumulated error against `bound`, like the conformance suite's check: a relative
     /// 1e-9 for the rounding of these f64 sums, nothing else loosened. A bound that is not
     /// finite (e.g. a relative one on a zero-extent animation) checks nothing.
-    fn within(&self, bound: &ErrorBound, coordinates: usize, diagonal: f64) -> std::result::Result<(), String> {
+    pub(crate) fn within(
+        &self,
+        bound: &ErrorBound,
+        coordinates: usize,
+        diagonal: f64,
+    ) -> std::result::Result<(), String> {
         let slack = 1.0 + 1e-9;
         if let Some(b) = bound.max_coordinate_error.filter(|b| b.is_finite()) {
             if self.max_error > b * slack {

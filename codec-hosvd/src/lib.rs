@@ -311,6 +311,13 @@ impl AnimationCodec for Hosvd {
     fn validate(&self, params: &ParamSet) -> Result<()> {
         HosvdParams::from_param_set(params).map(|_| ())
     }
+    /// Each temporal block is decomposed and coded on its own (`HosvdEncoder::code`: the
+    /// block's frames, its length, and whether it is the whole animation); `block=0` is one
+    /// block of the whole sequence.
+    fn independent_blocks(&self, params: &ParamSet, frame_count: usize) -> Result<usize> {
+        let p = HosvdParams::from_param_set(params)?;
+        Ok(if p.block == 0 { frame_count.max(1) } else { p.block as usize })
+    }
     /// With `block=0` (the whole sequence in one decomposition), the frames per block that fit
     /// `budget` by [`block_memory`]; equal blocks (`⌈F / n⌉` frames for the fewest `n` that fit),
     /// so no short remainder block is decomposed on its own. An explicit `block` is kept.

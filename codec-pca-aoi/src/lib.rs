@@ -261,6 +261,23 @@ impl AnimationCodec for PcaAoi {
     fn validate(&self, params: &ParamSet) -> Result<()> {
         PcaAoiParams::from_param_set(params).map(|_| ())
     }
+    /// With `mode=svd` every block's dictionary is estimated from that block alone; baoi and
+    /// qaoi start from the previous block's dictionary (`dictionary::Tracker`), so their packets
+    /// depend on every earlier block.
+    fn independent_blocks(&self, params: &ParamSet, _frame_count: usize) -> Result<usize> {
+        let p = PcaAoiParams::from_param_set(params)?;
+        if p.mode != Mode::Svd {
+            return Err(Error::Unsupported {
+                context: NAME.into(),
+                detail: format!(
+                    "mode={} starts each block's dictionary from the previous block's, so its blocks cannot be \
+                     encoded independently; use -p mode=svd",
+                    codec_core::ParamChoice::name(p.mode)
+                ),
+            });
+        }
+        Ok(p.block as usize)
+    }
     /// Issue 30: a block (one packet, analysed at once) whose modelled peak
     /// ([`block_memory`]) exceeds `budget` is shortened to the fewest equal blocks that fit;
     /// a block that fits is kept. Fails, naming the budget, when 8 frames do not fit.
@@ -930,7 +947,11 @@ impl PcaAoiDecoder {
         let (nd, nf) = (e_dim * k, k * m_dim);
         let raw_len = nd * pd + nf * pf;
         self.limits.check_alloc(NAME, "cluster.codes", raw_len as u64)?;
-        self.limits.check_alloc(NAME, "cluster.matrices", ((nd + nf + e_dim * m_dim) * 8) as u64)?;
+        self.limits.check_alloc(
+            NAME,
+            "cluster.matrices",
+            ((nd + nf + 3 * d * n.min(RECONSTRUCT_VERTICES)) * 8) as u64,
+        )?;
         let block = r.take(r.remaining(), "cluster.codes")?;
         let raw = entropy::decompress(block, NAME, "cluster.codes", raw_len)?;
         if raw.len() != raw_len {
@@ -984,7 +1005,11 @@ impl PcaAoiDecoder {
         Ok(())
     }
 
-    /// Eq. 5: `D̂ = Ê F̂`, plus the stored means, into the packet's frames.
+    /// Eq. 5: `D̂ = Ê F̂`, plus the stored means, into the packet's frames. The product is
+    /// formed [`RECONSTRUCT_VERTICES`] vertices at a time (issue 30: whole, it is `3d × n` f64
+    /// per cluster — 960 MB for a 40-frame block of 1M vertices, more than the decoded f32
+    /// frames themselves); each entry is the same dot product over the `k` components either
+    /// way (`reconstruction_in_vertex_chunks_is_bit_exact`).
     fn write_cluster(
         &self,
         e_hat: faer::MatRef<'_, f64>,
@@ -994,15 +1019,18 @@ impl PcaAoiDecoder {
         verts: &[u32],
         out: &mut [f32],
     ) {
-        let x_hat = linalg::mul(e_hat, f_hat);
         let v = self.vertex_count;
-        for (j, &vert) in verts.iter().enumerate() {
-            for (row, &mean) in means.iter().enumerate() {
-                let value = match domain {
-                    Resolved::Temporal => x_hat[(row, j)],
-                    Resolved::Spatial => x_hat[(j, row)],
-                };
-                out[((row / 3) * v + vert as usize) * 3 + row % 3] = (value + mean) as f32;
+        for start in (0..verts.len()).step_by(RECONSTRUCT_VERTICES) {
+            let chunk = &verts[start..(start + RECONSTRUCT_VERTICES).min(verts.len())];
+            let x_hat = reconstruct_vertices(e_hat, f_hat, domain, start, chunk.len());
+            for (j, &vert) in chunk.iter().enumerate() {
+                for (row, &mean) in means.iter().enumerate() {
+                    let value = match domain {
+                        Resolved::Temporal => x_hat[(row, j)],
+                        Resolved::Spatial => x_hat[(j, row)],
+                    };
+                    out[((row / 3) * v + vert as usize) * 3 + row % 3] = (value + mean) as f32;
+                }
             }
         }
     }
@@ -1038,7 +1066,11 @@ impl PcaAoiDecoder {
             }
             steps.push(s);
         }
-        self.limits.check_alloc(NAME, "cluster.matrices", ((e_dim * k + k * m_dim + e_dim * m_dim) * 8) as u64)?;
+        self.limits.check_alloc(
+            NAME,
+            "cluster.matrices",
+            ((e_dim * k + k * m_dim + 3 * d * n.min(RECONSTRUCT_VERTICES)) * 8) as u64,
+        )?;
         self.limits.check_alloc(NAME, "frame chains", (d as u64).saturating_mul(64))?;
         let time = CausalGraph::chain(d, time_predictor == Predictor::Parallelogram);
         let (dict_layout, feat_layout) = layouts(domain, mesh, &time);
@@ -1047,6 +1079,26 @@ impl PcaAoiDecoder {
         let (e_hat, f_hat) = coding::decode(bytes, &steps, dict_layout, feat_layout, &settings)?;
         self.write_cluster(e_hat.as_ref(), f_hat.as_ref(), &means, domain, verts, out);
         Ok(())
+    }
+}
+
+/// Vertices of a cluster whose reconstruction [`PcaAoiDecoder::write_cluster`] forms at once:
+/// `3d × 4096` f64 is at most 384 MiB at the longest block (4096 frames), 3.75 MiB at the
+/// default 40. Clusters up to this size are reconstructed in one product, as before.
+const RECONSTRUCT_VERTICES: usize = 4096;
+
+/// The columns (temporal) or rows (spatial) `start .. start + len` of `Ê F̂`: the vertices'
+/// part of the cluster's reconstruction.
+fn reconstruct_vertices(
+    e_hat: faer::MatRef<'_, f64>,
+    f_hat: faer::MatRef<'_, f64>,
+    domain: Resolved,
+    start: usize,
+    len: usize,
+) -> Mat<f64> {
+    match domain {
+        Resolved::Temporal => linalg::mul(e_hat, f_hat.subcols(start, len)),
+        Resolved::Spatial => linalg::mul(e_hat.subrows(start, len), f_hat),
     }
 }
 
@@ -1108,5 +1160,45 @@ impl FrameDecoder for PcaAoiDecoder {
         }
         r.expect_end("packet")?;
         Ok(out)
+    }
+}
+
+#[cfg(test)]
+mod chunk_tests {
+    use super::*;
+
+    /// The decoder's reconstruction in chunks of vertices equals the whole product bit for bit
+    /// (old streams decode to the same frames), for ranks and cluster sizes on both sides of
+    /// the chunk, remainders included.
+    #[test]
+    fn reconstruction_in_vertex_chunks_is_bit_exact() {
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let mut next = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+        };
+        for (d, k, n) in [(40, 8, RECONSTRUCT_VERTICES * 2 + 17), (3, 1, RECONSTRUCT_VERTICES + 1), (12, 30, 9000)] {
+            for domain in [Resolved::Temporal, Resolved::Spatial] {
+                let (e_dim, m_dim) = matrix_dims(domain, n, d);
+                let e = Mat::from_fn(e_dim, k, |_, _| next());
+                let f = Mat::from_fn(k, m_dim, |_, _| next());
+                let whole = linalg::mul(e.as_ref(), f.as_ref());
+                for start in (0..n).step_by(RECONSTRUCT_VERTICES) {
+                    let len = RECONSTRUCT_VERTICES.min(n - start);
+                    let part = reconstruct_vertices(e.as_ref(), f.as_ref(), domain, start, len);
+                    for j in 0..len {
+                        for row in 0..3 * d {
+                            let (a, b) = match domain {
+                                Resolved::Temporal => (part[(row, j)], whole[(row, start + j)]),
+                                Resolved::Spatial => (part[(j, row)], whole[(start + j, row)]),
+                            };
+                            assert_eq!(a.to_bits(), b.to_bits(), "d {d} k {k} n {n} {domain:?} vertex {}", start + j);
+                        }
+                    }
+                }
+            }
+        }
     }
 }

@@ -49,6 +49,7 @@ __all__ = [
     "sweep",
     "sweep_local",
     "SweepResult",
+    "encode_distributed",
 ]
 
 PathLike = Union[str, "os.PathLike[str]"]
@@ -393,3 +394,4 @@ def save(path: PathLike, animation: Animation, *, force: bool = False, topology_
 
 
 from .distributed import SweepResult, sweep, sweep_local  # noqa: E402  (needs the names above)
+from .blocks import encode_distributed  # noqa: E402  (issue 30: one animation across a cluster)

@@ -10,6 +10,7 @@ from ._native import AnimcodecError as AnimcodecError
 from .distributed import SweepResult as SweepResult
 from .distributed import sweep as sweep
 from .distributed import sweep_local as sweep_local
+from .blocks import encode_distributed as encode_distributed
 
 _Path = Union[str, PathLike[str]]
 _ArrayLike = npt.ArrayLike

@@ -92,3 +92,38 @@ class GatheredSweep(TypedDict):
     plot: Optional[_Path]
 
 def sweep_document(gathered: GatheredSweep) -> Dict[str, Any]: ...
+
+# Issue 30: one animation encoded by independent temporal blocks (animcodec.blocks).
+_Packet = Tuple[int, int, bool, bytes]
+def block_plan(
+    codec: str, vertices: int, frames: int, params: Optional[Dict[str, Any]] = None, memory: Optional[int] = None
+) -> Dict[str, Any]: ...
+def encode_block(
+    positions: npt.NDArray[np.float32],
+    faces: npt.NDArray[np.uint32],
+    codec: str,
+    fps: float,
+    params: Dict[str, Any],
+    frames: int,
+    index: int,
+) -> List[_Packet]: ...
+def encode_block_file(
+    path: _Path,
+    codec: str,
+    params: Dict[str, Any],
+    index: int,
+    topology: Optional[_Path] = None,
+    fps: Optional[float] = None,
+) -> List[_Packet]: ...
+def cache_header(
+    path: _Path, topology: Optional[_Path] = None, fps: Optional[float] = None
+) -> Tuple[int, int, float, npt.NDArray[np.uint32]]: ...
+def assemble_blocks(
+    faces: npt.NDArray[np.uint32],
+    vertices: int,
+    codec: str,
+    fps: float,
+    params: Dict[str, Any],
+    frames: int,
+    packets: List[_Packet],
+) -> bytes: ...

@@ -64,6 +64,7 @@ def test_every_dict_key_is_documented(flag, tmp_path):
         "sweep_local()": sweep,
         "sweep_point": job,
         "sweep_plan": _native.sweep_plan([("quant-delta", None)], 2),
+        "blocks.block_plan()": animcodec.blocks.block_plan("hosvd", 240, 40, memory="1G", block=9),
     }
     keys, params = _documented_keys(), _parameter_names()
     missing = []

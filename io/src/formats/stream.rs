@@ -9,7 +9,7 @@
 //! when frame 900 is read.
 
 use std::fs::File;
-use std::io::{BufReader, Read, Write};
+use std::io::{BufReader, Read, Seek, SeekFrom, Write};
 use std::path::Path;
 
 use codec_core::{Error, Result, Topology};
@@ -38,6 +38,8 @@ pub struct CacheReader {
     frame_count: usize,
     frames_read: usize,
     bytes: Vec<u8>,
+    /// Byte offset of frame 0's positions ([`CacheReader::seek_frame`]).
+    data_offset: u64,
 }
 
 /// Whether `path` names a cache [`CacheReader::open`] reads (`.pc2`, `.mdd`, any case).
@@ -65,7 +67,7 @@ impl CacheReader {
         let handle = File::open(path).map_err(|e| Error::io(file.clone(), e))?;
         let size = handle.metadata().map_err(|e| Error::io(file.clone(), e))?.len();
         let mut reader = BufReader::with_capacity(1 << 20, handle);
-        let (endian, vertices, frames, fps) = match extension(path).as_deref() {
+        let (endian, vertices, frames, fps, data_offset) = match extension(path).as_deref() {
             Some("pc2") => {
                 let mut h = [0u8; pc2::HEADER_BYTES];
                 read_exact(&mut reader, &mut h, &file, "header")?;
@@ -73,7 +75,13 @@ impl CacheReader {
                 let header = pc2::parse_header(&h, &file)?;
                 let (v, f) = (header.vertex_count as u64, header.frame_count as u64);
                 check_cache_layout(&file, f, v, size.saturating_sub(pc2::HEADER_BYTES as u64))?;
-                (Endian::Little, v as usize, f as usize, frame_rate.unwrap_or(DEFAULT_FRAME_RATE))
+                (
+                    Endian::Little,
+                    v as usize,
+                    f as usize,
+                    frame_rate.unwrap_or(DEFAULT_FRAME_RATE),
+                    pc2::HEADER_BYTES as u64,
+                )
             }
             Some("mdd") => {
                 let mut h = [0u8; 8];
@@ -95,7 +103,7 @@ impl CacheReader {
                 read_exact(&mut reader, &mut t, &file, "times")?;
                 let times: Vec<f32> = t.chunks_exact(4).map(|c| f32::from_be_bytes([c[0], c[1], c[2], c[3]])).collect();
                 let fps = frame_rate.or_else(|| mdd::frame_rate_from_times(&times)).unwrap_or(DEFAULT_FRAME_RATE);
-                (Endian::Big, vertices as usize, frames as usize, fps)
+                (Endian::Big, vertices as usize, frames as usize, fps, 8 + times_bytes)
             }
             _ => {
                 return Err(Error::Unsupported {
@@ -114,6 +122,7 @@ impl CacheReader {
             frame_count: frames,
             frames_read: 0,
             bytes: Vec::new(),
+            data_offset,
         })
     }
 
@@ -140,6 +149,23 @@ impl CacheReader {
     /// Frames read so far.
     pub fn frames_read(&self) -> usize {
         self.frames_read
+    }
+
+    /// Moves to frame `frame` (at most the frame count: the next read then returns nothing), so
+    /// that [`CacheReader::read_frames`] reads from there: a caller coding one temporal block of
+    /// a cache (issue 30, the Python package's distributed encode) reads only its frames. The
+    /// layout was checked against the file's size when it was opened.
+    pub fn seek_frame(&mut self, frame: usize) -> Result<()> {
+        if frame > self.frame_count {
+            return Err(Error::InvalidAnimation(format!(
+                "{}: frame {frame} is past the end of the cache ({} frames)",
+                self.file, self.frame_count
+            )));
+        }
+        let offset = self.data_offset + frame as u64 * self.vertex_count() as u64 * 12;
+        self.reader.seek(SeekFrom::Start(offset)).map_err(|e| Error::io(self.file.clone(), e))?;
+        self.frames_read = frame;
+        Ok(())
     }
 
     /// Reads the next `frames` frames (fewer at the end of the cache) into `out` (cleared
@@ -291,13 +317,17 @@ impl CacheWriter {
                 self.companion_file = Some(f);
             }
         }
-        self.bytes.clear();
-        self.bytes.reserve(positions.len() * 4);
-        match self.endian {
-            Endian::Little => positions.iter().for_each(|x| self.bytes.extend_from_slice(&x.to_le_bytes())),
-            Endian::Big => positions.iter().for_each(|x| self.bytes.extend_from_slice(&x.to_be_bytes())),
+        // One frame of bytes at a time (issue 30: a whole decoded packet converted at once was
+        // another copy of it — 480 MB for a 40-frame packet of 1M vertices).
+        for frame in positions.chunks(self.vertex_count.max(1) * 3) {
+            self.bytes.clear();
+            self.bytes.reserve(frame.len() * 4);
+            match self.endian {
+                Endian::Little => frame.iter().for_each(|x| self.bytes.extend_from_slice(&x.to_le_bytes())),
+                Endian::Big => frame.iter().for_each(|x| self.bytes.extend_from_slice(&x.to_be_bytes())),
+            }
+            self.file.write_all(&self.bytes).map_err(|e| self.file.error(e))?;
         }
-        self.file.write_all(&self.bytes).map_err(|e| self.file.error(e))?;
         self.frames_written += n;
         Ok(())
     }
@@ -352,6 +382,27 @@ mod tests {
                 assert_eq!(r.frame_rate(), whole.frame_rate(), "{ext}");
                 assert_eq!(r.topology().triangles(), whole.triangles());
             }
+        }
+    }
+
+    /// Issue 30: a block of frames read after a seek equals those frames of the whole read.
+    #[test]
+    fn a_seek_reads_from_that_frame() {
+        let dir = TempDir::new("stream-seek");
+        let anim = test_animation(7, 11, 24.0);
+        let per_frame = 7 * 3;
+        for ext in ["pc2", "mdd"] {
+            let path = dir.path(&format!("a.{ext}"));
+            write_animation(&path, &anim).unwrap();
+            let mut r = CacheReader::open(&path, &ReadOptions::default()).unwrap();
+            let mut buf = Vec::new();
+            for (first, n) in [(5, 4), (0, 2), (9, 5), (11, 1)] {
+                r.seek_frame(first).unwrap();
+                let got = r.read_frames(n, &mut buf).unwrap();
+                assert_eq!(got, n.min(11 - first), "{ext}");
+                assert_eq!(buf, anim.positions()[first * per_frame..(first + got) * per_frame], "{ext} from {first}");
+            }
+            assert!(r.seek_frame(12).is_err());
         }
     }
 
