@@ -3,11 +3,13 @@
 //! Unreal's importers) and which [`super::gltf::read_gltf`] reads back.
 //!
 //! Layouts:
-//! - [`GltfLayout::Basis`] (default): the mean shape as the base mesh plus the `k` leading
-//!   principal components of the frames (centred on that mean) as morph targets, each scaled so
-//!   its weights lie in [−1, 1]; weights keyed at every frame, `LINEAR`. `k` is the smallest that
-//!   meets a KG target against the frames being written (computed exactly from the PCA's
-//!   discarded energy), or given.
+//! - [`GltfLayout::Basis`] (default): the mean shape as the base mesh plus principal components
+//!   of the frames (centred on that mean) as morph targets; weights keyed at every frame,
+//!   `LINEAR`. Compressed (the default): every component quantized at its own step for the KG
+//!   target, the ones that round to nothing dropped, weights in [0, 1] ([`super::gltf_out_rd`]).
+//!   Uncompressed: the `k` leading components in f32, each scaled so its weights lie in
+//!   [−1, 1], `k` the smallest meeting the KG target (computed exactly from the PCA's discarded
+//!   energy), or given.
 //! - [`GltfLayout::Frames`]: frame 0 as the base mesh and one morph target per later frame
 //!   (its difference from frame 0), `STEP` weights selecting one target per frame: exact, large.
 //!
@@ -18,6 +20,8 @@
 
 use base64::Engine as _;
 use codec_core::{Animation, Error, Result};
+
+use super::gltf_out_rd::{self, QBasis};
 use faer::{Mat, Side};
 use serde_json::{json, Value};
 
@@ -71,8 +75,12 @@ impl Default for GltfOptions {
 pub struct GltfSummary {
     /// Morph targets written.
     pub targets: usize,
-    /// `Basis`: KG (%) of the truncated basis against the input, before f32 rounding (0 for
-    /// `Frames`).
+    /// Of those, principal components (`Basis`; the compressed basis may add one target, the
+    /// base's residual) or frames (`Frames`).
+    pub components: usize,
+    /// `Basis`: KG (%) of the basis against the input, computed in f64 (compressed: from the
+    /// quantized integers and weights written; else the truncation, before f32 rounding); 0
+    /// for `Frames`.
     pub basis_kg: f64,
     /// The rigid motion went to node animation.
     pub rigid: bool,
@@ -108,6 +116,21 @@ fn encode_records<const N: usize>(raw: &[u8]) -> Result<Vec<u8>> {
     meshopt::encode_vertex_buffer(&records).map_err(|e| Error::InvalidAnimation(format!("meshopt encoding: {e}")))
 }
 
+/// [`encode_records`] for any stride the extension allows (a multiple of 4, at most 256).
+fn encode_stride(raw: &[u8], stride: usize) -> Result<Vec<u8>> {
+    macro_rules! strides {
+        ($($n:literal)*) => {
+            match stride {
+                $($n => encode_records::<$n>(raw),)*
+                other => Err(Error::InvalidAnimation(format!("meshopt stride {other} is not written"))),
+            }
+        };
+    }
+    strides!(4 8 12 16 20 24 28 32 36 40 44 48 52 56 60 64 68 72 76 80 84 88 92 96 100 104 108 112 116 120 124
+        128 132 136 140 144 148 152 156 160 164 168 172 176 180 184 188 192 196 200 204 208 212 216 220 224 228
+        232 236 240 244 248 252 256)
+}
+
 impl Buffer {
     fn new(compress: bool) -> Self {
         Self { bin: Vec::new(), views: Vec::new(), accessors: Vec::new(), compress, fallback: 0 }
@@ -125,11 +148,7 @@ impl Buffer {
             view["target"] = t.into();
         }
         if self.compress {
-            let (encoded, stride, count, mode) = match stream {
-                Stream::Attributes { stride: 4, .. } => (encode_records::<4>(raw)?, 4, raw.len() / 4, "ATTRIBUTES"),
-                Stream::Attributes { stride: 8, .. } => (encode_records::<8>(raw)?, 8, raw.len() / 8, "ATTRIBUTES"),
-                Stream::Attributes { stride, .. } => unreachable!("stride {stride} is not written"),
-            };
+            let (encoded, count, mode) = (encode_stride(raw, stride)?, raw.len() / stride, "ATTRIBUTES");
             view["buffer"] = 1.into();
             view["byteOffset"] = self.fallback.into();
             self.fallback += raw.len().div_ceil(4) * 4;
@@ -194,6 +213,30 @@ impl Buffer {
         let hi: Vec<i16> = (0..3).map(|k| data.iter().map(|p| p[k]).max().unwrap_or(0)).collect();
         self.accessors.push(json!({"bufferView": view, "componentType": 5122, "count": data.len(), "type": "VEC3",
             "min": lo, "max": hi}));
+        Ok(self.accessors.len() - 1)
+    }
+
+    /// Appends `KHR_mesh_quantization` morph-target positions that fit signed bytes: BYTE (not
+    /// normalized) in 4-byte records; returns the accessor index.
+    fn signed_bytes(&mut self, data: &[[i16; 3]]) -> Result<usize> {
+        let raw: Vec<u8> =
+            data.iter().flat_map(|p| [p[0] as i8 as u8, p[1] as i8 as u8, p[2] as i8 as u8, 0]).collect();
+        let view = self.view(&raw, Stream::Attributes { stride: 4, vertex_stride: true }, Some(34962))?;
+        let lo: Vec<i16> = (0..3).map(|k| data.iter().map(|p| p[k]).min().unwrap_or(0)).collect();
+        let hi: Vec<i16> = (0..3).map(|k| data.iter().map(|p| p[k]).max().unwrap_or(0)).collect();
+        self.accessors.push(json!({"bufferView": view, "componentType": 5120, "count": data.len(), "type": "VEC3",
+            "min": lo, "max": hi}));
+        Ok(self.accessors.len() - 1)
+    }
+
+    /// Appends a weights sampler output (`F × k` f32, frame-major). Compressed, a meshopt record
+    /// is one frame's weights (or as many whole weights as fit 256 bytes), so the codec's deltas
+    /// run from a weight to the same weight one record earlier; returns the accessor index.
+    fn weights(&mut self, data: &[f32], k: usize) -> Result<usize> {
+        let raw: Vec<u8> = data.iter().flat_map(|x| x.to_le_bytes()).collect();
+        let per_record = (1..=k.min(64)).rev().find(|d| k % d == 0).unwrap_or(1);
+        let view = self.view(&raw, Stream::Attributes { stride: 4 * per_record, vertex_stride: false }, None)?;
+        self.accessors.push(json!({"bufferView": view, "componentType": 5126, "count": data.len(), "type": "SCALAR"}));
         Ok(self.accessors.len() - 1)
     }
 
@@ -465,19 +508,19 @@ pub fn encode_gltf(animation: &Animation, options: &GltfOptions, glb: bool) -> R
     })?;
     let full = animation;
     let (morphs, motion, local) = match options.layout {
-        GltfLayout::Frames => (frame_morphs(full), None, None),
+        GltfLayout::Frames => (Geometry::Float(frame_morphs(full)), None, None),
         GltfLayout::Basis if full.frame_count() < 2 || options.rigid == Some(false) => {
-            (basis_morphs(full, options)?, None, None)
+            (basis_geometry(full, options)?, None, None)
         }
         GltfLayout::Basis => {
             let (local, motion) = rigid_split(full)?;
-            let split = basis_morphs(&local, options)?;
+            let split = basis_geometry(&local, options)?;
             if options.rigid.is_none() {
                 // Both meet the KG target: keep the smaller file (the motion's keys cost bytes,
                 // and a local frame can compress worse than the original); with `targets`
                 // given, the smaller KG.
-                let plain_kg = basis_morphs(full, options)?;
-                let (split_kg, plain_basis_kg) = (split.basis_kg, plain_kg.basis_kg);
+                let plain_kg = basis_geometry(full, options)?;
+                let (split_kg, plain_basis_kg) = (split.basis_kg(), plain_kg.basis_kg());
                 let with = finish(&local, split, Some(motion), options, glb)?;
                 let without = finish(full, plain_kg, None, options, glb)?;
                 let keep_with = match options.targets {
@@ -495,46 +538,100 @@ pub fn encode_gltf(animation: &Animation, options: &GltfOptions, glb: bool) -> R
     }
 }
 
+/// The morph targets to write: float (or quantized as a whole by [`quantize`] when
+/// compressed), or the basis quantized for a KG target ([`gltf_out_rd`]).
+enum Geometry {
+    Float(Morphs),
+    Quantized(QBasis),
+}
+
+impl Geometry {
+    fn basis_kg(&self) -> f64 {
+        match self {
+            Geometry::Float(m) => m.basis_kg,
+            Geometry::Quantized(q) => q.kg,
+        }
+    }
+}
+
+/// The basis layout's morphs: quantized for the KG target when compressed, else float.
+fn basis_geometry(a: &Animation, options: &GltfOptions) -> Result<Geometry> {
+    // One frame is a plain mesh: 16-bit positions, as the frames layout writes it.
+    if options.compress && a.frame_count() > 1 {
+        let limit = options.targets.unwrap_or(usize::MAX);
+        Ok(Geometry::Quantized(gltf_out_rd::quantized_basis(a, options.target_kg, limit)?))
+    } else {
+        Ok(Geometry::Float(basis_morphs(a, options)?))
+    }
+}
+
 /// Writes the file: `animation` (already without the rigid motion when `motion` is given) as
-/// `morphs`, the motion as a parent node's animation.
+/// `geometry`, the motion as a parent node's animation.
 fn finish(
     animation: &Animation,
-    morphs: Morphs,
+    geometry: Geometry,
     motion: Option<RigidMotion>,
     options: &GltfOptions,
     glb: bool,
 ) -> Result<(Vec<u8>, GltfSummary)> {
-    let (frames, k) = (animation.frame_count(), morphs.targets.len());
-    let mut morphs = morphs;
+    let frames = animation.frame_count();
     // With rigid motion: node 0 carries it, its child node 1 the mesh.
     let mesh_node = if motion.is_some() { 1 } else { 0 };
     let mut buf = Buffer::new(options.compress);
     let tri: Vec<u32> = animation.triangles().iter().flatten().copied().collect();
     let indices = buf.indices(&tri, animation.vertex_count());
     let mut node = json!({"mesh": 0, "name": options.name});
-    let (position, targets) = if options.compress {
-        let q = quantize(animation, &mut morphs);
-        node["translation"] = json!(q.translation);
-        node["scale"] = json!(q.scale);
-        let position = buf.shorts(&q.base)?;
-        let targets: Vec<Value> =
-            q.targets.iter().map(|t| Ok(json!({"POSITION": buf.shorts(t)?}))).collect::<Result<_>>()?;
-        (position, targets)
-    } else {
-        let position = buf.floats(&morphs.base, "VEC3", Some(34962), true)?;
-        let targets: Vec<Value> = morphs
-            .targets
-            .iter()
-            .map(|t| Ok(json!({"POSITION": buf.floats(t, "VEC3", Some(34962), true)?})))
-            .collect::<Result<_>>()?;
-        (position, targets)
+    let (position, targets, weights, basis_kg, components, names) = match geometry {
+        Geometry::Float(mut morphs) => {
+            let k = morphs.targets.len();
+            let names: Vec<String> = (0..k)
+                .map(|j| match options.layout {
+                    GltfLayout::Basis => format!("component {j}"),
+                    GltfLayout::Frames => format!("frame {}", j + 1),
+                })
+                .collect();
+            let (position, targets) = if options.compress {
+                let q = quantize(animation, &mut morphs);
+                node["translation"] = json!(q.translation);
+                node["scale"] = json!(q.scale);
+                let position = buf.shorts(&q.base)?;
+                let targets: Vec<Value> =
+                    q.targets.iter().map(|t| Ok(json!({"POSITION": buf.shorts(t)?}))).collect::<Result<_>>()?;
+                (position, targets)
+            } else {
+                let position = buf.floats(&morphs.base, "VEC3", Some(34962), true)?;
+                let targets: Vec<Value> = morphs
+                    .targets
+                    .iter()
+                    .map(|t| Ok(json!({"POSITION": buf.floats(t, "VEC3", Some(34962), true)?})))
+                    .collect::<Result<_>>()?;
+                (position, targets)
+            };
+            (position, targets, morphs.weights, morphs.basis_kg, k, names)
+        }
+        Geometry::Quantized(q) => {
+            node["translation"] = json!(q.translation.map(|x| x as f32));
+            let scale = q.scale as f32;
+            node["scale"] = json!([scale, scale, scale]);
+            let position = buf.shorts(&q.base)?;
+            let targets: Vec<Value> = q
+                .targets
+                .iter()
+                .map(|t| {
+                    let accessor = if t.bytes { buf.signed_bytes(&t.values)? } else { buf.shorts(&t.values)? };
+                    Ok(json!({"POSITION": accessor}))
+                })
+                .collect::<Result<_>>()?;
+            let names = (0..q.targets.len())
+                .map(|j| if j < q.components { format!("component {j}") } else { "base residual".into() })
+                .collect();
+            (position, targets, q.weights, q.kg, q.components, names)
+        }
     };
+    let k = targets.len();
     let fps = animation.frame_rate();
     let mut primitive = json!({"attributes": {"POSITION": position}, "indices": indices, "mode": 4});
-    let mut mesh = json!({"name": options.name, "primitives": [], "extras": {"targetNames": (0..k).map(|j| match options.layout {
-        GltfLayout::Basis => format!("component {j}"),
-        GltfLayout::Frames => format!("frame {}", j + 1),
-    }).collect::<Vec<_>>()}});
+    let mut mesh = json!({"name": options.name, "primitives": [], "extras": {"targetNames": names}});
     let mut root = json!({
         "asset": {"version": "2.0", "generator": concat!("animcodec ", env!("CARGO_PKG_VERSION"))},
         "scene": 0,
@@ -553,11 +650,11 @@ fn finish(
     if k > 0 {
         primitive["targets"] = targets.into();
         // The node starts at frame 0's weights so a viewer without animation shows frame 0.
-        mesh["weights"] = json!(morphs.weights[..k]);
+        mesh["weights"] = json!(weights[..k]);
         if frames > 1 {
             let keys = buf.floats(&times, "SCALAR", None, true)?;
             input = Some(keys);
-            let output = buf.floats(&morphs.weights, "SCALAR", None, false)?;
+            let output = buf.weights(&weights, k)?;
             let interpolation = if options.layout == GltfLayout::Frames { "STEP" } else { "LINEAR" };
             channels.push(json!({"sampler": samplers.len(), "target": {"node": mesh_node, "path": "weights"}}));
             samplers.push(json!({"input": keys, "output": output, "interpolation": interpolation}));
@@ -588,7 +685,7 @@ fn finish(
     root["accessors"] = buf.accessors.into();
     let mut bin = buf.bin;
     align4(&mut bin);
-    let summary = GltfSummary { targets: k, basis_kg: morphs.basis_kg, rigid: motion.is_some() };
+    let summary = GltfSummary { targets: k, components, basis_kg, rigid: motion.is_some() };
     let mut buffers = vec![json!({"byteLength": bin.len()})];
     if options.compress {
         let used = json!(["KHR_mesh_quantization", "EXT_meshopt_compression"]);
@@ -692,8 +789,12 @@ mod tests {
             assert!(s.targets >= last);
             last = s.targets;
         }
+        // Compressed: 3 components (+ the base's residual target); uncompressed: exactly 3.
         let (_, s) = encode_gltf(&a, &GltfOptions { targets: Some(3), ..Default::default() }, true).unwrap();
-        assert_eq!(s.targets, 3);
+        assert_eq!(s.components, 3);
+        assert!(s.targets == 3 || s.targets == 4, "{s:?}");
+        let plain = GltfOptions { targets: Some(3), compress: false, ..Default::default() };
+        assert_eq!(encode_gltf(&a, &plain, true).unwrap().1.targets, 3);
         let e = encode_gltf(&a, &GltfOptions { target_kg: 0.0, ..Default::default() }, true).unwrap_err();
         assert!(e.to_string().contains("target_kg"), "{e}");
     }
