@@ -49,6 +49,17 @@ pub(super) fn kg_energy(a: &Animation) -> f64 {
     energy
 }
 
+/// KG (%) of `played` against `a` (same vertices), in f64.
+pub(super) fn kg_between(a: &Animation, played: &Animation) -> f64 {
+    let err: f64 = a.positions().iter().zip(played.positions()).map(|(x, y)| (*x as f64 - *y as f64).powi(2)).sum();
+    let energy = kg_energy(a);
+    if energy > 0.0 {
+        100.0 * (err / energy).sqrt()
+    } else {
+        0.0
+    }
+}
+
 /// The frames' principal components (eigen-decomposition of the `F × F` Gram matrix).
 pub(super) fn pca(a: &Animation) -> Result<Pca> {
     let (frames, n) = (a.frame_count(), a.vertex_count() * 3);
@@ -82,6 +93,20 @@ pub(super) fn pca(a: &Animation) -> Result<Pca> {
     }
     let coeffs = Mat::<f64>::from_fn(frames, rank, |f, j| u[(f, j)] * lambda[j].sqrt());
     Ok(Pca { mean, dirs, coeffs, lambda, energy: kg_energy(a) })
+}
+
+/// The frames as differences from frame 0, in the same form as [`pca`]: "component" j is
+/// frame j + 1 minus frame 0, its weight 1 on that frame and 0 elsewhere. Short clips of
+/// articulated characters (24 frames of a walk) have no low-rank structure for the principal
+/// components to use, and their quantized differences code smaller.
+pub(super) fn differences(a: &Animation) -> Pca {
+    let (frames, n) = (a.frame_count(), a.vertex_count() * 3);
+    let first: Vec<f64> = a.frame(0).iter().map(|&x| x as f64).collect();
+    let k = frames.saturating_sub(1);
+    let dirs = Mat::<f64>::from_fn(k, n, |j, i| a.frame(j + 1)[i] as f64 - first[i]);
+    let coeffs = Mat::<f64>::from_fn(frames, k, |f, j| if f == j + 1 { 1.0 } else { 0.0 });
+    let lambda = (0..k).map(|j| (0..n).map(|i| dirs[(j, i)].powi(2)).sum()).collect();
+    Pca { mean: first, dirs, coeffs, lambda, energy: kg_energy(a) }
 }
 
 /// A quantized morph target: integers in units of `S · weight`.
@@ -275,9 +300,8 @@ fn played_error(a: &Animation, q: &QBasis) -> f64 {
 /// using at most `limit` components: the distortion level is bisected on the estimate, then
 /// the exact KG is checked and the aim lowered until it holds (at most a few rounds; the
 /// finest quantization is returned when even that misses).
-pub(super) fn quantized_basis(a: &Animation, target_kg: f64, limit: usize) -> Result<QBasis> {
-    let p = pca(a)?;
-    let units = units(&p, limit);
+pub(super) fn quantized_basis(a: &Animation, p: &Pca, target_kg: f64, limit: usize) -> Result<QBasis> {
+    let units = units(p, limit);
     let diag = a.bounding_box_diagonal().max(f64::MIN_POSITIVE);
     let mut aim = target_kg;
     let mut best: Option<QBasis> = None;
@@ -286,13 +310,13 @@ pub(super) fn quantized_basis(a: &Animation, target_kg: f64, limit: usize) -> Re
         let (mut lo, mut hi) = ((diag * 1e-9).ln(), diag.ln());
         for _ in 0..40 {
             let mid = 0.5 * (lo + hi);
-            if quantize_at(a, &p, &units, mid.exp(), false).estimate <= aim {
+            if quantize_at(a, p, &units, mid.exp(), false).estimate <= aim {
                 lo = mid;
             } else {
                 hi = mid;
             }
         }
-        let q = quantize_at(a, &p, &units, lo.exp(), true);
+        let q = quantize_at(a, p, &units, lo.exp(), true);
         if !q.kg.is_finite() {
             return Err(Error::InvalidAnimation("glTF export: the quantized basis is not finite".into()));
         }
@@ -322,7 +346,7 @@ mod tests {
         let a = synth::waving_flag(16, 10, 30);
         let mut last = usize::MAX;
         for t in [1.0, 0.1, 0.01] {
-            let q = quantized_basis(&a, t, usize::MAX).unwrap();
+            let q = quantized_basis(&a, &pca(&a).unwrap(), t, usize::MAX).unwrap();
             assert!(q.kg <= t, "target {t}: exact KG {}", q.kg);
             assert!((q.estimate - q.kg).abs() <= 0.2 * t, "target {t}: estimate {} exact {}", q.estimate, q.kg);
             assert!(q.weights.iter().all(|w| (0.0..=1.0).contains(w)));
