@@ -18,8 +18,8 @@
 //! issue 29 §3). The base, quantized at `S`, gets its finer step back from one more target, the
 //! base's residual, at a constant weight `s_b / S`.
 
-use codec_core::{Animation, Error, Result};
-use faer::{Mat, Side};
+use codec_core::{linalg, Animation, Error, Result};
+use faer::Mat;
 
 /// Principal components of the frames about their mean.
 pub(super) struct Pca {
@@ -71,20 +71,16 @@ pub(super) fn pca(a: &Animation) -> Result<Pca> {
     }
     mean.iter_mut().for_each(|m| *m /= frames as f64);
     let centred = Mat::<f64>::from_fn(frames, n, |f, i| a.frame(f)[i] as f64 - mean[i]);
-    let gram = &centred * centred.transpose();
-    let eig = gram.self_adjoint_eigen(Side::Lower).map_err(|e| Error::Numerical {
-        context: "glTF export".into(),
-        step: "eigen-decomposition of the frames' Gram matrix".into(),
-        detail: codec_core::error::debug_in_words(&e),
-    })?;
-    // Descending eigenvalues (faer sorts them ascending).
-    let all: Vec<f64> = (0..frames).rev().map(|j| eig.S().column_vector()[j].max(0.0)).collect();
+    // Sequential faer calls (`codec_core::linalg`): the same bytes at any thread count.
+    let gram = linalg::mul(centred.as_ref(), centred.transpose());
+    let (all, vectors) = linalg::sym_eig_desc(gram.as_ref())
+        .map_err(|e| e.numerical("glTF export", "eigen-decomposition of the frames' Gram matrix"))?;
     let top = all.first().copied().unwrap_or(0.0).max(f64::MIN_POSITIVE);
     let rank = all.iter().filter(|&&l| l > 1e-12 * top).count();
     let lambda = all[..rank].to_vec();
-    let u = Mat::<f64>::from_fn(frames, rank, |f, j| eig.U()[(f, frames - 1 - j)]);
+    let u = Mat::<f64>::from_fn(frames, rank, |f, j| vectors[(f, j)]);
     // Xᵀu_j = σ_j · dir_j.
-    let mut dirs = u.transpose() * &centred;
+    let mut dirs = linalg::mul(u.transpose(), centred.as_ref());
     for j in 0..rank {
         let sigma = lambda[j].sqrt();
         for i in 0..n {
@@ -284,7 +280,7 @@ fn played_error(a: &Animation, q: &QBasis) -> f64 {
     let (frames, v, k) = (a.frame_count(), a.vertex_count(), q.targets.len());
     let w = Mat::<f64>::from_fn(frames, k, |f, j| q.weights[f * k + j] as f64);
     let t = Mat::<f64>::from_fn(k, 3 * v, |j, i| q.targets[j].values[i / 3][i % 3] as f64);
-    let moved = &w * &t;
+    let moved = linalg::mul(w.as_ref(), t.as_ref());
     let mut err = 0.0;
     for f in 0..frames {
         let frame = a.frame(f);
