@@ -139,6 +139,13 @@ pub struct ExportArgs {
     #[arg(long)]
     pub no_compress: bool,
 
+    /// Keep the input's vertices as they are. By default a compressed export welds vertices
+    /// with identical positions on every frame and orders them for locality, as gltfpack does
+    /// (smaller files; the file then holds fewer vertices, in another order; the reported error
+    /// is measured on the input's vertices).
+    #[arg(long)]
+    pub keep_vertices: bool,
+
     /// OBJ file giving the triangles of a .pc2/.mdd input (default: the OBJ beside it).
     #[arg(long, value_name = "OBJ")]
     pub topology: Option<PathBuf>,

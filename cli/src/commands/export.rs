@@ -4,7 +4,7 @@
 use std::path::Path;
 use std::time::Instant;
 
-use animcodec::formats::gltf_out::{encode_gltf, GltfLayout, GltfOptions};
+use animcodec::formats::gltf_out::{encode_gltf, restore_vertices, GltfLayout, GltfOptions};
 use animcodec::formats::{gltf, ReadOptions};
 use animcodec::harness::{self, TargetMetric};
 use animcodec::output::OutputPolicy;
@@ -55,7 +55,15 @@ pub fn run(args: &ExportArgs, limits: Limits) -> CmdResult {
         "off" => Some(false),
         other => return Err(format!("--rigid '{other}': expected auto, on or off").into()),
     };
-    let options = GltfOptions { layout, targets: args.targets, target_kg, name, compress: !args.no_compress, rigid };
+    let options = GltfOptions {
+        layout,
+        targets: args.targets,
+        target_kg,
+        name,
+        compress: !args.no_compress,
+        rigid,
+        reorder: !args.no_compress && !args.keep_vertices,
+    };
     let start = Instant::now();
     stages.stage(format!(
         "encoding {} frames × {} vertices as glTF morph targets",
@@ -67,8 +75,11 @@ pub fn run(args: &ExportArgs, limits: Limits) -> CmdResult {
     // What an engine plays: the file's bytes read back by our own glTF reader and measured,
     // before they replace anything (a file that fails either is never written).
     stages.stage("reading the glTF back and measuring it as played");
-    let played = gltf::parse_gltf(&bytes, None, &args.output.display().to_string(), animation.frame_rate())
+    let mut played = gltf::parse_gltf(&bytes, None, &args.output.display().to_string(), animation.frame_rate())
         .context(|| "the glTF written does not read back".to_owned())?;
+    if let Some(map) = &summary.vertex_map {
+        played = restore_vertices(&played, map, animation.triangles())?;
+    }
     let report = metrics::evaluate(&animation, &played, &eval)
         .context(|| format!("comparing {} with {} as played back", args.input, args.output.display()))?;
     stages.stage(format!("writing {}", args.output.display()));

@@ -1168,7 +1168,7 @@ mod tests {
         let worst = a.positions().iter().zip(b.positions()).map(|(x, y)| (x - y).abs()).fold(0f32, f32::max);
         assert!(worst < 2.5e-5 * a.bounding_box_diagonal() as f32, "{worst}");
         let view = (0..doc["bufferViews"].as_array().unwrap().len())
-            .find(|&i| doc["bufferViews"][i]["extensions"]["EXT_meshopt_compression"].is_object())
+            .find(|&i| doc["bufferViews"][i]["extensions"]["EXT_meshopt_compression"]["mode"] == "ATTRIBUTES")
             .unwrap();
         fn ext(d: &mut Value, view: usize) -> &mut Value {
             &mut d["bufferViews"][view]["extensions"]["EXT_meshopt_compression"]

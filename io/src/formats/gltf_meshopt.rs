@@ -376,9 +376,10 @@ fn decode_index_sequence(data: &[u8], count: usize) -> std::result::Result<Vec<u
     Ok(out)
 }
 
-#[cfg(test)]
 /// Encodes an index sequence as meshoptimizer's `encodeIndexSequence` does (version 1):
 /// the baseline is the one the previous index used, or the other one when it is closer.
+/// (The `meshopt` crate exposes no safe binding for it; the glTF export writes its triangle
+/// lists with it, since the index codec proper rotates triangle corners.)
 pub(super) fn encode_index_sequence(indices: &[u32]) -> Vec<u8> {
     let mut out = vec![0xd1];
     let mut last = [0u32; 2];

@@ -3,11 +3,13 @@
 //! Unreal's importers) and which [`super::gltf::read_gltf`] reads back.
 //!
 //! Layouts:
-//! - [`GltfLayout::Basis`] (default): the mean shape as the base mesh plus the `k` leading
-//!   principal components of the frames (centred on that mean) as morph targets, each scaled so
-//!   its weights lie in [−1, 1]; weights keyed at every frame, `LINEAR`. `k` is the smallest that
-//!   meets a KG target against the frames being written (computed exactly from the PCA's
-//!   discarded energy), or given.
+//! - [`GltfLayout::Basis`] (default): the mean shape as the base mesh plus principal components
+//!   of the frames (centred on that mean) as morph targets; weights keyed at every frame,
+//!   `LINEAR`. Compressed (the default): every component quantized at its own step for the KG
+//!   target, the ones that round to nothing dropped, weights in [0, 1] ([`super::gltf_out_rd`]).
+//!   Uncompressed: the `k` leading components in f32, each scaled so its weights lie in
+//!   [−1, 1], `k` the smallest meeting the KG target (computed exactly from the PCA's discarded
+//!   energy), or given.
 //! - [`GltfLayout::Frames`]: frame 0 as the base mesh and one morph target per later frame
 //!   (its difference from frame 0), `STEP` weights selecting one target per frame: exact, large.
 //!
@@ -18,6 +20,8 @@
 
 use base64::Engine as _;
 use codec_core::{Animation, Error, Result};
+
+use super::gltf_out_rd::{self, QBasis};
 use faer::{Mat, Side};
 use serde_json::{json, Value};
 
@@ -51,6 +55,12 @@ pub struct GltfOptions {
     /// decompose only what is left. `Some(true)`/`Some(false)` force it; `None` (default) writes
     /// both and keeps the smaller file (with `targets` given: the smaller KG).
     pub rigid: Option<bool>,
+    /// Welds vertices with identical positions on every frame and writes them in the order
+    /// the triangles first use them after meshoptimizer's vertex-cache ordering (as gltfpack
+    /// does), so neighbours sit next to each other and the vertex codec's deltas are small; the
+    /// triangle list keeps its order (renumbered). The file then plays the input's vertices
+    /// through [`GltfSummary::vertex_map`]. Default false: the file keeps the input's vertices.
+    pub reorder: bool,
 }
 
 impl Default for GltfOptions {
@@ -62,6 +72,7 @@ impl Default for GltfOptions {
             name: "animcodec".into(),
             compress: true,
             rigid: None,
+            reorder: false,
         }
     }
 }
@@ -71,11 +82,87 @@ impl Default for GltfOptions {
 pub struct GltfSummary {
     /// Morph targets written.
     pub targets: usize,
-    /// `Basis`: KG (%) of the truncated basis against the input, before f32 rounding (0 for
-    /// `Frames`).
+    /// Of those, principal components (`Basis`; the compressed basis may add one target, the
+    /// base's residual) or frames (`Frames`).
+    pub components: usize,
+    /// `Basis`: KG (%) of the basis against the input, computed in f64 (compressed: from the
+    /// quantized integers and weights written; else the truncation, before f32 rounding); 0
+    /// for `Frames`.
     pub basis_kg: f64,
     /// The rigid motion went to node animation.
     pub rigid: bool,
+    /// With [`GltfOptions::reorder`]: input vertex `i` is played by the file's vertex
+    /// `vertex_map[i]` ([`restore_vertices`]).
+    pub vertex_map: Option<Vec<u32>>,
+}
+
+/// The vertex map of [`GltfOptions::reorder`]: `map[i]` = the file vertex playing input vertex
+/// `i`, and the number of file vertices. Vertices with bit-identical positions on every frame
+/// are welded into one (a flat-shaded or multi-part mesh repeats each corner per face:
+/// RobotExpressive's 7 214 vertices are 1 820 trajectories); the welded vertices are then
+/// numbered in the order meshoptimizer's vertex-cache-ordered triangles first use them
+/// (`optimizeVertexFetchRemap`), unused ones last.
+fn weld_map(a: &Animation) -> (Vec<u32>, usize, Vec<[u32; 3]>) {
+    let v = a.vertex_count();
+    let mut first_of: std::collections::HashMap<Vec<u32>, u32> = std::collections::HashMap::new();
+    let mut welded = Vec::with_capacity(v);
+    for i in 0..v {
+        let key: Vec<u32> =
+            (0..a.frame_count()).flat_map(|f| a.frame(f)[3 * i..3 * i + 3].iter().map(|x| x.to_bits())).collect();
+        let next = first_of.len() as u32;
+        welded.push(*first_of.entry(key).or_insert(next));
+    }
+    let unique = first_of.len();
+    let tri: Vec<u32> = a.triangles().iter().flatten().map(|&i| welded[i as usize]).collect();
+    let cached = meshopt::optimize_vertex_cache(&tri, unique);
+    let remap = meshopt::optimize_vertex_fetch_remap(&cached, unique);
+    let mut order = vec![u32::MAX; unique];
+    let mut next = remap.iter().filter(|&&r| (r as usize) < unique).count() as u32;
+    for (old, &new) in remap.iter().enumerate() {
+        if (new as usize) < unique {
+            order[old] = new;
+        } else {
+            order[old] = next;
+            next += 1;
+        }
+    }
+    // The triangles in the cache order (each keeps its corners), renumbered: the index
+    // sequence then codes small deltas.
+    let triangles = cached.chunks_exact(3).map(|t| [order[t[0] as usize], order[t[1] as usize], order[t[2] as usize]]);
+    (welded.iter().map(|&w| order[w as usize]).collect(), unique, triangles.collect())
+}
+
+/// `a` as the file holds it under `map` (see [`weld_map`]), with `triangles`.
+fn welded(a: &Animation, map: &[u32], count: usize, triangles: Vec<[u32; 3]>) -> Result<Animation> {
+    let mut source = vec![0usize; count];
+    for (i, &m) in map.iter().enumerate() {
+        source[m as usize] = i;
+    }
+    let mut positions = Vec::with_capacity(count * 3 * a.frame_count());
+    for f in 0..a.frame_count() {
+        let frame = a.frame(f);
+        for &i in &source {
+            positions.extend_from_slice(&frame[3 * i..3 * i + 3]);
+        }
+    }
+    Animation::from_parts(count, triangles, positions, a.frame_rate())
+}
+
+/// Undoes [`GltfOptions::reorder`] on a played-back file: the input's vertices (each from the
+/// file vertex `map` names) and triangles.
+pub fn restore_vertices(played: &Animation, map: &[u32], triangles: &[[u32; 3]]) -> Result<Animation> {
+    let mut positions = Vec::with_capacity(map.len() * 3 * played.frame_count());
+    for f in 0..played.frame_count() {
+        let frame = played.frame(f);
+        for &m in map {
+            let m = m as usize;
+            let p = frame
+                .get(3 * m..3 * m + 3)
+                .ok_or_else(|| Error::InvalidAnimation("the vertex map names a vertex the file lacks".into()))?;
+            positions.extend_from_slice(p);
+        }
+    }
+    Animation::from_parts(map.len(), triangles.to_vec(), positions, played.frame_rate())
 }
 
 /// Little-endian binary buffer with 4-byte aligned views. With `compress`, view data is
@@ -87,6 +174,10 @@ struct Buffer {
     accessors: Vec<Value>,
     compress: bool,
     fallback: usize,
+    /// Triangles may come back with their corners rotated (the vertices were welded and
+    /// renumbered anyway): meshopt's triangle codec (mode `TRIANGLES`), else the exact index
+    /// sequence codec.
+    rotate: bool,
 }
 
 /// How a view is meshopt-encoded: records of `stride` bytes (`vertex_stride`: a vertex
@@ -108,9 +199,24 @@ fn encode_records<const N: usize>(raw: &[u8]) -> Result<Vec<u8>> {
     meshopt::encode_vertex_buffer(&records).map_err(|e| Error::InvalidAnimation(format!("meshopt encoding: {e}")))
 }
 
+/// [`encode_records`] for any stride the extension allows (a multiple of 4, at most 256).
+fn encode_stride(raw: &[u8], stride: usize) -> Result<Vec<u8>> {
+    macro_rules! strides {
+        ($($n:literal)*) => {
+            match stride {
+                $($n => encode_records::<$n>(raw),)*
+                other => Err(Error::InvalidAnimation(format!("meshopt stride {other} is not written"))),
+            }
+        };
+    }
+    strides!(4 8 12 16 20 24 28 32 36 40 44 48 52 56 60 64 68 72 76 80 84 88 92 96 100 104 108 112 116 120 124
+        128 132 136 140 144 148 152 156 160 164 168 172 176 180 184 188 192 196 200 204 208 212 216 220 224 228
+        232 236 240 244 248 252 256)
+}
+
 impl Buffer {
     fn new(compress: bool) -> Self {
-        Self { bin: Vec::new(), views: Vec::new(), accessors: Vec::new(), compress, fallback: 0 }
+        Self { bin: Vec::new(), views: Vec::new(), accessors: Vec::new(), compress, fallback: 0, rotate: false }
     }
 
     /// Appends a view holding `raw`; returns its index.
@@ -125,11 +231,13 @@ impl Buffer {
             view["target"] = t.into();
         }
         if self.compress {
-            let (encoded, stride, count, mode) = match stream {
-                Stream::Attributes { stride: 4, .. } => (encode_records::<4>(raw)?, 4, raw.len() / 4, "ATTRIBUTES"),
-                Stream::Attributes { stride: 8, .. } => (encode_records::<8>(raw)?, 8, raw.len() / 8, "ATTRIBUTES"),
-                Stream::Attributes { stride, .. } => unreachable!("stride {stride} is not written"),
-            };
+            let (encoded, count, mode) = (encode_stride(raw, stride)?, raw.len() / stride, "ATTRIBUTES");
+            if encoded.len() >= raw.len() {
+                // The codec gains nothing on this view (f32 weights of a short clip): plain.
+                self.bin.extend_from_slice(raw);
+                self.views.push(view);
+                return Ok(self.views.len() - 1);
+            }
             view["buffer"] = 1.into();
             view["byteOffset"] = self.fallback.into();
             self.fallback += raw.len().div_ceil(4) * 4;
@@ -197,17 +305,61 @@ impl Buffer {
         Ok(self.accessors.len() - 1)
     }
 
-    /// Appends triangle indices (u16 when every index fits, else u32), never meshopt-encoded:
-    /// meshoptimizer's index codec rotates the corners of triangles, and the triangle list
-    /// must come back exactly as it was (same topology for `eval` and the codecs); returns the
-    /// accessor index.
+    /// Appends `KHR_mesh_quantization` morph-target positions that fit signed bytes: BYTE (not
+    /// normalized) in 4-byte records; returns the accessor index.
+    fn signed_bytes(&mut self, data: &[[i16; 3]]) -> Result<usize> {
+        let raw: Vec<u8> =
+            data.iter().flat_map(|p| [p[0] as i8 as u8, p[1] as i8 as u8, p[2] as i8 as u8, 0]).collect();
+        let view = self.view(&raw, Stream::Attributes { stride: 4, vertex_stride: true }, Some(34962))?;
+        let lo: Vec<i16> = (0..3).map(|k| data.iter().map(|p| p[k]).min().unwrap_or(0)).collect();
+        let hi: Vec<i16> = (0..3).map(|k| data.iter().map(|p| p[k]).max().unwrap_or(0)).collect();
+        self.accessors.push(json!({"bufferView": view, "componentType": 5120, "count": data.len(), "type": "VEC3",
+            "min": lo, "max": hi}));
+        Ok(self.accessors.len() - 1)
+    }
+
+    /// Appends a weights sampler output (`F × k` f32, frame-major). Compressed, a meshopt record
+    /// is one frame's weights (or as many whole weights as fit 256 bytes), so the codec's deltas
+    /// run from a weight to the same weight one record earlier; returns the accessor index.
+    fn weights(&mut self, data: &[f32], k: usize) -> Result<usize> {
+        let raw: Vec<u8> = data.iter().flat_map(|x| x.to_le_bytes()).collect();
+        let per_record = (1..=k.min(64)).rev().find(|d| k % d == 0).unwrap_or(1);
+        let view = self.view(&raw, Stream::Attributes { stride: 4 * per_record, vertex_stride: false }, None)?;
+        self.accessors.push(json!({"bufferView": view, "componentType": 5126, "count": data.len(), "type": "SCALAR"}));
+        Ok(self.accessors.len() - 1)
+    }
+
+    /// Appends triangle indices (u16 when every index fits, else u32); compressed, with
+    /// meshoptimizer's index sequence codec (mode `INDICES`), which returns the list exactly,
+    /// not its triangle codec (mode `TRIANGLES`), which rotates the corners of triangles: the
+    /// triangle list must come back exactly as it was (same topology for `eval` and the
+    /// codecs); returns the accessor index.
     fn indices(&mut self, data: &[u32], vertex_count: usize) -> usize {
-        let (raw, component): (Vec<u8>, u32) = if vertex_count <= u16::MAX as usize {
-            (data.iter().flat_map(|&x| (x as u16).to_le_bytes()).collect(), 5123)
+        let (raw, component, stride): (Vec<u8>, u32, usize) = if vertex_count <= u16::MAX as usize {
+            (data.iter().flat_map(|&x| (x as u16).to_le_bytes()).collect(), 5123, 2)
         } else {
-            (data.iter().flat_map(|x| x.to_le_bytes()).collect(), 5125)
+            (data.iter().flat_map(|x| x.to_le_bytes()).collect(), 5125, 4)
         };
-        let view = self.plain_view(&raw, Some(34963));
+        let view = if self.compress && !data.is_empty() {
+            align4(&mut self.bin);
+            let (encoded, mode) = match self.rotate {
+                true => (meshopt::encode_index_buffer(data, vertex_count).ok(), "TRIANGLES"),
+                false => (None, "INDICES"),
+            };
+            let (encoded, mode) = match encoded {
+                Some(e) => (e, mode),
+                None => (super::gltf_meshopt::encode_index_sequence(data), "INDICES"),
+            };
+            let view = json!({"buffer": 1, "byteOffset": self.fallback, "byteLength": raw.len(), "target": 34963,
+                "extensions": {"EXT_meshopt_compression": {"buffer": 0, "byteOffset": self.bin.len(),
+                    "byteLength": encoded.len(), "byteStride": stride, "count": data.len(), "mode": mode}}});
+            self.fallback += raw.len().div_ceil(4) * 4;
+            self.bin.extend_from_slice(&encoded);
+            self.views.push(view);
+            self.views.len() - 1
+        } else {
+            self.plain_view(&raw, Some(34963))
+        };
         self.accessors
             .push(json!({"bufferView": view, "componentType": component, "count": data.len(), "type": "SCALAR"}));
         self.accessors.len() - 1
@@ -304,6 +456,7 @@ fn frame_morphs(a: &Animation) -> Morphs {
 }
 
 /// Per-frame rigid motion: frame f ≈ R_f · local_f + t_f.
+#[derive(Clone)]
 struct RigidMotion {
     translations: Vec<f32>,
     rotations: Vec<f32>,
@@ -463,78 +616,172 @@ pub fn encode_gltf(animation: &Animation, options: &GltfOptions, glb: bool) -> R
         ),
         other => other,
     })?;
-    let full = animation;
-    let (morphs, motion, local) = match options.layout {
-        GltfLayout::Frames => (frame_morphs(full), None, None),
-        GltfLayout::Basis if full.frame_count() < 2 || options.rigid == Some(false) => {
-            (basis_morphs(full, options)?, None, None)
-        }
-        GltfLayout::Basis => {
-            let (local, motion) = rigid_split(full)?;
-            let split = basis_morphs(&local, options)?;
-            if options.rigid.is_none() {
-                // Both meet the KG target: keep the smaller file (the motion's keys cost bytes,
-                // and a local frame can compress worse than the original); with `targets`
-                // given, the smaller KG.
-                let plain_kg = basis_morphs(full, options)?;
-                let (split_kg, plain_basis_kg) = (split.basis_kg, plain_kg.basis_kg);
-                let with = finish(&local, split, Some(motion), options, glb)?;
-                let without = finish(full, plain_kg, None, options, glb)?;
-                let keep_with = match options.targets {
-                    None => with.0.len() < without.0.len(),
-                    Some(_) => split_kg < plain_basis_kg,
-                };
-                return Ok(if keep_with { with } else { without });
+    if options.reorder && animation.frame_count() > 0 && !animation.triangles().is_empty() {
+        let (map, count, triangles) = weld_map(animation);
+        let moved = welded(animation, &map, count, triangles)?;
+        // KG on the welded vertices counts each trajectory once, on the input's as often as it
+        // repeats: the target is checked on the input's vertices as played back, and aimed
+        // lower by the overshoot when missed (a few rounds).
+        let mut inner = GltfOptions { reorder: false, ..options.clone() };
+        let mut best: Option<(Vec<u8>, GltfSummary, f64)> = None;
+        for _ in 0..4 {
+            let (bytes, mut summary) = encode_inner(&moved, &inner, glb, true)?;
+            let played = super::gltf::parse_gltf(&bytes, None, "glTF export", animation.frame_rate())?;
+            let played = restore_vertices(&played, &map, animation.triangles())?;
+            let kg = gltf_out_rd::kg_between(animation, &played);
+            summary.basis_kg = kg;
+            let met = kg <= options.target_kg || options.layout == GltfLayout::Frames || options.targets.is_some();
+            if met || best.as_ref().is_none_or(|b| kg < b.2) {
+                best = Some((bytes, summary, kg));
             }
-            (split, Some(motion), Some(local))
+            if met {
+                break;
+            }
+            inner.target_kg *= options.target_kg / kg * 0.995;
         }
-    };
-    match local {
-        Some(local) => finish(&local, morphs, motion, options, glb),
-        None => finish(full, morphs, motion, options, glb),
+        let (bytes, mut summary, _) = best.expect("one round");
+        summary.vertex_map = Some(map);
+        return Ok((bytes, summary));
+    }
+    encode_inner(animation, options, glb, false)
+}
+
+/// [`encode_gltf`] after the checks and the welding; `rotate`: see [`Buffer::rotate`].
+fn encode_inner(full: &Animation, options: &GltfOptions, glb: bool, rotate: bool) -> Result<(Vec<u8>, GltfSummary)> {
+    if options.layout == GltfLayout::Frames {
+        return finish(full, Geometry::Float(frame_morphs(full)), None, options, glb, rotate);
+    }
+    // Basis: the rigid motion split off or not (`rigid`; both when `None`), and each space's
+    // candidate geometries; the smallest file is kept (with `targets` given: the smallest KG).
+    let mut spaces: Vec<(Animation, Option<RigidMotion>)> = Vec::new();
+    if full.frame_count() >= 2 && options.rigid != Some(false) {
+        let (local, motion) = rigid_split(full)?;
+        spaces.push((local, Some(motion)));
+    }
+    if full.frame_count() < 2 || options.rigid != Some(true) {
+        spaces.push((full.clone(), None));
+    }
+    let mut best: Option<((Vec<u8>, GltfSummary), f64)> = None;
+    for (space, motion) in spaces {
+        let candidates = basis_geometry(&space, options)?;
+        for geometry in candidates {
+            let kg = geometry.basis_kg();
+            let written = finish(&space, geometry, motion.clone(), options, glb, rotate)?;
+            let better = best.as_ref().is_none_or(|(b, b_kg)| match options.targets {
+                None => written.0.len() < b.0.len(),
+                Some(_) => kg < *b_kg,
+            });
+            if better {
+                best = Some((written, kg));
+            }
+        }
+    }
+    Ok(best.expect("at least one candidate").0)
+}
+
+/// The morph targets to write: float (or quantized as a whole by [`quantize`] when
+/// compressed), or the basis quantized for a KG target ([`gltf_out_rd`]).
+enum Geometry {
+    Float(Morphs),
+    Quantized(QBasis),
+}
+
+impl Geometry {
+    fn basis_kg(&self) -> f64 {
+        match self {
+            Geometry::Float(m) => m.basis_kg,
+            Geometry::Quantized(q) => q.kg,
+        }
+    }
+}
+
+/// The basis layout's candidate morphs: compressed, the principal components and (without
+/// `targets`) the differences from frame 0, each quantized for the KG target; else float.
+fn basis_geometry(a: &Animation, options: &GltfOptions) -> Result<Vec<Geometry>> {
+    // One frame is a plain mesh: 16-bit positions, as the frames layout writes it.
+    if options.compress && a.frame_count() > 1 {
+        let limit = options.targets.unwrap_or(usize::MAX);
+        let pca = gltf_out_rd::pca(a)?;
+        let mut out = vec![Geometry::Quantized(gltf_out_rd::quantized_basis(a, &pca, options.target_kg, limit)?)];
+        if options.targets.is_none() {
+            let differences = gltf_out_rd::differences(a);
+            out.push(Geometry::Quantized(gltf_out_rd::quantized_basis(a, &differences, options.target_kg, limit)?));
+        }
+        Ok(out)
+    } else {
+        Ok(vec![Geometry::Float(basis_morphs(a, options)?)])
     }
 }
 
 /// Writes the file: `animation` (already without the rigid motion when `motion` is given) as
-/// `morphs`, the motion as a parent node's animation.
+/// `geometry`, the motion as a parent node's animation.
 fn finish(
     animation: &Animation,
-    morphs: Morphs,
+    geometry: Geometry,
     motion: Option<RigidMotion>,
     options: &GltfOptions,
     glb: bool,
+    rotate: bool,
 ) -> Result<(Vec<u8>, GltfSummary)> {
-    let (frames, k) = (animation.frame_count(), morphs.targets.len());
-    let mut morphs = morphs;
+    let frames = animation.frame_count();
     // With rigid motion: node 0 carries it, its child node 1 the mesh.
     let mesh_node = if motion.is_some() { 1 } else { 0 };
     let mut buf = Buffer::new(options.compress);
+    buf.rotate = rotate;
     let tri: Vec<u32> = animation.triangles().iter().flatten().copied().collect();
     let indices = buf.indices(&tri, animation.vertex_count());
     let mut node = json!({"mesh": 0, "name": options.name});
-    let (position, targets) = if options.compress {
-        let q = quantize(animation, &mut morphs);
-        node["translation"] = json!(q.translation);
-        node["scale"] = json!(q.scale);
-        let position = buf.shorts(&q.base)?;
-        let targets: Vec<Value> =
-            q.targets.iter().map(|t| Ok(json!({"POSITION": buf.shorts(t)?}))).collect::<Result<_>>()?;
-        (position, targets)
-    } else {
-        let position = buf.floats(&morphs.base, "VEC3", Some(34962), true)?;
-        let targets: Vec<Value> = morphs
-            .targets
-            .iter()
-            .map(|t| Ok(json!({"POSITION": buf.floats(t, "VEC3", Some(34962), true)?})))
-            .collect::<Result<_>>()?;
-        (position, targets)
+    let (position, targets, weights, basis_kg, components, names) = match geometry {
+        Geometry::Float(mut morphs) => {
+            let k = morphs.targets.len();
+            let names: Vec<String> = (0..k)
+                .map(|j| match options.layout {
+                    GltfLayout::Basis => format!("component {j}"),
+                    GltfLayout::Frames => format!("frame {}", j + 1),
+                })
+                .collect();
+            let (position, targets) = if options.compress {
+                let q = quantize(animation, &mut morphs);
+                node["translation"] = json!(q.translation);
+                node["scale"] = json!(q.scale);
+                let position = buf.shorts(&q.base)?;
+                let targets: Vec<Value> =
+                    q.targets.iter().map(|t| Ok(json!({"POSITION": buf.shorts(t)?}))).collect::<Result<_>>()?;
+                (position, targets)
+            } else {
+                let position = buf.floats(&morphs.base, "VEC3", Some(34962), true)?;
+                let targets: Vec<Value> = morphs
+                    .targets
+                    .iter()
+                    .map(|t| Ok(json!({"POSITION": buf.floats(t, "VEC3", Some(34962), true)?})))
+                    .collect::<Result<_>>()?;
+                (position, targets)
+            };
+            (position, targets, morphs.weights, morphs.basis_kg, k, names)
+        }
+        Geometry::Quantized(q) => {
+            node["translation"] = json!(q.translation.map(|x| x as f32));
+            let scale = q.scale as f32;
+            node["scale"] = json!([scale, scale, scale]);
+            let position = buf.shorts(&q.base)?;
+            let targets: Vec<Value> = q
+                .targets
+                .iter()
+                .map(|t| {
+                    let accessor = if t.bytes { buf.signed_bytes(&t.values)? } else { buf.shorts(&t.values)? };
+                    Ok(json!({"POSITION": accessor}))
+                })
+                .collect::<Result<_>>()?;
+            let names = (0..q.targets.len())
+                .map(|j| if j < q.components { format!("component {j}") } else { "base residual".into() })
+                .collect();
+            (position, targets, q.weights, q.kg, q.components, names)
+        }
     };
+    let k = targets.len();
     let fps = animation.frame_rate();
     let mut primitive = json!({"attributes": {"POSITION": position}, "indices": indices, "mode": 4});
-    let mut mesh = json!({"name": options.name, "primitives": [], "extras": {"targetNames": (0..k).map(|j| match options.layout {
-        GltfLayout::Basis => format!("component {j}"),
-        GltfLayout::Frames => format!("frame {}", j + 1),
-    }).collect::<Vec<_>>()}});
+    let mut mesh = json!({"name": options.name, "primitives": [], "extras": {"targetNames": names}});
     let mut root = json!({
         "asset": {"version": "2.0", "generator": concat!("animcodec ", env!("CARGO_PKG_VERSION"))},
         "scene": 0,
@@ -553,11 +800,11 @@ fn finish(
     if k > 0 {
         primitive["targets"] = targets.into();
         // The node starts at frame 0's weights so a viewer without animation shows frame 0.
-        mesh["weights"] = json!(morphs.weights[..k]);
+        mesh["weights"] = json!(weights[..k]);
         if frames > 1 {
             let keys = buf.floats(&times, "SCALAR", None, true)?;
             input = Some(keys);
-            let output = buf.floats(&morphs.weights, "SCALAR", None, false)?;
+            let output = buf.weights(&weights, k)?;
             let interpolation = if options.layout == GltfLayout::Frames { "STEP" } else { "LINEAR" };
             channels.push(json!({"sampler": samplers.len(), "target": {"node": mesh_node, "path": "weights"}}));
             samplers.push(json!({"input": keys, "output": output, "interpolation": interpolation}));
@@ -588,7 +835,7 @@ fn finish(
     root["accessors"] = buf.accessors.into();
     let mut bin = buf.bin;
     align4(&mut bin);
-    let summary = GltfSummary { targets: k, basis_kg: morphs.basis_kg, rigid: motion.is_some() };
+    let summary = GltfSummary { targets: k, components, basis_kg, rigid: motion.is_some(), vertex_map: None };
     let mut buffers = vec![json!({"byteLength": bin.len()})];
     if options.compress {
         let used = json!(["KHR_mesh_quantization", "EXT_meshopt_compression"]);
@@ -692,8 +939,12 @@ mod tests {
             assert!(s.targets >= last);
             last = s.targets;
         }
+        // Compressed: 3 components (+ the base's residual target); uncompressed: exactly 3.
         let (_, s) = encode_gltf(&a, &GltfOptions { targets: Some(3), ..Default::default() }, true).unwrap();
-        assert_eq!(s.targets, 3);
+        assert_eq!(s.components, 3);
+        assert!(s.targets == 3 || s.targets == 4, "{s:?}");
+        let plain = GltfOptions { targets: Some(3), compress: false, ..Default::default() };
+        assert_eq!(encode_gltf(&a, &plain, true).unwrap().1.targets, 3);
         let e = encode_gltf(&a, &GltfOptions { target_kg: 0.0, ..Default::default() }, true).unwrap_err();
         assert!(e.to_string().contains("target_kg"), "{e}");
     }
@@ -713,6 +964,46 @@ mod tests {
         assert!(kg <= 0.5 * 1.05, "played back KG {kg}");
         let text = String::from_utf8_lossy(&bytes);
         assert!(text.contains("\"rotation\"") && text.contains("\"translation\""));
+    }
+
+    /// `reorder`: vertices repeating another's trajectory are welded (the file holds fewer),
+    /// the map brings the played frames back to the input's vertices within the KG target, the
+    /// file is smaller, and the triangles come back as the input's through the map.
+    #[test]
+    fn welded_vertices_play_back_through_the_map() {
+        let flag = synth::waving_flag(12, 8, 20);
+        let (v, frames) = (flag.vertex_count(), flag.frame_count());
+        // Every vertex of the first row written twice (the second copy used by no triangle).
+        let extra = 12;
+        let mut positions = Vec::new();
+        for f in 0..frames {
+            positions.extend_from_slice(flag.frame(f));
+            positions.extend_from_slice(&flag.frame(f)[..3 * extra]);
+        }
+        let a = Animation::from_parts(v + extra, flag.triangles().to_vec(), positions, flag.frame_rate()).unwrap();
+        let opts = GltfOptions { target_kg: 0.05, ..Default::default() };
+        let (plain, _) = encode_gltf(&a, &opts, true).unwrap();
+        let (bytes, s) = encode_gltf(&a, &GltfOptions { reorder: true, ..opts }, true).unwrap();
+        let map = s.vertex_map.clone().unwrap();
+        let b = read_back(&bytes, a.frame_rate());
+        assert_eq!(b.vertex_count(), v, "the repeated vertices are welded");
+        assert!(map[v..].iter().zip(&map[..extra]).all(|(x, y)| x == y));
+        let restored = restore_vertices(&b, &map, a.triangles()).unwrap();
+        let kg = metrics::kg_error(&a, &restored).unwrap();
+        assert!(kg <= 0.05 && (kg - s.basis_kg).abs() < 1e-9, "KG {kg}, reported {}", s.basis_kg);
+        assert!(bytes.len() < plain.len(), "{} vs {}", bytes.len(), plain.len());
+        // The file's triangles are the input's, renumbered (corners possibly rotated).
+        let mut ours: Vec<[u32; 3]> = a.triangles().iter().map(|t| t.map(|i| map[i as usize])).collect();
+        let mut theirs = b.triangles().to_vec();
+        let canonical = |t: &mut [u32; 3]| {
+            let m = (0..3).min_by_key(|&k| t[k]).unwrap();
+            t.rotate_left(m);
+        };
+        ours.iter_mut().for_each(canonical);
+        theirs.iter_mut().for_each(canonical);
+        ours.sort();
+        theirs.sort();
+        assert_eq!(ours, theirs);
     }
 
     /// A frame rate other than the reader's default keeps the frame times (keys at f / fps).

@@ -19,6 +19,7 @@ mod gltf_anim;
 mod gltf_buffers;
 mod gltf_meshopt;
 pub mod gltf_out;
+mod gltf_out_rd;
 mod gltf_scene;
 pub mod mdd;
 pub mod obj;
