@@ -56,6 +56,21 @@ pub fn run(args: &EvalArgs, limits: Limits) -> CmdResult {
     let reference = load_any(&args.reference, &read, limits)?;
     // --animation chooses the reference's animation; a glTF candidate plays its first.
     let candidate = load_any(&args.candidate, &ReadOptions { animation: None, ..read }, limits)?;
+    if let Err(e) = metrics::check_compatible(&reference, &candidate) {
+        let gltf = std::path::Path::new(&args.candidate)
+            .extension()
+            .is_some_and(|x| x.eq_ignore_ascii_case("glb") || x.eq_ignore_ascii_case("gltf"));
+        // `export` welds and reorders vertices by default (as gltfpack does): say so rather
+        // than leave a bare topology mismatch.
+        let hint = if gltf {
+            "; `animcodec export` welds vertices with identical trajectories and reorders them for \
+             compression, so its files match the input vertex by vertex only when written with \
+             --keep-vertices (export itself reports KG and STED as played back, on the input's vertices)"
+        } else {
+            ""
+        };
+        return Err(format!("comparing {} with {}: {e}{hint}", args.reference, args.candidate).into());
+    }
     let start = Instant::now();
     let report = metrics::evaluate(&reference, &candidate, &options)
         .context(|| format!("comparing {} with {}", args.reference, args.candidate))?;
