@@ -395,17 +395,7 @@ fn basis_morphs(a: &Animation, options: &GltfOptions) -> Result<Morphs> {
     // Descending eigenvalues (faer sorts them ascending).
     let order: Vec<usize> = (0..frames).rev().collect();
     let lambda: Vec<f64> = order.iter().map(|&j| eig.S().column_vector()[j].max(0.0)).collect();
-    // KG's denominator: the frames about their own centroids (Karni & Gotsman).
-    let mut energy = 0.0;
-    for f in 0..frames {
-        let frame = a.frame(f);
-        let mut c = [0.0f64; 3];
-        for p in frame.chunks_exact(3) {
-            (0..3).for_each(|k| c[k] += p[k] as f64);
-        }
-        c.iter_mut().for_each(|x| *x /= a.vertex_count() as f64);
-        energy += frame.chunks_exact(3).map(|p| (0..3).map(|k| (p[k] as f64 - c[k]).powi(2)).sum::<f64>()).sum::<f64>();
-    }
+    let energy = gltf_out_rd::kg_energy(a);
     let kg_with = |k: usize| {
         let rest: f64 = lambda[k.min(frames)..].iter().sum();
         if energy > 0.0 {
