@@ -45,22 +45,31 @@ for size in "$@"; do
   IFS=x read -r cols rows frames <<< "$size"
   v=$((cols * rows)); vf=$((v * frames)); bytes=$((vf * 12 + 32))
   free_kb=$(df -k --output=avail "$DIR" | tail -1)
-  # The PC2, the decoded PC2 and a stream: at most 2.2 × the raw size at once.
-  need_kb=$(( (bytes * 22 / 10) / 1024 ))
+  # The PC2 (or one decoded PC2) and the streams: at most 1.6 × the raw size at once.
+  need_kb=$(( (bytes * 16 / 10) / 1024 ))
   if (( free_kb - need_kb < KEEP_FREE_GB * 1024 * 1024 )); then
     echo "skip $size: needs $((need_kb / 1048576)) GB, $((free_kb / 1048576)) GB free, $KEEP_FREE_GB GB must stay free" >&2
     continue
   fi
   pc2="$DIR/flag-$size.pc2"
   "$BIN" synth "flag:$size" -o "$pc2" -f > /dev/null
-  read -r raw_s _ < <(measure cat "$pc2")
+  read -r raw_s _ < <(measure sh -c 'cat "$1" > /dev/null' sh "$pc2")
+  # Every codec encodes first; the input is deleted before the decodes, so the disk holds the
+  # input or one decoded PC2 (plus the streams), never both.
+  declare -A enc_s enc_kb bpvf
+  for codec in $CODECS; do
+    anim="$DIR/flag-$size.$codec.anim"
+    read -r enc_s[$codec] enc_kb[$codec] < <(measure "$BIN" encode "$pc2" -c "$codec" -p "$(params "$codec")" --memory "$MEMORY" -o "$anim" -f --json)
+    bpvf[$codec]=$(python3 -c 'import json,sys; print("%.3f" % json.load(open(sys.argv[1]))["bpvf"])' "$DIR/out.txt" 2>/dev/null || echo nan)
+    echo "encoded $size $codec: ${enc_s[$codec]} s, ${enc_kb[$codec]} KB" >&2
+  done
+  rm -f "$pc2"
   for codec in $CODECS; do
     anim="$DIR/flag-$size.$codec.anim"
     out="$DIR/flag-$size.$codec.decoded.pc2"
-    read -r enc_s enc_kb < <(measure "$BIN" encode "$pc2" -c "$codec" -p "$(params "$codec")" --memory "$MEMORY" -o "$anim" -f --json)
-    bpvf=$(python3 -c 'import json,sys; print("%.3f" % json.load(open(sys.argv[1]))["bpvf"])' "$DIR/out.txt" 2>/dev/null || echo nan)
     read -r dec_s dec_kb < <(measure "$BIN" decode "$anim" -o "$out" -f)
-    python3 - "$v" "$frames" "$codec" "$enc_s" "$enc_kb" "$raw_s" "$dec_s" "$dec_kb" "$bpvf" <<'PY'
+    echo "decoded $size $codec: $dec_s s, $dec_kb KB" >&2
+    python3 - "$v" "$frames" "$codec" "${enc_s[$codec]}" "${enc_kb[$codec]}" "$raw_s" "$dec_s" "$dec_kb" "${bpvf[$codec]}" <<'PY'
 import sys
 v, f, codec, es, ek, rs, ds, dk, bpvf = sys.argv[1:]
 v, f = int(v), int(f)
@@ -69,10 +78,11 @@ def num(x):
     except ValueError: return float("nan")
 es, ek, rs, ds, dk = map(num, (es, ek, rs, ds, dk))
 vf = v * f
-print(f"| {v:,} × {f:,} | {codec} | {es:.1f} | {ek/1024:.0f} | {vf/es/1e6:.2f} | {es/max(rs,0.01):.1f} | {ds:.1f} | {dk/1024:.0f} | {vf/ds/1e6:.2f} | {bpvf} |")
+print(f"| {v:,} × {f:,} | {codec} | {es:.1f} | {ek/1024:.0f} | {vf/max(es,0.01)/1e6:.2f} | {es/max(rs,0.01):.1f} | {ds:.1f} | {dk/1024:.0f} | {vf/max(ds,0.01)/1e6:.2f} | {bpvf} |")
 PY
     rm -f "$anim" "$out" "${out%.pc2}.obj"
   done
-  rm -f "$pc2" "${pc2%.pc2}.obj"
+  unset enc_s enc_kb bpvf
+  rm -f "${pc2%.pc2}.obj"
 done
 rm -f "$DIR/time.txt" "$DIR/out.txt" "$DIR/err.txt"

@@ -22,7 +22,8 @@ use base64::Engine as _;
 use codec_core::{Animation, Error, Result};
 
 use super::gltf_out_rd::{self, QBasis};
-use faer::{Mat, Side};
+use codec_core::linalg;
+use faer::Mat;
 use serde_json::{json, Value};
 
 /// How the frames become morph targets.
@@ -386,15 +387,11 @@ fn basis_morphs(a: &Animation, options: &GltfOptions) -> Result<Morphs> {
     }
     mean.iter_mut().for_each(|m| *m /= frames as f64);
     let centred = Mat::<f64>::from_fn(frames, n, |f, i| a.frame(f)[i] as f64 - mean[i]);
-    let gram = &centred * centred.transpose();
-    let eig = gram.self_adjoint_eigen(Side::Lower).map_err(|e| Error::Numerical {
-        context: "glTF export".into(),
-        step: "eigen-decomposition of the frames' Gram matrix".into(),
-        detail: codec_core::error::debug_in_words(&e),
-    })?;
-    // Descending eigenvalues (faer sorts them ascending).
-    let order: Vec<usize> = (0..frames).rev().collect();
-    let lambda: Vec<f64> = order.iter().map(|&j| eig.S().column_vector()[j].max(0.0)).collect();
+    // Sequential faer calls (`codec_core::linalg`, as `gltf_out_rd::pca`): the same bytes at
+    // any thread count.
+    let gram = linalg::mul(centred.as_ref(), centred.transpose());
+    let (lambda, vectors) = linalg::sym_eig_desc(gram.as_ref())
+        .map_err(|e| e.numerical("glTF export", "eigen-decomposition of the frames' Gram matrix"))?;
     let energy = gltf_out_rd::kg_energy(a);
     let kg_with = |k: usize| {
         let rest: f64 = lambda[k.min(frames)..].iter().sum();
@@ -411,8 +408,8 @@ fn basis_morphs(a: &Animation, options: &GltfOptions) -> Result<Morphs> {
     };
     let mut targets = Vec::with_capacity(k);
     let mut weights = vec![0.0f32; frames * k];
-    for (j, &col) in order.iter().take(k).enumerate() {
-        let u = eig.U().col(col);
+    for j in 0..k {
+        let u = vectors.col(j);
         let sigma = lambda[j].sqrt();
         // Component j: direction Xᵀu/σ (unit length), weight σ·u(f); scaled so |weights| ≤ 1.
         let scale = (0..frames).map(|f| (sigma * u[f]).abs()).fold(0.0, f64::max).max(f64::MIN_POSITIVE);
