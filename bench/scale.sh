@@ -22,14 +22,27 @@ KEEP_FREE_GB=${KEEP_FREE_GB:-15}
 mkdir -p "$DIR"
 
 # Fixed parameters equal to each codec's defaults: with -p the encode streams (without it, encode
-# searches for the default quality, which holds the whole animation).
+# searches for the default quality, which holds the whole animation). PARAMS_<CODEC> (codec name
+# upper-cased, '-' as '_'; e.g. PARAMS_HOSVD="ss=0.9 block=100") replaces them: space-separated
+# key=value pairs, each passed as one -p.
 params() {
+  local var="PARAMS_$(echo "$1" | tr 'a-z-' 'A-Z_')"
+  if [[ -n "${!var:-}" ]]; then
+    echo "${!var}"
+    return
+  fi
   case "$1" in
     quant-delta) echo "bits=12" ;;
     pca-aoi) echo "block=40" ;;
     hosvd) echo "ss=0.9" ;;
     *) echo "level=19" ;;
   esac
+}
+
+# "-p K=V" for each pair of params().
+param_args() {
+  local kv
+  for kv in $(params "$1"); do printf -- '-p\n%s\n' "$kv"; done
 }
 
 # Runs a command under /usr/bin/time; prints "WALL_SECONDS PEAK_RSS_KB".
@@ -59,7 +72,8 @@ for size in "$@"; do
   declare -A enc_s enc_kb bpvf
   for codec in $CODECS; do
     anim="$DIR/flag-$size.$codec.anim"
-    read -r enc_s[$codec] enc_kb[$codec] < <(measure "$BIN" encode "$pc2" -c "$codec" -p "$(params "$codec")" --memory "$MEMORY" -o "$anim" -f --json)
+    mapfile -t pargs < <(param_args "$codec")
+    read -r enc_s[$codec] enc_kb[$codec] < <(measure "$BIN" encode "$pc2" -c "$codec" "${pargs[@]}" --memory "$MEMORY" -o "$anim" -f --json)
     bpvf[$codec]=$(python3 -c 'import json,sys; print("%.3f" % json.load(open(sys.argv[1]))["bpvf"])' "$DIR/out.txt" 2>/dev/null || echo nan)
     echo "encoded $size $codec: ${enc_s[$codec]} s, ${enc_kb[$codec]} KB" >&2
   done

@@ -323,9 +323,12 @@ pub const MIN_MEMORY_BLOCK: usize = 8;
 /// Peak bytes of an encode with blocks of `frames` frames of `vertices` vertices, the whole
 /// process (stream driver and self-check included): fitted on peak RSS of streamed PC2 encodes
 /// (`docs/notes/issue-30.md`: 107 MiB at 10 000 vertices × 120-frame blocks, 356 MiB at
-/// 40 000 × 120; ≈ 23 bytes a coordinate of the block), rounded up for headroom.
+/// 40 000 × 120; ≈ 23 bytes a coordinate of the block) and at 1 000 000 vertices, where a
+/// coordinate of the block costs ≈ 35 bytes and a vertex ≈ 980 besides (blocks of 27, 33 and
+/// 40 frames: 3.55, 4.13 and 4.82 GiB; `docs/notes/session-2026-11-27.md` — the former 32 bytes
+/// let a 4 GiB budget choose 33 frames), rounded up for headroom.
 pub fn block_memory(vertices: usize, frames: usize) -> u64 {
-    32 * vertices as u64 * 3 * frames as u64 + 1024 * vertices as u64 + (64 << 20)
+    36 * vertices as u64 * 3 * frames as u64 + 1152 * vertices as u64 + (64 << 20)
 }
 
 /// The relative RMS bound (see the README, "Error bound"): the projection never removes more
