@@ -594,7 +594,9 @@ mod tests {
         let bad = dir.path("f5.obj");
         let mut tris = anim.triangles().to_vec();
         tris[2] = [0, 1, 5];
-        let cases: [(&[f32], &[[u32; 3]], &str); 4] = [
+        // (positions, triangles, a word of the message); an empty word: a file that does not parse.
+        type Case<'a> = (&'a [f32], &'a [[u32; 3]], &'a str);
+        let cases: [Case; 4] = [
             (&anim.frame(5)[..15], &anim.triangles()[..3], "5 vertices"),
             (anim.frame(5), &tris, "triangle 2 is [0, 1, 5]"),
             (anim.frame(5), &anim.triangles()[..3], "3 triangles"),
