@@ -327,7 +327,7 @@ pub struct EncodeArgs {
     pub feed: u32,
 
     /// Memory budget of an encode with -p (bytes; K, M, G suffixes are powers of 1024), e.g.
-    /// 4G. A .pc2/.mdd input (or synth:flag:CxRxF) is read frame by frame, so the encode holds
+    /// 4G. A .pc2/.mdd input, an OBJ sequence (or synth:flag:CxRxF) is read frame by frame, so the encode holds
     /// what the codec buffers; a codec whose analysis holds a whole block of frames (hosvd with
     /// block=0) chooses temporal blocks that fit the budget. The stream depends on the budget,
     /// never on the machine. Default: none (hosvd decomposes the whole sequence at once).

@@ -1,6 +1,7 @@
-//! Issue 30: PC2/MDD encodes read frame by frame, decodes to PC2/MDD written frame by frame,
-//! `synth flag:CxRxF` written frame by frame, and `encode --memory`. The streamed paths must give
-//! the same bytes as the in-memory ones; memory itself is measured by `bench/scale.sh`.
+//! Issue 30: PC2/MDD and OBJ-sequence encodes read frame by frame, decodes to PC2/MDD written
+//! frame by frame, `synth flag:CxRxF` written frame by frame, and `encode --memory`. The streamed
+//! paths must give the same bytes as the in-memory ones; memory itself is measured by
+//! `bench/scale.sh`.
 
 mod common;
 
@@ -48,6 +49,49 @@ fn streamed_encodes_equal_the_in_memory_encodes_for_every_codec() {
             assert_eq!(std::fs::read(&streamed).unwrap(), std::fs::read(&whole).unwrap(), "{codec} on {input}");
         }
     }
+}
+
+/// Issue 30: an OBJ sequence (a directory or a file-name pattern) is read one file per frame,
+/// and gives the bytes of the whole read (`--eval`) and of the PC2 of the same frames.
+#[test]
+fn an_obj_sequence_streams_to_the_bytes_of_the_whole_read_and_of_its_pc2() {
+    let s = Scratch::new("stream-obj");
+    let pc2 = flag_cache(&s, "f.pc2", "12x10x40");
+    let lossless = encode_lossless(&s, &pc2);
+    // The same decoded frames as an OBJ sequence and as a PC2 (OBJ writes each f32 so that it
+    // reads back identical).
+    let (dir, same) = (s.path("frames/"), s.path("same.pc2"));
+    ok(&["decode", &lossless, "-o", &dir]);
+    ok(&["decode", &lossless, "-o", &same, "--topology-obj"]);
+    let (from_pc2, streamed, whole) = (s.path("p.anim"), s.path("s.anim"), s.path("w.anim"));
+    let args = ["-c", "quant-delta", "-p", "bits=12"];
+    ok(&[&["encode", &same][..], &args, &["-o", &from_pc2]].concat());
+    let pattern = s.path("frames/frame_{}.obj");
+    for input in [&dir, &pattern] {
+        // Only the streamed path reads while it encodes (and says so); --eval reads it whole.
+        let text = ok(&[&["encode", input][..], &args, &["--feed", "3", "-o", &streamed, "-f"]].concat());
+        assert!(text.contains("40 frames") && text.contains("read frame by frame while encoding"), "{text}");
+        let text = ok(&[&["encode", input][..], &args, &["--eval", "-o", &whole, "-f"]].concat());
+        assert!(text.contains("40 frames") && text.contains("(read in "), "{text}");
+        let bytes = std::fs::read(&streamed).unwrap();
+        assert_eq!(bytes, std::fs::read(&whole).unwrap(), "{input}: streamed vs whole");
+        assert_eq!(bytes, std::fs::read(&from_pc2).unwrap(), "{input}: OBJ sequence vs PC2");
+    }
+    // A later frame whose mesh differs fails when it is read, with the whole read's message,
+    // and leaves no output.
+    let frame = s.path("frames/frame_0031.obj");
+    let text = std::fs::read_to_string(&frame).unwrap();
+    let cut: String = text.lines().filter(|l| !l.starts_with("f ")).map(|l| format!("{l}\n")).collect();
+    std::fs::write(&frame, cut).unwrap();
+    let out = s.path("bad.anim");
+    let streamed = fails(&[&["encode", &dir][..], &args, &["-o", &out]].concat(), &["frame_0031.obj", "triangles"]);
+    let whole = fails(&[&["encode", &dir][..], &args, &["--eval", "-o", &out]].concat(), &["frame_0031.obj"]);
+    assert_eq!(streamed, whole);
+    assert!(!std::path::Path::new(&out).exists());
+    // An empty directory: the whole read's error.
+    let empty = s.path("empty/");
+    std::fs::create_dir_all(&empty).unwrap();
+    fails(&[&["encode", &empty][..], &args, &["-o", &out]].concat(), &["no .obj file"]);
 }
 
 /// quant-delta at 24 bits, for a second cache format with the same frames (near enough).

@@ -106,8 +106,8 @@ pub fn run(args: &EncodeArgs, limits: Limits) -> CmdResult {
                 frame_rate: args.fps,
                 animation: args.animation.clone(),
             };
-            // A PC2/MDD cache is read frame by frame as the encoder takes it (issue 30), unless
-            // --eval needs the whole input in memory to measure the stream against it.
+            // A PC2/MDD cache or an OBJ sequence is read frame by frame as the encoder takes it
+            // (issue 30), unless --eval needs the whole input in memory to measure it.
             let path = std::path::Path::new(&args.input);
             if !args.eval && cache_stream::is_streamable(path) {
                 Source::Cache(CacheReader::open(path, &options)?)
@@ -169,8 +169,13 @@ pub fn run(args: &EncodeArgs, limits: Limits) -> CmdResult {
         add_evaluation(&mut out, evaluation.as_ref());
         return emit_json(&out);
     }
+    // A streamed input is read while it is encoded: its read time is in the encode time.
+    let read = match source {
+        Source::Cache(_) => "read frame by frame while encoding".to_owned(),
+        _ => format!("read in {read_seconds:.2} s"),
+    };
     let mut text = format!(
-        "{input}: {f} frames × {v} vertices, {t} triangles, {fps} fps (read in {read_seconds:.2} s)\n\
+        "{input}: {f} frames × {v} vertices, {t} triangles, {fps} fps ({read})\n\
          {codec} [{params}] → {out}\n\
          {bytes} bytes, {rate:.3} bits/vertex/frame, {ratio:.1}:1 vs raw f32, encoded in {encode_seconds:.2} s\n",
         input = args.input,
@@ -220,9 +225,9 @@ fn evaluate_written(
     Ok((report, start.elapsed().as_secs_f64()))
 }
 
-/// Where the frames come from: a loaded animation, a PC2/MDD cache read frame by frame, or a
-/// synthetic flag generated one frame at a time (so sequences far larger than memory can be
-/// encoded).
+/// Where the frames come from: a loaded animation, a PC2/MDD cache or an OBJ sequence read frame
+/// by frame, or a synthetic flag generated one frame at a time (so sequences far larger than
+/// memory can be encoded).
 enum Source {
     Whole(Animation),
     Cache(CacheReader),

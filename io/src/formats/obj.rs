@@ -176,37 +176,52 @@ pub fn read_obj_sequence(paths: &[PathBuf], frame_rate: f32) -> Result<Animation
     })?;
     let mut positions = Vec::with_capacity(total);
     positions.extend_from_slice(&first.positions);
-    let topology = Topology::new(vertex_count, first.triangles).map_err(|e| in_file(&name(first_path), e))?;
+    let topology = sequence_topology(first_path, vertex_count, first.triangles)?;
     for path in &paths[1..] {
-        let mesh = read_obj(path)?;
-        if mesh.vertex_count() != vertex_count {
-            return Err(Error::malformed(
-                name(path),
-                "vertex_count",
-                format!("{} vertices, but {} (frame 0) has {vertex_count}", mesh.vertex_count(), name(first_path)),
-            ));
-        }
-        if mesh.triangles != topology.triangles() {
-            let detail = match mesh.triangles.iter().zip(topology.triangles()).position(|(a, b)| a != b) {
-                Some(t) => format!(
-                    "triangle {t} is {:?} but in {} (frame 0) it is {:?} (0-based indices)",
-                    mesh.triangles[t],
-                    name(first_path),
-                    topology.triangles()[t]
-                ),
-                None => format!(
-                    "{} triangles, but {} (frame 0) has {}",
-                    mesh.triangles.len(),
-                    name(first_path),
-                    topology.triangle_count()
-                ),
-            };
-            return Err(Error::malformed(name(path), "faces", detail));
-        }
-        positions.extend_from_slice(&mesh.positions);
+        positions.extend_from_slice(&read_sequence_frame(path, first_path, &topology)?.positions);
     }
     let file = if paths.len() == 1 { name(first_path) } else { format!("{}…", name(first_path)) };
     Animation::new(topology, positions, frame_rate).map_err(|e| in_file(&file, e))
+}
+
+/// The topology of a sequence whose frame 0, read from `first_path` (named in errors), has
+/// `vertex_count` vertices and `triangles`.
+pub(crate) fn sequence_topology(first_path: &Path, vertex_count: usize, triangles: Vec<[u32; 3]>) -> Result<Topology> {
+    Topology::new(vertex_count, triangles).map_err(|e| in_file(&name(first_path), e))
+}
+
+/// Reads the frame file `path` of a sequence whose frame 0 (`first_path`) has `topology`, and
+/// checks that it has the same vertex count and triangles; the error names the file and the
+/// first mismatch. Shared by the whole read ([`read_obj_sequence`]) and the streamed one
+/// ([`super::stream::CacheReader`]), so both say the same thing.
+pub(crate) fn read_sequence_frame(path: &Path, first_path: &Path, topology: &Topology) -> Result<ObjMesh> {
+    let mesh = read_obj(path)?;
+    let vertex_count = topology.vertex_count();
+    if mesh.vertex_count() != vertex_count {
+        return Err(Error::malformed(
+            name(path),
+            "vertex_count",
+            format!("{} vertices, but {} (frame 0) has {vertex_count}", mesh.vertex_count(), name(first_path)),
+        ));
+    }
+    if mesh.triangles != topology.triangles() {
+        let detail = match mesh.triangles.iter().zip(topology.triangles()).position(|(a, b)| a != b) {
+            Some(t) => format!(
+                "triangle {t} is {:?} but in {} (frame 0) it is {:?} (0-based indices)",
+                mesh.triangles[t],
+                name(first_path),
+                topology.triangles()[t]
+            ),
+            None => format!(
+                "{} triangles, but {} (frame 0) has {}",
+                mesh.triangles.len(),
+                name(first_path),
+                topology.triangle_count()
+            ),
+        };
+        return Err(Error::malformed(name(path), "faces", detail));
+    }
+    Ok(mesh)
 }
 
 /// Writes one OBJ file: a comment line, the vertices (`{}` Display of `f32`, which reads back to

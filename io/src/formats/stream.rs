@@ -1,22 +1,23 @@
-//! Streamed reading of PC2 and MDD caches (issue 30): the header is read and checked against
-//! [`reader_limits`](super::reader_limits) and the file's size before anything else, then frames
-//! are handed out in chunks as they are read, so a cache far larger than memory (a 1 000 000-vertex,
-//! 1 000-frame PC2 is 12 GB) can be encoded by a streaming encoder.
+//! Streamed reading of PC2 and MDD caches and of OBJ sequences (issue 30): a cache's header is
+//! read and checked against [`reader_limits`](super::reader_limits) and the file's size before
+//! anything else, an OBJ sequence's files are listed and its frame 0 read for the topology; then
+//! frames are handed out in chunks as they are read, so an animation far larger than memory (a
+//! 1 000 000-vertex, 1 000-frame PC2 is 12 GB) can be encoded by a streaming encoder.
 //!
 //! The frames, topology and frame rate are exactly those of [`read_animation`](super::read_animation)
-//! on the same file and options (tested), and the same errors are raised (a non-finite coordinate
-//! names the file, frame, vertex and axis), only later: a bad coordinate in frame 900 is found
-//! when frame 900 is read.
+//! on the same input and options (tested), and the same errors are raised (a non-finite coordinate
+//! names the file, frame, vertex and axis; an OBJ file whose mesh differs from frame 0's names the
+//! file and the first mismatch), only later: a bad frame 900 is found when frame 900 is read.
 
 use std::fs::File;
 use std::io::{BufReader, Read, Seek, SeekFrom, Write};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use codec_core::{Error, Result, Topology};
 
 use super::{
-    cache_topology, check_cache_layout, check_existing_companion, extension, in_file, mdd, name, obj, pc2, ReadOptions,
-    WriteOptions, DEFAULT_FRAME_RATE,
+    cache_topology, check_cache_layout, check_existing_companion, expand_pattern, extension, in_file, is_pattern,
+    list_obj_files, mdd, name, obj, pc2, reader_limits, ReadOptions, WriteOptions, DEFAULT_FRAME_RATE,
 };
 use crate::output::{commit_all, PendingFile};
 
@@ -27,24 +28,41 @@ enum Endian {
     Big,
 }
 
-/// A PC2 or MDD cache opened for reading frame by frame.
+/// Where a [`CacheReader`]'s frames come from.
+#[derive(Debug)]
+enum Frames {
+    /// A PC2 or MDD file: fixed-size frames from `data_offset` on.
+    Cache {
+        reader: BufReader<File>,
+        endian: Endian,
+        /// One frame of bytes.
+        bytes: Vec<u8>,
+        /// Byte offset of frame 0's positions ([`CacheReader::seek_frame`]).
+        data_offset: u64,
+    },
+    /// An OBJ sequence: one file per frame, in [`read_animation`](super::read_animation)'s
+    /// order. Only the list of paths is kept, and frame 0's positions (read for the topology)
+    /// until they are handed out: every other file is read when its frame is.
+    Obj { paths: Vec<PathBuf>, first: Option<Vec<f32>> },
+}
+
+/// A PC2 or MDD cache, or an OBJ sequence (a directory of `.obj` files or a file-name pattern),
+/// opened for reading frame by frame.
 #[derive(Debug)]
 pub struct CacheReader {
     file: String,
-    reader: BufReader<File>,
-    endian: Endian,
+    frames: Frames,
     topology: Topology,
     frame_rate: f32,
     frame_count: usize,
     frames_read: usize,
-    bytes: Vec<u8>,
-    /// Byte offset of frame 0's positions ([`CacheReader::seek_frame`]).
-    data_offset: u64,
 }
 
-/// Whether `path` names a cache [`CacheReader::open`] reads (`.pc2`, `.mdd`, any case).
+/// Whether [`CacheReader::open`] reads `path` frame by frame: a `.pc2` or `.mdd` file (any case),
+/// a directory (its `.obj` files) or a file-name pattern (`*`, `?`, `#`, `{}`), which
+/// [`read_animation`](super::read_animation) reads as an OBJ sequence.
 pub fn is_streamable(path: &Path) -> bool {
-    matches!(extension(path).as_deref(), Some("pc2" | "mdd")) && path.is_file()
+    (matches!(extension(path).as_deref(), Some("pc2" | "mdd")) && path.is_file()) || is_pattern(path) || path.is_dir()
 }
 
 fn read_exact(reader: &mut impl Read, buf: &mut [u8], file: &str, field: &str) -> Result<()> {
@@ -61,8 +79,19 @@ impl CacheReader {
     /// Opens a `.pc2` or `.mdd` cache: reads and checks its header (counts against the reader
     /// limits, position bytes against the file's size), its topology (as [`pc2::read_pc2`]) and,
     /// for MDD, its frame times (for the frame rate). No positions are read yet.
+    ///
+    /// A directory or a file-name pattern is an OBJ sequence: its files are listed as
+    /// [`read_animation`](super::read_animation) lists them (same order, same error when there
+    /// is none) and frame 0's file is read for the topology; the others are read as their
+    /// frames are. `options.topology` is ignored, as it is by the whole read.
     pub fn open(path: &Path, options: &ReadOptions) -> Result<Self> {
         let frame_rate = options.checked_frame_rate()?;
+        if is_pattern(path) {
+            return Self::open_obj_sequence(path, expand_pattern(path)?, frame_rate);
+        }
+        if path.is_dir() {
+            return Self::open_obj_sequence(path, list_obj_files(path)?, frame_rate);
+        }
         let file = name(path);
         let handle = File::open(path).map_err(|e| Error::io(file.clone(), e))?;
         let size = handle.metadata().map_err(|e| Error::io(file.clone(), e))?.len();
@@ -108,25 +137,54 @@ impl CacheReader {
             _ => {
                 return Err(Error::Unsupported {
                     context: "formats".into(),
-                    detail: format!("cannot stream {file}: only .pc2 and .mdd caches are read frame by frame"),
+                    detail: format!(
+                        "cannot stream {file}: only .pc2 and .mdd caches and OBJ sequences (a directory or a \
+                         file-name pattern) are read frame by frame"
+                    ),
                 })
             }
         };
         let topology = cache_topology(path, options.topology.as_deref(), vertices)?;
         Ok(Self {
             file,
-            reader,
-            endian,
+            frames: Frames::Cache { reader, endian, bytes: Vec::new(), data_offset },
             topology,
             frame_rate: fps,
             frame_count: frames,
             frames_read: 0,
-            bytes: Vec::new(),
-            data_offset,
         })
     }
 
-    /// The triangles (from the topology OBJ).
+    /// An OBJ sequence of `paths` (listed by the caller, never empty): reads frame 0's file for
+    /// the topology, as [`obj::read_obj_sequence`] does.
+    fn open_obj_sequence(path: &Path, paths: Vec<PathBuf>, frame_rate: Option<f32>) -> Result<Self> {
+        let file = name(path);
+        // Each file is a frame; the whole read is bounded by what it can hold, the streamed one
+        // by the frame-count limit every reader checks headers against.
+        let max_frames = reader_limits().max_frames;
+        if paths.len() > max_frames {
+            return Err(Error::LimitExceeded {
+                context: file.into(),
+                field: "frame_count".into(),
+                value: paths.len() as u64,
+                limit: max_frames as u64,
+            });
+        }
+        let first_path = paths.first().ok_or_else(|| Error::InvalidAnimation("no OBJ file to read".into()))?;
+        let mesh = obj::read_obj(first_path)?;
+        let topology = obj::sequence_topology(first_path, mesh.vertex_count(), mesh.triangles)?;
+        let first = mesh.positions;
+        Ok(Self {
+            file,
+            frame_count: paths.len(),
+            frames: Frames::Obj { paths, first: Some(first) },
+            topology,
+            frame_rate: frame_rate.unwrap_or(DEFAULT_FRAME_RATE),
+            frames_read: 0,
+        })
+    }
+
+    /// The triangles (from the topology OBJ, or an OBJ sequence's frame 0).
     pub fn topology(&self) -> &Topology {
         &self.topology
     }
@@ -136,7 +194,7 @@ impl CacheReader {
         self.topology.vertex_count()
     }
 
-    /// Frames in the cache.
+    /// Frames in the cache (files in an OBJ sequence).
     pub fn frame_count(&self) -> usize {
         self.frame_count
     }
@@ -153,24 +211,36 @@ impl CacheReader {
 
     /// Moves to frame `frame` (at most the frame count: the next read then returns nothing), so
     /// that [`CacheReader::read_frames`] reads from there: a caller coding one temporal block of
-    /// a cache (issue 30, the Python package's distributed encode) reads only its frames. The
-    /// layout was checked against the file's size when it was opened.
+    /// a cache (issue 30, the Python package's distributed encode) reads only its frames. A
+    /// cache's layout was checked against the file's size when it was opened; an OBJ sequence
+    /// reads file `frame` next.
     pub fn seek_frame(&mut self, frame: usize) -> Result<()> {
         if frame > self.frame_count {
             return Err(Error::InvalidAnimation(format!(
-                "{}: frame {frame} is past the end of the cache ({} frames)",
+                "{}: frame {frame} is past the end ({} frames)",
                 self.file, self.frame_count
             )));
         }
-        let offset = self.data_offset + frame as u64 * self.vertex_count() as u64 * 12;
-        self.reader.seek(SeekFrom::Start(offset)).map_err(|e| Error::io(self.file.clone(), e))?;
+        match &mut self.frames {
+            Frames::Cache { reader, data_offset, .. } => {
+                let offset = *data_offset + frame as u64 * self.topology.vertex_count() as u64 * 12;
+                reader.seek(SeekFrom::Start(offset)).map_err(|e| Error::io(self.file.clone(), e))?;
+            }
+            // Frame 0's positions are kept only for a read from the start.
+            Frames::Obj { first, .. } => {
+                if frame != 0 {
+                    *first = None;
+                }
+            }
+        }
         self.frames_read = frame;
         Ok(())
     }
 
-    /// Reads the next `frames` frames (fewer at the end of the cache) into `out` (cleared
-    /// first, frame-major `n × vertices × 3`) and returns how many; 0 at the end. Every
-    /// coordinate is checked finite (the error names the file, frame, vertex and axis).
+    /// Reads the next `frames` frames (fewer at the end) into `out` (cleared first, frame-major
+    /// `n × vertices × 3`) and returns how many; 0 at the end. Every coordinate is checked finite
+    /// (the error names the file, frame, vertex and axis); every file of an OBJ sequence is
+    /// checked against frame 0's mesh as [`obj::read_obj_sequence`] checks it.
     pub fn read_frames(&mut self, frames: usize, out: &mut Vec<f32>) -> Result<usize> {
         out.clear();
         let n = frames.min(self.frame_count - self.frames_read);
@@ -178,22 +248,39 @@ impl CacheReader {
             return Ok(0);
         }
         let per_frame = self.vertex_count() * 3;
-        // One frame of bytes at a time: the byte buffer stays one frame, whatever `frames` is.
-        self.bytes.resize(per_frame * 4, 0);
         out.reserve(n * per_frame);
-        for _ in 0..n {
-            read_exact(&mut self.reader, &mut self.bytes, &self.file, "positions")?;
-            match self.endian {
-                Endian::Little => {
-                    out.extend(self.bytes.chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]])))
+        match &mut self.frames {
+            Frames::Cache { reader, endian, bytes, .. } => {
+                // One frame of bytes at a time: the byte buffer stays one frame, whatever `frames` is.
+                bytes.resize(per_frame * 4, 0);
+                for _ in 0..n {
+                    read_exact(reader, bytes, &self.file, "positions")?;
+                    match endian {
+                        Endian::Little => {
+                            out.extend(bytes.chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]])))
+                        }
+                        Endian::Big => {
+                            out.extend(bytes.chunks_exact(4).map(|c| f32::from_be_bytes([c[0], c[1], c[2], c[3]])))
+                        }
+                    }
                 }
-                Endian::Big => {
-                    out.extend(self.bytes.chunks_exact(4).map(|c| f32::from_be_bytes([c[0], c[1], c[2], c[3]])))
+                codec_core::animation::check_finite(out, self.topology.vertex_count(), self.frames_read)
+                    .map_err(|e| in_file(&self.file, e))?;
+            }
+            Frames::Obj { paths, first } => {
+                // One file's text and mesh at a time (the parser refuses non-finite values,
+                // naming the file, line, vertex and axis).
+                for t in self.frames_read..self.frames_read + n {
+                    match first.take().filter(|_| t == 0) {
+                        Some(positions) => out.extend_from_slice(&positions),
+                        None => {
+                            let mesh = obj::read_sequence_frame(&paths[t], &paths[0], &self.topology)?;
+                            out.extend_from_slice(&mesh.positions);
+                        }
+                    }
                 }
             }
         }
-        codec_core::animation::check_finite(out, self.vertex_count(), self.frames_read)
-            .map_err(|e| in_file(&self.file, e))?;
         self.frames_read += n;
         Ok(n)
     }
@@ -442,6 +529,119 @@ mod tests {
         let e = streamed(&path, &ReadOptions::default(), 1).unwrap_err().to_string();
         assert_eq!(e, whole);
         assert!(e.contains("frame 2"), "{e}");
+    }
+
+    /// An OBJ sequence of `anim` in `dir`: frame t in `f{t}.obj` (natural order differs from
+    /// the lexical one from frame 10 on), with a file that is not a frame beside them.
+    fn obj_sequence(dir: &TempDir, anim: &codec_core::Animation) {
+        for t in 0..anim.frame_count() {
+            obj::write_obj(&dir.path(&format!("f{t}.obj")), anim.frame(t), anim.triangles(), "test").unwrap();
+        }
+        std::fs::write(dir.path("notes.txt"), "not a frame").unwrap();
+    }
+
+    #[test]
+    fn streamed_obj_sequences_equal_the_whole_read() {
+        let dir = TempDir::new("stream-obj");
+        let anim = test_animation(7, 12, 24.0);
+        obj_sequence(&dir, &anim);
+        for (input, fps) in [(dir.0.clone(), None), (dir.path("f*.obj"), Some(24.0)), (dir.path("f{}.obj"), None)] {
+            assert!(is_streamable(&input), "{}", input.display());
+            let options = ReadOptions { frame_rate: fps, ..Default::default() };
+            let whole = read_animation(&input, &options).unwrap();
+            assert_eq!(whole.frame_count(), 12);
+            for chunk in [1, 3, 12, 100] {
+                let (all, r) = streamed(&input, &options, chunk).unwrap();
+                let bits = |x: &[f32]| x.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+                assert_eq!(bits(&all), bits(whole.positions()), "{}, chunks of {chunk}", input.display());
+                assert_eq!(r.frame_count(), whole.frame_count());
+                assert_eq!(r.frames_read(), whole.frame_count());
+                assert_eq!(r.frame_rate(), whole.frame_rate());
+                assert_eq!(r.topology().triangles(), whole.triangles());
+                assert_eq!(r.vertex_count(), whole.vertex_count());
+            }
+        }
+        // A single .obj stays a whole read (one frame); so does a missing path.
+        assert!(!is_streamable(&dir.path("f0.obj")));
+        assert!(!is_streamable(&dir.path("missing")));
+    }
+
+    #[test]
+    fn a_seek_in_an_obj_sequence_reads_from_that_file() {
+        let dir = TempDir::new("stream-obj-seek");
+        let anim = test_animation(5, 11, 30.0);
+        obj_sequence(&dir, &anim);
+        let per_frame = 5 * 3;
+        let mut r = CacheReader::open(&dir.0, &ReadOptions::default()).unwrap();
+        let mut buf = Vec::new();
+        for (first, n) in [(5, 4), (0, 2), (0, 1), (9, 5), (11, 1), (1, 3)] {
+            r.seek_frame(first).unwrap();
+            let got = r.read_frames(n, &mut buf).unwrap();
+            assert_eq!(got, n.min(11 - first));
+            assert_eq!(buf, anim.positions()[first * per_frame..(first + got) * per_frame], "from {first}");
+            assert_eq!(r.frames_read(), first + got);
+        }
+        assert!(r.seek_frame(12).is_err());
+    }
+
+    /// A later file whose mesh differs from frame 0's fails when its frame is read, with the
+    /// whole read's message; the frames before it are handed out.
+    #[test]
+    fn a_mismatching_later_file_fails_at_its_frame_with_the_whole_read_s_message() {
+        let dir = TempDir::new("stream-obj-bad");
+        let anim = test_animation(6, 8, 30.0);
+        obj_sequence(&dir, &anim);
+        let bad = dir.path("f5.obj");
+        let mut tris = anim.triangles().to_vec();
+        tris[2] = [0, 1, 5];
+        // (positions, triangles, a word of the message); an empty word: a file that does not parse.
+        type Case<'a> = (&'a [f32], &'a [[u32; 3]], &'a str);
+        let cases: [Case; 4] = [
+            (&anim.frame(5)[..15], &anim.triangles()[..3], "5 vertices"),
+            (anim.frame(5), &tris, "triangle 2 is [0, 1, 5]"),
+            (anim.frame(5), &anim.triangles()[..3], "3 triangles"),
+            (anim.frame(5), anim.triangles(), ""),
+        ];
+        for (positions, triangles, needle) in cases {
+            obj::write_obj(&bad, positions, triangles, "").unwrap();
+            if needle.is_empty() {
+                // A file that does not parse: the parser's error, naming the file and line.
+                std::fs::write(&bad, "v 0 0 0\nv 1 nan 0\n").unwrap();
+            }
+            let whole = read_animation(&dir.0, &ReadOptions::default()).unwrap_err().to_string();
+            assert!(whole.contains("f5.obj") && whole.contains(needle), "{whole}");
+            let mut r = CacheReader::open(&dir.0, &ReadOptions::default()).unwrap();
+            let mut buf = Vec::new();
+            assert_eq!(r.read_frames(3, &mut buf).unwrap(), 3);
+            assert_eq!(r.read_frames(2, &mut buf).unwrap(), 2);
+            let e = r.read_frames(1, &mut buf).unwrap_err().to_string();
+            assert_eq!(e, whole);
+            // In one chunk spanning it, too.
+            let e = streamed(&dir.0, &ReadOptions::default(), 8).unwrap_err().to_string();
+            assert_eq!(e, whole);
+        }
+    }
+
+    #[test]
+    fn an_empty_or_unmatched_obj_sequence_errors_as_the_whole_read() {
+        let dir = TempDir::new("stream-obj-empty");
+        std::fs::write(dir.path("notes.txt"), "not a frame").unwrap();
+        for input in [dir.0.clone(), dir.path("f*.obj")] {
+            assert!(is_streamable(&input));
+            let whole = read_animation(&input, &ReadOptions::default()).unwrap_err().to_string();
+            let e = CacheReader::open(&input, &ReadOptions::default()).unwrap_err().to_string();
+            assert_eq!(e, whole);
+            assert!(e.contains("no .obj file") || e.contains("no file matches"), "{e}");
+        }
+        // A bad frame 0 (the topology) fails at open, as the whole read fails.
+        std::fs::write(dir.path("f0.obj"), "# nothing\n").unwrap();
+        let whole = read_animation(&dir.0, &ReadOptions::default()).unwrap_err().to_string();
+        let e = CacheReader::open(&dir.0, &ReadOptions::default()).unwrap_err().to_string();
+        assert_eq!(e, whole);
+        assert!(e.contains("f0.obj") && e.contains("no vertices"), "{e}");
+        // A bad frame rate, as the whole read.
+        let bad = ReadOptions { frame_rate: Some(0.0), ..Default::default() };
+        assert!(CacheReader::open(&dir.0, &bad).is_err());
     }
 
     #[test]
