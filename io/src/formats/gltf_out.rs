@@ -22,7 +22,6 @@ use base64::Engine as _;
 use codec_core::{Animation, Error, Result};
 
 use super::gltf_out_rd::{self, QBasis};
-use codec_core::linalg;
 use faer::Mat;
 use serde_json::{json, Value};
 
@@ -379,19 +378,7 @@ struct Morphs {
 /// `F × F` Gram matrix of the centred frames (cheaper than the `3V × 3V` covariance).
 fn basis_morphs(a: &Animation, options: &GltfOptions) -> Result<Morphs> {
     let (frames, n) = (a.frame_count(), a.vertex_count() * 3);
-    let mut mean = vec![0.0f64; n];
-    for f in 0..frames {
-        for (m, &x) in mean.iter_mut().zip(a.frame(f)) {
-            *m += x as f64;
-        }
-    }
-    mean.iter_mut().for_each(|m| *m /= frames as f64);
-    let centred = Mat::<f64>::from_fn(frames, n, |f, i| a.frame(f)[i] as f64 - mean[i]);
-    // Sequential faer calls (`codec_core::linalg`, as `gltf_out_rd::pca`): the same bytes at
-    // any thread count.
-    let gram = linalg::mul(centred.as_ref(), centred.transpose());
-    let (lambda, vectors) = linalg::sym_eig_desc(gram.as_ref())
-        .map_err(|e| e.numerical("glTF export", "eigen-decomposition of the frames' Gram matrix"))?;
+    let gltf_out_rd::FrameEigen { mean, centred, values: lambda, vectors } = gltf_out_rd::frame_eigen(a)?;
     let energy = gltf_out_rd::kg_energy(a);
     let kg_with = |k: usize| {
         let rest: f64 = lambda[k.min(frames)..].iter().sum();

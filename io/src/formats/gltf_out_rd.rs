@@ -60,8 +60,17 @@ pub(super) fn kg_between(a: &Animation, played: &Animation) -> f64 {
     }
 }
 
-/// The frames' principal components (eigen-decomposition of the `F × F` Gram matrix).
-pub(super) fn pca(a: &Animation) -> Result<Pca> {
+/// The frames' mean, the centred frames (`F × 3V`) and the eigen-decomposition of their
+/// `F × F` Gram matrix (descending eigenvalues, clamped at zero; eigenvectors as columns):
+/// what [`pca`] and the uncompressed basis export (`gltf_out::basis_morphs`) start from.
+pub(super) struct FrameEigen {
+    pub mean: Vec<f64>,
+    pub centred: Mat<f64>,
+    pub values: Vec<f64>,
+    pub vectors: Mat<f64>,
+}
+
+pub(super) fn frame_eigen(a: &Animation) -> Result<FrameEigen> {
     let (frames, n) = (a.frame_count(), a.vertex_count() * 3);
     let mut mean = vec![0.0f64; n];
     for f in 0..frames {
@@ -73,8 +82,15 @@ pub(super) fn pca(a: &Animation) -> Result<Pca> {
     let centred = Mat::<f64>::from_fn(frames, n, |f, i| a.frame(f)[i] as f64 - mean[i]);
     // Sequential faer calls (`codec_core::linalg`): the same bytes at any thread count.
     let gram = linalg::mul(centred.as_ref(), centred.transpose());
-    let (all, vectors) = linalg::sym_eig_desc(gram.as_ref())
+    let (values, vectors) = linalg::sym_eig_desc(gram.as_ref())
         .map_err(|e| e.numerical("glTF export", "eigen-decomposition of the frames' Gram matrix"))?;
+    Ok(FrameEigen { mean, centred, values, vectors })
+}
+
+/// The frames' principal components (eigen-decomposition of the `F × F` Gram matrix).
+pub(super) fn pca(a: &Animation) -> Result<Pca> {
+    let (frames, n) = (a.frame_count(), a.vertex_count() * 3);
+    let FrameEigen { mean, centred, values: all, vectors } = frame_eigen(a)?;
     let top = all.first().copied().unwrap_or(0.0).max(f64::MIN_POSITIVE);
     let rank = all.iter().filter(|&&l| l > 1e-12 * top).count();
     let lambda = all[..rank].to_vec();
