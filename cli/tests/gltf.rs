@@ -16,27 +16,8 @@ use animcodec::formats::{read_animation, ReadOptions};
 use codec_core::synth::{self, SynthSize};
 use codec_core::testing::skip;
 use codec_core::Animation;
-use common::Scratch;
+use common::{node_packages, shared_data, Scratch};
 use serde_json::Value;
-
-/// The tests/gltf folder when Node.js and its npm packages are there, else why not.
-fn node_tools() -> Result<PathBuf, String> {
-    let dir = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/gltf"));
-    for package in ["three", "gltf-validator"] {
-        if !dir.join("node_modules").join(package).exists() {
-            return Err(format!("npm package {package} not installed (bash cli/tests/gltf/install.sh)"));
-        }
-    }
-    if Command::new("node").arg("--version").output().is_err() {
-        return Err("node not found".into());
-    }
-    Ok(dir)
-}
-
-fn data(rel: &str) -> Option<PathBuf> {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data").join(rel);
-    p.is_file().then_some(p)
-}
 
 /// What three.js plays: animation `index` at `t0 + k / fps` for `frames` frames (0: at rest).
 struct Sampling {
@@ -86,14 +67,14 @@ fn start_of(file: &Path, index: usize) -> f64 {
 /// 1e-5 × the bounding-box diagonal on every frame; Horse.glb (morph targets) too.
 #[test]
 fn skinned_and_morph_playback_agrees_with_three_js() {
-    let tools = match node_tools() {
+    let tools = match node_packages(&["three", "gltf-validator"]) {
         Ok(t) => t,
         Err(why) => return skip("skinned_and_morph_playback_agrees_with_three_js", &why),
     };
     let s = Scratch::new("gltf-three");
     let (mut checked, mut missing) = (0, 0);
     for rel in ["robot-expressive/RobotExpressive.glb", "horse-glb/Horse.glb"] {
-        let Some(file) = data(rel) else {
+        let Some(file) = shared_data(rel) else {
             // A visible skip (a failure under ANIMCODEC_REQUIRE_ALL); the other file still runs.
             skip("skinned_and_morph_playback_agrees_with_three_js", &format!("{rel} not found in ../shared/data"));
             missing += 1;
@@ -137,10 +118,10 @@ fn validate(tools: &Path, files: &[PathBuf]) -> Vec<Value> {
 /// RobotExpressive animation as our reader bakes them.
 fn writer_inputs() -> Vec<(String, Animation)> {
     let mut out = vec![("flag".to_string(), synth::by_name("flag", SynthSize::Small).unwrap())];
-    if let Some(horse) = data("horse-glb/Horse.glb") {
+    if let Some(horse) = shared_data("horse-glb/Horse.glb") {
         out.push(("horse".into(), read_animation(&horse, &ReadOptions::default()).unwrap()));
     }
-    if let Some(robot) = data("robot-expressive/RobotExpressive.glb") {
+    if let Some(robot) = shared_data("robot-expressive/RobotExpressive.glb") {
         let read = ReadOptions { animation: Some("Wave".into()), ..Default::default() };
         out.push(("robot-wave".into(), read_animation(&robot, &read).unwrap()));
     }
@@ -176,7 +157,7 @@ fn variants() -> Vec<(String, GltfOptions, bool)> {
 /// as our own reader does (1e-5 × diagonal).
 #[test]
 fn written_gltf_is_valid_and_three_js_plays_it_like_our_reader() {
-    let tools = match node_tools() {
+    let tools = match node_packages(&["three", "gltf-validator"]) {
         Ok(t) => t,
         Err(why) => return skip("written_gltf_is_valid_and_three_js_plays_it_like_our_reader", &why),
     };
@@ -216,7 +197,7 @@ fn written_gltf_is_valid_and_three_js_plays_it_like_our_reader() {
 #[test]
 fn robot_dance_encodes_decodes_to_a_valid_glb() {
     use common::{fails, ok, ok_json};
-    let Some(robot) = data("robot-expressive/RobotExpressive.glb") else {
+    let Some(robot) = shared_data("robot-expressive/RobotExpressive.glb") else {
         return skip("robot_dance_encodes_decodes_to_a_valid_glb", "RobotExpressive.glb not in ../shared/data");
     };
     let robot = robot.to_string_lossy().into_owned();
@@ -236,7 +217,7 @@ fn robot_dance_encodes_decodes_to_a_valid_glb() {
     let default_kg = animcodec::harness::DEFAULT_TARGET.value;
     assert!(e["kg"].as_f64().unwrap() <= default_kg, "{e}");
     fails(&["encode", &robot, "--animation", "Moonwalk", "-c", "hosvd", "-o", &anim, "-f"], &["Moonwalk", "0 'Dance'"]);
-    let tools = match node_tools() {
+    let tools = match node_packages(&["three", "gltf-validator"]) {
         Ok(t) => t,
         Err(why) => return skip("robot_dance_encodes_decodes_to_a_valid_glb (validator/three.js part)", &why),
     };
@@ -615,7 +596,7 @@ fn meshopt_filters(glb: &Path) -> std::collections::BTreeMap<String, usize> {
 #[test]
 fn what_gltfpack_writes_is_read_like_three_js_plays_it() {
     let test = "what_gltfpack_writes_is_read_like_three_js_plays_it";
-    let tools = match node_tools() {
+    let tools = match node_packages(&["three", "gltf-validator"]) {
         Ok(t) if t.join("node_modules/gltfpack/cli.js").exists() => t,
         Ok(_) => {
             return codec_core::testing::skip(
@@ -671,7 +652,7 @@ fn what_gltfpack_writes_is_read_like_three_js_plays_it() {
     }
     assert!(filters[1].contains_key("EXPONENTIAL"), "gltfpack -cc -vpf wrote no EXPONENTIAL view: {:?}", filters[1]);
     for rel in ["horse-glb/Horse.glb", "robot-expressive/RobotExpressive.glb"] {
-        match data(rel) {
+        match shared_data(rel) {
             Some(file) => {
                 let out = s.0.join(Path::new(rel).file_name().unwrap());
                 gltfpack(&tools, &file, &out, &["-cc"]);

@@ -11,7 +11,7 @@
 
 mod common;
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
 
 use animcodec::formats::gltf::{self, GltfSelection};
@@ -20,29 +20,10 @@ use animcodec::formats::{read_animation, ReadOptions};
 use codec_core::synth::{self, SynthSize};
 use codec_core::testing::skip;
 use codec_core::Animation;
-use common::Scratch;
+use common::{node_packages, shared_data, Scratch};
 
 /// The size ratio the issue asks for.
 const RATIO: f64 = 0.7;
-
-/// The tests/gltf folder when Node.js, gltfpack and the validator are installed, else why not.
-fn tools() -> Result<PathBuf, String> {
-    let dir = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/gltf"));
-    for package in ["gltfpack", "gltf-validator"] {
-        if !dir.join("node_modules").join(package).exists() {
-            return Err(format!("npm package {package} not installed (bash cli/tests/gltf/install.sh)"));
-        }
-    }
-    if Command::new("node").arg("--version").output().is_err() {
-        return Err("node not found".into());
-    }
-    Ok(dir)
-}
-
-fn data(rel: &str) -> Option<PathBuf> {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data").join(rel);
-    p.is_file().then_some(p)
-}
 
 /// Runs `gltfpack -cc` on `input` (keys at `fps`): at a rate other than its default 30 Hz,
 /// with `-af 0` (no resampling), else gltfpack resamples the `STEP` weights at 30 Hz and plays
@@ -201,7 +182,7 @@ fn assert_beats(row: &Row) {
 #[test]
 fn our_glb_beats_gltfpack_on_a_synthetic_animation() {
     let test = "our_glb_beats_gltfpack_on_a_synthetic_animation";
-    let tools = match tools() {
+    let tools = match node_packages(&["gltfpack", "gltf-validator"]) {
         Ok(t) => t,
         Err(why) => return skip(test, &why),
     };
@@ -215,14 +196,14 @@ fn our_glb_beats_gltfpack_on_a_synthetic_animation() {
 #[test]
 fn our_glb_beats_gltfpack_on_the_real_animations() {
     let test = "our_glb_beats_gltfpack_on_the_real_animations";
-    let tools = match tools() {
+    let tools = match node_packages(&["gltfpack", "gltf-validator"]) {
         Ok(t) => t,
         Err(why) => return skip(test, &why),
     };
     let s = Scratch::new("gltfpack-real");
     let mut inputs: Vec<(String, Animation)> = Vec::new();
     for name in ["samba", "chicken-crossing"] {
-        match (data(&format!("{name}/{name}.pc2")), data(&format!("{name}/{name}.obj"))) {
+        match (shared_data(&format!("{name}/{name}.pc2")), shared_data(&format!("{name}/{name}.obj"))) {
             (Some(pc2), Some(obj)) => {
                 let read = ReadOptions { topology: Some(obj), ..Default::default() };
                 inputs.push((name.into(), read_animation(&pc2, &read).unwrap()));
@@ -230,7 +211,7 @@ fn our_glb_beats_gltfpack_on_the_real_animations() {
             _ => skip(&format!("{test} ({name})"), "not found in ../shared/data"),
         }
     }
-    match data("robot-expressive/RobotExpressive.glb") {
+    match shared_data("robot-expressive/RobotExpressive.glb") {
         Some(robot) => {
             for name in ["Dance", "Walking", "Wave"] {
                 let read = ReadOptions { animation: Some(name.into()), ..Default::default() };

@@ -5,7 +5,7 @@
 // Each test binary compiles this module and uses a different subset of it.
 #![allow(dead_code)]
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 use animcodec::core::{Animation, CodecRegistry};
@@ -94,4 +94,25 @@ pub fn request<'a>(
     refine: usize,
 ) -> SearchRequest<'a> {
     SearchRequest { eval: *eval, refine, ..SearchRequest::new(registry, animation, target) }
+}
+
+/// The `cli/tests/gltf` folder when Node.js and the npm `packages` are installed there
+/// (`bash cli/tests/gltf/install.sh`), else why not (for `codec_core::testing::skip`).
+pub fn node_packages(packages: &[&str]) -> Result<PathBuf, String> {
+    let dir = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/gltf"));
+    for package in packages {
+        if !dir.join("node_modules").join(package).exists() {
+            return Err(format!("npm package {package} not installed (bash cli/tests/gltf/install.sh)"));
+        }
+    }
+    if Command::new("node").arg("--version").output().is_err() {
+        return Err("node not found".into());
+    }
+    Ok(dir)
+}
+
+/// A file of `../shared/data` (the real animations), or `None` when it is absent.
+pub fn shared_data(rel: &str) -> Option<PathBuf> {
+    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data").join(rel);
+    p.is_file().then_some(p)
 }
