@@ -16,7 +16,7 @@ use animcodec::formats::{read_animation, ReadOptions};
 use codec_core::synth::{self, SynthSize};
 use codec_core::testing::skip;
 use codec_core::Animation;
-use common::{node_packages, shared_data, Scratch};
+use common::{gltfpack, node_packages, shared_data, Scratch};
 use serde_json::Value;
 
 /// What three.js plays: animation `index` at `t0 + k / fps` for `frames` frames (0: at rest).
@@ -560,20 +560,6 @@ fn animation_names_are_printed_escaped() {
     let args = ["encode", path.as_str(), "--animation", "x\u{1b}[2J", "-c", "quant-delta", "-o", out.as_str()];
     let e = common::fails(&args, &["\\u{1b}[31mred\\nline", "x\\u{1b}[2J"]);
     assert!(!e.contains('\u{1b}'), "{e}");
-}
-
-/// Runs gltfpack (npm `gltfpack`, installed by install.sh) with `args` on `input`.
-fn gltfpack(tools: &Path, input: &Path, output: &Path, args: &[&str]) {
-    let o = Command::new("node")
-        .arg(tools.join("node_modules/gltfpack/cli.js"))
-        .args(args)
-        .arg("-i")
-        .arg(input)
-        .arg("-o")
-        .arg(output)
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "gltfpack failed on {}: {}", input.display(), String::from_utf8_lossy(&o.stderr));
 }
 
 /// Counts of EXT_meshopt_compression filters in a GLB's buffer views.

@@ -28,19 +28,9 @@ const RATIO: f64 = 0.7;
 /// Runs `gltfpack -cc` on `input` (keys at `fps`): at a rate other than its default 30 Hz,
 /// with `-af 0` (no resampling), else gltfpack resamples the `STEP` weights at 30 Hz and plays
 /// other frames (KG 4–8 % on RobotExpressive's 24-fps animations).
-fn gltfpack(tools: &Path, input: &Path, output: &Path, fps: f32) {
-    let resample: &[&str] = if fps == 30.0 { &[] } else { &["-af", "0"] };
-    let o = Command::new("node")
-        .arg(tools.join("node_modules/gltfpack/cli.js"))
-        .arg("-cc")
-        .args(resample)
-        .arg("-i")
-        .arg(input)
-        .arg("-o")
-        .arg(output)
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "gltfpack failed on {}: {}", input.display(), String::from_utf8_lossy(&o.stderr));
+fn gltfpack_cc(tools: &Path, input: &Path, output: &Path, fps: f32) {
+    let args: &[&str] = if fps == 30.0 { &["-cc"] } else { &["-cc", "-af", "0"] };
+    common::gltfpack(tools, input, output, args);
 }
 
 /// Errors of the Khronos glTF Validator on `file`.
@@ -126,7 +116,7 @@ fn compare(tools: &Path, s: &Scratch, name: &str, a: &Animation) -> Row {
     let options = GltfOptions { layout: GltfLayout::Frames, compress: false, name: name.into(), ..Default::default() };
     std::fs::write(&frames, encode_gltf(a, &options, true).unwrap().0).unwrap();
     let packed_path = s.0.join(format!("{name}-gltfpack.glb"));
-    gltfpack(tools, &frames, &packed_path, fps);
+    gltfpack_cc(tools, &frames, &packed_path, fps);
     let selection = GltfSelection { frame_rate: Some(fps), ..Default::default() };
     let packed = gltf::read_gltf(&packed_path, &selection).unwrap();
     let gltfpack_kg = kg_matched(a, &packed);

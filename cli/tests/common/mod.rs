@@ -116,3 +116,17 @@ pub fn shared_data(rel: &str) -> Option<PathBuf> {
     let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data").join(rel);
     p.is_file().then_some(p)
 }
+
+/// Runs gltfpack (npm `gltfpack` in `tools`, from [`node_packages`]) with `args` on `input`.
+pub fn gltfpack(tools: &Path, input: &Path, output: &Path, args: &[&str]) {
+    let o = Command::new("node")
+        .arg(tools.join("node_modules/gltfpack/cli.js"))
+        .args(args)
+        .arg("-i")
+        .arg(input)
+        .arg("-o")
+        .arg(output)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "gltfpack failed on {}: {}", input.display(), String::from_utf8_lossy(&o.stderr));
+}
