@@ -1,5 +1,6 @@
-//! Topology coding on real meshes: container version 1's list coding vs version 2's
-//! connectivity coding (bytes, bits per triangle, encode and decode time, same run).
+//! Topology coding on real meshes: container version 1's list coding, version 2's
+//! connectivity coding (method 1) and version 3's traversal coding (method 2): bytes, bits
+//! per triangle, encode and decode time, same run.
 //!
 //! `cargo run --release -p codec-core --example topology_bench -- ../shared/data/*/*.obj`
 
@@ -7,6 +8,7 @@ use std::time::Instant;
 
 use codec_core::connectivity::{canonical_order, decode, encode};
 use codec_core::container::encode_topology_list;
+use codec_core::traversal;
 use codec_core::Topology;
 
 fn load_obj(path: &str) -> Result<Topology, String> {
@@ -50,8 +52,8 @@ fn main() {
         eprintln!("usage: topology_bench MESH.obj...");
         std::process::exit(2);
     }
-    println!("| mesh | triangles | v1 bytes | v1 bits/tri | v2 bytes | v2 bits/tri | v1/v2 | canonical order s | v2 encode s | v2 decode s | v1 encode s |");
-    println!("|---|---|---|---|---|---|---|---|---|---|---|");
+    println!("| mesh | triangles | list bytes | list bits/tri | method 1 bytes | method 1 bits/tri | method 2 bytes | method 2 bits/tri | method 1 / method 2 | canonical order s | method 1 encode s | method 1 decode s | method 2 encode s | method 2 decode s |");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     for path in &paths {
         let topo = match load_obj(path) {
             Ok(t) => t,
@@ -61,24 +63,31 @@ fn main() {
             }
         };
         let n = topo.triangle_count().max(1) as f64;
-        let (v1, t_v1) = best_of(3, || encode_topology_list(&topo));
+        let (v1, _) = best_of(1, || encode_topology_list(&topo));
         let (canon, t_canon) = best_of(3, || canonical_order(&topo));
         let (v2, t_enc) = best_of(3, || encode(&canon).expect("indices fit"));
         let (back, t_dec) = best_of(3, || decode(&v2, canon.vertex_count(), canon.triangle_count()).expect("decodes"));
         assert_eq!(back, canon, "round trip");
+        let (v3, t_enc3) = best_of(3, || traversal::encode(&canon).expect("indices fit"));
+        let (back3, t_dec3) =
+            best_of(3, || traversal::decode(&v3, canon.vertex_count(), canon.triangle_count()).expect("decodes"));
+        assert_eq!(back3, canon, "method 2 round trip");
         let name = std::path::Path::new(path).file_stem().map_or(path.clone(), |s| s.to_string_lossy().into_owned());
         println!(
-            "| {name} | {} | {} | {:.2} | {} | {:.2} | {:.2}× | {:.4} | {:.4} | {:.4} | {:.4} |",
+            "| {name} | {} | {} | {:.2} | {} | {:.2} | {} | {:.2} | {:.2}× | {:.4} | {:.4} | {:.4} | {:.4} | {:.4} |",
             topo.triangle_count(),
             v1.len(),
             v1.len() as f64 * 8.0 / n,
             v2.len(),
             v2.len() as f64 * 8.0 / n,
-            v1.len() as f64 / v2.len().max(1) as f64,
+            v3.len(),
+            v3.len() as f64 * 8.0 / n,
+            v2.len() as f64 / v3.len().max(1) as f64,
             t_canon,
             t_enc,
             t_dec,
-            t_v1
+            t_enc3,
+            t_dec3
         );
     }
 }

@@ -1,4 +1,5 @@
-//! Compact coding of the triangle list (the topology block of container version 2).
+//! Compact coding of the triangle list in canonical order (topology method 1, container versions 2 and 3;
+//! method 2, usually smaller, is [`crate::traversal`]).
 //!
 //! Version 1 coded each triangle as three zigzag varint deltas and zstd: 14–28 bits per
 //! triangle on the dev meshes (horse-gallop 14.2, samba 28.1), which for a short animation is
@@ -174,18 +175,18 @@ const IN: u8 = 2;
 
 /// Known neighbours per vertex (sorted, deduplicated, at most [`MAX_KNOWN`]) with the
 /// directions of the half-edges seen, grown triangle by triangle.
-struct Neighbours {
+pub(crate) struct Neighbours {
     lists: Vec<Vec<(u32, u8)>>,
 }
 
 impl Neighbours {
     /// Empty; lists are allocated up to the largest index met (so a huge declared vertex
     /// count with few triangles costs nothing).
-    fn new() -> Self {
+    pub(crate) fn new() -> Self {
         Self { lists: Vec::new() }
     }
 
-    fn list(&self, x: u32) -> &[(u32, u8)] {
+    pub(crate) fn list(&self, x: u32) -> &[(u32, u8)] {
         self.lists.get(x as usize).map_or(&[], |l| l.as_slice())
     }
 
@@ -210,7 +211,7 @@ impl Neighbours {
         self.mark(q, p, IN);
     }
 
-    fn add(&mut self, t: [u32; 3]) {
+    pub(crate) fn add(&mut self, t: [u32; 3]) {
         self.link(t[0], t[1]);
         self.link(t[1], t[2]);
         self.link(t[2], t[0]);

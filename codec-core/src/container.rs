@@ -21,8 +21,9 @@ pub use crate::limits::{Limits, DEFAULT_MAX_MEMORY, DEFAULT_MAX_WORK};
 
 /// File magic: `ANIMCDC` then 0x1A (stops `type` on DOS, catches text-mode mangling).
 pub const MAGIC: [u8; 8] = *b"ANIMCDC\x1a";
-/// Container version written by this library.
-pub const CONTAINER_VERSION: u16 = 2;
+/// Newest container version this library reads and writes. It writes 3 when the topology
+/// block uses the traversal coding (method 2), else 2 (the same bytes as before version 3).
+pub const CONTAINER_VERSION: u16 = 3;
 /// Tag opening every packet.
 pub const PACKET_TAG: [u8; 4] = *b"APKT";
 /// Tag opening the index.
@@ -89,6 +90,9 @@ const TOPOLOGY_LIST: u8 = 0;
 /// Topology block method byte (container version 2): [`crate::connectivity`]'s adaptive
 /// arithmetic coding.
 const TOPOLOGY_CONNECTIVITY: u8 = 1;
+/// Topology block method byte (container version 3): [`crate::traversal`]'s walk over the
+/// mesh (an older reader would not know it, hence the version).
+const TOPOLOGY_TRAVERSAL: u8 = 2;
 
 /// Container version 1's topology coding: per triangle, zigzag varints of the first index's
 /// delta from the previous triangle's first index and of the other two indices relative to
@@ -106,24 +110,35 @@ pub fn encode_topology_list(topology: &Topology) -> Vec<u8> {
     entropy::compress(w.as_slice(), entropy::DEFAULT_LEVEL)
 }
 
-/// Codes a triangle list exactly as container version 2 stores it: a method byte, then the
-/// smaller of [`crate::connectivity::encode`] (small for [`crate::connectivity::canonical_order`])
-/// and version 1's list coding.
-pub fn encode_topology(topology: &Topology) -> Vec<u8> {
+/// Codes a triangle list exactly as the container stores it: a method byte, then the
+/// smallest of [`crate::traversal::encode`] (used only when decoding it gives back exactly
+/// `topology`: the stream encoder's [`crate::connectivity::canonical_order`]),
+/// [`crate::connectivity::encode`] and version 1's list coding. Returns the container version
+/// the block needs (3 for the traversal coding, else 2) with the block.
+pub fn encode_topology(topology: &Topology) -> (u16, Vec<u8>) {
     let list = encode_topology_list(topology);
-    let connectivity = (topology.triangle_count() > 0).then(|| crate::connectivity::encode(topology)).flatten();
-    let (method, body) = match connectivity {
-        Some(c) if c.len() < list.len() => (TOPOLOGY_CONNECTIVITY, c),
-        _ => (TOPOLOGY_LIST, list),
-    };
+    let nonempty = topology.triangle_count() > 0;
+    let connectivity = nonempty.then(|| crate::connectivity::encode(topology)).flatten();
+    // The encoder checks its own output: the block must decode to this very list.
+    let traversal = nonempty.then(|| crate::traversal::encode(topology)).flatten().filter(|b| {
+        crate::traversal::decode(b, topology.vertex_count(), topology.triangle_count()).is_ok_and(|t| t == *topology)
+    });
+    let mut best = (2, TOPOLOGY_LIST, list);
+    for (version, method, body) in [(2, TOPOLOGY_CONNECTIVITY, connectivity), (3, TOPOLOGY_TRAVERSAL, traversal)] {
+        if let Some(body) = body.filter(|b| b.len() < best.2.len()) {
+            best = (version, method, body);
+        }
+    }
+    let (version, method, body) = best;
     let mut out = Vec::with_capacity(body.len() + 1);
     out.push(method);
     out.extend_from_slice(&body);
-    out
+    (version, out)
 }
 
 /// Inverse of [`encode_topology`] for `container_version` (1: the list coding alone; 2: the
-/// method byte first), checking every index against `vertex_count`.
+/// method byte first, methods 0 and 1; 3: also method 2), checking every index against
+/// `vertex_count`.
 pub fn decode_topology(
     block: &[u8],
     container_version: u16,
@@ -149,6 +164,17 @@ pub fn decode_topology(
                 )?;
             }
             crate::connectivity::decode(body, vertex_count, triangle_count)
+        }
+        TOPOLOGY_TRAVERSAL if container_version >= 3 => {
+            limits.check_alloc(CTX, "triangle_count", triangle_count as u64 * 12)?;
+            if triangle_count > 0 {
+                limits.check_alloc(
+                    CTX,
+                    "vertex_count",
+                    crate::traversal::decoder_bytes(vertex_count, triangle_count),
+                )?;
+            }
+            crate::traversal::decode(body, vertex_count, triangle_count)
         }
         m => Err(Error::malformed(CTX, "topology", format!("unknown topology coding method {m}"))),
     }
@@ -204,9 +230,10 @@ impl<W: Write> ContainerWriter<W> {
         config: &[u8],
     ) -> Result<Self> {
         let too_big = |what: &str| Error::InvalidAnimation(format!("{what} does not fit the container's 32-bit field"));
+        let (container_version, topo) = encode_topology(topology);
         let mut w = ByteWriter::new();
         w.bytes(&MAGIC);
-        w.u16(CONTAINER_VERSION);
+        w.u16(container_version);
         w.bytes(&fourcc.0);
         w.u16(codec_version);
         w.u32(u32::try_from(topology.vertex_count()).map_err(|_| too_big("vertex count"))?);
@@ -216,7 +243,6 @@ impl<W: Write> ContainerWriter<W> {
         debug_assert_eq!(w.len(), FIXED_HEADER_BYTES);
         w.u32(u32::try_from(config.len()).map_err(|_| too_big("codec config"))?);
         w.bytes(config);
-        let topo = encode_topology(topology);
         w.u32(u32::try_from(topo.len()).map_err(|_| too_big("topology"))?);
         w.bytes(&topo);
         let crc = crc32fast::hash(w.as_slice());

@@ -24,6 +24,7 @@ pub mod stream;
 pub mod synth;
 pub mod testing;
 pub mod toolkit;
+pub mod traversal;
 
 pub use animation::{Animation, Topology};
 pub use codec::{

@@ -140,9 +140,6 @@ fn the_frames_hash_sees_one_bit() {
     assert_eq!(frames_hash(&a), frames_hash(&a.clone()));
 }
 
-/// Container version 2 (compact topology coding) next to the version 1 goldens: a stream
-/// written by this build decodes to the golden input's triangles, and so does every golden
-/// (container 1 ones in the input's order). `ANIMCODEC_WRITE_GOLDEN=1` writes `container-v2/quant-delta-v1.anim` when missing.
 /// `a` with its vertices renumbered by a deterministic (xorshift) shuffle.
 fn shuffled(a: &Animation) -> Animation {
     let n = a.vertex_count();
@@ -154,7 +151,12 @@ fn shuffled(a: &Animation) -> Animation {
         s ^= s << 17;
         perm.swap(i, (s % (i as u64 + 1)) as usize);
     }
-    // Old vertex `v` becomes `perm[v]`.
+    renumbered(a, &perm)
+}
+
+/// `a` with old vertex `v` renumbered `perm[v]`.
+fn renumbered(a: &Animation, perm: &[usize]) -> Animation {
+    let n = a.vertex_count();
     let triangles = a.triangles().iter().map(|t| t.map(|v| perm[v as usize] as u32)).collect();
     let mut positions = vec![0.0f32; a.positions().len()];
     for (t, frame) in a.frames().enumerate() {
@@ -167,6 +169,11 @@ fn shuffled(a: &Animation) -> Animation {
     Animation::new(topology, positions, a.frame_rate()).unwrap()
 }
 
+/// Container version 2 (compact topology coding) next to the version 1 goldens: the
+/// committed version 2 streams decode to their input's triangles, and so does every golden
+/// (container 1 ones in the input's order). `ANIMCODEC_WRITE_GOLDEN=1` writes
+/// `container-v2/quant-delta-v1.anim` when missing (only a build that writes version 2 for
+/// the golden input can: its list coding stays the smallest there).
 #[test]
 fn container_versions_keep_the_triangles() {
     let registry = registry();
@@ -208,10 +215,77 @@ fn container_versions_keep_the_triangles() {
         let header = ContainerReader::new(&bytes[..], Limits::default()).unwrap().header().clone();
         match header.container_version {
             1 => assert_eq!(header.info.topology, *input.topology(), "{file}: container 1 keeps the input's order"),
-            2 => assert!(codec_core::connectivity::same_triangles(&header.info.topology, input.topology()), "{file}"),
+            2 | 3 => {
+                assert!(codec_core::connectivity::same_triangles(&header.info.topology, input.topology()), "{file}")
+            }
             v => panic!("{file}: container version {v}"),
         }
     }
+}
+
+/// Container version 3 (the traversal coding of the triangles, topology method 2). Real
+/// meshes number their vertices locally but not regularly; a flag whose vertices are shuffled
+/// within windows of 8 has that, and its stream as this build writes it is version 3 with
+/// method 2, smaller in topology than methods 0 and 1. The committed one
+/// (`container-v3/quant-delta-v1-traversal.anim`, written by `ANIMCODEC_WRITE_GOLDEN=1` when
+/// missing) still decodes to the same frames and triangles.
+#[test]
+fn container_v3_traversal_golden() {
+    let registry = registry();
+    let input = shuffled_within(&synth::waving_flag(24, 16, 3), 8);
+    let codec = registry.by_name("quant-delta").unwrap();
+    let fresh = encode_animation(codec, &codec.default_params(), &input).unwrap();
+    let path = golden_dir().join("container-v3").join("quant-delta-v1-traversal.anim");
+    if std::env::var_os("ANIMCODEC_WRITE_GOLDEN").is_some() && !path.exists() {
+        std::fs::create_dir_all(path.parent().unwrap()).unwrap();
+        std::fs::write(&path, &fresh).unwrap();
+    }
+    let topology_method = |bytes: &[u8]| {
+        let config_len = u32::from_le_bytes(bytes[32..36].try_into().unwrap()) as usize;
+        bytes[40 + config_len]
+    };
+    let fresh_header = ContainerReader::new(&fresh[..], Limits::default()).unwrap().header().clone();
+    assert_eq!((fresh_header.container_version, topology_method(&fresh)), (3, 2), "this build's stream");
+    let canonical = codec_core::connectivity::canonical_order(input.topology());
+    let method_1 = codec_core::connectivity::encode(&canonical).unwrap().len();
+    let list = codec_core::container::encode_topology_list(&canonical).len();
+    assert!(
+        fresh_header.topology_bytes <= method_1.min(list),
+        "{} vs {method_1} and {list}",
+        fresh_header.topology_bytes
+    );
+    let bytes = std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let header = ContainerReader::new(&bytes[..], Limits::default()).unwrap().header().clone();
+    assert_eq!((header.container_version, topology_method(&bytes)), (3, 2));
+    let decoded = decode_animation(&bytes, &registry, Limits::default()).unwrap();
+    assert!(codec_core::connectivity::same_triangles(decoded.topology(), input.topology()));
+    let now = decode_animation(&fresh, &registry, Limits::default()).unwrap();
+    assert_eq!(decoded.positions(), now.positions(), "same frames as this build writes");
+    // Method 2 in a container that says version 2 is refused (an older reader's view).
+    let mut relabelled = bytes.clone();
+    relabelled[8..10].copy_from_slice(&2u16.to_le_bytes());
+    let crc_at = header.header_bytes - 4;
+    let crc = crc32fast::hash(&relabelled[..crc_at]);
+    relabelled[crc_at..crc_at + 4].copy_from_slice(&crc.to_le_bytes());
+    let e = ContainerReader::new(&relabelled[..], Limits::default()).map(|_| ()).expect_err("refused").to_string();
+    assert!(e.contains("unknown topology coding method 2"), "{e}");
+}
+
+/// `a` with each run of `window` consecutive vertex indices shuffled among themselves
+/// (deterministic xorshift): a local, irregular numbering.
+fn shuffled_within(a: &Animation, window: usize) -> Animation {
+    let n = a.vertex_count();
+    let mut perm: Vec<usize> = (0..n).collect();
+    let mut s = 0x2545_f491_4f6c_dd1du64;
+    for chunk in perm.chunks_mut(window) {
+        for i in (1..chunk.len()).rev() {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            chunk.swap(i, (s % (i as u64 + 1)) as usize);
+        }
+    }
+    renumbered(a, &perm)
 }
 
 /// hosvd stream version 4's column modes (regression on the leading `U1` columns,
