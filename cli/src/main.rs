@@ -480,7 +480,7 @@ pub struct SweepArgs {
 
     /// Envelope sweep: ladder points measured on each configuration after the first (spread
     /// over the part of the ladder where the first configuration reached KG 0.05–4 or STED
-    /// 0.01–0.2).
+    /// 0.01–0.2), then up to as many again next to its points on the envelope.
     #[arg(long, value_name = "N", default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..=64))]
     pub config_points: u32,
 

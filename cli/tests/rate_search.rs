@@ -228,6 +228,19 @@ fn envelope_sweep_points_form_a_falling_curve_per_codec() {
     assert!(swept.failures.is_empty(), "{:?}", swept.failures);
     // hosvd's secondary configurations were measured and are labelled with their parameters.
     assert!(swept.points.iter().any(|p| p.series.starts_with("hosvd[")), "no secondary configuration measured");
+    // The third phase: some secondary configuration got more than its 2 spread points, and
+    // every point of a configuration is next (one ladder step) to another of its points.
+    let mut by_series: std::collections::BTreeMap<&str, Vec<usize>> = Default::default();
+    for p in swept.points.iter().filter(|p| p.series.starts_with("hosvd[")) {
+        by_series.entry(&p.series).or_default().push(p.ladder_index);
+    }
+    assert!(by_series.values().any(|steps| steps.len() > 2), "no envelope neighbours measured: {by_series:?}");
+    for (series, steps) in &by_series {
+        if steps.len() > 2 {
+            let near = |s: usize| steps.iter().any(|&t| t != s && t.abs_diff(s) == 1);
+            assert!(steps.iter().filter(|&&s| near(s)).count() >= steps.len() - 2, "{series}: {steps:?}");
+        }
+    }
     for metric in [TargetMetric::Kg, TargetMetric::Sted] {
         let on = harness::envelope(&swept.points, metric);
         for codec in ["quant-delta", "hosvd"] {
