@@ -47,6 +47,7 @@ def main():
         print(f"  one encode at those parameters: {one_s:.2f} s -> search / encode = {search_s / one_s:.2f}")
         if "--sweep" in args:
             keep = args[args.index("--keep") + 1] if "--keep" in args else tmp
+            os.makedirs(keep, exist_ok=True)
             ladder_s, _ = run([binary, "sweep", data, "--ladder", "--json", os.path.join(keep, "ladder.json"), "-f"])
             env_s, _ = run([binary, "sweep", data, "--json", os.path.join(keep, "envelope.json"), "-f"])
             print(f"  sweep --ladder: {ladder_s:.1f} s; sweep (envelope): {env_s:.1f} s -> ratio {env_s / ladder_s:.2f}")

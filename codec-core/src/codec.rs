@@ -12,7 +12,7 @@ use std::fmt;
 use crate::animation::{Animation, Topology};
 use crate::error::Result;
 use crate::limits::Limits;
-use crate::params::{DistortionKind, ParamSet, ParamSpec, RateLadder, SearchSpace};
+use crate::params::{DistortionKind, ParamSet, ParamSpec, ParamValue, RateLadder, SearchSpace};
 
 /// Four-character code identifying a codec inside a stream (never a list index).
 #[derive(Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -197,6 +197,15 @@ pub trait AnimationCodec: Send + Sync {
     fn search_space_for(&self, base: &ParamSet, kind: DistortionKind) -> SearchSpace {
         let _ = kind;
         self.search_space(base)
+    }
+
+    /// Where on its rate ladder a target search for an error of `kind` starts (a value of
+    /// the ladder's parameter), when the usual answers for that kind lie away from `base`'s
+    /// own step. Default: `None`, `base`'s step. A start near the answer saves encodes, not
+    /// quality: the search still brackets the target.
+    fn search_start(&self, base: &ParamSet, kind: DistortionKind) -> Option<ParamValue> {
+        let _ = (base, kind);
+        None
     }
 
     /// Checks a full parameter set, including constraints between parameters; errors state

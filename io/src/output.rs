@@ -110,6 +110,7 @@ impl OutputPolicy {
     pub fn check_all(&self, paths: &[&Path]) -> Result<()> {
         for (i, path) in paths.iter().enumerate() {
             self.check(path)?;
+            folder_exists(path)?;
             if is_special(path) {
                 continue; // `/dev/null` may take several outputs
             }
@@ -142,6 +143,21 @@ impl OutputPolicy {
     /// Writes `bytes` to `path` safely (checked, temporary file, rename).
     pub fn write(&self, path: &Path, bytes: &[u8]) -> Result<()> {
         self.stage(path, bytes)?.commit()
+    }
+}
+
+/// Refuses an output file whose folder does not exist (checked before a long command's work,
+/// which would otherwise be lost at the end; outputs that create their folder, OBJ sequences,
+/// do not call this).
+pub fn folder_exists(path: &Path) -> Result<()> {
+    if is_special(path) {
+        return Ok(());
+    }
+    let folder = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    if folder.is_dir() {
+        Ok(())
+    } else {
+        Err(refused(path, format!("its folder {} does not exist", folder.display())))
     }
 }
 
@@ -409,6 +425,9 @@ mod tests {
         }
         policy.check_all(&[&o, &fresh.0]).unwrap();
         policy.check_all(&[Path::new("/dev/null"), Path::new("/dev/null")]).unwrap();
+        let missing = dir.path("no-such-folder").join("out.json");
+        let e = policy.check_all(&[&missing]).unwrap_err().to_string();
+        assert!(e.contains("does not exist") && e.contains("no-such-folder"), "{e}");
         let e = policy.check(Path::new("-")).unwrap_err().to_string();
         assert!(e.contains("./-"), "{e}");
     }

@@ -96,6 +96,7 @@ pub fn run(args: &EncodeArgs, limits: Limits) -> CmdResult {
     let codec = registry.by_name(&args.codec)?;
     let params = parse_params(codec, &args.params)?;
     policy.check(&args.output)?;
+    animcodec::output::folder_exists(&args.output)?;
 
     let read_start = Instant::now();
     let mut source = match parse_streamed_flag(&args.input)? {
@@ -382,6 +383,7 @@ fn run_target(args: &EncodeArgs, target: Target, by_default: bool, limits: Limit
     };
     let eval = EvalOptions { sted: sted_params(&args.sted)?, ..EvalOptions::default() };
     policy.check(&args.output)?;
+    animcodec::output::folder_exists(&args.output)?;
 
     let read_start = Instant::now();
     let animation = match parse_streamed_flag(&args.input)? {

@@ -62,6 +62,12 @@ const ABANDON_MARGIN: f64 = 1.08;
 /// The same once the configuration's own points give the slopes (an interpolation, not an
 /// extrapolation from another configuration).
 const ABANDON_MARGIN_OWN: f64 = 1.03;
+/// A passing point that is not 1% smaller than the configuration's smallest passing stream so
+/// far ends its search: the error is a step function of some ladders (hosvd's ranks), and
+/// moving inside one step only shifts the quantization a little (samba at STED ≤ 0.1 spent 5
+/// more points on one rank for 1.4%; sixth session of 2026-11-27).
+const PLATEAU: f64 = 0.99;
+
 /// A bracket narrower than this (in ladder positions) is not refined further: the error is a
 /// step function of some ladders (hosvd's ranks), and the stream hardly changes inside it.
 /// Not wider: on horse-gallop at KG ≤ 0.1 a bracket of 0.1 position (hosvd `ss` 0.664 → 0.654)
@@ -233,8 +239,14 @@ impl SpaceSearcher<'_> {
             if fail.is_some() && pass.is_some() {
                 refined += 1;
             }
+            let best_before = run.candidates.iter().filter(|c| self.passes(c)).filter_map(Self::bytes).min();
             let candidate = self.measure(&params, run.ladder.param, position, value);
+            let plateau = self.passes(&candidate)
+                && Self::bytes(&candidate).zip(best_before).is_some_and(|(b, best)| b as f64 >= PLATEAU * best as f64);
             run.candidates.push(candidate);
+            if plateau {
+                break;
+            }
 
             let (fail, pass) = self.bracket(run);
             let (own_error_slope, own_size_slope) = self.slopes(run);
@@ -356,7 +368,8 @@ fn start_position(ladder: &RateLadder, base: &ParamSet) -> f64 {
 /// the primary rate ladder.
 ///
 /// Search (issue 26: few encodes): the first configuration (the one the codec lists first for
-/// this kind of error) alone, from the base parameters' ladder step, by secant steps in
+/// this kind of error) alone, from the base parameters' ladder step (or the codec's
+/// [`AnimationCodec::search_start`] for this kind of error), by secant steps in
 /// log(error) along the ladder taken as a continuous axis (see `SpaceSearcher::search`: the
 /// ladder's own steps until the target is bracketed, then up to `request.refine` points
 /// between two steps, ending once a passing point is within 3% of the target). Then every
@@ -396,7 +409,16 @@ pub fn search_space_target(
     let searcher = SpaceSearcher { request, codec, target, eval: request.metric_options() };
     let (first, others) = runs.split_first_mut().expect("checked non-empty");
     let cold = Prior { position: 0.0, error_slope: None, size_slope: None, best_bytes: None };
-    searcher.search(first, start_position(&first.ladder, base), &cold)?;
+    // The codec's start for this kind of error, unless the user fixed the ladder parameter.
+    let start = match codec.search_start(base, target.metric.distortion_kind()) {
+        Some(value) if !fixed.contains(&first.ladder.param) => {
+            let mut at = base.clone();
+            at.set(&specs, first.ladder.param, value).map_err(EvalError::from)?;
+            start_position(&first.ladder, &at)
+        }
+        _ => start_position(&first.ladder, base),
+    };
+    searcher.search(first, start, &cold)?;
     let prior = searcher.prior(first);
     others.par_iter_mut().map(|run| searcher.search(run, prior.position, &prior)).collect::<Result<Vec<()>>>()?;
 
