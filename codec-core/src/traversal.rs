@@ -23,11 +23,11 @@
 //!   `0` — no uncoded triangle holds `v → u` (a border, or the other side came first): the
 //!   gate is closed; `1` — the triangle `(v, u, w)` brings a vertex `w` seen for the first
 //!   time, coded as 1 + its rank among the new-vertex candidates or 0 and its index delta
-//!   from the last vertex seen; `2` — `w` was
-//!   seen but is not a candidate: `w − u` follows; `3 + k` — `w` is the `k`-th of the
-//!   seen candidates (vertices with an open half-edge into `u` or out of `v`: the corners
-//!   that would close the region's border on either side). The triangle `(v, u, w)` then
-//!   closes every open half-edge it reverses and opens the others.
+//!   from the last vertex seen; `2` — `w` was seen but is not a candidate: `w − u` follows;
+//!   `3 + k` — `w` is the `k`-th of the seen candidates (vertices with an open half-edge
+//!   into `u` or out of `v`: the corners that would close the region's border on either
+//!   side). The triangle `(v, u, w)` then closes every open half-edge it reverses and opens
+//!   the others.
 //! * When the stack is empty and triangles remain, the first uncoded triangle of the
 //!   (canonical) list starts a new component: its three corners as index deltas (the first
 //!   from the last vertex seen, the others from the corner before).
