@@ -35,8 +35,8 @@ use crate::animation::Topology;
 use crate::error::{Error, Result};
 use crate::toolkit::adaptive::{AdaptiveDecoder, AdaptiveEncoder, MAX_MAGNITUDE};
 
-const CTX: &str = "container";
-const FIELD: &str = "topology";
+pub(crate) const CTX: &str = "container";
+pub(crate) const FIELD: &str = "topology";
 
 /// Model classes of the arithmetic coder.
 #[derive(Clone, Copy)]
@@ -337,12 +337,9 @@ pub fn max_triangles(bytes: usize) -> usize {
     bytes.saturating_mul(4096).saturating_add(4096)
 }
 
-/// Inverse of [`encode`]: `triangle_count` triangles over `vertex_count` vertices, every
-/// index and candidate choice checked (a corrupt block is an error naming the triangle,
-/// never a panic). The caller has checked both counts and [`decoder_bytes`] against its
-/// limits. More than [`max_triangles`] for the block's size is refused up front: past its
-/// data the range decoder reads zeros, so a tiny block could otherwise claim any count.
-pub fn decode(bytes: &[u8], vertex_count: usize, triangle_count: usize) -> Result<Topology> {
+/// Refuses a block of `bytes` claiming more than [`max_triangles`] (both topology codings:
+/// past its data the range decoder reads zeros).
+pub(crate) fn check_density(bytes: &[u8], triangle_count: usize) -> Result<()> {
     if triangle_count > max_triangles(bytes.len()) {
         return Err(Error::malformed(
             CTX,
@@ -350,15 +347,33 @@ pub fn decode(bytes: &[u8], vertex_count: usize, triangle_count: usize) -> Resul
             format!("{triangle_count} triangles from {} bytes (at most 4096 per byte)", bytes.len()),
         ));
     }
+    Ok(())
+}
+
+/// The error for triangle `t` of a corrupt topology block.
+pub(crate) fn bad_triangle(t: usize, what: String) -> Error {
+    Error::malformed(CTX, FIELD, format!("triangle {t}: {what}"))
+}
+
+/// `base + delta` as a vertex index of triangle `t`, checked against `vertex_count`.
+pub(crate) fn index_at(t: usize, base: u32, delta: i32, vertex_count: usize) -> Result<u32> {
+    let i = base as i64 + delta as i64;
+    if i < 0 || i >= vertex_count as i64 {
+        return Err(bad_triangle(t, format!("index {i} out of range for {vertex_count} vertices")));
+    }
+    Ok(i as u32)
+}
+
+/// Inverse of [`encode`]: `triangle_count` triangles over `vertex_count` vertices, every
+/// index and candidate choice checked (a corrupt block is an error naming the triangle,
+/// never a panic). The caller has checked both counts and [`decoder_bytes`] against its
+/// limits. More than [`max_triangles`] for the block's size is refused up front: past its
+/// data the range decoder reads zeros, so a tiny block could otherwise claim any count.
+pub fn decode(bytes: &[u8], vertex_count: usize, triangle_count: usize) -> Result<Topology> {
+    check_density(bytes, triangle_count)?;
     let mut dec = AdaptiveDecoder::new(bytes, CLASSES, CTX, FIELD)?;
-    let bad = |t: usize, what: String| Error::malformed(CTX, FIELD, format!("triangle {t}: {what}"));
-    let index = |t: usize, base: u32, delta: i32| -> Result<u32> {
-        let i = base as i64 + delta as i64;
-        if i < 0 || i >= vertex_count as i64 {
-            return Err(bad(t, format!("index {i} out of range for {vertex_count} vertices")));
-        }
-        Ok(i as u32)
-    };
+    let bad = bad_triangle;
+    let index = |t: usize, base: u32, delta: i32| index_at(t, base, delta, vertex_count);
     let pick = |t: usize, cand: &[u32], code: i32, what: &str| -> Result<Option<u32>> {
         match code {
             0 => Ok(None),

@@ -153,31 +153,41 @@ pub fn decode_topology(
         block.split_first().ok_or_else(|| Error::malformed(CTX, "topology", "empty topology block"))?;
     match method {
         TOPOLOGY_LIST => decode_topology_list(body, vertex_count, triangle_count, limits),
-        TOPOLOGY_CONNECTIVITY => {
-            limits.check_alloc(CTX, "triangle_count", triangle_count as u64 * 12)?;
-            // Neighbour lists of the connectivity decoder.
-            if triangle_count > 0 {
-                limits.check_alloc(
-                    CTX,
-                    "vertex_count",
-                    crate::connectivity::decoder_bytes(vertex_count, triangle_count),
-                )?;
-            }
-            crate::connectivity::decode(body, vertex_count, triangle_count)
-        }
-        TOPOLOGY_TRAVERSAL if container_version >= 3 => {
-            limits.check_alloc(CTX, "triangle_count", triangle_count as u64 * 12)?;
-            if triangle_count > 0 {
-                limits.check_alloc(
-                    CTX,
-                    "vertex_count",
-                    crate::traversal::decoder_bytes(vertex_count, triangle_count),
-                )?;
-            }
-            crate::traversal::decode(body, vertex_count, triangle_count)
-        }
+        TOPOLOGY_CONNECTIVITY => decode_coded_topology(
+            body,
+            vertex_count,
+            triangle_count,
+            limits,
+            crate::connectivity::decoder_bytes,
+            crate::connectivity::decode,
+        ),
+        TOPOLOGY_TRAVERSAL if container_version >= 3 => decode_coded_topology(
+            body,
+            vertex_count,
+            triangle_count,
+            limits,
+            crate::traversal::decoder_bytes,
+            crate::traversal::decode,
+        ),
         m => Err(Error::malformed(CTX, "topology", format!("unknown topology coding method {m}"))),
     }
+}
+
+/// An arithmetic-coded topology block (methods 1 and 2): the triangles and the decoder's own
+/// state (`decoder_bytes`) checked against `limits` before `decode` allocates them.
+fn decode_coded_topology(
+    body: &[u8],
+    vertex_count: usize,
+    triangle_count: usize,
+    limits: &Limits,
+    decoder_bytes: fn(usize, usize) -> u64,
+    decode: fn(&[u8], usize, usize) -> Result<Topology>,
+) -> Result<Topology> {
+    limits.check_alloc(CTX, "triangle_count", triangle_count as u64 * 12)?;
+    if triangle_count > 0 {
+        limits.check_alloc(CTX, "vertex_count", decoder_bytes(vertex_count, triangle_count))?;
+    }
+    decode(body, vertex_count, triangle_count)
 }
 
 /// Container version 1's topology decoding (inverse of [`encode_topology_list`]).

@@ -39,12 +39,11 @@
 //! method 1, which keeps any order).
 
 use crate::animation::Topology;
-use crate::connectivity::{canonical_order, max_triangles, Neighbours};
+use crate::connectivity::{
+    bad_triangle as bad, canonical_order, check_density, index_at, max_triangles, Neighbours, CTX, FIELD,
+};
 use crate::error::{Error, Result};
 use crate::toolkit::adaptive::{AdaptiveDecoder, AdaptiveEncoder, MAX_MAGNITUDE};
-
-const CTX: &str = "container";
-const FIELD: &str = "topology";
 
 /// Model classes of the arithmetic coder.
 #[derive(Clone, Copy)]
@@ -376,22 +375,9 @@ pub fn decoder_bytes(vertex_count: usize, triangle_count: usize) -> u64 {
 /// [`decoder_bytes`] against its limits; more than [`max_triangles`] for the block's size is
 /// refused up front.
 pub fn decode(bytes: &[u8], vertex_count: usize, triangle_count: usize) -> Result<Topology> {
-    if triangle_count > max_triangles(bytes.len()) {
-        return Err(Error::malformed(
-            CTX,
-            FIELD,
-            format!("{triangle_count} triangles from {} bytes (at most 4096 per byte)", bytes.len()),
-        ));
-    }
+    check_density(bytes, triangle_count)?;
     let mut dec = AdaptiveDecoder::new(bytes, CLASSES, CTX, FIELD)?;
-    let bad = |t: usize, what: String| Error::malformed(CTX, FIELD, format!("triangle {t}: {what}"));
-    let index = |t: usize, base: u32, delta: i32| -> Result<u32> {
-        let i = base as i64 + delta as i64;
-        if i < 0 || i >= vertex_count as i64 {
-            return Err(bad(t, format!("index {i} out of range for {vertex_count} vertices")));
-        }
-        Ok(i as u32)
-    };
+    let index = |t: usize, base: u32, delta: i32| index_at(t, base, delta, vertex_count);
     let mut triangles: Vec<[u32; 3]> = Vec::with_capacity(triangle_count);
     let mut walk = Walk::new(vertex_count);
     let (mut seen_cand, mut new_cand) = (Vec::new(), Vec::new());
