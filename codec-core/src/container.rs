@@ -151,38 +151,16 @@ pub fn decode_topology(
     }
     let (&method, body) =
         block.split_first().ok_or_else(|| Error::malformed(CTX, "topology", "empty topology block"))?;
-    match method {
-        TOPOLOGY_LIST => decode_topology_list(body, vertex_count, triangle_count, limits),
-        TOPOLOGY_CONNECTIVITY => decode_coded_topology(
-            body,
-            vertex_count,
-            triangle_count,
-            limits,
-            crate::connectivity::decoder_bytes,
-            crate::connectivity::decode,
-        ),
-        TOPOLOGY_TRAVERSAL if container_version >= 3 => decode_coded_topology(
-            body,
-            vertex_count,
-            triangle_count,
-            limits,
-            crate::traversal::decoder_bytes,
-            crate::traversal::decode,
-        ),
-        m => Err(Error::malformed(CTX, "topology", format!("unknown topology coding method {m}"))),
-    }
-}
-
-/// An arithmetic-coded topology block (methods 1 and 2): the triangles and the decoder's own
-/// state (`decoder_bytes`) checked against `limits` before `decode` allocates them.
-fn decode_coded_topology(
-    body: &[u8],
-    vertex_count: usize,
-    triangle_count: usize,
-    limits: &Limits,
-    decoder_bytes: fn(usize, usize) -> u64,
-    decode: fn(&[u8], usize, usize) -> Result<Topology>,
-) -> Result<Topology> {
+    type DecoderBytes = fn(usize, usize) -> u64;
+    type Decode = fn(&[u8], usize, usize) -> Result<Topology>;
+    let (decoder_bytes, decode): (DecoderBytes, Decode) = match method {
+        TOPOLOGY_LIST => return decode_topology_list(body, vertex_count, triangle_count, limits),
+        TOPOLOGY_CONNECTIVITY => (crate::connectivity::decoder_bytes, crate::connectivity::decode),
+        TOPOLOGY_TRAVERSAL if container_version >= 3 => (crate::traversal::decoder_bytes, crate::traversal::decode),
+        m => return Err(Error::malformed(CTX, "topology", format!("unknown topology coding method {m}"))),
+    };
+    // An arithmetic-coded block (methods 1 and 2): the triangles and the decoder's own state
+    // are checked against `limits` before `decode` allocates them.
     limits.check_alloc(CTX, "triangle_count", triangle_count as u64 * 12)?;
     if triangle_count > 0 {
         limits.check_alloc(CTX, "vertex_count", decoder_bytes(vertex_count, triangle_count))?;
