@@ -77,14 +77,28 @@ codec_core::declare_params! {
         pub v: u32 = 0 => int(0, MAX_RANK, "explicit mode-1 (vertex) rank, 0 = from ss; clamped to min(K, 3F)"),
         /// Explicit mode-3 rank (0 = from `ss`); must be given together with `v`.
         pub f: u32 = 0 => int(0, MAX_RANK, "explicit mode-3 (frame) rank, 0 = from ss; clamped to min(F, 3K)"),
-        /// Remove per-frame affine motion before the decomposition (§2.3). Default true.
+        /// Remove per-frame motion (rotation or affine, `affine`) before the decomposition (§2.3).
+        /// Default true.
         pub rigid: bool = true => boolean(
-            "remove the per-frame least-squares affine motion to frame 0 first (12 numbers/frame)"
+            "remove the per-frame motion to frame 0 first (rotation + translation, or affine: 12 numbers/frame)"
         ),
-        /// With `rigid`: fit an affine map (true, the issue's default) or only a rotation +
-        /// translation (false; orthogonal Procrustes). Default true.
-        pub affine: bool = true => boolean(
-            "with rigid: least-squares affine map (true) or rotation + translation only (false)"
+        /// With `rigid`: fit an affine map (true, the paper's §2.3) or only a rotation +
+        /// translation (false; orthogonal Procrustes). Default false since the seventh session
+        /// of issue 26: on the four dev animations at `ss` 0.97 and 0.9 the rotation gave the
+        /// smaller stream in 7 of 8 cases and the lower KG in 7 of 8 (`docs/notes/`), a
+        /// rotation keeps every edge length (an affine map stretches them: STED), and it
+        /// does not amplify the decomposition error (the affine maps' gains reach 2.6, README).
+        pub affine: bool = false => boolean(
+            "with rigid: least-squares affine map (true, the paper) or rotation + translation only (false)"
+        ),
+        /// With `rigid` and the toolkit coding: bits of the transforms' quantization steps (the
+        /// linear part's step is `2^-bits`), 0 = automatic: 12 without an edge-noise cap, else
+        /// the coarsest step whose error stays within that cap (`motion::auto_bits`). Written in
+        /// the stream's motion block, so any choice decodes with every version 3+ decoder.
+        pub motion_bits: u32 = 0 => int(
+            0,
+            motion::MAX_BITS as i64,
+            "with rigid: bits of the transforms' steps (linear step 2^-bits; 0 = auto: 12, or within the edge_noise cap; else 6..=24)"
         ),
         /// HOOI refinement sweeps after the truncated HO-SVD (0 = plain HO-SVD). Default 0.
         pub hooi_iters: u32 = 0 => int(0, 50, "HOOI refinement sweeps after the HO-SVD (beyond the paper)"),
@@ -195,6 +209,18 @@ impl HosvdParams {
                 format!("{set}={other} is set but {name}=0: give both v and f (1..={MAX_RANK}) or neither"),
             ));
         }
+        if self.motion_bits != 0 && self.motion_bits < motion::MIN_AUTO_BITS {
+            return Err(Error::parameter(
+                NAME,
+                "motion_bits",
+                format!(
+                    "{}: 0 (automatic) or {}..={} (coarser steps can make a frame's transform singular)",
+                    self.motion_bits,
+                    motion::MIN_AUTO_BITS,
+                    motion::MAX_BITS
+                ),
+            ));
+        }
         Ok(())
     }
 }
@@ -239,7 +265,7 @@ impl AnimationCodec for Hosvd {
         5
     }
     fn summary(&self) -> &'static str {
-        "HO-SVD / Tucker (v, 3, f) truncation with affine motion removal (Romaszewski et al.)"
+        "HO-SVD / Tucker (v, 3, f) truncation with rigid-motion removal (Romaszewski et al.)"
     }
     fn param_specs(&self) -> Vec<ParamSpec> {
         HosvdParams::specs()
@@ -728,8 +754,18 @@ pub fn encode_block(
     let start = Instant::now();
     // Stream version 3: with the toolkit coding the transforms are quantized in closed loop
     // while the frames are normalised (`motion.rs`).
-    let mut motion_coder =
-        (p.rigid && p.coding == Coding::Toolkit).then(|| motion::MotionEncoder::new(rms_radius(positions, k)));
+    let mut motion_coder = (p.rigid && p.coding == Coding::Toolkit).then(|| {
+        let radius = rms_radius(positions, k);
+        let bits = match p.motion_bits {
+            0 if p.edge_noise > 0.0 => {
+                let first: Vec<f64> = positions[..(3 * k).min(positions.len())].iter().map(|&x| x as f64).collect();
+                motion::auto_bits(p.edge_noise, radius, mean_squared_edge(&first, k, graph).sqrt())
+            }
+            0 => motion::DEFAULT_BITS,
+            bits => bits,
+        };
+        motion::MotionEncoder::new(radius, bits)
+    });
     let (transforms, x) = match motion_coder.as_mut() {
         Some(mc) => {
             tensor::remove_affine_motion_with(positions, k, frames, p.affine, &mut |a, fb, mu| mc.store(a, fb, mu))
@@ -771,7 +807,12 @@ pub fn encode_block(
         }
     };
     let search_seconds = search_start.elapsed().as_secs_f64();
-    let (mut v, mut f) = (choice.v, choice.f);
+    // The candidate strategies' fallback when nothing fits the budget: the smallest model that
+    // is not flat (`Dims::smallest`; the diagonal strategy keeps the paper's `(1, 1)`).
+    let (mut v, mut f) = match (choice.over_budget, p.strategy) {
+        (true, Strategy::Iterative | Strategy::Exhaustive) => dims.smallest(),
+        _ => (choice.v, choice.f),
+    };
     // Not in the paper: when the chosen ranks already reproduce the tensor to the numerical
     // floor (the quantization budget's floor, 1e-12‖X‖²; e.g. an exactly low-rank skinned
     // animation), more rank buys nothing but coded near-zero columns: keep the smallest ranks
@@ -977,17 +1018,23 @@ pub struct HosvdEncoder {
 
 /// The parameters for one block of `frames` frames (`whole`: the block is the whole
 /// animation). A block of 1 or 2 frames has no frame mode to reduce: when `ss` cannot be met
-/// there (the size model's smallest core, `(1, 1)`, is over budget), the `(1, 1)` fallback
-/// would keep almost nothing of the motion (KG above 60 % on a 1-frame mesh). Such a block is
-/// coded at full rank instead when it ends a longer animation (it is small next to the rest),
-/// and an animation that short is refused with the `ss` it would need.
+/// there (the strategy's smallest model is over budget: `(1, 1)` for the diagonal one, the
+/// smallest that is not flat, `(3, 1)`, for the others), the fallback keeps all or nothing: the
+/// `(1, 1)` model almost nothing of the shape (KG above 60 % on a 1-frame mesh), `(3, 1)` on one
+/// frame everything at more than the raw size. Such a block is coded at full rank when it ends a
+/// longer animation (it is small next to the rest), and an animation that short is refused with
+/// the `ss` it would need.
 fn block_params(p: &HosvdParams, k: usize, frames: usize, whole: bool) -> Result<HosvdParams> {
     let dims = Dims { k, f: frames, rigid: p.rigid };
-    if frames >= 3 || p.v != 0 || !strategy::diagonal(dims, p.ss).over_budget {
+    let (v0, f0) = match p.strategy {
+        Strategy::Diagonal => (1, 1),
+        Strategy::Iterative | Strategy::Exhaustive => dims.smallest(),
+    };
+    if frames >= 3 || p.v != 0 || dims.cr(v0, f0) <= 1.0 - p.ss {
         return Ok(*p);
     }
     if whole {
-        let reachable = 1.0 - dims.cr(1, 1);
+        let reachable = 1.0 - dims.cr(v0, f0);
         let advice = if reachable > 0.01 {
             format!("use -p ss={:.2} or lower, explicit ranks (-p v=N -p f=N)", reachable - 0.005)
         } else {

@@ -15,6 +15,16 @@
 //! chicken-crossing 2^-16: 52 659, 2.348; 2^-12: 50 060, 2.383; 2^-8: 50 393, 2.393; samba
 //! 2^-16: 51 105, 2.891; 2^-12: 49 881, 2.890; 2^-8: 48 674, 2.915.
 //! Powers of two make the identity (and 0) exact.
+//!
+//! The steps are written in the block, so the encoder may choose them (`motion_bits`; the
+//! decoder of every version 3+ stream reads any power-of-two step). Under an edge-noise cap
+//! (`edge_noise > 0`, the STED-targeted configurations) the automatic choice
+//! ([`auto_bits`]) makes the transforms' quantization error about the size of the shape's
+//! noise cap: that error is one affine map per frame, which moves every edge of a
+//! neighbourhood alike and so is invisible to STED (relative edge-length changes), while at
+//! the low rates those configurations serve the 12 numbers per frame at `2^-12` are a large
+//! part of the stream (issue 26, seventh session: chicken-crossing at `f = 1`, 400 frames,
+//! rigid: 0.0877 bits per vertex per frame at `2^-12`, 0.0756 at `2^-8`, STED 0.089 both).
 
 use codec_core::toolkit::adaptive::{magnitude_bucket, AdaptiveDecoder, AdaptiveEncoder, MAX_MAGNITUDE};
 use codec_core::{Error, Result};
@@ -27,13 +37,41 @@ const ENTRIES: usize = 12;
 /// Largest |code| a decoder accepts (far beyond any real transform at these steps).
 const MAX_CODE: i64 = 1 << 52;
 
-/// Step of the linear part.
-pub const LINEAR_STEP: f32 = 1.0 / 4096.0;
+/// Bits of the default steps: the linear part's step is `2^-DEFAULT_BITS` (stream version 3's
+/// only choice, still the default without an edge-noise cap).
+pub const DEFAULT_BITS: u32 = 12;
+/// Coarsest automatic choice: a linear step of `2^-6` already moves a point at the RMS radius
+/// by half a percent of it per frame.
+pub const MIN_AUTO_BITS: u32 = 6;
+/// Finest step an explicit `motion_bits` may ask for (far below `f32` noise of the entries).
+pub const MAX_BITS: u32 = 24;
 
-/// Step of the translation for a model of RMS radius `radius` (about its centroid).
-pub fn translation_step(radius: f64) -> f32 {
+/// Step of the linear part at `bits`.
+pub fn linear_step(bits: u32) -> f32 {
+    2.0f32.powi(-(bits.min(MAX_BITS) as i32))
+}
+
+/// Step of the translation for a model of RMS radius `radius` (about its centroid) at `bits`:
+/// the radius rounded to a power of two, times the linear step, so both parts move a point at
+/// that radius by about the same amount.
+pub fn translation_step(radius: f64, bits: u32) -> f32 {
     let e = if radius.is_finite() && radius > 0.0 { radius.log2().round().clamp(-100.0, 100.0) as i32 } else { 0 };
-    2.0f32.powi(e - 12)
+    2.0f32.powi(e - bits.min(MAX_BITS) as i32)
+}
+
+/// The automatic `motion_bits` under an edge-noise cap `edge_noise` (η) on a model of RMS
+/// radius `radius` and RMS edge length `edge`: the coarsest power-of-two step whose uniform
+/// quantization error on the linear part, `R·s/√12` per coordinate (three entries of error
+/// `s/√12` each, on coordinates of RMS `R/√3`), stays within the cap `η·L̄`; clamped to
+/// [`MIN_AUTO_BITS`]..=[`DEFAULT_BITS`]. Without a cap (or a degenerate model) the default.
+pub fn auto_bits(edge_noise: f64, radius: f64, edge: f64) -> u32 {
+    let cap = edge_noise * edge;
+    if !(cap > 0.0 && radius > 0.0 && cap.is_finite() && radius.is_finite()) {
+        return DEFAULT_BITS;
+    }
+    // R·2^-b/√12 ≤ η·L̄  ⇔  b ≥ log2(R / (√12·η·L̄)).
+    let bits = (radius / (12f64.sqrt() * cap)).log2().ceil();
+    bits.clamp(MIN_AUTO_BITS as f64, DEFAULT_BITS as f64) as u32
 }
 
 fn steps(linear: f32, translation: f32) -> [f64; ENTRIES] {
@@ -73,9 +111,10 @@ pub struct MotionEncoder {
 }
 
 impl MotionEncoder {
-    /// A coder for a model of RMS radius `radius`.
-    pub fn new(radius: f64) -> Self {
-        let (linear, translation) = (LINEAR_STEP, translation_step(radius));
+    /// A coder for a model of RMS radius `radius`, with steps of `bits` ([`linear_step`],
+    /// [`translation_step`]).
+    pub fn new(radius: f64, bits: u32) -> Self {
+        let (linear, translation) = (linear_step(bits), translation_step(radius, bits));
         let step = steps(linear, translation);
         let identity = identity_codes(&step);
         Self {
@@ -206,7 +245,7 @@ mod tests {
 
     #[test]
     fn decoder_rebuilds_what_the_encoder_stored_and_error_is_half_a_step() {
-        let mut enc = MotionEncoder::new(2.0);
+        let mut enc = MotionEncoder::new(2.0, DEFAULT_BITS);
         let frames = 200;
         let mut stored = Vec::new();
         for t in 0..frames {
@@ -218,11 +257,14 @@ mod tests {
                 std::array::from_fn(|j| a.c[j] as f64 + (0..3).map(|i| mu0[i] * a.m[i * 3 + j] as f64).sum::<f64>());
             let s = enc.store(a, Affine::IDENTITY, Centroids { first: mu0, this: mut_ });
             for (x, y) in a.m.iter().zip(&s.m) {
-                assert!(((x - y).abs() as f64) <= 0.5 * LINEAR_STEP as f64 + 1e-7);
+                assert!(((x - y).abs() as f64) <= 0.5 * linear_step(DEFAULT_BITS) as f64 + 1e-7);
             }
             for (j, &target) in mut_.iter().enumerate() {
                 let mapped = s.c[j] as f64 + (0..3).map(|i| mu0[i] * s.m[i * 3 + j] as f64).sum::<f64>();
-                assert!((mapped - target).abs() <= 0.5 * translation_step(2.0) as f64 + 1e-4, "{mapped} vs {target}");
+                assert!(
+                    (mapped - target).abs() <= 0.5 * translation_step(2.0, DEFAULT_BITS) as f64 + 1e-4,
+                    "{mapped} vs {target}"
+                );
             }
             stored.push(s);
         }
@@ -233,8 +275,49 @@ mod tests {
     }
 
     #[test]
+    fn coarser_steps_code_smaller_and_err_within_half_a_step() {
+        let frames = 120;
+        let mut sizes = Vec::new();
+        for bits in [MIN_AUTO_BITS, 8, DEFAULT_BITS, 16] {
+            let mut enc = MotionEncoder::new(3.0, bits);
+            let mut stored = Vec::new();
+            for t in 0..frames {
+                let a = rotation(t as f64 * 0.05);
+                let s = enc.store(a, Affine::IDENTITY, Centroids { first: [0.0; 3], this: a.c.map(|c| c as f64) });
+                for (x, y) in a.m.iter().zip(&s.m) {
+                    assert!(((x - y).abs() as f64) <= 0.5 * linear_step(bits) as f64 + 1e-7, "bits {bits}");
+                }
+                stored.push(s);
+            }
+            let block = enc.finish();
+            assert_eq!(decode(&block, frames).unwrap(), stored, "bits {bits}");
+            sizes.push(block.len());
+        }
+        assert!(sizes.windows(2).all(|w| w[0] < w[1]), "{sizes:?}");
+    }
+
+    #[test]
+    fn automatic_bits_follow_the_edge_noise_cap() {
+        // No cap, or a degenerate model: the default steps.
+        assert_eq!(auto_bits(0.0, 1.0, 0.1), DEFAULT_BITS);
+        assert_eq!(auto_bits(0.012, 0.0, 0.1), DEFAULT_BITS);
+        assert_eq!(auto_bits(0.012, f64::NAN, 0.1), DEFAULT_BITS);
+        // chicken-crossing's proportions (RMS edge 0.104 of the RMS radius) at η = 0.012: the
+        // linear part's error R·2^-8/√12 = 1.13e-3·R is within the cap 1.25e-3·R; 2^-7 is not.
+        let (radius, edge) = (1.0, 0.104);
+        let bits = auto_bits(0.012, radius, edge);
+        assert_eq!(bits, 8);
+        let error = |b: u32| radius * linear_step(b) as f64 / 12f64.sqrt();
+        assert!(error(bits) <= 0.012 * edge && error(bits - 1) > 0.012 * edge);
+        // A looser cap never asks for finer steps; the clamps hold.
+        assert!(auto_bits(0.02, radius, edge) <= bits);
+        assert_eq!(auto_bits(1.0, 1.0, 1.0), MIN_AUTO_BITS);
+        assert_eq!(auto_bits(1e-9, 1.0, 1e-3), DEFAULT_BITS);
+    }
+
+    #[test]
     fn singular_transform_falls_back_and_bad_blocks_are_errors() {
-        let mut enc = MotionEncoder::new(1.0);
+        let mut enc = MotionEncoder::new(1.0, DEFAULT_BITS);
         let singular = Affine { m: [0.0; 9], c: [1.0, 2.0, 3.0] };
         let fb = Affine { m: Affine::IDENTITY.m, c: [0.5, 0.0, 0.0] };
         let s = enc.store(singular, fb, Centroids { first: [0.0; 3], this: [0.5, 0.0, 0.0] });

@@ -84,7 +84,7 @@ fn quantization_adds_little_to_the_truncation_error() {
     let hp = HosvdParams { v: 6, f: 5, quant: 0.25, ..Default::default() };
     let b = encode_block(anim.positions(), k, &hp, &CausalGraph::mesh(anim.vertex_count(), anim.triangles()), true)
         .unwrap();
-    let (unq, _) = truncated_reconstruction(anim.positions(), k, 6, 5, true, 0).unwrap();
+    let (unq, _) = truncated_reconstruction_with(anim.positions(), k, 6, 5, true, hp.affine, 0).unwrap();
     let eq = frob_error(anim.positions(), b.reconstruction.as_ref().unwrap());
     let eu = frob_error(anim.positions(), &unq);
     // quant = 0.25 targets a quantization RMS of a quarter of the truncation error, which adds
@@ -182,7 +182,9 @@ fn rigid_removal_turns_a_tumbling_body_into_a_static_one() {
 fn strategies_meet_the_budget_and_exhaustive_is_best() {
     let anim = flag(14, 10, 40, 1.0, 1.0);
     let k = anim.vertex_count();
-    for ss in [0.9, 0.95] {
+    // Not 0.95: on 140 vertices the smallest model that is not flat, (3, 1), needs 6% of the
+    // numbers with the transforms (`Dims::smallest`).
+    for ss in [0.85, 0.9] {
         let run = |strategy| {
             let hp = HosvdParams { ss, strategy, ..Default::default() };
             encode_block(anim.positions(), k, &hp, &CausalGraph::mesh(anim.vertex_count(), anim.triangles()), false)
@@ -202,7 +204,8 @@ fn strategies_meet_the_budget_and_exhaustive_is_best() {
         assert!(ex.truncation_error2 > 1e-6 * ex.norm2, "test data too simple: {ex:?}");
         assert!(it.evaluations <= ex.evaluations && d.evaluations == 0);
     }
-    // An unreachable budget falls back to (1, 1) and says so.
+    // An unreachable budget falls back to the smallest model that is not flat, (3, 1), and
+    // says so.
     let s = encode_block(
         anim.positions(),
         k,
@@ -212,7 +215,7 @@ fn strategies_meet_the_budget_and_exhaustive_is_best() {
     )
     .unwrap()
     .stats;
-    assert!(s.over_budget && (s.v, s.f) == (1, 1));
+    assert!(s.over_budget && (s.v, s.f) == (3, 1), "{s:?}");
 }
 
 #[test]
@@ -315,6 +318,9 @@ fn malformed_streams_case(coding: Coding, codec_version: u16) {
 fn parameters_validate_with_ranges_and_cross_checks() {
     let e = HosvdParams { ss: 1.5, ..Default::default() }.validate().unwrap_err().to_string();
     assert!(e.contains("hosvd") && e.contains("ss") && e.contains("0.9999"), "{e}");
+    let e = HosvdParams { motion_bits: 4, ..Default::default() }.validate().unwrap_err().to_string();
+    assert!(e.contains("motion_bits") && e.contains("6..=24"), "{e}");
+    assert!(HosvdParams { motion_bits: 6, ..Default::default() }.validate().is_ok());
     let e = HosvdParams { v: 4, ..Default::default() }.validate().unwrap_err().to_string();
     assert!(e.contains("'f'") && e.contains("give both"), "{e}");
     let p =
@@ -517,7 +523,9 @@ fn denoised_columns_decode_to_the_encoder_reconstruction() {
     // same levels bit for bit, and a level beyond the table is refused by name.
     let anim = flag(12, 10, 20, 1.0, 1.0);
     let k = anim.vertex_count();
-    let hp = HosvdParams { ss: 0.8, quant: 4.0, ..Default::default() };
+    // The paper's affine motion: on this flag the rotation leaves too little for smoothing to
+    // win (697 vs 695 bytes).
+    let hp = HosvdParams { ss: 0.8, quant: 4.0, affine: true, ..Default::default() };
     let graph = mesh_graph(&hp, anim.topology());
     let block = encode_block(anim.positions(), k, &hp, &graph, true).unwrap();
     let flags = block.payload[0];
@@ -623,7 +631,9 @@ fn column_modes_decode_to_the_encoder_reconstruction() {
 fn forced_unguarded_regression_is_caught_and_falls_back() {
     use codec_core::synth::{skinned_character, CharacterSpec};
     let anim = skinned_character(&CharacterSpec { parts: 25, frames: 24, ..CharacterSpec::spheres_like(5) });
-    let forced = HosvdParams { force_unguarded_regression: true, ..HosvdParams::default() };
+    // The paper's affine motion: the configuration in which this character's unguarded fit
+    // was found to diverge.
+    let forced = HosvdParams { force_unguarded_regression: true, affine: true, ..HosvdParams::default() };
     let topology = codec_core::connectivity::canonical_order(anim.topology());
     let mut enc = HosvdEncoder::new(forced, &topology, anim.frame_count(), true);
     let mut packets = enc.push_frames(anim.positions()).unwrap();

@@ -195,9 +195,10 @@ const ENVELOPE_STED: (f64, f64) = (0.01, 0.2);
 /// The default sweep: each codec's lower envelope over its declared search space
 /// ([`AnimationCodec::search_space`] on `base`, minus the `fixed` parameters). First every
 /// codec's first configuration on its whole ladder (the points of today's single-axis sweep,
-/// `options.points` applies), then every other configuration at `per_config` ladder positions
-/// spread evenly over the positions where the first configuration's KG or STED fell in the
-/// range the targets live in (every position if none did), then up to `per_config` more per
+/// `options.points` applies), then every other configuration at its smallest step and
+/// `per_config` ladder positions spread evenly over the positions where the first
+/// configuration's KG or STED fell in the range the targets live in (every position if none
+/// did), then up to `per_config` more per
 /// configuration next to its points on the envelope ([`envelope_neighbours`]). Curves are labelled
 /// `codec[key=value,…]`; [`envelope`] picks the points on the lower envelope. Results are in
 /// a fixed order (the first phase's series, then the others) whatever the scheduling.
@@ -243,7 +244,14 @@ pub fn envelope_sweep<'a>(
         region.dedup();
         for mut s in others {
             let positions = if region.is_empty() { (0..s.ladder().steps.len()).collect() } else { region.clone() };
-            let picked = ladder_indices(positions.len(), Some(per_config)).into_iter().map(|i| positions[i]).collect();
+            let mut picked: Vec<usize> =
+                ladder_indices(positions.len(), Some(per_config)).into_iter().map(|i| positions[i]).collect();
+            // And its smallest step: a shape error need not grow toward the small end of a
+            // ladder (`space::search_space_target`; chicken-crossing's STED ≤ 0.1 is met
+            // there by hosvd's rigid STED configuration, at half the bytes of any larger step).
+            if !picked.contains(&0) {
+                picked.insert(0, 0);
+            }
             s.steps = Some(picked);
             second.push(s);
         }
