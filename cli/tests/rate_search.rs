@@ -536,3 +536,20 @@ fn hosvd_target_searches_walk_the_half_of_the_space_for_their_error() {
     assert_eq!(hit.tried[0].params.float("ss").unwrap(), 0.9, "KG targets start at the default");
     assert!(TargetMetric::Kg.value(&hit.point.report).unwrap() <= 0.5);
 }
+
+/// A STED target met by a stream that does not follow the motion says so (stderr and `--json`
+/// "notes"): on the flag, hosvd's smallest model — one shape moved rigidly — meets STED ≤ 0.1 at
+/// KG 14 %. A KG target gets no such note.
+#[test]
+fn a_sted_target_met_without_the_motion_says_so() {
+    let s = Scratch::new("sted-motion-note");
+    let (pc2, anim) = (s.path("flag.pc2"), s.path("flag.anim"));
+    ok(&["synth", "flag", "-o", &pc2]);
+    let v = ok_json(&["encode", &pc2, "-c", "hosvd", "--target", "sted=0.1", "-o", &anim, "-f", "--json", "--eval"]);
+    let kg = v["kg"].as_f64().unwrap();
+    let notes: Vec<&str> = v["notes"].as_array().unwrap().iter().filter_map(|n| n.as_str()).collect();
+    assert!(kg > 5.0, "test data: KG {kg} — the note's case did not arise");
+    assert!(notes.iter().any(|n| n.contains("STED sees edge lengths") && n.contains("--target kg=")), "{notes:?}");
+    let v = ok_json(&["encode", &pc2, "-c", "hosvd", "--target", "kg=1", "-o", &anim, "-f", "--json"]);
+    assert!(v["notes"].as_array().unwrap().iter().all(|n| !n.as_str().unwrap().contains("STED")), "{v}");
+}

@@ -5,7 +5,7 @@ use std::time::{Duration, Instant};
 
 use animcodec::formats::stream::{self as cache_stream, CacheReader};
 use animcodec::formats::ReadOptions;
-use animcodec::harness::{self, SearchRequest, Target, TargetHit};
+use animcodec::harness::{self, SearchRequest, Target, TargetHit, TargetMetric};
 use animcodec::output::{OutputPolicy, PendingFile};
 use animcodec::params::params_json;
 use codec_core::params::find_spec;
@@ -447,7 +447,9 @@ fn run_target(args: &EncodeArgs, target: Target, by_default: bool, limits: Limit
     let (hit, others) = found?;
     let search_seconds = start.elapsed().as_secs_f64();
     // The chosen encode's warnings, as a plain encode prints them (stderr, `--json` "notes").
-    let notes: Vec<&str> = hit.point.report.notes.iter().filter_map(|n| n.strip_prefix("encoder: ")).collect();
+    let mut notes: Vec<String> =
+        hit.point.report.notes.iter().filter_map(|n| n.strip_prefix("encoder: ")).map(str::to_owned).collect();
+    notes.extend(sted_motion_note(target, &hit.point));
     for n in &notes {
         eprintln!("animcodec: warning: {n}");
     }
@@ -539,4 +541,24 @@ fn run_target(args: &EncodeArgs, target: Target, by_default: bool, limits: Limit
         ));
     }
     emit(&out)
+}
+
+/// KG (%) above which a stream chosen for a STED target gets a note: it keeps the shape but
+/// visibly not the motion.
+const STED_MOTION_NOTE_KG: f64 = 5.0;
+
+/// The note for a STED target met by a stream that does not follow the motion: STED (the
+/// metric author's tool) weighs its temporal part by about 1e-4, so a shape moved rigidly — or
+/// even frame 0 repeated — can meet it (issue 26, seventh session: samba at STED ≤ 0.1 is met
+/// by hosvd's `(v, f) = (3, 1)` model at KG 19).
+fn sted_motion_note(target: Target, point: &harness::Point) -> Option<String> {
+    let kg = point.report.kg?;
+    (target.metric == TargetMetric::Sted && kg > STED_MOTION_NOTE_KG).then(|| {
+        format!(
+            "the stream meets STED <= {} at KG {kg:.1} %: STED sees edge lengths, hardly motion, so this stream \
+             keeps the shape but not all of the motion; use --target kg=... (or both checks, --eval) when the motion \
+             matters",
+            target.value
+        )
+    })
 }
