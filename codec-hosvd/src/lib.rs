@@ -16,6 +16,7 @@
 
 pub mod coding;
 pub mod motion;
+mod spectra;
 pub mod strategy;
 pub mod tensor;
 
@@ -34,7 +35,7 @@ use faer::Mat;
 
 use strategy::Dims;
 pub use strategy::Strategy;
-use tensor::{Affine, Model, Spectrum, Tensor, Tucker};
+use tensor::{Affine, Model, Tensor, Tucker};
 
 const NAME: &str = "hosvd";
 
@@ -774,15 +775,22 @@ pub fn encode_block(
     };
     let t = Tensor::new(&x, k, frames);
     let edge2 = mean_squared_edge(&x, k, graph);
-    drop(x);
     let dims = Dims { k, f: frames, rigid: p.rigid };
     // Mode 2 is kept whole; rounding U2 to f32 *before* the core is computed makes the stored
     // U2 the one the core was projected on.
     let u2 = t.mode2()?.as_ref().to_owned();
     let u2r = Mat::from_fn(3, 3, |i, j| u2[(i, j)] as f32 as f64);
     let explicit = p.v != 0;
-    let needs_errors = !explicit && p.strategy != Strategy::Diagonal;
-    let spectrum = if needs_errors { Some(Spectrum::new(&t)?) } else { None };
+    let list = match p.strategy {
+        Strategy::Iterative | Strategy::Exhaustive if !explicit => strategy::candidates(dims, p.ss),
+        _ => Vec::new(),
+    };
+    // The full-rank spectrum (most of an encode's time) only when there are candidates to
+    // compare: with one or none (the top of the ladder, where a STED search probes the smallest
+    // model) the choice is made without it.
+    let needs_errors = !explicit && p.strategy != Strategy::Diagonal && list.len() > 1;
+    let spectrum = if needs_errors { Some(spectra::spectrum(&t, &x, k, frames)?) } else { None };
+    drop(x);
     let decompose_a = start.elapsed().as_secs_f64();
 
     let search_start = Instant::now();
@@ -794,16 +802,14 @@ pub fn encode_block(
             over_budget: false,
         }
     } else {
-        match (p.strategy, &spectrum) {
-            (Strategy::Diagonal, _) | (_, None) => strategy::diagonal(dims, p.ss),
-            (Strategy::Iterative, Some(s)) => {
-                let list = strategy::candidates(dims, p.ss);
+        match (p.strategy, &spectrum, list.as_slice()) {
+            (Strategy::Diagonal, _, _) => strategy::diagonal(dims, p.ss),
+            (_, _, []) => strategy::Choice { v: 1, f: 1, evaluations: 0, over_budget: true },
+            (_, None, &[(v, f), ..]) => strategy::Choice { v, f, evaluations: 0, over_budget: false },
+            (Strategy::Iterative, Some(s), _) => {
                 strategy::iterative(&list, p.samples as usize, p.depth as usize, |v, f| s.truncation_error2(v, f))
             }
-            (Strategy::Exhaustive, Some(s)) => {
-                let list = strategy::candidates(dims, p.ss);
-                strategy::exhaustive(&list, |v, f| s.truncation_error2(v, f))
-            }
+            (Strategy::Exhaustive, Some(s), _) => strategy::exhaustive(&list, |v, f| s.truncation_error2(v, f)),
         }
     };
     let search_seconds = search_start.elapsed().as_secs_f64();

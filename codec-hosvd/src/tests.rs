@@ -116,7 +116,7 @@ fn full_rank_is_exact_and_energies_give_the_truncation_error() {
     // Without rigid removal the reconstruction error equals √(‖T‖² − ‖C̃‖²) in f64.
     let x: Vec<f64> = anim.positions().iter().map(|&p| p as f64).collect();
     let t = Tensor::new(&x, k, 20);
-    let s = Spectrum::new(&t).unwrap();
+    let s = tensor::Spectrum::new(&t).unwrap();
     for (v, f) in [(1, 1), (3, 2), (5, 9), (12, 4)] {
         let (rec, err2) = truncated_reconstruction(anim.positions(), k, v, f, false, 0).unwrap();
         let direct = frob_error(anim.positions(), &rec);
