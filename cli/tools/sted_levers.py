@@ -14,7 +14,10 @@ eta is its RMS per coordinate relative to the RMS edge length of frame 0 (hosvd'
 2. High-pass quantization: uniform noise added to the umbrella-Laplacian (delta) coordinates
    and the positions solved back (least squares, weakly anchored), versus the same noise on
    the positions. Its error is low-frequency, which is what should spare edge lengths.
-3. Per-part rigid motion (`--parts K ...`): K parts from k-means on the trajectories, then six
+3. Anisotropic noise: the step along each frame's vertex normal k times the tangential steps
+   (same geometric mean, same bits), the noise moving with the surface. Edge lengths change to
+   first order only with the tangential components.
+4. Per-part rigid motion (`--parts K ...`): K parts from k-means on the trajectories, then six
    rounds of reassigning each vertex to the part whose rigid (Kabsch) motion from frame 0 fits
    it best; reconstructed with hard labels and with labels smoothed over 2 and 5 rings (linear
    blend skinning). Frame 0 exact, nothing quantized: the model's own STED.
@@ -40,6 +43,19 @@ def umbrella(vertices, edges):
     deg = np.asarray(adj.sum(1)).ravel()
     deg[deg == 0] = 1
     return (sp.eye(vertices) - sp.diags(1 / deg) @ adj).tocsr(), sp.diags(1 / deg) @ adj
+
+
+def normal_frames(p, faces):
+    """Per vertex: unit normal (area-weighted) and two tangents."""
+    face_normal = np.cross(p[faces[:, 1]] - p[faces[:, 0]], p[faces[:, 2]] - p[faces[:, 0]])
+    n = np.zeros_like(p)
+    for c in range(3):
+        np.add.at(n, faces[:, c], face_normal)
+    n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-30)
+    helper = np.where(np.abs(n[:, :1]) < 0.9, np.array([[1.0, 0, 0]]), np.array([[0.0, 1, 0]]))
+    t1 = np.cross(n, helper)
+    t1 /= np.maximum(np.linalg.norm(t1, axis=1, keepdims=True), 1e-30)
+    return n, t1, np.cross(n, t1)
 
 
 def kabsch(p, q):
@@ -86,8 +102,12 @@ def main():
         return sted_np.sted(a, candidate, faces)
 
     print(f"{name}: {frames} frames x {vertices} vertices, RMS edge {rms_edge:.4g}")
-    print("| eta | uniform STED | ∝ local edge STED (same bits) | Laplacian-domain STED / KG | uniform KG |")
-    print("|---:|---:|---:|---:|---:|")
+    frames_of = [normal_frames(a[f], faces) for f in range(frames)]
+    print(
+        "| eta | uniform STED | ∝ local edge STED (same bits) | Laplacian-domain STED / KG "
+        "| normal step 2× / 4× tangential STED (same bits) | uniform KG |"
+    )
+    print("|---:|---:|---:|---:|---:|---:|")
     for eta in (0.012, 0.02, 0.03):
         step = eta * rms_edge * np.sqrt(12)
         noise = step * unit
@@ -96,9 +116,24 @@ def main():
         lowpass = np.stack([solve(lap.T @ noise[:, c]) for c in range(3)], 1)
         uniform = a + noise[None]
         high_pass = a + lowpass[None]
+        anisotropic = []
+        for ratio in (2, 4):
+            tangential = step * ratio ** (-1 / 3)
+            normal = tangential * ratio
+            moved = np.stack(
+                [
+                    a[f]
+                    + normal * unit[:, :1] * n
+                    + tangential * unit[:, 1:2] * t1
+                    + tangential * unit[:, 2:3] * t2
+                    for f, (n, t1, t2) in enumerate(frames_of)
+                ]
+            )
+            anisotropic.append(f"{sted(moved):.4f}")
         print(
             f"| {eta} | {sted(uniform):.4f} | {sted(a + shaped[None]):.4f} | "
-            f"{sted(high_pass):.4f} / {anim.kg(a, high_pass):.3f} | {anim.kg(a, uniform):.3f} |",
+            f"{sted(high_pass):.4f} / {anim.kg(a, high_pass):.3f} | {' / '.join(anisotropic)} | "
+            f"{anim.kg(a, uniform):.3f} |",
             flush=True,
         )
 
