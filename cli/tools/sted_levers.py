@@ -94,6 +94,7 @@ def main():
         np.add.at(count, edges[:, c], 1)
     local = total / np.maximum(count, 1)
     local[count == 0] = rms_edge
+    local = np.maximum(local, 1e-9 * rms_edge)  # zero-length edges: keep the logarithm finite
     rng = np.random.default_rng(0)
     unit = rng.uniform(-0.5, 0.5, size=(vertices, 3))
     solve = spl.factorized((lap.T @ lap + 1e-2 * sp.eye(vertices)).tocsc())
