@@ -144,10 +144,12 @@ fn synth_force_never_replaces_another_caches_obj() {
     assert_eq!(std::fs::read_to_string(s.path("b.obj")).unwrap(), "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
     // Its own companion (written for this cache name) or the same mesh: replaced as before.
     ok(&["synth", "flag", "-o", &s.path("c.mdd")]);
-    ok(&["synth", "flag", "-s", "medium", "-o", &s.path("c.mdd"), "-f"]);
-    ok(&["synth", "flag", "-o", &s.path("c.pc2"), "-f"]);
+    ok(&["synth", "flag", "--size", "medium", "-o", &s.path("c.mdd"), "-f"]);
+    // c.obj now holds the medium flag: c.pc2 of the same mesh may replace it, of another not.
+    fails(&["synth", "flag", "-o", &s.path("c.pc2"), "-f"], &["c.obj", "another mesh"]);
+    ok(&["synth", "flag", "--size", "medium", "-o", &s.path("c.pc2"), "-f"]);
     let back = animcodec::formats::read_animation(Path::new(&s.path("c.pc2")), &Default::default()).unwrap();
-    assert_eq!(back.vertex_count(), synth::by_name("flag", SynthSize::Small).unwrap().vertex_count());
+    assert_eq!(back.vertex_count(), synth::by_name("flag", SynthSize::Medium).unwrap().vertex_count());
     // decode --topology-obj asks for the companion by name: --force replaces it (issue 27).
     let anim = s.path("a.anim");
     ok(&["encode", "synth:flag", "-c", "quant-delta", "-o", &anim]);
