@@ -635,8 +635,10 @@ pub struct SynthArgs {
     #[arg(short, long, value_name = "OUT")]
     pub output: PathBuf,
 
-    /// Replace existing output files (without it, an existing output is an error). An output
-    /// that is also an input is refused even with it.
+    /// Replace the existing output file (without it, an existing output is an error). It names
+    /// the .pc2/.mdd only: an existing STEM.obj beside it is replaced only when animcodec wrote
+    /// it for this cache or it holds the same mesh; any other (the topology of another cache of
+    /// the same stem, a model) is refused by name: remove it or choose another output name.
     #[arg(short, long)]
     pub force: bool,
 }
@@ -663,6 +665,9 @@ pub struct DemoArgs {
 
 fn main() -> ExitCode {
     signals::install_cleanup();
+    // Every file a reader opens (a .gltf's buffers, a cache's OBJ, …) is an input no output
+    // may replace, even with --force (issue 41).
+    animcodec::output::protect_files_read();
     // No panic text ever reaches the terminal: the library turns the panics it can meet (inside
     // the gltf crate) into errors, which are reported below; any other panic is a bug, reported
     // as one short line instead of a backtrace.

@@ -13,6 +13,13 @@
 //!   command documents it, such as `--json -`; a file named `-` is written as `./-`).
 //! - [`OutputPolicy::check_all`] also refuses two outputs of one command naming the same file
 //!   in any spelling (`o.txt`, `./o.txt`, a symlink, a hard link), before any work starts.
+//! - Every file a reader opens (the input itself, a `.gltf`'s external buffers, a cache's
+//!   topology OBJ, each frame of an OBJ sequence) is noted ([`note_read`]) once the program has
+//!   asked for it ([`protect_files_read`], which the binary does first thing): from then on
+//!   [`OutputPolicy::check`] and [`commit_all`] refuse to write any of those files, in any
+//!   spelling (same device and inode: symlinks, `./`, hard links), even with `--force`. A
+//!   command need not know which files its input pulled in (issue 41: `encode horse.gltf -o
+//!   horse.bin -f` replaced the model's own buffer).
 //! - A command with several outputs stages every one ([`OutputPolicy::create`]), validates
 //!   them, and renames them all together ([`commit_all`]): a failure before the renames leaves
 //!   every old file untouched.
@@ -30,6 +37,72 @@ static PENDING: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
 
 fn pending() -> MutexGuard<'static, Vec<PathBuf>> {
     PENDING.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
+}
+
+/// A file a reader opened: its identity (device, inode) when it was opened, and how to name it.
+#[derive(Debug, Clone)]
+struct FileRead {
+    identity: (u64, u64),
+    what: String,
+}
+
+/// The files readers opened, once [`protect_files_read`] turned the record on (`None`: off).
+static FILES_READ: Mutex<Option<Vec<FileRead>>> = Mutex::new(None);
+
+fn files_read_list() -> MutexGuard<'static, Option<Vec<FileRead>>> {
+    FILES_READ.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
+}
+
+/// Device and inode of the file `path` names (following symbolic links), if it exists.
+fn identity(path: &Path) -> Option<(u64, u64)> {
+    use std::os::unix::fs::MetadataExt;
+    std::fs::metadata(path).ok().map(|m| (m.dev(), m.ino()))
+}
+
+/// From now on, every file a reader of this crate opens ([`note_read`]) is an input that no
+/// output of this process may replace ([`OutputPolicy::check`], [`commit_all`]), whatever the
+/// policy's `overwrite` says. A program whose process runs one command calls it first (the
+/// `animcodec` binary does); a library that reads a file and then deliberately rewrites it in
+/// place does not, and nothing is recorded (the record would only grow).
+pub fn protect_files_read() {
+    let mut list = files_read_list();
+    if list.is_none() {
+        *list = Some(Vec::new());
+    }
+}
+
+/// Notes that a reader opened `path` (described as `what` in a refusal; `None`: the path
+/// itself). Nothing happens unless [`protect_files_read`] was called, or for a file that is not
+/// there (the reader's own error follows).
+pub fn note_read(path: &Path, what: Option<String>) {
+    let mut list = files_read_list();
+    let Some(list) = list.as_mut() else { return };
+    let Some(identity) = identity(path) else { return };
+    if !list.iter().any(|f| f.identity == identity) {
+        list.push(FileRead { identity, what: what.unwrap_or_else(|| path.display().to_string()) });
+    }
+}
+
+/// The description of the file read that `path` names (same device and inode), if any.
+fn read_as(path: &Path) -> Option<String> {
+    let list = files_read_list();
+    let list = list.as_ref()?;
+    let identity = identity(path)?;
+    list.iter().find(|f| f.identity == identity).map(|f| f.what.clone())
+}
+
+/// The refusal for an output that is a file this process read ([`note_read`]), if it is one.
+fn refuse_if_read(path: &Path) -> Result<()> {
+    if is_special(path) {
+        return Ok(()); // devices and pipes are written in place, never replaced
+    }
+    match read_as(path) {
+        Some(what) => Err(refused(
+            path,
+            format!("it is also an input of this command ({what}, which it read; refused even with --force)"),
+        )),
+        None => Ok(()),
+    }
 }
 
 /// Deletes every pending temporary file, prints `message` on stderr and exits with `code`,
@@ -52,12 +125,25 @@ pub struct OutputPolicy {
     pub overwrite: bool,
     /// The command's input files (and folders): never written over, whatever `overwrite` says.
     pub inputs: Vec<PathBuf>,
+    /// With `overwrite`: the topology OBJ written beside a `.pc2`/`.mdd` output may replace any
+    /// existing `STEM.obj` (the command was asked for it by name, as `decode --topology-obj`).
+    /// Without it, an existing `STEM.obj` is replaced only when it is the output's own
+    /// companion or holds the same mesh: `-f` names the cache, not a file that may belong to
+    /// another cache of the same stem (issue 41).
+    pub replace_companions: bool,
 }
 
 impl OutputPolicy {
     /// A policy with the given overwrite switch and no inputs.
     pub fn new(overwrite: bool) -> Self {
-        Self { overwrite, inputs: Vec::new() }
+        Self { overwrite, inputs: Vec::new(), replace_companions: false }
+    }
+
+    /// Sets [`replace_companions`](Self::replace_companions): the topology OBJ beside a cache
+    /// output was asked for by name, so `--force` replaces whatever `STEM.obj` is there.
+    pub fn replacing_companions(mut self, asked: bool) -> Self {
+        self.replace_companions = asked;
+        self
     }
 
     /// Adds an input path (a file, a directory of frames, or a file-name pattern). For a
@@ -91,6 +177,7 @@ impl OutputPolicy {
                 },
             ));
         }
+        refuse_if_read(path)?;
         if path.is_dir() {
             return Err(refused(path, "it is a directory".into()));
         }
@@ -187,10 +274,6 @@ pub fn same_file(a: &Path, b: &Path) -> bool {
 /// device and inode, so hard links match too) or, for files not yet there, the same name in the
 /// same folder once symlinks and `.`/`..` are resolved.
 fn same_target(a: &Path, b: &Path) -> bool {
-    fn identity(p: &Path) -> Option<(u64, u64)> {
-        use std::os::unix::fs::MetadataExt;
-        std::fs::metadata(p).ok().map(|m| (m.dev(), m.ino()))
-    }
     fn resolved(p: &Path) -> Option<PathBuf> {
         if let Ok(c) = std::fs::canonicalize(p) {
             return Some(c);
@@ -310,10 +393,15 @@ impl PendingFile {
 }
 
 /// Renames every pending file into place after removing `stale` files, as one step that an
-/// interrupting signal cannot split (it waits for the step to finish).
+/// interrupting signal cannot split (it waits for the step to finish). A target or stale file
+/// that is a file this process read ([`protect_files_read`]) is refused before anything is
+/// renamed or removed: the last guard, whatever path led here.
 pub fn commit_all(mut files: Vec<PendingFile>, stale: &[PathBuf]) -> Result<()> {
     for f in &mut files {
         f.finish_writing()?;
+    }
+    for path in files.iter().filter(|f| !f.temp.as_os_str().is_empty()).map(|f| &f.target).chain(stale) {
+        refuse_if_read(path)?;
     }
     let mut list = pending();
     for s in stale {

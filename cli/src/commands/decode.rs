@@ -25,8 +25,10 @@ pub fn open(path: &Path) -> CmdResult<BufReader<File>> {
 
 /// Runs `decode`.
 pub fn run(args: &DecodeArgs, limits: Limits) -> CmdResult {
-    let options =
-        WriteOptions { policy: OutputPolicy::new(args.force).with_input(&args.input), topology_obj: args.topology_obj };
+    let options = WriteOptions {
+        policy: OutputPolicy::new(args.force).with_input(&args.input).replacing_companions(args.topology_obj),
+        topology_obj: args.topology_obj,
+    };
     // Refuse a forbidden output before decoding (the sequence checks run when writing).
     if !formats::obj::is_directory_target(&args.output) {
         options.policy.check(&args.output)?;

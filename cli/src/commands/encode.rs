@@ -401,6 +401,8 @@ fn run_target(args: &EncodeArgs, target: Target, by_default: bool, limits: Limit
             load_animation(&args.input, &options)?
         }
     };
+    // The files the read opened (a .gltf's buffers, …) are inputs too: refused before the work.
+    policy.check(&args.output)?;
     let read_seconds = read_start.elapsed().as_secs_f64();
 
     let start = Instant::now();

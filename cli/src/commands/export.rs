@@ -34,6 +34,8 @@ pub fn run(args: &ExportArgs, limits: Limits) -> CmdResult {
     let stages = crate::progress::Stages::new("export", 4, args.json);
     stages.stage(format!("reading {}", args.input));
     let animation = load_any(&args.input, &read, limits)?;
+    // The files the read opened (a .gltf's buffers, …) are inputs too: refused before the work.
+    policy.check(&args.output)?;
     let layout = match args.layout.as_str() {
         "basis" => GltfLayout::Basis,
         "frames" => GltfLayout::Frames,

@@ -66,6 +66,8 @@ pub fn run(args: &InspectArgs) -> CmdResult {
 
     let options = ReadOptions { topology: args.topology.clone(), frame_rate: None, animation: args.animation.clone() };
     let animation = load_animation(&args.input, &options)?;
+    // The files the read opened (a .gltf's buffers, …) are inputs too: refused before the work.
+    policy.check_all(&outputs)?;
     let frames = animation.frame_count();
     let frame = args.frame;
     if frame >= frames {

@@ -47,6 +47,8 @@ pub fn run(args: &SweepArgs, limits: Limits) -> CmdResult {
     let eval = eval_options(&args.metrics)?;
     let read = ReadOptions { topology: args.topology.clone(), frame_rate: None, animation: args.animation.clone() };
     let animation = load_any(input, &read, limits)?;
+    // The files the read opened (a .gltf's buffers, …) are inputs too: refused before the work.
+    policy.check_all(&outputs)?;
 
     let options =
         SweepOptions { points: args.points.map(|n| n as usize), jobs: args.jobs.map(|n| n as usize), eval, limits };

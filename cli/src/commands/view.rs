@@ -50,6 +50,8 @@ pub fn run(args: &ViewArgs, limits: Limits) -> CmdResult {
         stages.stage(format!("candidate {spec}"));
         loaded.push(load_candidate(&registry, spec, &reference, &read_candidate, limits)?);
     }
+    // The files the read opened (a .gltf's buffers, …) are inputs too: refused before the work.
+    policy.check(&args.output)?;
     let eval = EvalOptions { sted, ..EvalOptions::default() };
     stages.stage("measuring the candidates (KG, STED, Hausdorff, per-vertex errors)");
     let mut candidates = Vec::new();

@@ -88,7 +88,19 @@ pub struct GltfSelection {
     /// Most bytes the read may hold in total (buffers, mesh data, baked positions). `None`:
     /// the process default ([`set_default_memory_budget`], else [`DEFAULT_MEMORY_BUDGET`]).
     pub memory_budget: Option<u64>,
+    /// Copies of the baked positions the caller will hold after the read (an encoder's working
+    /// copy, the decoded positions, the metrics' copies), counted against the budget with the
+    /// read, before anything is baked: a small file that instancing multiplies is refused
+    /// before the command it feeds holds gigabytes. [`read_animation`](super::read_animation)
+    /// asks for [`COMMAND_WORKING_COPIES`]; 0 counts the read alone.
+    pub working_copies: u64,
 }
+
+/// The copies of an animation a command holds beyond the one read, as
+/// [`GltfSelection::working_copies`] counts them: 6, measured on a default encode (issue 41,
+/// gltf-memory: 2 000 instances of Horse.glb, a 276 KB file, baked 305 MB, within the 1 GiB read
+/// budget, and the default quant-delta encode then peaked at 2.04 GB, 6.7 times as much).
+pub const COMMAND_WORKING_COPIES: u64 = 6;
 
 /// Reads a `.gltf` or `.glb` file's scene played back as `selection` says. External buffers of
 /// a `.gltf` are resolved relative to the file's directory (and must lie inside it).
@@ -112,10 +124,13 @@ pub fn parse_gltf_with(bytes: &[u8], base: Option<&Path>, file: &str, selection:
     }
     guarded(file, || {
         let mut budget = Budget::new(file, selection.memory_budget);
-        let (document, blob, raw) = parse_document(bytes, file)?;
+        let (document, blob, raw) = parse_document(bytes, file, &mut budget)?;
         let buffers = load_buffers(file, &document, base, blob, &raw, &mut budget)?;
-        let wanted =
-            Selection { animation: selection.animation.as_deref(), frame_rate: selection.frame_rate.map(f64::from) };
+        let wanted = Selection {
+            animation: selection.animation.as_deref(),
+            frame_rate: selection.frame_rate.map(f64::from),
+            working_copies: selection.working_copies,
+        };
         gltf_scene::bake(file, &document, &buffers, &raw, &wanted, &mut budget)
     })
 }
@@ -127,7 +142,7 @@ pub fn list_animations(path: &Path) -> Result<Vec<AnimationInfo>> {
     let file = name(path);
     guarded(&file, || {
         let mut budget = Budget::new(&file, None);
-        let (document, blob, raw) = parse_document(&bytes, &file)?;
+        let (document, blob, raw) = parse_document(&bytes, &file, &mut budget)?;
         let buffers = load_buffers(&file, &document, base, blob, &raw, &mut budget)?;
         gltf_scene::list(&file, &document, &buffers)
     })
@@ -242,7 +257,7 @@ fn load_buffers(
             ::gltf::buffer::Source::Bin => blob.take().ok_or_else(|| {
                 bad(file, "buffers", format!("buffer {index} refers to a GLB BIN chunk the file lacks"))
             })?,
-            ::gltf::buffer::Source::Uri(uri) => read_uri(file, index, uri, base, declared, &limits)?,
+            ::gltf::buffer::Source::Uri(uri) => read_uri(file, index, uri, base, declared, &limits, budget)?,
         };
         if data.len() < declared {
             return Err(bad(
@@ -266,6 +281,7 @@ fn read_uri(
     base: Option<&Path>,
     declared: usize,
     limits: &Limits,
+    budget: &mut Budget,
 ) -> Result<Vec<u8>> {
     let fail = |detail: String| bad(file, "buffers", format!("buffer {index}: {detail}"));
     if let Some(rest) = uri.strip_prefix("data:") {
@@ -274,7 +290,10 @@ fn read_uri(
             .map(|(_, data)| data)
             .ok_or_else(|| fail("a data URI that is not base64".into()))?;
         // Decoded size is at most 3/4 of the text; refuse before decoding a huge string.
-        limits.check_alloc("gltf", "buffers", (payload.len() / 4 * 3) as u64)?;
+        let decoded = (payload.len() / 4 * 3) as u64;
+        limits.check_alloc("gltf", "buffers", decoded)?;
+        // byteLength is already counted; a URI may hold more than it declares (issue 41).
+        budget.take("a data: URI's decoded bytes", decoded.saturating_sub(declared as u64))?;
         return base64::engine::general_purpose::STANDARD
             .decode(payload)
             .map_err(|e| fail(format!("invalid base64 in data URI ({e})")));
@@ -292,7 +311,11 @@ fn read_uri(
         .into_owned();
     let base =
         base.ok_or_else(|| fail(format!("external file '{}' but no directory to resolve it in", printable(&path))))?;
-    read_external(base, &path, declared).map_err(|detail| fail(format!("'{}': {detail}", printable(&path))))
+    let data =
+        read_external(base, &path, declared).map_err(|detail| fail(format!("'{}': {detail}", printable(&path))))?;
+    // An input of the command like the file itself: never an output (issue 41).
+    crate::output::note_read(&base.join(&path), Some(format!("the external buffer '{}' of {file}", printable(&path))));
+    Ok(data)
 }
 
 /// Reads the first `declared` bytes of `relative` inside `folder`: a relative path of plain
@@ -409,7 +432,7 @@ fn geometry_only(raw: &Value) -> Value {
 /// is not geometry ([`geometry_only`]), deserializes it, checks every index in it
 /// ([`check_indices`]) and only then lets the `gltf` crate validate it (its validation indexes
 /// arrays unchecked in places: a `POSITION` accessor index out of range panics there).
-fn parse_document(bytes: &[u8], file: &str) -> Result<(::gltf::Document, Option<Vec<u8>>, Value)> {
+fn parse_document(bytes: &[u8], file: &str, budget: &mut Budget) -> Result<(::gltf::Document, Option<Vec<u8>>, Value)> {
     let (json, blob) = if bytes.starts_with(b"glTF") {
         // The crate computes `length - 12` unchecked (an overflow panic, found by fuzzing).
         let declared = bytes.get(8..12).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]));
@@ -425,10 +448,14 @@ fn parse_document(bytes: &[u8], file: &str) -> Result<(::gltf::Document, Option<
             Some(_) => {}
         }
         let glb = ::gltf::Glb::from_slice(bytes).map_err(|e| bad(file, "glb", e.to_string()))?;
-        (glb.json.into_owned(), glb.bin.map(|b| b.into_owned()))
+        (glb.json, glb.bin.map(|b| b.into_owned()))
     } else {
-        (bytes.to_vec(), None)
+        (std::borrow::Cow::Borrowed(bytes), None)
     };
+    // The JSON is held parsed twice (the raw value and the document), data: URIs included:
+    // counted before parsing, so a huge inline buffer is refused by the budget instead of
+    // being copied (issue 41: a 160 MB data: URI held 632 MB under --max-memory 64M).
+    budget.take("the glTF JSON, parsed (twice)", (json.len() as u64).saturating_mul(2))?;
     let raw: Value = serde_json::from_slice(&json).map_err(|e| bad(file, "gltf", e.to_string()))?;
     check_version(file, &raw)?;
     check_required_extensions(file, &raw)?;
@@ -716,6 +743,31 @@ mod tests {
         let path = write_gltf(&dir, &b, &doc);
         let a = read_animation(&path, &opts).unwrap();
         assert_eq!(offsets(&a), vec![(0., 0.), (0., 0.), (1., 0.), (1., 0.), (0., 1.)]);
+    }
+
+    /// Issue 41 (gltf-memory): a data: URI holding far more than its byteLength was decoded
+    /// whole, and the JSON text holding it parsed twice, with only byteLength counted. Both
+    /// count now, before the parse and before the decoding.
+    #[test]
+    fn a_data_uri_counts_its_text_and_decoded_bytes() {
+        let (b, doc) = morph_triangle("LINEAR", None);
+        let mut inline = doc.clone();
+        let mut padded = b.bin.clone();
+        padded.resize(b.bin.len() + 300_000, 0);
+        let encoded = base64::engine::general_purpose::STANDARD.encode(&padded);
+        inline["buffers"][0]["uri"] = json!(format!("data:application/octet-stream;base64,{encoded}"));
+        let bytes = serde_json::to_vec(&inline).unwrap();
+        let read = |budget: u64| {
+            let selection = GltfSelection { frame_rate: Some(2.0), memory_budget: Some(budget), ..Default::default() };
+            parse_gltf_with(&bytes, None, "d.gltf", &selection)
+        };
+        // The text (400 kB) twice is over 600 kB.
+        let e = read(600_000).unwrap_err().to_string();
+        assert!(e.contains("glTF JSON") && e.contains("--max-memory"), "{e}");
+        // Within 1.1 MB for the text, the 300 kB decoded beyond byteLength are not.
+        let e = read(1_100_000).unwrap_err().to_string();
+        assert!(e.contains("data: URI") && e.contains("--max-memory"), "{e}");
+        assert_eq!(read(2_000_000).unwrap().vertex_count(), 3);
     }
 
     #[test]

@@ -701,6 +701,8 @@ fn load_skin(file: &str, skin: &::gltf::Skin, buffers: &[BufferData]) -> Result<
 pub(super) struct Selection<'a> {
     pub animation: Option<&'a str>,
     pub frame_rate: Option<f64>,
+    /// Copies of the positions the caller holds after the read (`GltfSelection::working_copies`).
+    pub working_copies: u64,
 }
 
 /// Plays the scene into a vertex cache. `json` is the file's raw JSON (extension data,
@@ -848,6 +850,16 @@ pub(super) fn bake(
     // animation's topology), and per vertex the f64 morph scratch.
     let positions_bytes = (frames as u64).saturating_mul(vertex_count as u64).saturating_mul(12);
     budget.take("the baked positions (frames × vertices × 12 bytes)", positions_bytes)?;
+    if selection.working_copies > 0 {
+        // Issue 41 (gltf-memory): what the command will hold of them, counted now.
+        budget.take(
+            &format!(
+                "the {} copies of the positions a command works on after the read ({} bytes each)",
+                selection.working_copies, positions_bytes
+            ),
+            positions_bytes.saturating_mul(selection.working_copies),
+        )?;
+    }
     budget.take("the triangles", (triangle_count as u64) * 24)?;
     budget.take("the playback scratch", (vertex_count as u64) * 24)?;
     limits.check_alloc("gltf", "positions", positions_bytes)?;

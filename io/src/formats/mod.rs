@@ -108,8 +108,12 @@ pub fn read_animation(path: &Path, options: &ReadOptions) -> Result<Animation> {
         Some("pc2") => pc2::read_pc2(path, options.topology.as_deref(), frame_rate),
         Some("mdd") => mdd::read_mdd(path, options.topology.as_deref(), frame_rate),
         Some("gltf") | Some("glb") => {
-            let selection =
-                gltf::GltfSelection { animation: options.animation.clone(), frame_rate, memory_budget: None };
+            let selection = gltf::GltfSelection {
+                animation: options.animation.clone(),
+                frame_rate,
+                memory_budget: None,
+                working_copies: gltf::COMMAND_WORKING_COPIES,
+            };
             gltf::read_gltf(path, &selection)
         }
         Some(ext) if usd::is_usd_extension(ext) => usd::read_usd(path, frame_rate),
@@ -186,6 +190,7 @@ pub fn write_animation_with(path: &Path, animation: &Animation, options: &WriteO
     options.policy.check(path)?;
     if companion_obj {
         options.policy.check(&companion)?;
+        check_companion_replaced(&options.policy, path, &companion, animation.vertex_count(), animation.triangles())?;
     } else if matches!(extension(path).as_deref(), Some("pc2" | "mdd")) {
         check_existing_companion(path, &companion, animation.vertex_count(), animation.triangles())?;
     }
@@ -250,6 +255,64 @@ fn check_existing_companion(cache: &Path, companion: &Path, vertex_count: usize,
     ))
 }
 
+/// The first line of the topology OBJ written beside `cache` ([`write_animation_with`],
+/// [`stream::CacheWriter`]) starts with this, which tells an OBJ animcodec wrote for that cache.
+fn companion_comment_prefix(cache: &Path) -> String {
+    let file = cache.file_name().map(|f| f.to_string_lossy().into_owned()).unwrap_or_default();
+    format!("# animcodec: topology of {file} (")
+}
+
+/// `-f` names one output, the cache: unless the policy says the companion was asked for by name
+/// ([`OutputPolicy::replace_companions`]), the `STEM.obj` written beside it may replace an
+/// existing file only when that file is this cache's own companion (animcodec wrote it for this
+/// very cache name) or holds the same mesh (same vertex count and triangles: a reader of any other
+/// cache beside it, which uses only its faces, still reads the same). Any other OBJ there may
+/// be the topology of another cache of the same stem (`a.pc2` beside `a.mdd`, issue 41) or a
+/// user's model, and is refused by name. The caller has already checked the companion against
+/// the output policy (without `--force` an existing one is refused there).
+fn check_companion_replaced(
+    policy: &OutputPolicy,
+    cache: &Path,
+    companion: &Path,
+    vertex_count: usize,
+    triangles: &[[u32; 3]],
+) -> Result<()> {
+    if policy.replace_companions {
+        return Ok(());
+    }
+    let Ok(meta) = std::fs::metadata(companion) else { return Ok(()) };
+    if !meta.is_file() {
+        return Ok(()); // a device is written in place; a directory is refused by the policy
+    }
+    // Read without noting it as an input (it is an output here); a file that cannot be read
+    // as an OBJ is not this mesh.
+    let same_mesh = match std::fs::read(companion) {
+        Ok(bytes) => {
+            let first_line = bytes.split(|&b| b == b'\n').next().unwrap_or_default();
+            if first_line.starts_with(companion_comment_prefix(cache).as_bytes()) {
+                return Ok(());
+            }
+            obj::parse_obj(&bytes, &name(companion))
+                .is_ok_and(|mesh| mesh.vertex_count() == vertex_count && mesh.triangles == triangles)
+        }
+        Err(_) => false,
+    };
+    if same_mesh {
+        return Ok(());
+    }
+    Err(crate::output::refused(
+        companion,
+        format!(
+            "it is the topology OBJ that would be written beside {}, but the OBJ already there holds \
+             another mesh and was not written for this file (it may be the topology of another cache \
+             with the same stem); --force replaces {} only: remove {} or choose another output name",
+            cache.display(),
+            cache.display(),
+            companion.display()
+        ),
+    ))
+}
+
 /// Lower-case extension of a path, if any.
 fn extension(path: &Path) -> Option<String> {
     path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase())
@@ -261,8 +324,12 @@ fn name(path: &Path) -> String {
 }
 
 /// Reads a whole file; the error names the path.
+/// The file is noted as read ([`crate::output::note_read`]): no output of the command may
+/// replace it.
 fn read_file(path: &Path) -> Result<Vec<u8>> {
-    std::fs::read(path).map_err(|e| Error::io(name(path), e))
+    let bytes = std::fs::read(path).map_err(|e| Error::io(name(path), e))?;
+    crate::output::note_read(path, None);
+    Ok(bytes)
 }
 
 /// Writes a whole file (replacing it) through a temporary file; the error names the path.
@@ -383,6 +450,7 @@ fn cache_topology(cache: &Path, topology: Option<&Path>, vertex_count: usize) ->
             beside
         }
     };
+    crate::output::note_read(&obj_path, Some(format!("the topology OBJ {} of {}", name(&obj_path), name(cache))));
     let mesh = obj::read_obj(&obj_path)?;
     if mesh.vertex_count() != vertex_count {
         return Err(Error::malformed(
@@ -657,6 +725,41 @@ mod tests {
         assert!(e.contains("no .obj file"), "{e}");
         let bad = ReadOptions { frame_rate: Some(f32::NAN), ..Default::default() };
         assert!(read_animation(&p, &bad).is_err());
+    }
+
+    /// Issue 41 (misc): `-f` names the cache; the topology OBJ written beside it replaces an
+    /// existing `STEM.obj` only when it is the cache's own (written for this name) or the same
+    /// mesh, or when the companion was asked for by name ([`OutputPolicy::replacing_companions`]).
+    #[test]
+    fn a_companion_obj_replaces_only_its_own_or_the_same_mesh() {
+        let dir = TempDir::new("companion");
+        let anim = test_animation(7, 3, 30.0);
+        let other = test_animation(5, 2, 30.0);
+        let force = WriteOptions { policy: OutputPolicy::new(true), topology_obj: true };
+        // a.pc2 + a.obj: another cache of the same stem.
+        write_animation_with(&dir.path("a.pc2"), &other, &force).unwrap();
+        let a_obj = std::fs::read(dir.path("a.obj")).unwrap();
+        let e = write_animation_with(&dir.path("a.mdd"), &anim, &force).unwrap_err().to_string();
+        assert!(e.contains("a.obj") && e.contains("a.mdd") && e.contains("another mesh"), "{e}");
+        assert_eq!(std::fs::read(dir.path("a.obj")).unwrap(), a_obj);
+        assert!(!dir.path("a.mdd").exists());
+        // The streamed writer refuses it the same way.
+        let e = stream::CacheWriter::create(&dir.path("a.mdd"), anim.topology(), 3, 30.0, &force)
+            .err()
+            .map(|e| e.to_string())
+            .unwrap_or_default();
+        assert!(e.contains("a.obj") && e.contains("another mesh"), "{e}");
+        // Its own companion: replaced (a.pc2 rewritten with another mesh).
+        write_animation_with(&dir.path("a.pc2"), &anim, &force).unwrap();
+        let opts = ReadOptions { frame_rate: Some(30.0), ..Default::default() };
+        assert_same_geometry(&anim, &read_animation(&dir.path("a.pc2"), &opts).unwrap());
+        // The same mesh (now a.obj holds anim's triangles): a.mdd may replace it.
+        write_animation_with(&dir.path("a.mdd"), &anim, &force).unwrap();
+        // Asked for by name: replaced whatever it holds.
+        std::fs::write(dir.path("b.obj"), "v 0 0 0\n").unwrap();
+        let named = WriteOptions { policy: OutputPolicy::new(true).replacing_companions(true), topology_obj: true };
+        assert!(write_animation_with(&dir.path("b.pc2"), &anim, &force).is_err());
+        write_animation_with(&dir.path("b.pc2"), &anim, &named).unwrap();
     }
 
     #[test]

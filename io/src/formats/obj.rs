@@ -432,7 +432,7 @@ pub fn write_obj_sequence_with(path: &Path, animation: &Animation, policy: &Outp
             ),
         ));
     }
-    let checks = OutputPolicy { overwrite: true, inputs: policy.inputs.clone() };
+    let checks = OutputPolicy { overwrite: true, inputs: policy.inputs.clone(), replace_companions: false };
     for f in files.iter().chain(&stale) {
         checks.check(f)?;
     }

@@ -94,6 +94,7 @@ impl CacheReader {
         }
         let file = name(path);
         let handle = File::open(path).map_err(|e| Error::io(file.clone(), e))?;
+        crate::output::note_read(path, None);
         let size = handle.metadata().map_err(|e| Error::io(file.clone(), e))?.len();
         let mut reader = BufReader::with_capacity(1 << 20, handle);
         let (endian, vertices, frames, fps, data_offset) = match extension(path).as_deref() {
@@ -340,6 +341,13 @@ impl CacheWriter {
         options.policy.check(path)?;
         if options.topology_obj {
             options.policy.check(&companion)?;
+            super::check_companion_replaced(
+                &options.policy,
+                path,
+                &companion,
+                topology.vertex_count(),
+                topology.triangles(),
+            )?;
         } else {
             check_existing_companion(path, &companion, topology.vertex_count(), topology.triangles())?;
         }

@@ -91,7 +91,7 @@ fn parse_usd_with(bytes: &[u8], file: &str, frame_rate: Option<f32>, mut budget:
     }
     let text = std::str::from_utf8(bytes)
         .map_err(|e| Error::malformed(file.to_owned(), "text", format!("not UTF-8 (byte {})", e.valid_up_to())))?;
-    let mut parser = Parser { lexer: Lexer { text, pos: 0, file }, peeked: None, budget: &mut budget };
+    let mut parser = Parser { lexer: Lexer { text, pos: 0, file }, peeked: None, budget: &mut budget, prim_depth: 0 };
     let layer = parser.layer()?;
     assemble(file, layer, frame_rate, &mut budget)
 }
@@ -284,6 +284,8 @@ struct Parser<'a, 'b> {
     lexer: Lexer<'a>,
     peeked: Option<Tok<'a>>,
     budget: &'b mut Budget,
+    /// Prims open around the current token (for the nesting error).
+    prim_depth: usize,
 }
 
 /// Layer or prim metadata that brings in other layers or prims: not composed here.
@@ -321,7 +323,13 @@ impl<'a> Parser<'a, '_> {
 
     fn depth_check(&self, depth: usize) -> Result<()> {
         if depth > MAX_DEPTH {
-            return Err(self.lexer.error(format!("nested more than {MAX_DEPTH} deep")));
+            // `depth` counts every nesting level, not only prims: say so, with both counts
+            // (issue 41: 254 nested prims were refused as "nested more than 256 deep").
+            return Err(self.lexer.error(format!(
+                "nested {depth} levels deep, past the limit of {MAX_DEPTH} levels ({} of them nested prims; every \
+                 prim, metadata block, property, dictionary, list and tuple is one level)",
+                self.prim_depth
+            )));
         }
         Ok(())
     }
@@ -416,6 +424,7 @@ impl<'a> Parser<'a, '_> {
         meshes: &mut Vec<MeshSpec<'a>>,
     ) -> Result<()> {
         self.depth_check(depth)?;
+        self.prim_depth += 1;
         let specifier = match self.bump()? {
             Tok::Ident(s @ ("def" | "over" | "class")) => s,
             other => {
@@ -449,7 +458,10 @@ impl<'a> Parser<'a, '_> {
         path.push('/');
         path.push_str(prim_name);
         let live = live && active && specifier == "def";
-        let mut mesh = MeshSpec { path: path.clone(), ..Default::default() };
+        // The path is cloned only for a mesh that is kept (counted below): a clone per prim
+        // held down the whole nesting cost the sum of every prefix (issue 41: 250 nested prims
+        // with 80 000-character names, a 20 MB layer, held 2.5 GB).
+        let mut mesh = MeshSpec::default();
         let mut transforms = false;
         let mut children: Vec<MeshSpec<'a>> = Vec::new();
         self.expect(b'{')?;
@@ -471,7 +483,7 @@ impl<'a> Parser<'a, '_> {
                         format!(
                             "a variant set in {} at line {}: variants are not resolved here; flatten the stage \
                              first (`usdcat --flatten IN -o OUT.usda`)",
-                            super::gltf::printable(path),
+                            shown(path),
                             self.lexer.line()
                         ),
                     ))
@@ -483,19 +495,24 @@ impl<'a> Parser<'a, '_> {
                     self.expect(b'=')?;
                     self.value(depth + 1)?;
                 }
-                Tok::Eof => return Err(self.lexer.error(format!("`{}` is not closed", super::gltf::printable(path)))),
-                _ => self.property(depth + 1, &mut mesh, &mut transforms)?,
+                Tok::Eof => return Err(self.lexer.error(format!("`{}` is not closed", shown(path)))),
+                _ => self.property(depth + 1, path, &mut mesh, &mut transforms)?,
             }
         }
-        path.truncate(parent_len);
         let is_mesh = live && type_name == Some("Mesh");
+        if is_mesh {
+            self.budget.take("prim paths", path.len() as u64)?;
+            mesh.path = path.clone();
+        }
+        path.truncate(parent_len);
+        self.prim_depth -= 1;
         if is_mesh && (transformed || transforms) {
             return Err(unsupported(
                 self.lexer.file,
                 format!(
                     "the mesh {} is under authored transforms (xformOpOrder): they are not applied here; \
                      bake them into the points first",
-                    super::gltf::printable(&mesh.path)
+                    shown(&mesh.path)
                 ),
             ));
         }
@@ -510,7 +527,7 @@ impl<'a> Parser<'a, '_> {
 
     /// One property: `[custom] [uniform|varying|config] Type[[]] name[.timeSamples|.connect|
     /// .spline] [= value] [(metadata)]`, or `rel name [= targets]`.
-    fn property(&mut self, depth: usize, mesh: &mut MeshSpec<'a>, transforms: &mut bool) -> Result<()> {
+    fn property(&mut self, depth: usize, path: &str, mesh: &mut MeshSpec<'a>, transforms: &mut bool) -> Result<()> {
         let mut tok = self.bump()?;
         while matches!(
             tok,
@@ -544,7 +561,7 @@ impl<'a> Parser<'a, '_> {
                                 self.lexer.file,
                                 format!(
                                     "{}.{prop} is time-sampled: a changing topology is not a vertex cache",
-                                    super::gltf::printable(&mesh.path)
+                                    shown(path)
                                 ),
                             ));
                         }
@@ -844,8 +861,21 @@ fn push_points_at(mesh: &MeshData, t: f64, out: &mut Vec<f32>) {
     }
 }
 
+/// A prim path for a message: printable, and at most 200 characters (the middle elided), since
+/// a path may be megabytes long.
+fn shown(path: &str) -> String {
+    const KEEP: usize = 100;
+    let chars = path.chars().count();
+    if chars <= 2 * KEEP {
+        return super::gltf::printable(path);
+    }
+    let head: String = path.chars().take(KEEP).collect();
+    let tail: String = path.chars().skip(chars - KEEP).collect();
+    format!("{}…({} characters)…{}", super::gltf::printable(&head), chars - 2 * KEEP, super::gltf::printable(&tail))
+}
+
 fn mesh_data(file: &str, spec: &MeshSpec, budget: &mut Budget) -> Result<MeshData> {
-    let at = |what: &str| format!("{} {what}", super::gltf::printable(&spec.path));
+    let at = |what: &str| format!("{} {what}", shown(&spec.path));
     let bad = |field: String, detail: String| Error::malformed(file.to_owned(), field, detail);
     let floats = |value: &Value, field: &str, budget: &mut Budget| -> Result<Vec<f32>> {
         match value {
@@ -1168,6 +1198,43 @@ def Scope "world" (
         assert!(parse(&deep).unwrap_err().to_string().contains("nested"));
         let deep = format!("#usda 1.0\n{}", "def \"a\" {".repeat(100_000));
         assert!(parse(&deep).unwrap_err().to_string().contains("nested"));
+    }
+
+    /// Issue 41 (misc): the nesting error counts levels, not prims; it says so, with both.
+    #[test]
+    fn the_nesting_error_states_the_levels_and_prims_counted() {
+        let mesh = "def Mesh \"m\" { point3f[] points.timeSamples = { 0: [(0,0,0),(1,0,0),(0,1,0)] }\n int[] \
+                    faceVertexCounts = [3]\n int[] faceVertexIndices = [0,1,2] }\n";
+        let nested = |n: usize| format!("#usda 1.0\n{}{mesh}{}", "def Xform \"x\" {\n".repeat(n), "}\n".repeat(n));
+        let e = parse(&nested(254)).unwrap_err().to_string();
+        assert!(e.contains("nested 257 levels deep, past the limit of 256 levels (255 of them nested prims"), "{e}");
+        // A shallower one reads.
+        assert_eq!(parse(&nested(250)).unwrap().vertex_count(), 3);
+    }
+
+    /// Issue 41 (usd-deepnames): every prim cloned its whole path, so nested long names cost
+    /// the sum of every prefix (2.5 GB for a 20 MB layer). Only a kept mesh's path is held, and
+    /// it is counted against the budget.
+    #[test]
+    fn long_prim_paths_are_counted_once() {
+        let name = "n".repeat(10_000);
+        let mut text = String::from("#usda 1.0\n");
+        for k in 0..50 {
+            let _ = writeln!(text, "def Xform \"{name}{k}\" {{");
+        }
+        text += "def Mesh \"m\" { point3f[] points = [(0,0,0),(1,0,0),(0,1,0)]\n int[] faceVertexCounts = [3]\n int[] \
+                 faceVertexIndices = [0,1,2] }\n";
+        text += &"}\n".repeat(50);
+        // The mesh path is 500 000 characters: a budget below it refuses, naming it...
+        let e = parse_usda(text.as_bytes(), "p.usda", None, Some(400_000)).unwrap_err().to_string();
+        assert!(e.contains("prim paths") && e.contains("--max-memory"), "{e}");
+        // ... one above it reads (the 50 prefixes alone were 12.75 MB).
+        assert_eq!(parse_usda(text.as_bytes(), "p.usda", None, Some(2_000_000)).unwrap().vertex_count(), 3);
+        // Messages elide the middle of a long path.
+        let e = parse(&text.replace("int[] faceVertexIndices = [0,1,2]", "int[] faceVertexIndices = [0,1,7]"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.len() < 1000 && e.contains("characters)"), "{} bytes: {}", e.len(), &e[..e.len().min(300)]);
     }
 
     #[test]
