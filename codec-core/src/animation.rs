@@ -2,6 +2,26 @@
 
 use crate::error::{Error, Result};
 
+/// Frame rates a stream may carry: exactly the ones the file readers accept (`io`'s
+/// `formats::FRAME_RATE_RANGE`, one frame per 1000 s to 10 000 frames per second; a test in
+/// the conformance suite keeps the two equal). Issue 41 (round 4): a stream whose header said
+/// 1e30 fps used to decode to a `.usda` that no reader would take back; the container now
+/// refuses such a rate when it is written ([`check_stream_frame_rate`]) and when it is read.
+pub const FRAME_RATE_RANGE: std::ops::RangeInclusive<f32> = 1e-3..=1e4;
+
+/// `fps` when a stream may carry it ([`FRAME_RATE_RANGE`]), else an error saying so.
+pub fn check_stream_frame_rate(fps: f32) -> Result<f32> {
+    if FRAME_RATE_RANGE.contains(&fps) {
+        Ok(fps)
+    } else {
+        Err(Error::InvalidAnimation(format!(
+            "frame rate {fps:e} is outside the range a stream may carry, {:e}..={:e} frames per second",
+            FRAME_RATE_RANGE.start(),
+            FRAME_RATE_RANGE.end()
+        )))
+    }
+}
+
 /// Fixed connectivity: the vertex count and the triangle list shared by every frame.
 ///
 /// A topology may have no triangles (a point cloud cache) but always has at least one vertex.

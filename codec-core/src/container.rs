@@ -218,6 +218,7 @@ impl<W: Write> ContainerWriter<W> {
         config: &[u8],
     ) -> Result<Self> {
         let too_big = |what: &str| Error::InvalidAnimation(format!("{what} does not fit the container's 32-bit field"));
+        crate::animation::check_stream_frame_rate(frame_rate)?;
         let (container_version, topo) = encode_topology(topology);
         let mut w = ByteWriter::new();
         w.bytes(&MAGIC);
@@ -386,8 +387,17 @@ impl<R: Read> ContainerReader<R> {
         if frame_count == 0 {
             return Err(r.malformed("frame_count", "zero frames"));
         }
-        if !(frame_rate.is_finite() && frame_rate > 0.0) {
-            return Err(r.malformed("frame_rate", format!("{frame_rate} is not a finite positive rate")));
+        // Issue 41 (round 4): the rates the file readers accept (`io`'s `FRAME_RATE_RANGE`), so
+        // a decoded stream always writes a file animcodec reads back.
+        if !crate::animation::FRAME_RATE_RANGE.contains(&frame_rate) {
+            return Err(r.malformed(
+                "frame_rate",
+                format!(
+                    "{frame_rate:e} frames per second is outside {:e}..={:e} (not a rate any reader accepts)",
+                    crate::animation::FRAME_RATE_RANGE.start(),
+                    crate::animation::FRAME_RATE_RANGE.end()
+                ),
+            ));
         }
         limit("vertex_count", vertex_count, limits.max_vertices)?;
         limit("frame_count", frame_count, limits.max_frames)?;

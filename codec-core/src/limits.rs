@@ -46,6 +46,19 @@ pub const DEFAULT_MAX_MEMORY: usize = 1 << 30;
 /// (`docs/notes/issue-27-simd-limits.md`).
 pub const DEFAULT_MAX_WORK: u64 = 200_000_000_000;
 
+/// Work charged per arithmetic-decoded value ([`crate::toolkit::adaptive`]: a few adaptive
+/// binary decisions, each a division and two model updates), in multiply-adds. Issue 41: every
+/// decoder charges its coded values at this rate, with its dense products at one per
+/// multiply-add, before it starts (`--max-work`).
+pub const WORK_PER_CODED_VALUE: u64 = 16;
+
+/// Work charged per byte a decoder inflates from a zstd block and splits into byte planes.
+pub const WORK_PER_PLANE_BYTE: u64 = 1;
+
+/// Work charged per decoded output coordinate on top of its codec's arithmetic (dequantizing,
+/// the finite check, the copy into the decoded frames).
+pub const WORK_PER_COORDINATE: u64 = 4;
+
 impl Default for Limits {
     /// 16 M vertices, 10 M frames, 32 M triangles, [`DEFAULT_MAX_MEMORY`] in total,
     /// [`DEFAULT_MAX_WORK`] operations.
@@ -97,6 +110,11 @@ impl Limits {
             return Err(Error::WorkLimit { context: context.into(), what: what.into(), ops, limit: self.max_work });
         }
         Ok(())
+    }
+
+    /// Work of `a × b × c × …` operations, saturating (sizes come from untrusted streams).
+    pub fn product(factors: &[u64]) -> u64 {
+        factors.iter().fold(1u64, |acc, &x| acc.saturating_mul(x))
     }
 
     /// Checks `ops` ([`Limits::check_work`]) and returns the limits left after spending them.

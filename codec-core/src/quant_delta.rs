@@ -96,6 +96,13 @@ impl AnimationCodec for QuantDelta {
         if !(1..=24).contains(&bits) {
             return Err(r.malformed("config.bits", format!("{bits} is outside 1..=24")));
         }
+        // Issue 41: the whole decode's work is known from the header; refuse it before any packet.
+        let values = Limits::product(&[info.vertex_count() as u64, info.frame_count as u64, 3]);
+        limits.check_work(
+            NAME,
+            "residual decoding of the whole stream",
+            values.saturating_mul(work_per_value(bits)),
+        )?;
         Ok(Box::new(QuantDeltaDecoder { bits, vertex_count: info.vertex_count(), limits: *limits }))
     }
 }
@@ -225,6 +232,11 @@ struct QuantDeltaDecoder {
     limits: Limits,
 }
 
+/// Work of one decoded coordinate: its byte planes inflated and the coordinate rebuilt.
+fn work_per_value(bits: u8) -> u64 {
+    plane_count(bits) as u64 * crate::limits::WORK_PER_PLANE_BYTE + crate::limits::WORK_PER_COORDINATE
+}
+
 impl FrameDecoder for QuantDeltaDecoder {
     fn decode_packet(&mut self, packet: &Packet) -> Result<Vec<f32>> {
         let mut r = ByteReader::new(&packet.data, NAME);
@@ -241,6 +253,9 @@ impl FrameDecoder for QuantDeltaDecoder {
         let planes = plane_count(self.bits);
         let max_len = values.saturating_mul(planes);
         self.limits.check_alloc(NAME, "residuals", max_len as u64)?;
+        // Issue 41: charged before the residuals are inflated (`--max-work`).
+        self.limits =
+            self.limits.spend(NAME, "residual decoding", (values as u64).saturating_mul(work_per_value(self.bits)))?;
         let block = r.take(r.remaining(), "residuals")?;
         let raw = entropy::decompress(block, NAME, "residuals", max_len)?;
         if raw.len() != max_len {

@@ -63,9 +63,7 @@ impl<'c, W: Write> StreamEncoder<'c, W> {
         if frame_count == 0 {
             return Err(Error::InvalidAnimation("the animation has no frames".into()));
         }
-        if !(frame_rate.is_finite() && frame_rate > 0.0) {
-            return Err(Error::InvalidAnimation(format!("frame rate {frame_rate} is not a finite positive number")));
-        }
+        crate::animation::check_stream_frame_rate(frame_rate)?;
         codec.validate(params)?;
         let topology_in = topology;
         // The stream stores the triangles in canonical order (each triangle with its
@@ -479,6 +477,15 @@ impl<R: Read> StreamDecoder<R> {
             codec.name(),
             "the topology",
             header.info.topology.triangle_count() as u64 * 12,
+        )?;
+        // Issue 41: every decode writes each of its coordinates; a header whose frames alone
+        // exceed the work budget is refused before any codec state is built.
+        let info = &header.info;
+        let coordinates = Limits::product(&[info.vertex_count() as u64, info.frame_count as u64, 3]);
+        decoder_limits.check_work(
+            codec.name(),
+            "the decoded frames",
+            coordinates.saturating_mul(crate::limits::WORK_PER_COORDINATE),
         )?;
         let decoder = codec.new_decoder(&header.info, &header.config, &decoder_limits)?;
         Ok(Self { codec: codec.name(), reader, decoder, index: None })

@@ -855,6 +855,9 @@ pub fn decode(
         )?;
         core[i * 3 * f..(i + 1) * 3 * f].copy_from_slice(r);
     }
+    // Issue 41: every coded word was read (a header claiming fewer values than were coded is
+    // an error, as is one claiming more: the decoder then runs past its data).
+    dec.finish()?;
     Ok((u1, u3, core))
 }
 
@@ -879,7 +882,7 @@ fn component<'r>(
     codes.resize(graph.len(), 0);
     for p in 0..graph.len() {
         let bucket = predict::neighbour_bucket(graph, codes, p);
-        codes[p] = dec.decode(class, bucket).map_err(|_| Error::malformed(NAME, "codes", "invalid range code"))?;
+        codes[p] = dec.decode(class, bucket)?;
     }
     match regression {
         Some(reg) => reg.dequantize(codes, step as f64, recon),

@@ -1172,6 +1172,28 @@ enum MeshOrder {
     Built(CausalGraph),
 }
 
+/// Work of decoding one packet of `frames` frames of `k` vertices with ranks `v` and `f`
+/// (`Limits::max_work`, counted before the work starts): the coded values of `U1`, `U3` and
+/// the core (arithmetic-coded with `toolkit`, else inflated byte planes), the frame loadings
+/// ([`tensor::reconstruct`]: `F·3·v·f + 9·v·f`), the last step's `F·K·3·v` multiply-adds
+/// (all but a sliver of the arithmetic) and the output coordinates.
+pub fn decode_work(k: usize, frames: usize, v: usize, f: usize, toolkit: bool) -> u64 {
+    use codec_core::limits::{WORK_PER_CODED_VALUE, WORK_PER_COORDINATE, WORK_PER_PLANE_BYTE};
+    let (k, frames, v, f) = (k as u64, frames as u64, v as u64, f as u64);
+    let values = Limits::product(&[k, v])
+        .saturating_add(Limits::product(&[frames, f]))
+        .saturating_add(Limits::product(&[3, v, f]));
+    // Byte planes: at most 4 per value (`read_codes`).
+    let per_value = if toolkit { WORK_PER_CODED_VALUE } else { 4 * WORK_PER_PLANE_BYTE };
+    let coords = Limits::product(&[frames, k, 3]);
+    values
+        .saturating_mul(per_value)
+        .saturating_add(Limits::product(&[frames, 3, v, f]))
+        .saturating_add(Limits::product(&[9, v, f]))
+        .saturating_add(coords.saturating_mul(v))
+        .saturating_add(coords.saturating_mul(WORK_PER_COORDINATE))
+}
+
 struct HosvdDecoder {
     k: usize,
     limits: Limits,
@@ -1245,6 +1267,10 @@ impl FrameDecoder for HosvdDecoder {
             .saturating_add(6 * v as u64 * f as u64)
             .saturating_add(3 * frames as u64 * v as u64);
         self.limits.check_alloc(NAME, "factors", doubles.saturating_mul(8))?;
+        // Issue 41 (round 4, `hosvd-work`): the work is known from `K`, the frames and the ranks
+        // before anything is inflated or decoded; a 171-byte stream asking for ~10^11
+        // multiply-adds is refused here when they exceed `--max-work`.
+        self.limits = self.limits.spend(NAME, "reconstruction", decode_work(k, frames, v, f, toolkit))?;
         let (mesh_predictor, time_predictor) = if toolkit {
             let mut predictor = |field| {
                 let c = r.u8(field)?;

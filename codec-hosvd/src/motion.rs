@@ -228,6 +228,7 @@ pub fn decode(block: &[u8], frames: usize) -> Result<Vec<Affine>> {
             history.remove(0);
         }
     }
+    dec.finish()?;
     Ok(out)
 }
 

@@ -473,6 +473,9 @@ pub fn decode(
             f_hat[(i, feat_layout.natural(p))] = r;
         }
     }
+    // Issue 41: every coded word was read (a header claiming fewer vertices than were coded is
+    // an error, as is one claiming more: the decoder then runs past its data).
+    dec.finish()?;
     Ok((e_hat, f_hat))
 }
 
@@ -498,8 +501,7 @@ fn component(
     for _ in 0..layout.chains() {
         for p in 0..g.len() {
             let bucket = predict::neighbour_bucket(g, &chain_codes, p);
-            chain_codes[p] =
-                dec.decode(class, bucket).map_err(|_| Error::malformed(NAME, "cluster.codes", "invalid range code"))?;
+            chain_codes[p] = dec.decode(class, bucket)?;
         }
         predict::dequantize(g, predictor, &chain_codes, step as f64, &mut chain_recon);
         recon.extend_from_slice(&chain_recon);

@@ -919,7 +919,21 @@ impl PcaAoiDecoder {
         cluster::partition(topology, clusters)
     }
 
-    fn decode_cluster(&self, payload: &[u8], d: usize, c: usize, out: &mut [f32]) -> Result<()> {
+    /// Issue 41: charges one cluster's work to `limits` (`--max-work`) before it is done: its
+    /// `(e + m)·k` coded values (`per_value` each), the product `Ê F̂` (`3d·n·k` multiply-adds)
+    /// and its `3d·n` output coordinates.
+    fn spend_cluster(limits: &mut Limits, values: u64, per_value: u64, d: usize, n: usize, k: usize) -> Result<()> {
+        use codec_core::limits::WORK_PER_COORDINATE;
+        let coords = Limits::product(&[3, d as u64, n as u64]);
+        let work = values
+            .saturating_mul(per_value)
+            .saturating_add(coords.saturating_mul(k as u64))
+            .saturating_add(coords.saturating_mul(WORK_PER_COORDINATE));
+        *limits = limits.spend(NAME, "cluster reconstruction", work)?;
+        Ok(())
+    }
+
+    fn decode_cluster(&self, limits: &mut Limits, payload: &[u8], d: usize, c: usize, out: &mut [f32]) -> Result<()> {
         let verts = &self.clusters[c];
         let (dict_bits, feat_bits) = match &self.coding {
             DecoderCoding::Paper { dict_bits, feat_bits } => (*dict_bits, *feat_bits),
@@ -927,7 +941,7 @@ impl PcaAoiDecoder {
                 let MeshOrders::Built(graphs) = meshes else {
                     return Err(Error::malformed(NAME, "cluster", "mesh coding order not built"));
                 };
-                return self.decode_toolkit_cluster(payload, d, verts, &graphs[c], *mesh, *time, out);
+                return self.decode_toolkit_cluster(limits, payload, d, verts, &graphs[c], *mesh, *time, out);
             }
         };
         let mut r = ByteReader::new(payload, NAME);
@@ -950,6 +964,7 @@ impl PcaAoiDecoder {
         let (nd, nf) = (e_dim * k, k * m_dim);
         let raw_len = nd * pd + nf * pf;
         self.limits.check_alloc(NAME, "cluster.codes", raw_len as u64)?;
+        Self::spend_cluster(limits, raw_len as u64, codec_core::limits::WORK_PER_PLANE_BYTE, d, n, k)?;
         self.limits.check_alloc(
             NAME,
             "cluster.matrices",
@@ -1042,6 +1057,7 @@ impl PcaAoiDecoder {
     #[allow(clippy::too_many_arguments)]
     fn decode_toolkit_cluster(
         &self,
+        limits: &mut Limits,
         payload: &[u8],
         d: usize,
         verts: &[u32],
@@ -1075,6 +1091,8 @@ impl PcaAoiDecoder {
             ((e_dim * k + k * m_dim + 3 * d * n.min(RECONSTRUCT_VERTICES)) * 8) as u64,
         )?;
         self.limits.check_alloc(NAME, "frame chains", (d as u64).saturating_mul(64))?;
+        let values = ((e_dim + m_dim) as u64).saturating_mul(k as u64);
+        Self::spend_cluster(limits, values, codec_core::limits::WORK_PER_CODED_VALUE, d, n, k)?;
         let time = CausalGraph::chain(d, time_predictor == Predictor::Parallelogram);
         let (dict_layout, feat_layout) = layouts(domain, mesh, &time);
         let settings = coding::Settings { mesh: mesh_predictor, time: time_predictor, rdq: true };
@@ -1157,11 +1175,14 @@ impl FrameDecoder for PcaAoiDecoder {
         let mut out = vec![0f32; len as usize];
         self.build_meshes()?;
         let mut r = ByteReader::new(&packet.data, NAME);
+        // Issue 41: each cluster's work is charged (`--max-work`) before it is decoded.
+        let mut limits = self.limits;
         for c in 0..self.clusters.len() {
             let payload = r.length_prefixed("cluster.payload")?;
-            self.decode_cluster(payload, d, c, &mut out)?;
+            self.decode_cluster(&mut limits, payload, d, c, &mut out)?;
         }
         r.expect_end("packet")?;
+        self.limits = limits;
         Ok(out)
     }
 }

@@ -12,8 +12,9 @@
 //! carry from frame to frame within a keyframe interval, so no histogram is stored: this is
 //! the paper's "appearance numbers" (§3.5), learnt by encoder and decoder alike.
 
+use codec_core::toolkit::adaptive::{check_consumed, checked_range_decoder, range_error};
 use constriction::stream::model::{DefaultContiguousCategoricalEntropyModel, DefaultUniformModel};
-use constriction::stream::queue::{DefaultRangeDecoder, DefaultRangeEncoder};
+use constriction::stream::queue::DefaultRangeEncoder;
 use constriction::stream::{Decode, Encode};
 
 use codec_core::{Error, Result};
@@ -144,44 +145,35 @@ fn encode_bits(enc: &mut DefaultRangeEncoder, mut value: u64, mut n: usize) {
     }
 }
 
-/// What a range-decoding failure means (the coder's own error is an internal enum).
-const RANGE_CODE_INVALID: &str =
-    "the range-coded data is corrupt (the decoder ran out of data or hit an impossible code)";
-
 fn malformed(detail: impl Into<String>) -> Error {
     Error::malformed(NAME, "descriptors", detail)
 }
 
 /// Decodes what [`encode`] wrote: `sizes[g]` codes per group. Every symbol is checked.
 pub fn decode(bytes: &[u8], sizes: &[usize], bases: usize, ctx: &mut Contexts) -> Result<Vec<Vec<i64>>> {
-    if bytes.len() % 4 != 0 {
-        return Err(malformed(format!("{} bytes is not a whole number of 32-bit words", bytes.len())));
-    }
-    let words: Vec<u32> = bytes.chunks_exact(4).map(|w| u32::from_le_bytes([w[0], w[1], w[2], w[3]])).collect();
-    let mut dec = DefaultRangeDecoder::from_compressed(words).map_err(|_| malformed("range coder header"))?;
+    // Issue 41: a decoder that runs past the coded words (a stream declaring more codes than
+    // it holds) fails instead of decoding zeros, and one that leaves words unread fails at the end.
+    let mut dec = checked_range_decoder(bytes, NAME, "descriptors")?;
+    let bad = |e| range_error(NAME, "descriptors", e);
     let mut out = Vec::with_capacity(sizes.len());
     for (g, &size) in sizes.iter().enumerate() {
         let models: Vec<_> = (0..BANDS).map(|b| ctx.model(g * BANDS + b)).collect();
         let mut group = Vec::with_capacity(size);
         for i in 0..size {
-            let class: usize =
-                dec.decode_symbol(&models[band(i % bases)]).map_err(|_| malformed(RANGE_CODE_INVALID))?;
+            let class: usize = dec.decode_symbol(&models[band(i % bases)]).map_err(bad)?;
             if class >= ctx.classes {
                 return Err(malformed(format!("class {class} exceeds {}", ctx.classes - 1)));
             }
             let q = if class == 0 {
                 0
             } else {
-                let sign: usize =
-                    dec.decode_symbol(DefaultUniformModel::new(2)).map_err(|_| malformed(RANGE_CODE_INVALID))?;
+                let sign: usize = dec.decode_symbol(DefaultUniformModel::new(2)).map_err(bad)?;
                 let mut rest = 0u64;
                 let mut n = class - 1;
                 let mut shift = 0;
                 while n > 0 {
                     let chunk = n.min(16);
-                    let bits: usize = dec
-                        .decode_symbol(DefaultUniformModel::new(1 << chunk))
-                        .map_err(|_| malformed(RANGE_CODE_INVALID))?;
+                    let bits: usize = dec.decode_symbol(DefaultUniformModel::new(1 << chunk)).map_err(bad)?;
                     rest |= (bits as u64) << shift;
                     shift += chunk;
                     n -= chunk;
@@ -199,6 +191,9 @@ pub fn decode(bytes: &[u8], sizes: &[usize], bases: usize, ctx: &mut Contexts) -
             ctx.update(g * BANDS + band(i % bases), class_of(q));
         }
         out.push(group);
+    }
+    if sizes.iter().any(|&s| s > 0) {
+        check_consumed(dec, NAME, "descriptors")?;
     }
     Ok(out)
 }

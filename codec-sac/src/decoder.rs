@@ -74,7 +74,7 @@ pub(crate) fn new_decoder(info: &StreamInfo, config: &[u8], limits: &Limits) -> 
     };
     let shared = Shared::new(&info.topology, &limits, settings)?;
     let limits = shared.limits;
-    Ok(Box::new(SacDecoder { shared, limits, gop: None, state: None }))
+    Ok(Box::new(SacDecoder { shared, limits, gop: None, state: None, pending: None }))
 }
 
 pub(crate) fn decode_positions(r: &mut ByteReader<'_>, n: usize, bits: u8, limits: &Limits) -> Result<Vec<f32>> {
@@ -166,6 +166,20 @@ pub(crate) struct SacDecoder {
     gop: Option<Gop>,
     /// Version 3: the last basis state, reused by keyframes that name the same rest pose.
     state: Option<Arc<BasisState>>,
+    /// The basis the current interval's keyframe asked for, not computed yet: the first
+    /// P-frame computes it once its descriptors decoded at the size the basis will have
+    /// (issue 41 round 4, `sac-config`: a config asking for more bases than the stream codes
+    /// used to cost the whole basis before the descriptors were found malformed).
+    pending: Option<PendingBasis>,
+}
+
+/// A keyframe's basis request ([`SacDecoder::pending`]).
+struct PendingBasis {
+    /// The decoded rest pose and its stored block (version 3's cache key; empty before).
+    rest: Vec<f32>,
+    rest_block: Vec<u8>,
+    /// The number of vectors the basis will have ([`Shared::expected_bases`]).
+    bases: usize,
 }
 
 impl SacDecoder {
@@ -177,10 +191,13 @@ impl SacDecoder {
         if s.settings.version < 3 {
             let block = r.take(r.remaining(), "positions")?;
             let rec = decode_positions(&mut ByteReader::new(block, NAME), s.n, bits, &self.limits)?;
-            if with_basis {
-                self.limits = self.limits.spend(NAME, "manifold harmonics basis of a keyframe", s.basis_work())?;
-            }
-            let state = s.basis_state(&rec, Vec::new(), Some(with_basis), false)?;
+            // The basis waits for the interval's first P-frame (`pending`).
+            let state = s.basis_state(&rec, Vec::new(), Some(false), false)?;
+            self.pending = (with_basis && !s.tris.is_empty()).then(|| PendingBasis {
+                bases: s.expected_bases(&rec),
+                rest: rec.clone(),
+                rest_block: Vec::new(),
+            });
             return Ok((rec, Arc::new(state)));
         }
         let named = match r.u8("rest_source")? {
@@ -200,19 +217,18 @@ impl SacDecoder {
                 return Ok((rec, cached.clone()));
             }
         }
-        if with_basis {
-            self.limits = self.limits.spend(NAME, "manifold harmonics basis of a keyframe", s.basis_work())?;
-        }
-        let state = if !with_basis {
-            s.basis_state(&rec, Vec::new(), Some(false), false)?
-        } else if named.is_some() {
-            let rest = decode_positions(&mut ByteReader::new(rest_block, NAME), s.n, bits, &self.limits)?;
-            s.basis_state(&rest, rest_block.to_vec(), Some(true), false)?
+        // Without a basis the state is final; with one, the basis waits for the interval's
+        // first P-frame (`pending`), which caches it in `self.state`.
+        let state = Arc::new(s.basis_state(&rec, Vec::new(), Some(false), false)?);
+        if with_basis && !s.tris.is_empty() {
+            let rest = match named {
+                Some(_) => decode_positions(&mut ByteReader::new(rest_block, NAME), s.n, bits, &self.limits)?,
+                None => rec.clone(),
+            };
+            self.pending = Some(PendingBasis { bases: s.expected_bases(&rest), rest, rest_block: rest_block.to_vec() });
         } else {
-            s.basis_state(&rec, rest_block.to_vec(), Some(true), false)?
-        };
-        let state = Arc::new(state);
-        self.state = Some(state.clone());
+            self.state = Some(state.clone());
+        }
         Ok((rec, state))
     }
 }
@@ -238,6 +254,7 @@ impl FrameDecoder for SacDecoder {
                     1 => true,
                     b => return Err(r.malformed("has_bases", format!("{b} is not 0 or 1"))),
                 };
+                self.pending = None;
                 let (rec, state) = self.keyframe(&mut r, with_basis)?;
                 self.gop = Some(self.shared.start_gop(&rec, state));
                 Ok(rec)
@@ -252,10 +269,11 @@ impl FrameDecoder for SacDecoder {
                     set_v3(&mut gop.prev, &rec);
                     return Ok(rec);
                 }
-                if !gop.state.has_bases() {
-                    return Err(r.malformed("kind", "a P-frame in an interval without bases"));
-                }
-                let l = gop.state.bases();
+                let l = match &self.pending {
+                    Some(p) => p.bases,
+                    None if gop.state.has_bases() => gop.state.bases(),
+                    None => return Err(r.malformed("kind", "a P-frame in an interval without bases")),
+                };
                 let groups = s.settings.groups();
                 let mut amps = Vec::with_capacity(groups.len());
                 for _ in groups {
@@ -294,6 +312,23 @@ impl FrameDecoder for SacDecoder {
                 let rest = r.take(r.remaining(), "descriptors")?;
                 let mut contexts = gop.contexts.clone();
                 let codes = coding::decode(rest, &sizes, l, &mut contexts)?;
+                if let Some(p) = self.pending.take() {
+                    // The descriptors fit a basis of `l` vectors: now compute it.
+                    self.limits = self.limits.spend(NAME, "manifold harmonics basis of a keyframe", s.basis_work())?;
+                    let state = s.basis_state(&p.rest, p.rest_block, Some(true), false)?;
+                    if state.bases() != l {
+                        return Err(Error::malformed(
+                            NAME,
+                            "bases",
+                            format!("the rest pose has {} basis vectors, {l} expected", state.bases()),
+                        ));
+                    }
+                    let state = Arc::new(state);
+                    if s.settings.version >= 3 {
+                        self.state = Some(state.clone());
+                    }
+                    gop.state = state;
+                }
                 self.limits = self.limits.spend(NAME, "P-frame reconstruction", s.frame_work(l))?;
                 s.reconstruct(gop, &codes, &amps)?;
                 let mut rec = s.translate(&gop.work.solved, &shifts);
@@ -318,5 +353,6 @@ impl FrameDecoder for SacDecoder {
 
     fn reset(&mut self) {
         self.gop = None;
+        self.pending = None;
     }
 }

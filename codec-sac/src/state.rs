@@ -229,6 +229,39 @@ impl Shared {
         synthesis.saturating_add(poisson)
     }
 
+    /// The number of basis vectors `l` the basis of the rest pose `rest` has (what
+    /// [`Shared::basis_state`] computes, found without computing it: a P-frame's descriptors
+    /// are checked against it before the basis is paid for, issue 41 round 4 `sac-config`).
+    /// Versions 2–3 solve per connected component: every component with triangles and an
+    /// area that is not zero gives `min(bases, its vertices)` vectors, the `bases` smallest of
+    /// all are kept (`harmonics::harmonics_by_component_within`); version 1 and a connected
+    /// mesh give `min(bases, n)`.
+    pub(crate) fn expected_bases(&self, rest: &[f32]) -> usize {
+        let bases = self.settings.bases as usize;
+        if self.tris.is_empty() {
+            return 0;
+        }
+        if self.settings.version < 2 || self.component_sizes.len() <= 1 {
+            return bases.min(self.n);
+        }
+        let rest = to_v3(rest);
+        let components = self.component_sizes.len();
+        let mut area = vec![0.0f64; components];
+        let mut has_triangles = vec![false; components];
+        for t in &self.tris {
+            let c = self.component[t[0]];
+            has_triangles[c] = true;
+            // The same sum, in the same order, as the by-component solver's area.
+            let [a, b, d] = [rest[t[0]], rest[t[1]], rest[t[2]]];
+            area[c] += 0.5 * geometry::norm(geometry::cross(geometry::sub(b, a), geometry::sub(d, a)));
+        }
+        let total: usize = (0..components)
+            .filter(|&c| has_triangles[c] && !(area[c].is_finite() && area[c] <= 0.0))
+            .map(|c| bases.min(self.component_sizes[c]))
+            .sum();
+        total.min(bases)
+    }
+
     /// Operations a new basis state takes (`Limits::max_work`).
     pub(crate) fn basis_work(&self) -> u64 {
         harmonics::work_estimate(self.n, self.settings.bases as usize)

@@ -548,8 +548,7 @@ fn decode_component(
         } else {
             for p in 0..n {
                 let bucket = predict::neighbour_bucket(graph, &codes, p);
-                codes[p] =
-                    dec.decode(class, bucket).map_err(|_| Error::malformed(NAME, "codes", "invalid range code"))?;
+                codes[p] = dec.decode(class, bucket)?;
             }
             predict::dequantize(graph, predictor, &codes, step as f64, &mut recon);
             if recon.iter().any(|x| !x.is_finite()) {
@@ -561,6 +560,13 @@ fn decode_component(
     Ok(out)
 }
 
+/// Work of one group's reconstruction ([`crate::reconstruct_group`]: `frames·3·n·k`
+/// multiply-adds) and its `frames·3·n` output coordinates (`Limits::max_work`).
+pub(crate) fn reconstruction_work(frames: usize, n: usize, k: usize) -> u64 {
+    let coords = Limits::product(&[frames as u64, 3, n as u64]);
+    coords.saturating_mul(k as u64).saturating_add(coords.saturating_mul(codec_core::limits::WORK_PER_COORDINATE))
+}
+
 /// Decodes a toolkit-coded packet of `frames` frames (after the case byte was checked).
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn decode_segment(
@@ -570,9 +576,10 @@ pub(crate) fn decode_segment(
     centering: Centering,
     pr: Predictors,
     graphs: &mut Graphs,
-    limits: &Limits,
+    limits: &mut Limits,
     group_count: usize,
 ) -> Result<Vec<f32>> {
+    use codec_core::limits::WORK_PER_CODED_VALUE;
     // Work amplification guard: a component whose steps are zero costs the stream almost
     // nothing, yet reconstruction costs frames·3·n·k multiply-adds. Packets never hold more
     // frames than `gamma_max` allows, so refusing longer ones bounds k, and with it the work
@@ -614,13 +621,14 @@ pub(crate) fn decode_segment(
     // Labels along the mesh order.
     let mut labels = vec![0u8; v];
     if group_count > 1 {
+        // Issue 41: every decoded value is charged before decoding (`--max-work`).
+        *limits = limits.spend(NAME, "labels", (v as u64).saturating_mul(WORK_PER_CODED_VALUE))?;
         let full = graphs.full(limits)?;
         let order = full.order();
         let mut codes = vec![0i32; v];
         for p in 0..full.len() {
             let bucket = predict::neighbour_bucket(full, &codes, p);
-            codes[p] =
-                dec.decode(CLASS_LABEL, bucket).map_err(|_| Error::malformed(NAME, "labels", "invalid range code"))?;
+            codes[p] = dec.decode(CLASS_LABEL, bucket)?;
             let pred = full.earlier(p).first().map_or(0, |&q| labels[order[q as usize] as usize] as i64);
             let l = pred + codes[p] as i64;
             if !(0..group_count as i64).contains(&l) {
@@ -646,6 +654,12 @@ pub(crate) fn decode_segment(
         .map(|(m, &k)| (mean_layout(centering, m.len(), frames).1 + 3 * m.len() * k + k * frames) as u64)
         .sum();
     limits.check_alloc(NAME, "values", values.saturating_mul(8))?;
+    let work = members
+        .iter()
+        .zip(&ks)
+        .map(|(m, &k)| reconstruction_work(frames, m.len(), k))
+        .fold(values.saturating_mul(WORK_PER_CODED_VALUE), u64::saturating_add);
+    *limits = limits.spend(NAME, "values and reconstruction", work)?;
     let group_graphs = graphs.groups(&labels, group_count, limits)?;
     let time = CausalGraph::chain(frames, pr.time == Predictor::Parallelogram);
     let n3 = v * 3;
@@ -685,5 +699,8 @@ pub(crate) fn decode_segment(
             .unzip();
         reconstruct_group(centering, own, &mean, &a, &b, frames, n3, &mut out);
     }
+    // Issue 41: every coded word was read (a header claiming fewer vertices than were coded is
+    // an error, as is one claiming more: the decoder then runs past its data).
+    dec.finish()?;
     Ok(out)
 }

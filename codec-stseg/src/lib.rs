@@ -934,7 +934,9 @@ impl StsegDecoder {
             coding: p.coding,
             predictors: coding::Predictors { mesh: p.mesh_predictor, time: p.time_predictor },
             vertex_count: topology.vertex_count(),
-            limits: Limits::default(),
+            // The encoder's own reconstruction: memory checked as a decoder's, work unbounded
+            // (a long input's packets would add up past a decode's budget).
+            limits: Limits { max_work: u64::MAX, ..Limits::default() },
             graphs: coding::Graphs::new(topology.vertex_count(), topology.triangles()),
         }
     }
@@ -961,7 +963,7 @@ impl StsegDecoder {
                 self.centering,
                 self.predictors,
                 &mut self.graphs,
-                &self.limits,
+                &mut self.limits,
                 group_count,
             )?,
         };
@@ -973,7 +975,7 @@ impl StsegDecoder {
     }
 
     /// The paper coding's packet after its case and group count (stream version 2's layout).
-    fn decode_paper(&self, r: &mut ByteReader<'_>, frames: usize, group_count: usize) -> Result<Vec<f32>> {
+    fn decode_paper(&mut self, r: &mut ByteReader<'_>, frames: usize, group_count: usize) -> Result<Vec<f32>> {
         let v = self.vertex_count;
         let max_k = frames.min(3 * v) as u64;
         let n_mean = mean_layout(self.centering, 0, 0).0;
@@ -1008,6 +1010,9 @@ impl StsegDecoder {
             + planes as u64
                 * (3 * v as u64 * (1 + max_k_used as u64) + (sum_k + 3 * group_count) as u64 * frames as u64);
         self.limits.check_alloc(NAME, "values", bound.saturating_mul(8))?;
+        // Issue 41: the inflated bytes are charged before inflating (`--max-work`).
+        self.limits =
+            self.limits.spend(NAME, "values", bound.saturating_mul(codec_core::limits::WORK_PER_PLANE_BYTE))?;
         let raw = entropy::decompress(r.take(r.remaining(), "values")?, NAME, "values", bound as usize)?;
         if raw.len() < v {
             return Err(Error::malformed(NAME, "labels", format!("{} bytes for {v} vertex labels", raw.len())));
@@ -1032,6 +1037,13 @@ impl StsegDecoder {
                 format!("{} bytes, expected {}", raw.len() - v, planes * count),
             ));
         }
+        // ... and the reconstruction (`frames·3·n·k` per group, plus the output) before it starts.
+        let work = members
+            .iter()
+            .zip(&ks)
+            .map(|(m, &k)| coding::reconstruction_work(frames, m.len(), k))
+            .fold(0u64, u64::saturating_add);
+        self.limits = self.limits.spend(NAME, "reconstruction", work)?;
         let planes_raw = &raw[v..];
         let mut idx = 0usize;
         let mut next_run = |len: usize| -> Vec<u32> {

@@ -40,6 +40,9 @@ pub const ALL: &[(&str, Check)] = &[
     ("structural_mutations_never_panic", structural_mutations_never_panic),
     ("encoder_rejects_bad_input", encoder_rejects_bad_input),
     ("empty_pushes_are_harmless", empty_pushes_are_harmless),
+    ("forged_vertex_count_is_refused", forged_vertex_count_is_refused),
+    ("work_budget_is_honoured", work_budget_is_honoured),
+    ("forged_frame_rates_are_refused", forged_frame_rates_are_refused),
 ];
 
 fn encode_with_reconstruction(
@@ -1398,6 +1401,154 @@ pub fn empty_pushes_are_harmless(registry: &CodecRegistry) -> Failures {
                 Ok(b) if b == reference => {}
                 Ok(_) => f.push(codec.name(), "empty pushes changed the bytes"),
                 Err(e) => f.push(codec.name(), format!("empty pushes: {e}")),
+            }
+        });
+    }
+    failures
+}
+
+/// The streams the issue-41 checks forge: [`base_streams`] of the small animation (defaults and
+/// both ladder ends) and every synthetic animation at default parameters.
+fn forge_streams(f: &mut Failures, codec: &dyn AnimationCodec) -> Vec<(String, Vec<u8>)> {
+    let mut out = base_streams(f, codec, &small_animation());
+    for (name, anim) in animations() {
+        if let Some(b) = encode_or_report(f, codec, &anim, name) {
+            out.push((format!("{name}, default"), b));
+        }
+    }
+    out
+}
+
+/// Issue 41 (round 4, `forged-vertex-count`): the header's vertex count doubled (the topology
+/// keeps its triangles, every checksum is valid), the rest of the stream unchanged. The packets
+/// code half the vertices the decoder is told about, so every decoder must refuse: a coder
+/// that runs past its payload is an error (the range decoder used to read zeros there and
+/// pca-aoi, hosvd and stseg decoded garbage with success).
+pub fn forged_vertex_count_is_refused(registry: &CodecRegistry) -> Failures {
+    let mut failures = Failures::new();
+    for codec in registry.iter() {
+        failures.run(codec.name(), |f| {
+            for (label, bytes) in forge_streams(f, codec) {
+                let parts = split(&bytes).expect("valid stream");
+                let info = &parts.header.info;
+                let doubled = Topology::new(2 * info.vertex_count(), info.topology.triangles().to_vec())
+                    .expect("the same triangles fit twice the vertices");
+                let forged = rebuild(
+                    &parts.header,
+                    &parts.header.config,
+                    info.codec_version,
+                    Some(&doubled),
+                    None,
+                    &parts.packets,
+                )
+                .expect("rebuild");
+                f.count(1);
+                match catch(|| decode_animation(&forged, registry, Limits::default())) {
+                    Ok(Err(_)) => {}
+                    Ok(Ok(_)) => f.push(
+                        codec.name(),
+                        format!("{label}: twice the vertices ({}) decoded with success", doubled.vertex_count()),
+                    ),
+                    Err(p) => f.push(codec.name(), format!("{label}: twice the vertices: {p}")),
+                }
+            }
+        });
+    }
+    failures
+}
+
+/// Issue 41 (round 4, `hosvd-work`): `Limits::max_work` (`--max-work`) binds every codec. Per
+/// stream, the smallest budget that decodes it is found by bisection (the count is a function
+/// of the stream's sizes, so the same every run): one operation less is refused with
+/// [`codec_core::Error::WorkLimit`] naming `--max-work`, a budget of 1 is refused the same way,
+/// and the count covers at least five operations per decoded coordinate (the container's
+/// charge for writing them is four: each codec counts its own reconstruction on top).
+pub fn work_budget_is_honoured(registry: &CodecRegistry) -> Failures {
+    let anim = small_animation();
+    let coordinates = anim.positions().len() as u64;
+    let mut failures = Failures::new();
+    for codec in registry.iter() {
+        failures.run(codec.name(), |f| {
+            let Some(bytes) = encode_or_report(f, codec, &anim, "small animation") else { return };
+            let decodes = |work: u64| {
+                catch(|| decode_animation(&bytes, registry, Limits { max_work: work, ..Limits::default() }))
+                    .unwrap_or_else(|p| Err(codec_core::Error::malformed("conformance", "decode", p)))
+            };
+            let refused = |work: u64| match decodes(work) {
+                Err(e @ codec_core::Error::WorkLimit { .. }) if e.to_string().contains("--max-work") => None,
+                Err(e) => Some(format!("budget {work}: refused with another error: {e}")),
+                Ok(_) => Some(format!("budget {work}: decoded")),
+            };
+            f.count(1);
+            if let Some(m) = refused(1) {
+                return f.push(codec.name(), m);
+            }
+            let mut ok = codec_core::container::DEFAULT_MAX_WORK;
+            if let Err(e) = decodes(ok) {
+                return f.push(codec.name(), format!("refused under the default budget: {e}"));
+            }
+            let mut low = 1u64;
+            while ok - low > 1 {
+                let mid = low + (ok - low) / 2;
+                match decodes(mid) {
+                    Ok(_) => ok = mid,
+                    Err(_) => low = mid,
+                }
+            }
+            if let Some(m) = refused(ok - 1) {
+                f.push(codec.name(), format!("one below the least budget that decodes ({ok}): {m}"));
+            }
+            if ok < 5 * coordinates {
+                f.push(
+                    codec.name(),
+                    format!(
+                        "its decode counts {ok} operations for {coordinates} coordinates: its own work is not counted"
+                    ),
+                );
+            }
+        });
+    }
+    failures
+}
+
+/// Issue 41 (round 4, `misc`): a header frame rate outside what the file readers accept (not
+/// finite, not positive, 1e30, or just outside `io`'s range) is refused by the container with
+/// a message naming the field, so no decode writes a file animcodec cannot read back; the ends
+/// of the range decode. The range is the readers' own (`animcodec::formats::FRAME_RATE_RANGE`).
+pub fn forged_frame_rates_are_refused(registry: &CodecRegistry) -> Failures {
+    let anim = synth::waving_flag(6, 5, 10);
+    let range = animcodec::formats::FRAME_RATE_RANGE;
+    let mut failures = Failures::new();
+    if codec_core::animation::FRAME_RATE_RANGE != range {
+        failures.push("container", "its frame-rate range differs from the file readers'");
+    }
+    for codec in registry.iter() {
+        failures.run(codec.name(), |f| {
+            let Some(bytes) = encode_or_report(f, codec, &anim, "flag") else { return };
+            let parts = split(&bytes).expect("valid stream");
+            let with_rate = |rate: f32| {
+                let mut b = bytes.clone();
+                b[28..32].copy_from_slice(&rate.to_le_bytes());
+                patch_header_crc(&mut b, &parts.header);
+                b
+            };
+            let below = f32::from_bits(range.start().to_bits() - 1);
+            let above = f32::from_bits(range.end().to_bits() + 1);
+            for rate in [1e30, f32::INFINITY, f32::NAN, 0.0, -30.0, f32::MIN_POSITIVE, below, above] {
+                f.count(1);
+                match decode_animation(&with_rate(rate), registry, Limits::default()) {
+                    Err(e) if e.to_string().contains("frame_rate") => {}
+                    Err(e) => f.push(codec.name(), format!("frame rate {rate:e}: refused without naming it: {e}")),
+                    Ok(_) => f.push(codec.name(), format!("frame rate {rate:e} decoded")),
+                }
+            }
+            for rate in [*range.start(), *range.end()] {
+                f.count(1);
+                match decode_animation(&with_rate(rate), registry, Limits::default()) {
+                    Ok(a) if a.frame_rate() == rate => {}
+                    Ok(a) => f.push(codec.name(), format!("frame rate {rate:e} decoded as {}", a.frame_rate())),
+                    Err(e) => f.push(codec.name(), format!("frame rate {rate:e} refused: {e}")),
+                }
             }
         });
     }

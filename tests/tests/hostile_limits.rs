@@ -192,3 +192,76 @@ fn a_tiny_stream_claiming_16m_vertices_is_refused_early() {
         refused(&format!("{} claiming 2^24 vertices ({} bytes)", codec.name(), crafted.len()), &crafted);
     }
 }
+
+/// Issue 41 (round 4, `sac-config`): a sac stream coded with 32 bases whose config byte says
+/// 544 (header CRC valid). The decoder used to compute the 544-vector basis (a dense 900 × 900
+/// eigenproblem here, 13 MB; 27 s and 560 MB on horse-gallop) before finding the P-frames'
+/// descriptors malformed. The basis now waits for the interval's first P-frame, whose
+/// descriptors are decoded at the basis's size first: the refusal holds a fraction of that.
+#[test]
+fn a_sac_config_asking_for_more_bases_is_refused_before_the_basis() {
+    let registry = registry();
+    let codec = registry.by_name("sac").unwrap();
+    let anim = codec_core::synth::waving_flag(30, 30, 8);
+    let params = conformance_tests::params_with(codec, "bases", codec_core::ParamValue::Int(32)).unwrap();
+    let bytes = codec_core::encode_animation(codec, &params, &anim).unwrap();
+    let parts = conformance_tests::split(&bytes).unwrap();
+    let mut config = parts.header.config.clone();
+    assert_eq!(u32::from_le_bytes(config[1..5].try_into().unwrap()), 32);
+    config[2] = 2; // 32 → 544
+    let forged =
+        conformance_tests::rebuild(&parts.header, &config, parts.header.info.codec_version, None, None, &parts.packets)
+            .unwrap();
+    let mut result = None;
+    let peak = measure_peak(|| result = Some(decode_animation(&forged, &registry, Limits::default())));
+    let e = result.unwrap().expect_err("544 bases accepted for a stream coded with 32");
+    assert!(e.to_string().contains("descriptors"), "{e}");
+    // The two 900 × 900 f64 matrices of the dense eigensolver alone are 13 MB.
+    assert!(peak < 6 << 20, "held {peak} bytes at peak: the basis was computed");
+    // The stream as coded decodes.
+    assert!(decode_animation(&bytes, &registry, Limits::default()).is_ok());
+}
+
+/// `craft_hosvd.py` of `../shared/probe-round4/hosvd-work`: a hosvd stream of one toolkit
+/// packet (no triangles, `u2 = 0`, steps 1, `codes` of `zero_bytes` zeros) whose decode
+/// declares `K · V_RANK · 3F` multiply-adds.
+fn hosvd_bomb(k: usize, frames: usize, v_rank: u64, f_rank: u64, zero_bytes: usize) -> Vec<u8> {
+    let mut w = codec_core::bytes::ByteWriter::new();
+    let mut side = vec![0u8; 36];
+    for _ in 0..2 * v_rank + f_rank {
+        side.extend_from_slice(&1.0f32.to_le_bytes());
+    }
+    let side = codec_core::entropy::compress(&side, 19);
+    w.u8(2);
+    w.varint(v_rank);
+    w.varint(f_rank);
+    w.u8(2);
+    w.u8(1);
+    w.varint(side.len() as u64);
+    w.bytes(&side);
+    w.varint(zero_bytes as u64);
+    w.bytes(&vec![0u8; zero_bytes]);
+    let topology = Topology::new(k, Vec::new()).unwrap();
+    let config = (frames as u32).to_le_bytes();
+    let mut c = ContainerWriter::new(Vec::new(), codec_core::FourCc::new(b"HOSV"), 5, &topology, frames, 30.0, &config)
+        .unwrap();
+    c.write_packet(&Packet { first_frame: 0, frame_count: frames as u32, keyframe: true, data: w.into_vec() }).unwrap();
+    c.finish().unwrap()
+}
+
+/// Issue 41 (round 4, `hosvd-work`): the probe's 171-byte streams (40 s and 1 GB each before).
+/// The larger declares 2.7·10^11 operations, over the default budget: refused from its sizes.
+/// The smaller (10^11) is within it but is refused by a budget of 10^10 the same way; under
+/// the default budget its 8 bytes of codes run out long before its 8 million values.
+#[test]
+fn the_probe_hosvd_streams_are_refused_by_the_work_budget() {
+    let bomb2 = hosvd_bomb(6000, 6000, 2500, 1, 8);
+    assert!(bomb2.len() < 256, "{} bytes", bomb2.len());
+    let e = refused("hosvd declaring 2.7e11 operations", &bomb2);
+    assert!(matches!(e, Error::WorkLimit { .. }), "{e}");
+    let bomb = hosvd_bomb(4000, 4000, 2000, 1, 8);
+    let e = decode_animation(&bomb, &registry(), Limits { max_work: 10_000_000_000, ..Limits::default() }).unwrap_err();
+    assert!(matches!(e, Error::WorkLimit { .. }), "{e}");
+    let e = refused("hosvd declaring 1e11 operations, 8 bytes of codes", &bomb);
+    assert!(e.to_string().contains("ends before its symbols do"), "{e}");
+}

@@ -23,13 +23,23 @@
 //! terminating zero there, so longer runs of ones cannot be expressed), and nothing panics on
 //! garbage (a corrupted stream decodes to wrong integers or an error, which the caller's range
 //! checks catch).
+//!
+//! Issue 41 (round 4, `forged-vertex-count`): constriction's range decoder reads zeros once its
+//! words run out, so a stream whose header claims more symbols than were coded (e.g. twice the
+//! vertices) used to decode to garbage. [`CheckedWords`] counts the reads past the end: the
+//! encoder's seal leaves the decoder at most one word short (it writes the point word, and a
+//! zero word only when the range needs it), so a second read past the end means the data ran
+//! out before the symbols did, and decoding fails. [`AdaptiveDecoder::finish`] checks the
+//! other direction: every word was read (no trailing data the decoder never looked at).
 
 use std::borrow::Borrow;
 use std::num::NonZeroU32;
 
+use constriction::backends::ReadWords;
 use constriction::stream::model::{DecoderModel, EncoderModel, EntropyModel};
-use constriction::stream::queue::{DefaultRangeDecoder, DefaultRangeEncoder};
+use constriction::stream::queue::{DefaultRangeEncoder, RangeDecoder};
 use constriction::stream::{Decode, Encode};
+use constriction::CoderError;
 
 use crate::error::{Error, Result};
 
@@ -234,10 +244,123 @@ impl AdaptiveEncoder {
     }
 }
 
+/// The words of a range-coded block for constriction's decoder, refusing to run past them.
+///
+/// The first read past the last word returns "no more data" (the decoder then shifts in a zero
+/// word, which a legitimately sealed stream may need: see the module docs); any further read
+/// fails with [`RanPastEnd`], which the decoder reports as an error instead of decoding
+/// symbols from zeros that were never written.
+#[derive(Debug, Clone)]
+pub struct CheckedWords {
+    words: Vec<u32>,
+    pos: usize,
+    past_end: u32,
+}
+
+/// The error of a read past [`CheckedWords`]' allowance.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct RanPastEnd;
+
+impl CheckedWords {
+    /// The words of `bytes` (little-endian 32-bit words; a whole number of them).
+    pub fn from_le_bytes(bytes: &[u8], context: &'static str, field: &'static str) -> Result<Self> {
+        if bytes.len() % 4 != 0 {
+            return Err(corrupt(context, field, "arithmetic-coded block is not a whole number of 32-bit words"));
+        }
+        let words = bytes.chunks_exact(4).map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect();
+        Ok(Self::new(words))
+    }
+
+    /// The words themselves.
+    pub fn new(words: Vec<u32>) -> Self {
+        Self { words, pos: 0, past_end: 0 }
+    }
+
+    /// Whether every word was read (what a decoder that decoded exactly the encoder's symbols
+    /// has done: see the module docs).
+    pub fn consumed(&self) -> bool {
+        self.pos == self.words.len()
+    }
+
+    /// Whether the block holds no word at all (an encoder that coded no symbol).
+    pub fn is_empty(&self) -> bool {
+        self.words.is_empty()
+    }
+}
+
+impl ReadWords<u32, constriction::Queue> for CheckedWords {
+    type ReadError = RanPastEnd;
+
+    #[inline]
+    fn read(&mut self) -> std::result::Result<Option<u32>, RanPastEnd> {
+        if let Some(&w) = self.words.get(self.pos) {
+            self.pos += 1;
+            return Ok(Some(w));
+        }
+        self.past_end += 1;
+        if self.past_end > 1 {
+            Err(RanPastEnd)
+        } else {
+            Ok(None)
+        }
+    }
+
+    #[inline]
+    fn maybe_exhausted(&self) -> bool {
+        self.pos >= self.words.len()
+    }
+}
+
+/// constriction's default range decoder (32-bit words, 64-bit state) over [`CheckedWords`].
+pub type CheckedRangeDecoder = RangeDecoder<u32, u64, CheckedWords>;
+
+/// A [`CheckedRangeDecoder`] over `bytes` (a whole number of little-endian 32-bit words).
+pub fn checked_range_decoder(bytes: &[u8], context: &'static str, field: &'static str) -> Result<CheckedRangeDecoder> {
+    let words = CheckedWords::from_le_bytes(bytes, context, field)?;
+    CheckedRangeDecoder::with_backend(words).map_err(|_| corrupt(context, field, "range coder header"))
+}
+
+/// The error of a symbol that could not be decoded: the data ran out (issue 41) or is invalid.
+pub fn range_error<F>(context: &'static str, field: &'static str, e: CoderError<F, RanPastEnd>) -> Error {
+    match e {
+        CoderError::Backend(RanPastEnd) => corrupt(
+            context,
+            field,
+            "the arithmetic-coded data ends before its symbols do (the stream declares more values than it codes)",
+        ),
+        CoderError::Frontend(_) => corrupt(context, field, "invalid range code"),
+    }
+}
+
+/// Checks that a range decoder that decoded its last symbol read every word of its block:
+/// trailing words mean the stream declares fewer values than it codes (issue 41).
+pub fn check_consumed(dec: CheckedRangeDecoder, context: &'static str, field: &'static str) -> Result<()> {
+    let (words, _, _) = dec.into_raw_parts();
+    if words.consumed() {
+        Ok(())
+    } else {
+        Err(corrupt(
+            context,
+            field,
+            &format!(
+                "{} of its {} arithmetic-coded words were never read (the stream declares fewer values than it codes)",
+                words.words.len() - words.pos,
+                words.words.len()
+            ),
+        ))
+    }
+}
+
 /// Decoder for [`AdaptiveEncoder`]'s output.
 pub struct AdaptiveDecoder {
-    coder: DefaultRangeDecoder,
+    coder: CheckedRangeDecoder,
     models: Models,
+    /// The block holds no word: its encoder coded no symbol, so decoding any is an error.
+    empty: bool,
+    /// Whether any symbol was decoded (a block from which none is decoded must be empty).
+    used: bool,
+    context: &'static str,
+    field: &'static str,
 }
 
 fn corrupt(context: &'static str, field: &'static str, detail: &str) -> Error {
@@ -248,13 +371,20 @@ impl AdaptiveDecoder {
     /// A decoder over `bytes` (a whole number of 32-bit words) with the encoder's `classes`.
     /// `context`/`field` name the stream part in errors.
     pub fn new(bytes: &[u8], classes: usize, context: &'static str, field: &'static str) -> Result<Self> {
-        if bytes.len() % 4 != 0 {
-            return Err(corrupt(context, field, "arithmetic-coded block is not a whole number of 32-bit words"));
-        }
-        let words: Vec<u32> = bytes.chunks_exact(4).map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect();
+        let words = CheckedWords::from_le_bytes(bytes, context, field)?;
+        let empty = words.is_empty();
         let coder =
-            DefaultRangeDecoder::from_compressed(words).map_err(|_| corrupt(context, field, "range coder header"))?;
-        Ok(Self { coder, models: Models::new(classes) })
+            CheckedRangeDecoder::with_backend(words).map_err(|_| corrupt(context, field, "range coder header"))?;
+        Ok(Self { coder, models: Models::new(classes), empty, used: false, context, field })
+    }
+
+    /// Ends decoding: fails unless every word of the block was read, i.e. the block held no
+    /// more than the symbols decoded (issue 41). Call after the last symbol.
+    pub fn finish(self) -> Result<()> {
+        if !self.used && !self.empty {
+            return Err(corrupt(self.context, self.field, "arithmetic-coded words where no value is coded"));
+        }
+        check_consumed(self.coder, self.context, self.field)
     }
 
     #[inline]
@@ -266,11 +396,12 @@ impl AdaptiveDecoder {
             Some((Which::Mantissa, i)) => Some(&mut self.models.mantissa[i]),
             None => None,
         };
+        if self.empty {
+            return Err(range_error::<()>(self.context, self.field, CoderError::Backend(RanPastEnd)));
+        }
+        self.used = true;
         let p0 = model.as_ref().map_or(ONE / 2, |m| m.p0());
-        let bit = self
-            .coder
-            .decode_symbol(BinaryModel { p0 })
-            .map_err(|_| Error::malformed("arithmetic decoder", "range code", "invalid range code".to_owned()))?;
+        let bit = self.coder.decode_symbol(BinaryModel { p0 }).map_err(|e| range_error(self.context, self.field, e))?;
         if let Some(m) = model {
             m.update(bit);
         }
@@ -451,6 +582,47 @@ mod tests {
             for _ in 0..10_000 {
                 if dec.decode(0, 5).is_err() {
                     break;
+                }
+            }
+        }
+    }
+
+    /// Issue 41: decoding exactly what was coded reads every word and never runs past the
+    /// allowance, for every length (the seal's one or two words included); decoding more runs
+    /// past the end and fails; a block with a word more than was coded fails `finish`.
+    #[test]
+    fn running_past_the_data_or_leaving_words_unread_is_an_error() {
+        for n in [0usize, 1, 2, 3, 7, 50, 333, 4000] {
+            for scale in [0.0, 0.2, 30.0] {
+                let values = laplacian(n, scale, n as u64 + 9);
+                let mut enc = AdaptiveEncoder::new(2);
+                values.iter().enumerate().for_each(|(i, &v)| enc.encode(v, i % 2, 0));
+                let bytes = enc.finish();
+                let mut dec = AdaptiveDecoder::new(&bytes, 2, "t", "c").unwrap();
+                for (i, &v) in values.iter().enumerate() {
+                    assert_eq!(dec.decode(i % 2, 0).unwrap(), v, "n {n} value {i}");
+                }
+                dec.finish().unwrap_or_else(|e| panic!("n {n} scale {scale}: {e}"));
+                // Asking for more values than were coded: an error within a few words' worth
+                // (zeros cost little, so allow many symbols, but never unbounded).
+                let mut dec = AdaptiveDecoder::new(&bytes, 2, "t", "c").unwrap();
+                let mut failed = false;
+                for i in 0..values.len() + 10_000_000 {
+                    if let Err(e) = dec.decode(i % 2, 0) {
+                        assert!(e.to_string().contains("ends before its symbols do"), "{e}");
+                        failed = true;
+                        break;
+                    }
+                }
+                assert!(failed, "n {n} scale {scale}: decoded 10^7 values past the data");
+                // Two words more than the encoder wrote are left unread (one may be read in place
+                // of the zero word the seal can leave out).
+                let mut longer = bytes.clone();
+                longer.extend_from_slice(&[0x5a; 8]);
+                let mut dec = AdaptiveDecoder::new(&longer, 2, "t", "c").unwrap();
+                let ok = values.iter().enumerate().all(|(i, &v)| dec.decode(i % 2, 0).is_ok_and(|d| d == v));
+                if ok {
+                    assert!(dec.finish().is_err(), "n {n} scale {scale}: trailing word accepted");
                 }
             }
         }
