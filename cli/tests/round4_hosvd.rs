@@ -88,8 +88,8 @@ fn hosvd_translated_far_from_the_origin_keeps_its_error() {
 fn a_small_memory_budget_is_refused_naming_what_the_codec_needs() {
     let s = Scratch::new("r4-memory");
     let input = offset_plane(&s, "plane", 0.0);
-    let out = s.path("m.anim");
     for (codec, p) in [("sac", "bases=32"), ("stseg", "omega=0.99"), ("quant-delta", "bits=12")] {
+        let out = s.path(&format!("{codec}.anim"));
         let e =
             fails(&["encode", &input, "-c", codec, "-p", p, "--memory", "1M", "-o", &out, "-f"], &["--memory", codec]);
         assert!(e.contains("MiB"), "{e}");
