@@ -16,6 +16,7 @@ pub mod entropy;
 pub mod error;
 pub mod limits;
 pub mod linalg;
+pub mod memory;
 pub mod params;
 pub mod quant;
 pub mod quant_delta;

@@ -163,11 +163,26 @@ pub fn remove_affine_motion_with(
     affine: bool,
     store: &mut dyn FnMut(Affine, Affine, Centroids) -> Affine,
 ) -> (Vec<Affine>, Vec<f64>) {
+    remove_affine_motion_centred(p, k, frames, affine, [0.0; 3], store)
+}
+
+/// [`remove_affine_motion_with`] of the positions `p − centre` (subtracted in f64, exactly):
+/// stream version 6 centres every packet before the decomposition (issue 41), so the
+/// transforms, the centroids and the normalised tensor are those of the centred positions.
+/// A zero `centre` gives the same bits as the uncentred function.
+pub fn remove_affine_motion_centred(
+    p: &[f32],
+    k: usize,
+    frames: usize,
+    affine: bool,
+    centre: [f64; 3],
+    store: &mut dyn FnMut(Affine, Affine, Centroids) -> Affine,
+) -> (Vec<Affine>, Vec<f64>) {
     let centroid = |t: usize| -> [f64; 3] {
         let mut s = [0.0f64; 3];
         for v in p[t * k * 3..(t + 1) * k * 3].chunks_exact(3) {
             for j in 0..3 {
-                s[j] += v[j] as f64;
+                s[j] += v[j] as f64 - centre[j];
             }
         }
         s.map(|x| x / k as f64)
@@ -183,8 +198,8 @@ pub fn remove_affine_motion_with(
         let mut s = [0.0f64; 9];
         let mut r = [0.0f64; 9];
         for (a, b) in frame.chunks_exact(3).zip(first.chunks_exact(3)) {
-            let pa = [a[0] as f64 - mut_t[0], a[1] as f64 - mut_t[1], a[2] as f64 - mut_t[2]];
-            let pb = [b[0] as f64 - mu0[0], b[1] as f64 - mu0[1], b[2] as f64 - mu0[2]];
+            let pa: [f64; 3] = std::array::from_fn(|j| a[j] as f64 - centre[j] - mut_t[j]);
+            let pb: [f64; 3] = std::array::from_fn(|j| b[j] as f64 - centre[j] - mu0[j]);
             for i in 0..3 {
                 for j in 0..3 {
                     s[i * 3 + j] += pa[i] * pa[j];
@@ -209,7 +224,7 @@ pub fn remove_affine_motion_with(
         let l = mat3_inverse(&aff.m.map(|v| v as f64)).unwrap_or([1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]);
         let cr: [f64; 3] = aff.c.map(|v| v as f64);
         for (dst, src) in x[t * k * 3..(t + 1) * k * 3].chunks_exact_mut(3).zip(frame.chunks_exact(3)) {
-            let q = [src[0] as f64 - cr[0], src[1] as f64 - cr[1], src[2] as f64 - cr[2]];
+            let q: [f64; 3] = std::array::from_fn(|j| src[j] as f64 - centre[j] - cr[j]);
             for j in 0..3 {
                 dst[j] = (0..3).map(|i| q[i] * l[i * 3 + j]).sum();
             }

@@ -59,6 +59,19 @@ pub(crate) const UNLIMITED: Limits = Limits::UNLIMITED;
 /// 1 and 2 exactly as they were.
 pub const STREAM_VERSION: u16 = 3;
 
+/// Peak bytes of a sac encode of `frames` frames of a mesh of `vertices` vertices with `bases`
+/// harmonic bases, the whole process ([`codec_core::memory`]): the stream driver's self-check
+/// keeps the whole input (sac declares no bound of its own, so `AnimationCodec::error_bound`
+/// runs on it at the end: 12 bytes a vertex a frame), and the encoder's per-mesh state. Measured
+/// 21.7 MiB (900 vertices × 40 frames, 32 bases), 37.3 / 49.9 MiB (2 500 × 60, 32 / 64 bases)
+/// and 115.7 MiB (10 000 × 60, 32 bases): besides the input, about 4–5 KiB a vertex and 160
+/// bytes a vertex per basis; this model is 13–17 % above each. Fitted up to 10 000 vertices (the
+/// factorizations' fill may grow faster on much larger meshes).
+pub fn encode_memory(vertices: usize, frames: usize, bases: usize) -> u64 {
+    let k = vertices as u64;
+    codec_core::memory::PROCESS_BYTES + 12 * k * frames as u64 + k * (5632 + 192 * bases as u64)
+}
+
 /// The `sac` codec.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct Sac;
@@ -109,6 +122,17 @@ impl AnimationCodec for Sac {
         let rel = if diag > 0.0 { (q / diag).max(p.max_error) } else { 0.0 };
         // Relative headroom for the f32 rounding of the stored frames.
         Ok(ErrorBound { max_coordinate_error: None, relative_rms_error: Some(rel * (1.0 + 1e-6)) })
+    }
+    /// Issue 41 (10c): sac's encoder holds per-mesh state (the manifold harmonic basis and its
+    /// eigensolver's work, the Poisson factorization, a few frames), never a block of frames it
+    /// could shorten: a budget below [`encode_memory`] is refused up front, naming the need.
+    fn fit_memory(&self, params: &ParamSet, vertices: usize, frames: usize, budget: u64) -> Result<ParamSet> {
+        let p = SacParams::from_param_set(params)?;
+        let bases = (p.bases as usize).min(vertices);
+        let what = format!("{frames} frames of {vertices} vertices, {bases} harmonic bases");
+        let advice = if bases > 16 { ", or fewer bases (-p bases=N)" } else { "" };
+        codec_core::memory::check_budget(NAME, budget, encode_memory(vertices, frames, bases), &what, advice)?;
+        Ok(params.clone())
     }
     fn new_encoder(&self, params: &ParamSet, setup: &EncoderSetup<'_>) -> Result<Box<dyn FrameEncoder>> {
         encoder::new_encoder(params, setup)
