@@ -478,7 +478,11 @@ impl Callback {
         }
         let result = Python::attach(|py| value_to_py(py, row).and_then(|arg| callable.call1(py, (arg,)).map(drop)));
         if let Err(e) = result {
-            self.raised().get_or_insert(e);
+            let mut raised = self.raised();
+            if raised.is_none() {
+                *raised = Some(e); // the first exception is the one raised
+            }
+            drop(raised);
             std::panic::resume_unwind(Box::new(CallbackRaised));
         }
     }
@@ -643,7 +647,8 @@ fn decode_frame<'py>(
 ) -> PyResult<Bound<'py, PyArray2<f32>>> {
     let limits = limits_from(max_memory, max_work)?;
     let source = Source::from_py(data)?;
-    let frame = py.detach(|| source.read(|src| codec_core::decode_frame(src, registry(), limits, t))).map_err(to_py)?;
+    let frame =
+        py.detach(|| source.read(|mut src| codec_core::decode_frame(&mut src, registry(), limits, t))).map_err(to_py)?;
     let v = frame.len() / 3;
     PyArray1::from_vec(py, frame).reshape([v, 3])
 }
@@ -660,7 +665,7 @@ fn info<'py>(
 ) -> PyResult<Py<PyAny>> {
     let limits = limits_from(max_memory, max_work)?;
     let source = Source::from_py(data)?;
-    let (header, index) = py.detach(|| source.read(|src| describe::read_verified(src, limits))).map_err(to_py)?;
+    let (header, index) = source.read(|mut src| describe::read_verified(&mut src, limits)).map_err(to_py)?;
     value_to_py(py, &describe::info_json(registry(), &header, &index))
 }
 
