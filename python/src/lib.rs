@@ -305,21 +305,23 @@ impl<'a> Source<'a> {
     }
 
     /// Runs `read` on the bytes or on the opened file (buffered, seekable); errors name the file.
-    fn read<T>(
-        &self,
-        read: impl FnOnce(&mut dyn ReadSeek) -> codec_core::Result<T>,
-    ) -> Result<T, BoxError> {
+    fn read<T>(&self, read: impl FnOnce(&mut dyn ReadSeek) -> codec_core::Result<T>) -> Result<T, BoxError> {
         match self {
             Source::Bytes(b) => Ok(read(&mut Cursor::new(*b))?),
             Source::Path(path) => {
                 let name = path.display().to_string();
-                let file = std::fs::File::open(path).map_err(|e| codec_core::Error::io(format!("cannot open {name}"), e))?;
+                let file =
+                    std::fs::File::open(path).map_err(|e| codec_core::Error::io(format!("cannot open {name}"), e))?;
                 if file.metadata().is_ok_and(|m| m.is_dir()) {
                     return Err(format!("cannot read {name}: it is a directory").into());
                 }
                 read(&mut std::io::BufReader::new(file)).map_err(|e| {
                     let text = message(&e);
-                    if text.contains(&name) { text.into() } else { format!("{name}: {text}").into() }
+                    if text.contains(&name) {
+                        text.into()
+                    } else {
+                        format!("{name}: {text}").into()
+                    }
                 })
             }
         }
@@ -575,7 +577,9 @@ fn encode_to_target<'py>(
         let all: Vec<&dyn AnimationCodec> = registry.iter().collect();
         Ok(match (chosen, ladder) {
             (Some((c, base)), true) => harness::search_target(&request, c, &base).map(|h| (h, Vec::new())),
-            (Some((c, base)), false) => harness::search_space_target(&request, c, &base, &fixed).map(|h| (h, Vec::new())),
+            (Some((c, base)), false) => {
+                harness::search_space_target(&request, c, &base, &fixed).map(|h| (h, Vec::new()))
+            }
             (None, true) => harness::search_target_auto(&request, &all),
             (None, false) => harness::search_space_target_auto(&request, &all),
         }?)
@@ -647,8 +651,9 @@ fn decode_frame<'py>(
 ) -> PyResult<Bound<'py, PyArray2<f32>>> {
     let limits = limits_from(max_memory, max_work)?;
     let source = Source::from_py(data)?;
-    let frame =
-        py.detach(|| source.read(|mut src| codec_core::decode_frame(&mut src, registry(), limits, t))).map_err(to_py)?;
+    let frame = py
+        .detach(|| source.read(|mut src| codec_core::decode_frame(&mut src, registry(), limits, t)))
+        .map_err(to_py)?;
     let v = frame.len() / 3;
     PyArray1::from_vec(py, frame).reshape([v, 3])
 }
