@@ -46,10 +46,10 @@ struct GlobalArgs {
     #[arg(long, global = true, value_name = "OPS", value_parser = commands::parse_bytes)]
     max_work: Option<u64>,
 
-    /// Worker threads for codecs that parallelize (default: all cores). Output bytes do not
-    /// depend on it.
-    #[arg(long, global = true, value_name = "N", value_parser = clap::value_parser!(u16).range(1..))]
-    threads: Option<u16>,
+    /// Worker threads for codecs that parallelize (default: all cores; at most 4 × the cores,
+    /// at least 8). Output bytes do not depend on it.
+    #[arg(long, global = true, value_name = "N", value_parser = commands::parse_workers)]
+    threads: Option<u32>,
 }
 
 #[derive(Debug, Subcommand)]
@@ -114,18 +114,21 @@ pub struct ExportArgs {
     #[arg(long, value_name = "LAYOUT", default_value = "basis")]
     pub layout: String,
 
-    /// basis: the number of morph targets (default: the fewest meeting --target-kg).
+    /// basis: the number of morph targets written, K in all (default: the fewest meeting
+    /// --target-kg). A compressed export spends one of them on the mean shape's fine residual
+    /// when that plays closer than one more principal component.
     #[arg(long, value_name = "K")]
     pub targets: Option<usize>,
 
     /// basis: the KG error (%) the written animation must meet against the input (> 0);
-    /// the same as --target kg=KG. Default 0.05.
-    #[arg(long, value_name = "KG", conflicts_with = "target")]
+    /// the same as --target kg=KG. Default 0.05. Not with --targets, which fixes the count.
+    #[arg(long, value_name = "KG", conflicts_with_all = ["target", "targets"])]
     pub target_kg: Option<f64>,
 
     /// basis: the error target, `kg=T` (KG in %, > 0), as `encode --target` spells it; the
-    /// fewest morph targets meeting it are written. Only kg is supported here.
-    #[arg(long, value_name = "kg=T", value_parser = parse_target)]
+    /// fewest morph targets meeting it are written. Only kg is supported here. Not with
+    /// --targets.
+    #[arg(long, value_name = "kg=T", value_parser = parse_target, conflicts_with = "targets")]
     pub target: Option<animcodec::harness::Target>,
 
     /// basis: auto (default) writes the file both with the per-frame rigid motion (rotation +
@@ -285,7 +288,8 @@ pub struct ListArgs {
 pub struct EncodeArgs {
     /// Input animation: .pc2, .mdd, .gltf/.glb, an OBJ directory or pattern,
     /// `synth:NAME[:small|medium|large]`, or `synth:flag:COLSxROWSxFRAMES` (a flag of any
-    /// size, generated frame by frame while encoding, never held in memory).
+    /// length: its frames are generated one at a time while encoding, never all held; its mesh
+    /// is held, about 420 bytes a vertex, and refused when that exceeds --memory).
     #[arg(value_name = "INPUT")]
     pub input: String,
 
@@ -328,7 +332,7 @@ pub struct EncodeArgs {
 
     /// Memory budget of an encode with -p (bytes; K, M, G suffixes are powers of 1024), e.g.
     /// 4G. A .pc2/.mdd input, an OBJ sequence (or synth:flag:CxRxF) is read frame by frame, so the encode holds
-    /// what the codec buffers; a codec whose analysis holds a whole block of frames (hosvd with
+    /// the mesh and what the codec buffers; a codec whose analysis holds a whole block of frames (hosvd with
     /// block=0) chooses temporal blocks that fit the budget. The stream depends on the budget,
     /// never on the machine. Default: none (hosvd decomposes the whole sequence at once).
     /// Not with --target or the default-quality search, which hold the whole animation.
@@ -337,7 +341,7 @@ pub struct EncodeArgs {
 
     /// Search the codec's declared parameter space (its rate ladder on the configurations of
     /// its secondary parameters meant for the metric's kind of error, positional or STED;
-    /// `animcodec describe`) for the smallest stream whose decoded error meets METRIC=VALUE (metrics: kg [%], sted, hausdorff, max_error, rmse; absolute
+    /// `animcodec list` shows each codec's parameters and ladder) for the smallest stream whose decoded error meets METRIC=VALUE (metrics: kg [%], sted, hausdorff, max_error, rmse; absolute
     /// values in model units except kg). Parameters given with `-p` stay fixed. With `-c auto`,
     /// every codec is searched and the smallest stream kept. Fails, stating the best error
     /// reached, when no point meets the target. Without -p and without --target, encode aims
@@ -489,9 +493,10 @@ pub struct SweepArgs {
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
     pub points: Option<u32>,
 
-    /// Points measured at once (default: all cores via rayon). Use `--jobs 1` when the encode
-    /// and decode times matter: parallel points compete for the cores.
-    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
+    /// Points measured at once (default: all cores via rayon; at most 4 × the cores, at least
+    /// 8). Use `--jobs 1` when the encode and decode times matter: parallel points compete for
+    /// the cores.
+    #[arg(long, value_name = "N", value_parser = commands::parse_workers)]
     pub jobs: Option<u32>,
 
     /// Write JSON to F (`-`: print it instead of the table): {input, vertices, frames,
@@ -621,8 +626,8 @@ impl From<SizeArg> for SynthSize {
 pub struct SynthArgs {
     /// Animation: flag (waving cloth), cylinder (two-bone skinned bend + twist), tumble (rigid
     /// body), phases (motion changing character at frames F/4, F/2, 3F/4); or
-    /// flag:COLSxROWSxFRAMES, a flag of any size written frame by frame to a .pc2/.mdd (never
-    /// held in memory; for scale tests).
+    /// flag:COLSxROWSxFRAMES, a flag of any length written frame by frame to a .pc2/.mdd (its
+    /// frames are never all held in memory, only its mesh; for scale tests).
     #[arg(value_name = "NAME")]
     pub name: String,
 
@@ -690,7 +695,7 @@ fn main() -> ExitCode {
 fn run(cli: Cli) -> commands::CmdResult {
     if let Some(n) = cli.global.threads {
         rayon::ThreadPoolBuilder::new()
-            .num_threads(n as usize)
+            .num_threads(n as usize) // bounded by commands::parse_workers
             .build_global()
             .map_err(|e| format!("cannot set up {n} worker threads: {e}"))?;
     }

@@ -118,6 +118,60 @@ pub fn delete_pending_and_exit(code: i32, message: &str) -> ! {
     std::process::exit(code)
 }
 
+/// What this process changed on disk so far through this module: files renamed into place by
+/// [`commit_all`] (each complete), stale files it removed, and devices or pipes written in place.
+/// An interrupt handler's message says this ([`delete_pending_and_exit_with`]): after an OBJ
+/// sequence's commit "no output file was changed" is false (issue 41).
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct Changes {
+    /// Files renamed into place, complete.
+    pub written: usize,
+    /// The first and the last of them.
+    pub first_written: Option<PathBuf>,
+    /// See `first_written`.
+    pub last_written: Option<PathBuf>,
+    /// Stale files removed (an OBJ sequence's frames beyond the new ones).
+    pub removed: usize,
+    /// Devices or pipes opened for writing in place (no temporary file: they may hold part of
+    /// an output).
+    pub in_place: Vec<PathBuf>,
+}
+
+impl Changes {
+    /// Nothing changed.
+    pub fn is_empty(&self) -> bool {
+        self.written == 0 && self.removed == 0 && self.in_place.is_empty()
+    }
+}
+
+/// The changes so far; updated only while the pending list is locked, so an interrupt handler
+/// holding that lock reads a state no commit is halfway through.
+static CHANGES: Mutex<Changes> =
+    Mutex::new(Changes { written: 0, first_written: None, last_written: None, removed: 0, in_place: Vec::new() });
+
+fn changes() -> MutexGuard<'static, Changes> {
+    CHANGES.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
+}
+
+/// What this process has changed on disk so far ([`Changes`]).
+pub fn changes_so_far() -> Changes {
+    let _pending = pending();
+    changes().clone()
+}
+
+/// [`delete_pending_and_exit`] with the message made from what the process had changed when
+/// the pending list was locked ([`Changes`]; no commit can run after that), so it is true
+/// whenever the signal lands.
+pub fn delete_pending_and_exit_with(code: i32, message: impl FnOnce(&Changes) -> String) -> ! {
+    let files = pending();
+    for f in files.iter() {
+        let _ = std::fs::remove_file(f);
+    }
+    let text = message(&changes());
+    let _ = writeln!(std::io::stderr(), "{text}");
+    std::process::exit(code)
+}
+
 /// What a command may write over.
 #[derive(Debug, Clone, Default)]
 pub struct OutputPolicy {
@@ -345,6 +399,12 @@ impl PendingFile {
                 .write(true)
                 .open(target)
                 .map_err(|e| Error::io(format!("cannot open {}", target.display()), e))?;
+            let _pending = pending();
+            let mut done = changes();
+            if !done.in_place.iter().any(|p| p == target) {
+                done.in_place.push(target.to_path_buf());
+            }
+            drop(done);
             return Ok(Self { target: target.to_path_buf(), temp: PathBuf::new(), file: Some(BufWriter::new(file)) });
         }
         let mut list = pending();
@@ -406,11 +466,16 @@ pub fn commit_all(mut files: Vec<PendingFile>, stale: &[PathBuf]) -> Result<()> 
     let mut list = pending();
     for s in stale {
         std::fs::remove_file(s).map_err(|e| Error::io(format!("removing stale {}", s.display()), e))?;
+        changes().removed += 1;
     }
     for f in files.iter_mut().filter(|f| !f.temp.as_os_str().is_empty()) {
         std::fs::rename(&f.temp, &f.target).map_err(|e| Error::io(format!("writing {}", f.target.display()), e))?;
         list.retain(|p| p != &f.temp);
         f.temp = PathBuf::new();
+        let mut done = changes();
+        done.written += 1;
+        done.first_written.get_or_insert_with(|| f.target.clone());
+        done.last_written = Some(f.target.clone());
     }
     Ok(())
 }

@@ -22,6 +22,7 @@ Arrays: positions may be float32 or float64 (converted to float32), faces any in
 
 from __future__ import annotations
 
+import numbers
 import os
 from dataclasses import dataclass
 from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple, Union
@@ -42,6 +43,8 @@ __all__ = [
     "DEFAULT_TARGET",
     "decode",
     "decode_frame",
+    "DEFAULT_MAX_MEMORY",
+    "DEFAULT_MAX_WORK",
     "info",
     "evaluate",
     "load",
@@ -153,11 +156,31 @@ def _fps(fps: Any) -> float:
     return value
 
 
-def _stream(data: Any) -> bytes:
-    """Container bytes from bytes-like data or a path to an ``.anim`` file."""
+DEFAULT_MAX_MEMORY: int = _native.DEFAULT_MAX_MEMORY
+"""Most bytes a decode may hold in total by default (1 GiB): the command line's ``--max-memory``
+default. Streams needing more are refused before allocating."""
+
+DEFAULT_MAX_WORK: int = _native.DEFAULT_MAX_WORK
+"""Most arithmetic operations a decode may spend by default: the command line's ``--max-work``
+default. Streams needing more are refused before computing."""
+
+
+def _limit(value: Any, name: str) -> int:
+    """A positive integer limit (``max_memory`` bytes, ``max_work`` operations)."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral):
+        raise TypeError(f"{name} must be an int; got {type(value).__name__}")
+    if int(value) < 1:
+        raise ValueError(f"{name} must be at least 1; got {value}")
+    return int(value)
+
+
+def _stream(data: Any) -> Union[bytes, str]:
+    """Container bytes from bytes-like data, or the path of an ``.anim`` file as a string: a
+    file is read by the decoder as it goes, within its limits (never read whole first: a path
+    such as ``/dev/zero`` is refused at its first bytes)."""
     if isinstance(data, (str, os.PathLike)):
-        with open(data, "rb") as f:
-            return f.read()
+        path = os.fspath(data)
+        return path if isinstance(path, str) else os.fsdecode(path)
     if isinstance(data, bytes):
         return data
     if isinstance(data, (bytearray, memoryview)):
@@ -225,7 +248,8 @@ def encode(
             or ``"auto"`` (without parameters).
         fps: frame rate stored in the stream.
         progress: called during the search with each measured point, a dict
-            ``{codec, params, bytes, bpvf, kg}`` (possibly from another thread).
+            ``{codec, params, bytes, bpvf, kg}`` (possibly from another thread). An exception
+            it raises stops the search and is raised by ``encode``.
         **params: codec parameters (``bits=12``, ``ss=0.95``, ...); the rest take their defaults.
 
     Raises:
@@ -260,7 +284,8 @@ def encode_to_target(
     ``animcodec encode -c CODEC --target kg=0.5`` does; ``ladder=True`` walks the rate ladder
     alone (``--ladder``). ``codec="auto"`` searches every codec and keeps the smallest
     stream; ``refine`` bisects the ladder parameter further; ``progress`` is called with
-    every measured point (a dict, possibly from another thread).
+    every measured point (a dict, possibly from another thread; an exception it raises stops
+    the search and is raised here).
 
     Raises:
         AnimcodecError: no point meets the target (the message gives the best reached).
@@ -282,26 +307,43 @@ def encode_to_target(
     return TargetEncoding(stream, summary["codec"], summary["params"], summary["reached"], summary["bpvf"], summary)
 
 
-def decode(data: Any) -> Animation:
+def decode(data: Any, *, max_memory: int = DEFAULT_MAX_MEMORY, max_work: int = DEFAULT_MAX_WORK) -> Animation:
     """Decodes ``.anim`` container bytes (or the file at a path) into an :class:`Animation`.
 
     The decoder needs nothing but the bytes; every byte is checked (corrupt or truncated
-    streams raise :class:`AnimcodecError`, never crash).
+    streams raise :class:`AnimcodecError`, never crash). ``max_memory`` (bytes held in total)
+    and ``max_work`` (arithmetic operations) bound the decode as the command line's
+    ``--max-memory`` and ``--max-work`` do, with the same defaults: a stream needing more is
+    refused before allocating or computing. A file is read as the decoder goes, never whole
+    first.
     """
-    result, _codec = _native.decode(_stream(data))
+    result, _codec = _native.decode(_stream(data), _limit(max_memory, "max_memory"), _limit(max_work, "max_work"))
     return _animation(result)
 
 
-def decode_frame(data: Any, t: int) -> np.ndarray:
-    """Frame ``t`` alone, ``(vertices, 3)`` float32, decoded from the nearest keyframe."""
+def _frame_index(t: Any) -> int:
+    """A frame number: an int (or numpy integer), never a float or a bool."""
+    if isinstance(t, bool) or not isinstance(t, numbers.Integral):
+        raise TypeError(f"frame index must be an int; got {type(t).__name__} {t!r}")
     if int(t) < 0:
         raise ValueError(f"frame index must be ≥ 0; got {t}")
-    return _native.decode_frame(_stream(data), int(t))
+    return int(t)
 
 
-def info(data: Any) -> Dict[str, Any]:
-    """What a container holds, as ``animcodec info --json`` prints it (every checksum verified)."""
-    return _native.info(_stream(data))
+def decode_frame(
+    data: Any, t: int, *, max_memory: int = DEFAULT_MAX_MEMORY, max_work: int = DEFAULT_MAX_WORK
+) -> np.ndarray:
+    """Frame ``t`` alone, ``(vertices, 3)`` float32, decoded from the nearest keyframe (limits
+    as :func:`decode`). ``t`` must be an int: ``1.5`` raises ``TypeError``."""
+    return _native.decode_frame(
+        _stream(data), _frame_index(t), _limit(max_memory, "max_memory"), _limit(max_work, "max_work")
+    )
+
+
+def info(data: Any, *, max_memory: int = DEFAULT_MAX_MEMORY, max_work: int = DEFAULT_MAX_WORK) -> Dict[str, Any]:
+    """What a container holds, as ``animcodec info --json`` prints it (every checksum verified;
+    limits as :func:`decode`)."""
+    return _native.info(_stream(data), _limit(max_memory, "max_memory"), _limit(max_work, "max_work"))
 
 
 def _eval_dict(sted: bool, hausdorff: bool, sted_options: Dict[str, Any]) -> Dict[str, Any]:
@@ -358,7 +400,13 @@ def evaluate(
 
 
 def load(
-    path: PathLike, topology: Optional[PathLike] = None, fps: Optional[float] = None, animation: Optional[str] = None
+    path: PathLike,
+    topology: Optional[PathLike] = None,
+    fps: Optional[float] = None,
+    animation: Optional[str] = None,
+    *,
+    max_memory: int = DEFAULT_MAX_MEMORY,
+    max_work: int = DEFAULT_MAX_WORK,
 ) -> Animation:
     """Reads an animation: an OBJ sequence (directory or ``*`` pattern), ``.obj``, ``.pc2``,
     ``.mdd``, ``.gltf``/``.glb`` (morph targets, node animation and skins: the whole scene
@@ -366,6 +414,7 @@ def load(
     first), an ``.anim`` stream (decoded), or
     ``synth:NAME[:SIZE]`` (flag, cylinder, tumble, phases). A PC2/MDD cache takes its triangles
     from ``topology`` or the ``.obj`` of the same stem beside it; ``fps`` overrides the file's rate.
+    ``max_memory`` and ``max_work`` bound the decode of an ``.anim`` stream as in :func:`decode`.
     """
     return _animation(
         _native.load(
@@ -373,6 +422,8 @@ def load(
             None if topology is None else os.fspath(topology),
             None if fps is None else _fps(fps),
             None if animation is None else str(animation),
+            _limit(max_memory, "max_memory"),
+            _limit(max_work, "max_work"),
         )
     )
 

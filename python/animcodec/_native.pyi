@@ -32,14 +32,26 @@ class TargetSearch(TypedDict):
 def encode_to_target(
     positions: _F32, faces: _U32, codec: str, fps: float, search: TargetSearch
 ) -> Tuple[bytes, Dict[str, Any]]: ...
-def decode(data: bytes) -> Tuple[Tuple[_F32, _U32, float], str]: ...
-def decode_frame(data: bytes, t: int) -> _F32: ...
-def info(data: bytes) -> Dict[str, Any]: ...
+DEFAULT_MAX_MEMORY: int
+DEFAULT_MAX_WORK: int
+
+def decode(
+    data: Union[bytes, str], max_memory: Optional[int] = None, max_work: Optional[int] = None
+) -> Tuple[Tuple[_F32, _U32, float], str]: ...
+def decode_frame(
+    data: Union[bytes, str], t: int, max_memory: Optional[int] = None, max_work: Optional[int] = None
+) -> _F32: ...
+def info(data: Union[bytes, str], max_memory: Optional[int] = None, max_work: Optional[int] = None) -> Dict[str, Any]: ...
 def evaluate(
     reference: _F32, candidate: _F32, faces: _U32, fps: float, options: Optional[Dict[str, Any]] = None
 ) -> Dict[str, Any]: ...
 def load(
-    path: str, topology: Optional[_Path] = None, fps: Optional[float] = None, animation: Optional[str] = None
+    path: str,
+    topology: Optional[_Path] = None,
+    fps: Optional[float] = None,
+    animation: Optional[str] = None,
+    max_memory: Optional[int] = None,
+    max_work: Optional[int] = None,
 ) -> Tuple[_F32, _U32, float]: ...
 def save(
     path: _Path, positions: _F32, faces: _U32, fps: float, force: bool = False, topology_obj: bool = True

@@ -505,7 +505,8 @@ def sweep_local(
     ``None`` on all cores. ``progress``, if given, is called with ``{"event":
     "started"|"finished", "series", "ladder_index", "done", "total"}`` as each point starts and
     finishes (from the sweep's worker threads, the GIL taken for the call; the sweep itself runs
-    with the GIL released)."""
+    with the GIL released). An exception ``progress`` raises stops the sweep and is raised
+    here."""
     from . import _faces, _positions
 
     items = _input_list(input)

@@ -261,6 +261,78 @@ fn eval_options(options: Option<&Bound<'_, PyDict>>) -> PyResult<EvalOptions> {
 }
 
 // ---------------------------------------------------------------------------------------------
+// limits and streams (issue 41: `decode('/dev/zero')` read the whole "file" before any check)
+
+/// The decoding limits of the command line's `--max-memory` and `--max-work` (`None`: their
+/// defaults, [`codec_core::limits::DEFAULT_MAX_MEMORY`] and `DEFAULT_MAX_WORK`).
+fn limits_from(max_memory: Option<u64>, max_work: Option<u64>) -> PyResult<Limits> {
+    let mut limits = Limits::default();
+    if let Some(m) = max_memory {
+        if m == 0 {
+            return Err(to_py("max_memory must be at least 1 byte"));
+        }
+        limits.max_alloc_bytes = usize::try_from(m).unwrap_or(usize::MAX);
+    }
+    if let Some(w) = max_work {
+        if w == 0 {
+            return Err(to_py("max_work must be at least 1 operation"));
+        }
+        limits.max_work = w;
+    }
+    Ok(limits)
+}
+
+/// A container given as bytes (already in memory) or as a path, which is read through the
+/// decoder as it needs the bytes — never read whole first, so the limits hold before reading
+/// (a device such as `/dev/zero` is refused at its first bytes, as on the command line).
+enum Source<'a> {
+    Bytes(&'a [u8]),
+    Path(PathBuf),
+}
+
+impl<'a> Source<'a> {
+    fn from_py(data: &'a Bound<'_, PyAny>) -> PyResult<Self> {
+        if let Ok(bytes) = data.cast::<PyBytes>() {
+            return Ok(Source::Bytes(bytes.as_bytes()));
+        }
+        match data.extract::<PathBuf>() {
+            Ok(path) => Ok(Source::Path(path)),
+            Err(_) => Err(pyo3::exceptions::PyTypeError::new_err(format!(
+                "expected .anim bytes or a path; got {}",
+                data.get_type().name()?
+            ))),
+        }
+    }
+
+    /// Runs `read` on the bytes or on the opened file (buffered, seekable); errors name the file.
+    fn read<T>(&self, read: impl FnOnce(&mut dyn ReadSeek) -> codec_core::Result<T>) -> Result<T, BoxError> {
+        match self {
+            Source::Bytes(b) => Ok(read(&mut Cursor::new(*b))?),
+            Source::Path(path) => {
+                let name = path.display().to_string();
+                let file =
+                    std::fs::File::open(path).map_err(|e| codec_core::Error::io(format!("cannot open {name}"), e))?;
+                if file.metadata().is_ok_and(|m| m.is_dir()) {
+                    return Err(format!("cannot read {name}: it is a directory").into());
+                }
+                read(&mut std::io::BufReader::new(file)).map_err(|e| {
+                    let text = message(&e);
+                    if text.contains(&name) {
+                        text.into()
+                    } else {
+                        format!("{name}: {text}").into()
+                    }
+                })
+            }
+        }
+    }
+}
+
+/// What the container readers need: reading and seeking (bytes in memory or a file).
+trait ReadSeek: std::io::Read + std::io::Seek {}
+impl<T: std::io::Read + std::io::Seek> ReadSeek for T {}
+
+// ---------------------------------------------------------------------------------------------
 // inputs
 
 /// Loads an input as the command line does: `synth:NAME[:SIZE]`, an `.anim` stream (decoded),
@@ -270,6 +342,7 @@ fn load_input(
     topology: Option<PathBuf>,
     fps: Option<f32>,
     animation: Option<String>,
+    limits: Limits,
 ) -> Result<Animation, BoxError> {
     if let Some(spec) = input.strip_prefix("synth:") {
         let (name, size) = match spec.split_once(':') {
@@ -288,7 +361,7 @@ fn load_input(
     let path = Path::new(input);
     if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("anim")) {
         let file = std::fs::File::open(path).map_err(|e| codec_core::Error::io(format!("cannot open {input}"), e))?;
-        let decoder = StreamDecoder::new(std::io::BufReader::new(file), registry(), Limits::default())
+        let decoder = StreamDecoder::new(std::io::BufReader::new(file), registry(), limits)
             .map_err(|e| format!("{input}: {}", message(&e)))?;
         return Ok(decoder.decode_all().map_err(|e| format!("{input}: {}", message(&e)))?);
     }
@@ -311,7 +384,7 @@ fn load_cached(
     if let Some((_, a)) = INPUT_CACHE.lock().map_err(|_| "input cache poisoned")?.iter().find(|(k, _)| *k == key) {
         return Ok(Arc::clone(a));
     }
-    let animation = Arc::new(load_input(input, topology, fps, animation)?);
+    let animation = Arc::new(load_input(input, topology, fps, animation, Limits::default())?);
     let mut cache = INPUT_CACHE.lock().map_err(|_| "input cache poisoned")?;
     cache.retain(|(k, _)| *k != key);
     cache.insert(0, (key, Arc::clone(&animation)));
@@ -349,23 +422,22 @@ fn encode<'py>(
     let registry = registry();
     let animation = animation_from(&positions, &faces, fps)?;
     if params.is_none_or(|p| p.is_empty()) {
-        let report = progress_reporter(progress, harness::DEFAULT_TARGET);
+        let callback = Callback::new(progress);
+        let report = progress_reporter(&callback, harness::DEFAULT_TARGET);
         let request = SearchRequest {
             refine: DEFAULT_REFINE,
             progress: &report,
             ..SearchRequest::default_quality(registry, &animation)
         };
-        let hit = py
-            .detach(|| -> Result<_, BoxError> {
-                if codec == "auto" {
-                    let all: Vec<&dyn AnimationCodec> = registry.iter().collect();
-                    Ok(harness::search_space_target_auto(&request, &all).map(|(h, _)| h)?)
-                } else {
-                    let c = registry.by_name(codec)?;
-                    Ok(harness::search_default_quality(&request, c)?)
-                }
-            })
-            .map_err(to_py)?;
+        let hit = callback.run(py, || -> Result<_, BoxError> {
+            if codec == "auto" {
+                let all: Vec<&dyn AnimationCodec> = registry.iter().collect();
+                Ok(harness::search_space_target_auto(&request, &all).map(|(h, _)| h)?)
+            } else {
+                let c = registry.by_name(codec)?;
+                Ok(harness::search_default_quality(&request, c)?)
+            }
+        })?;
         return Ok(PyBytes::new(py, &hit.stream));
     }
     let codec = registry.by_name(codec).map_err(to_py)?;
@@ -378,25 +450,70 @@ fn encode<'py>(
 /// `--refine` default).
 const DEFAULT_REFINE: usize = 4;
 
+/// A Python `progress` callable, called from the library's worker threads (each call takes
+/// the GIL). The first exception it raises stops the work: the call unwinds out of the library
+/// (a [`CallbackRaised`] payload, which no panic hook prints; every later call unwinds at once),
+/// and [`Callback::run`] raises that exception in the caller (issue 41: it was printed as
+/// "unraisable" and the work went on).
+struct Callback {
+    callable: Option<Py<PyAny>>,
+    raised: Mutex<Option<PyErr>>,
+}
+
+/// The unwinding payload of a callback that raised.
+struct CallbackRaised;
+
+impl Callback {
+    fn new(callable: Option<Py<PyAny>>) -> Self {
+        Self { callable, raised: Mutex::new(None) }
+    }
+
+    fn raised(&self) -> std::sync::MutexGuard<'_, Option<PyErr>> {
+        self.raised.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
+    }
+
+    /// Calls the callable with `row` as a dict; after an exception, unwinds instead.
+    fn call(&self, row: &Value) {
+        let Some(callable) = &self.callable else { return };
+        if self.raised().is_some() {
+            std::panic::resume_unwind(Box::new(CallbackRaised));
+        }
+        let result = Python::attach(|py| value_to_py(py, row).and_then(|arg| callable.call1(py, (arg,)).map(drop)));
+        if let Err(e) = result {
+            let mut raised = self.raised();
+            if raised.is_none() {
+                *raised = Some(e); // the first exception is the one raised
+            }
+            drop(raised);
+            std::panic::resume_unwind(Box::new(CallbackRaised));
+        }
+    }
+
+    /// Runs `work` with the GIL released; the callback's exception, if it raised, is raised
+    /// here instead of the work's result.
+    fn run<T: Send>(&self, py: Python<'_>, work: impl FnOnce() -> Result<T, BoxError> + Send) -> PyResult<T> {
+        let outcome = py.detach(|| std::panic::catch_unwind(std::panic::AssertUnwindSafe(work)));
+        if let Some(e) = self.raised().take() {
+            return Err(e);
+        }
+        match outcome {
+            Ok(result) => result.map_err(to_py),
+            Err(payload) => std::panic::resume_unwind(payload),
+        }
+    }
+}
+
 /// A search's progress as Python calls: `callback({codec, params, bytes, bpvf, METRIC})` for
-/// every measured point (from the search's worker threads, each taking the GIL). A callback
-/// that raises is reported as unraisable and the search goes on.
-fn progress_reporter(callback: Option<Py<PyAny>>, target: Target) -> impl Fn(&harness::Point) + Sync {
+/// every measured point (see [`Callback`]: an exception stops the search and is raised).
+fn progress_reporter(callback: &Callback, target: Target) -> impl Fn(&harness::Point) + Sync + '_ {
     move |p: &harness::Point| {
-        let Some(cb) = &callback else { return };
-        let row = serde_json::json!({
+        callback.call(&serde_json::json!({
             "codec": p.codec,
             "params": params_json(&p.params),
             "bytes": p.bytes,
             "bpvf": p.bpvf,
             target.metric.name(): target.metric.value(&p.report),
-        });
-        Python::attach(|py| {
-            let result = value_to_py(py, &row).and_then(|arg| cb.call1(py, (arg,)));
-            if let Err(e) = result {
-                e.write_unraisable(py, None);
-            }
-        });
+        }));
     }
 }
 
@@ -452,22 +569,21 @@ fn encode_to_target<'py>(
         Some(p) => p.keys().iter().map(|k| k.extract::<String>()).collect::<PyResult<_>>()?,
         None => Vec::new(),
     };
-    let report = progress_reporter(progress, target);
+    let callback = Callback::new(progress);
+    let report = progress_reporter(&callback, target);
     let request = SearchRequest { refine, progress: &report, ..SearchRequest::new(registry, &animation, target) };
-    let (hit, others) = py
-        .detach(|| {
-            let fixed: Vec<&str> = fixed.iter().map(String::as_str).collect();
-            let all: Vec<&dyn AnimationCodec> = registry.iter().collect();
-            match (chosen, ladder) {
-                (Some((c, base)), true) => harness::search_target(&request, c, &base).map(|h| (h, Vec::new())),
-                (Some((c, base)), false) => {
-                    harness::search_space_target(&request, c, &base, &fixed).map(|h| (h, Vec::new()))
-                }
-                (None, true) => harness::search_target_auto(&request, &all),
-                (None, false) => harness::search_space_target_auto(&request, &all),
+    let (hit, others) = callback.run(py, || -> Result<_, BoxError> {
+        let fixed: Vec<&str> = fixed.iter().map(String::as_str).collect();
+        let all: Vec<&dyn AnimationCodec> = registry.iter().collect();
+        Ok(match (chosen, ladder) {
+            (Some((c, base)), true) => harness::search_target(&request, c, &base).map(|h| (h, Vec::new())),
+            (Some((c, base)), false) => {
+                harness::search_space_target(&request, c, &base, &fixed).map(|h| (h, Vec::new()))
             }
-        })
-        .map_err(to_py)?;
+            (None, true) => harness::search_target_auto(&request, &all),
+            (None, false) => harness::search_space_target_auto(&request, &all),
+        }?)
+    })?;
     let value_of = |p: &harness::Point| target.metric.value(&p.report);
     let p = &hit.point;
     let summary = serde_json::json!({
@@ -497,33 +613,64 @@ fn encode_to_target<'py>(
     Ok((PyBytes::new(py, &hit.stream), value_to_py(py, &summary)?))
 }
 
-/// Decodes container bytes: `(positions[F, V, 3] float32, faces[T, 3] uint32, fps, codec)`.
+/// Decodes a container (bytes, or a path read as the decoder goes) within the limits
+/// (`max_memory` bytes held, `max_work` operations; `None`: the command line's defaults):
+/// `(positions[F, V, 3] float32, faces[T, 3] uint32, fps, codec)`.
 #[pyfunction]
-fn decode<'py>(py: Python<'py>, data: &[u8]) -> PyResult<(Bound<'py, PyTuple>, &'static str)> {
+#[pyo3(signature = (data, max_memory=None, max_work=None))]
+fn decode<'py>(
+    py: Python<'py>,
+    data: &Bound<'py, PyAny>,
+    max_memory: Option<u64>,
+    max_work: Option<u64>,
+) -> PyResult<(Bound<'py, PyTuple>, &'static str)> {
+    let limits = limits_from(max_memory, max_work)?;
+    let source = Source::from_py(data)?;
     let (animation, codec) = py
-        .detach(|| -> Result<_, codec_core::Error> {
-            let decoder = StreamDecoder::new(data, registry(), Limits::default())?;
-            let codec = decoder.codec_name();
-            Ok((decoder.decode_all()?, codec))
+        .detach(|| {
+            source.read(|src| {
+                let decoder = StreamDecoder::new(src, registry(), limits)?;
+                let codec = decoder.codec_name();
+                Ok((decoder.decode_all()?, codec))
+            })
         })
         .map_err(to_py)?;
     Ok((animation_to_py(py, animation)?, codec))
 }
 
-/// Decodes frame `t` alone (through the index, from the nearest keyframe): `positions[V, 3]`.
+/// Decodes frame `t` alone (through the index, from the nearest keyframe), within the limits
+/// as [`decode`]: `positions[V, 3]`.
 #[pyfunction]
-fn decode_frame<'py>(py: Python<'py>, data: &[u8], t: usize) -> PyResult<Bound<'py, PyArray2<f32>>> {
+#[pyo3(signature = (data, t, max_memory=None, max_work=None))]
+fn decode_frame<'py>(
+    py: Python<'py>,
+    data: &Bound<'py, PyAny>,
+    t: usize,
+    max_memory: Option<u64>,
+    max_work: Option<u64>,
+) -> PyResult<Bound<'py, PyArray2<f32>>> {
+    let limits = limits_from(max_memory, max_work)?;
+    let source = Source::from_py(data)?;
     let frame = py
-        .detach(|| codec_core::decode_frame(&mut Cursor::new(data), registry(), Limits::default(), t))
+        .detach(|| source.read(|mut src| codec_core::decode_frame(&mut src, registry(), limits, t)))
         .map_err(to_py)?;
     let v = frame.len() / 3;
     PyArray1::from_vec(py, frame).reshape([v, 3])
 }
 
-/// What a container holds, every checksum verified — `animcodec info --json`.
+/// What a container holds, every checksum verified — `animcodec info --json` — within the
+/// limits as [`decode`].
 #[pyfunction]
-fn info(py: Python<'_>, data: &[u8]) -> PyResult<Py<PyAny>> {
-    let (header, index) = describe::read_verified(&mut Cursor::new(data), Limits::default()).map_err(to_py)?;
+#[pyo3(signature = (data, max_memory=None, max_work=None))]
+fn info<'py>(
+    py: Python<'py>,
+    data: &Bound<'py, PyAny>,
+    max_memory: Option<u64>,
+    max_work: Option<u64>,
+) -> PyResult<Py<PyAny>> {
+    let limits = limits_from(max_memory, max_work)?;
+    let source = Source::from_py(data)?;
+    let (header, index) = source.read(|mut src| describe::read_verified(&mut src, limits)).map_err(to_py)?;
     value_to_py(py, &describe::info_json(registry(), &header, &index))
 }
 
@@ -560,18 +707,21 @@ fn evaluate<'py>(
     value_to_py(py, &value)
 }
 
-/// Reads an animation file (or `synth:NAME[:SIZE]`, or an `.anim` stream, decoded):
-/// `(positions, faces, fps)`.
+/// Reads an animation file (or `synth:NAME[:SIZE]`, or an `.anim` stream, decoded within the
+/// limits as [`decode`]): `(positions, faces, fps)`.
 #[pyfunction]
-#[pyo3(signature = (path, topology=None, fps=None, animation=None))]
+#[pyo3(signature = (path, topology=None, fps=None, animation=None, max_memory=None, max_work=None))]
 fn load<'py>(
     py: Python<'py>,
     path: &str,
     topology: Option<PathBuf>,
     fps: Option<f32>,
     animation: Option<String>,
+    max_memory: Option<u64>,
+    max_work: Option<u64>,
 ) -> PyResult<Bound<'py, PyTuple>> {
-    let animation = py.detach(|| load_input(path, topology, fps, animation)).map_err(to_py)?;
+    let limits = limits_from(max_memory, max_work)?;
+    let animation = py.detach(|| load_input(path, topology, fps, animation, limits)).map_err(to_py)?;
     animation_to_py(py, animation)
 }
 
@@ -716,9 +866,12 @@ fn sweep_local<'py>(py: Python<'py>, sweep: LocalSweep<'py>) -> PyResult<Py<PyAn
     let total = harness::sweep_jobs(&series, options.points).len();
     let done = std::sync::atomic::AtomicUsize::new(0);
     // Called from the sweep's worker threads (the GIL released around the sweep), each taking
-    // the GIL for the call; a callback that raises is reported as unraisable and the sweep goes on.
+    // the GIL for the call; a callback that raises stops the sweep and is raised ([`Callback`]).
+    let callback = Callback::new(progress);
     let report = |event: harness::SweepEvent<'_>| {
-        let Some(cb) = &progress else { return };
+        if callback.callable.is_none() {
+            return;
+        }
         let (kind, series, step) = match event {
             harness::SweepEvent::Started { series, step } => ("started", series, step),
             harness::SweepEvent::Finished { series, step } => {
@@ -727,31 +880,24 @@ fn sweep_local<'py>(py: Python<'py>, sweep: LocalSweep<'py>) -> PyResult<Py<PyAn
             }
             harness::SweepEvent::Planned(_) => return,
         };
-        let row = serde_json::json!({
+        callback.call(&serde_json::json!({
             "event": kind,
             "series": series,
             "ladder_index": step,
             "done": done.load(std::sync::atomic::Ordering::Relaxed),
             "total": total,
-        });
-        Python::attach(|py| {
-            if let Err(e) = value_to_py(py, &row).and_then(|arg| cb.call1(py, (arg,))) {
-                e.write_unraisable(py, None);
-            }
-        });
+        }));
     };
     let given = arrays.map(|(positions, faces, fps)| animation_from(&positions, &faces, fps)).transpose()?;
-    let (animation, result, seconds) = py
-        .detach(|| -> Result<_, BoxError> {
-            let animation = match given {
-                Some(a) => a,
-                None => load_input(&input, topology, fps, gltf_animation)?,
-            };
-            let start = Instant::now();
-            let result = harness::sweep(registry, &series, &animation, &options, &report)?;
-            Ok((animation, result, start.elapsed().as_secs_f64()))
-        })
-        .map_err(to_py)?;
+    let (animation, result, seconds) = callback.run(py, || -> Result<_, BoxError> {
+        let animation = match given {
+            Some(a) => a,
+            None => load_input(&input, topology, fps, gltf_animation, Limits::default())?,
+        };
+        let start = Instant::now();
+        let result = harness::sweep(registry, &series, &animation, &options, &report)?;
+        Ok((animation, result, start.elapsed().as_secs_f64()))
+    })?;
     let document = SweepDocument {
         total_seconds: Some(seconds),
         jobs: Some(jobs.map_or_else(|| "rayon".into(), |j| j.into())),
@@ -1009,6 +1155,8 @@ fn assemble_blocks<'py>(
 #[pymodule]
 fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("AnimcodecError", m.py().get_type::<AnimcodecError>())?;
+    m.add("DEFAULT_MAX_MEMORY", codec_core::limits::DEFAULT_MAX_MEMORY)?;
+    m.add("DEFAULT_MAX_WORK", codec_core::limits::DEFAULT_MAX_WORK)?;
     m.add_function(wrap_pyfunction!(codecs, m)?)?;
     m.add_function(wrap_pyfunction!(encode, m)?)?;
     m.add_function(wrap_pyfunction!(encode_to_target, m)?)?;

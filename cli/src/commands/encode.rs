@@ -100,7 +100,10 @@ pub fn run(args: &EncodeArgs, limits: Limits) -> CmdResult {
 
     let read_start = Instant::now();
     let mut source = match parse_streamed_flag(&args.input)? {
-        Some((cols, rows, frames)) => Source::Flag { cols, rows, frames },
+        Some((cols, rows, frames)) => {
+            check_flag_memory(&args.input, cols, rows, args.memory)?;
+            Source::Flag { cols, rows, frames }
+        }
         None => {
             let options = ReadOptions {
                 topology: args.topology.clone(),
@@ -272,6 +275,31 @@ pub(crate) fn parse_streamed_flag(input: &str) -> CmdResult<Option<(usize, usize
             "'{input}': expected synth:flag:COLSxROWSxFRAMES with COLS, ROWS ≥ 2, FRAMES ≥ 1 and COLS×ROWS < 2^32"
         )
         .into()),
+    }
+}
+
+/// Bytes a streamed `synth:flag:COLSxROWSxFRAMES` encode holds per vertex of the flag, whatever
+/// its frame count: the mesh (its triangles, and their connectivity coding for the container
+/// header) is held while only the frames are generated one at a time. Measured (issue 41, peak
+/// RSS of `encode synth:flag:CxRx2 -c quant-delta -p bits=8`): 126 MB at 500×500, 420 MB at
+/// 1000×1000, 3.7 GB at 3000×3000.
+const FLAG_MESH_BYTES_PER_VERTEX: u64 = 420;
+
+/// Refuses a streamed flag whose mesh alone needs more than `--memory` (issue 41: the help said
+/// the input is never held, and `synth:flag:3000x3000x2` took 3.7 GB).
+fn check_flag_memory(input: &str, cols: usize, rows: usize, memory: Option<u64>) -> CmdResult {
+    let vertices = cols as u64 * rows as u64;
+    let need = vertices.saturating_mul(FLAG_MESH_BYTES_PER_VERTEX);
+    match memory {
+        Some(budget) if need > budget => Err(format!(
+            "{input}: its mesh alone holds about {} MiB ({vertices} vertices × {FLAG_MESH_BYTES_PER_VERTEX} bytes: \
+             the triangles and their connectivity coding; only the frames are generated one at a time), more than \
+             --memory {} MiB",
+            need >> 20,
+            budget >> 20
+        )
+        .into()),
+        _ => Ok(()),
     }
 }
 

@@ -13,16 +13,18 @@ use metrics::EvalOptions;
 use serde_json::json;
 
 use super::eval::{load_any, sted_params};
-use super::{emit, emit_json, CmdResult, WithContext};
+use super::{emit, emit_json, shown, CmdResult, WithContext};
 use crate::ExportArgs;
 
 /// Runs `export`.
 pub fn run(args: &ExportArgs, limits: Limits) -> CmdResult {
+    // A missing folder is refused before the (possibly minute-long) export, not after it.
+    animcodec::output::folder_exists(&args.output)?;
     let ext = args.output.extension().map(|e| e.to_string_lossy().to_ascii_lowercase());
     let glb = match ext.as_deref() {
         Some("glb") => true,
         Some("gltf") => false,
-        _ => return Err(format!("{}: export writes .glb or .gltf", args.output.display()).into()),
+        _ => return Err(format!("{}: export writes .glb or .gltf", shown(&args.output)).into()),
     };
     let mut policy = OutputPolicy::new(args.force).with_input(&args.input);
     if let Some(t) = &args.topology {
@@ -32,7 +34,7 @@ pub fn run(args: &ExportArgs, limits: Limits) -> CmdResult {
     let eval = EvalOptions { sted: sted_params(&args.sted)?, compute_hausdorff: false, ..EvalOptions::default() };
     let read = ReadOptions { topology: args.topology.clone(), frame_rate: args.fps, animation: args.animation.clone() };
     let stages = crate::progress::Stages::new("export", 4, args.json);
-    stages.stage(format!("reading {}", args.input));
+    stages.stage(format!("reading {}", shown(&args.input)));
     let animation = load_any(&args.input, &read, limits)?;
     // The files the read opened (a .gltf's buffers, …) are inputs too: refused before the work.
     policy.check(&args.output)?;
@@ -77,14 +79,14 @@ pub fn run(args: &ExportArgs, limits: Limits) -> CmdResult {
     // What an engine plays: the file's bytes read back by our own glTF reader and measured,
     // before they replace anything (a file that fails either is never written).
     stages.stage("reading the glTF back and measuring it as played");
-    let mut played = gltf::parse_gltf(&bytes, None, &args.output.display().to_string(), animation.frame_rate())
+    let mut played = gltf::parse_gltf(&bytes, None, &shown(&args.output), animation.frame_rate())
         .context(|| "the glTF written does not read back".to_owned())?;
     if let Some(map) = &summary.vertex_map {
         played = restore_vertices(&played, map, animation.triangles())?;
     }
     let report = metrics::evaluate(&animation, &played, &eval)
-        .context(|| format!("comparing {} with {} as played back", args.input, args.output.display()))?;
-    stages.stage(format!("writing {}", args.output.display()));
+        .context(|| format!("comparing {} with {} as played back", shown(&args.input), shown(&args.output)))?;
+    stages.stage(format!("writing {}", shown(&args.output)));
     policy.write(&args.output, &bytes)?;
     drop(stages);
     let rate = metrics::bpvf(bytes.len() as u64, animation.vertex_count(), animation.frame_count())?;
@@ -112,11 +114,11 @@ pub fn run(args: &ExportArgs, limits: Limits) -> CmdResult {
         "{input}: {f} frames × {v} vertices at {fps} fps → {out}\n\
          {layout} layout, {k} morph targets{rigid}, {bytes} bytes, {rate:.3} bits/vertex/frame (written in {seconds:.2} s)\n\
          played back (read with animcodec's glTF reader at {fps} fps): KG {kg} %, STED {sted}, max error {max:.4e}\n",
-        input = args.input,
+        input = shown(&args.input),
         f = animation.frame_count(),
         v = animation.vertex_count(),
         fps = animation.frame_rate(),
-        out = args.output.display(),
+        out = shown(&args.output),
         layout = args.layout,
         k = summary.targets,
         rigid = if summary.rigid { " + rigid motion as node animation" } else { "" },

@@ -29,7 +29,55 @@ pub type CmdResult<T = ()> = Result<T, Box<dyn StdError + Send + Sync>>;
 /// Prints `error: <message>` followed by each `source()` not already part of the message,
 /// on one line ([`codec_core::error::message_with_sources`]).
 pub fn report_error(e: &(dyn StdError + 'static)) {
-    let _ = writeln!(std::io::stderr(), "error: {}", codec_core::error::message_with_sources(e));
+    let message = codec_core::error::message_with_sources(e);
+    let _ = writeln!(std::io::stderr(), "error: {}", terminal_safe(&message));
+}
+
+/// A path (or any other name that came from the user or a file) as it is printed: control
+/// characters — terminal escape sequences, newlines, carriage returns, … — written as Rust
+/// escapes (`\u{1b}`, `\n`), so a crafted file name can neither drive the terminal nor fake a
+/// line of output (issue 41). Every path a command prints goes through it.
+pub fn shown(name: impl AsRef<std::ffi::OsStr>) -> String {
+    let text = name.as_ref().to_string_lossy();
+    if !text.chars().any(char::is_control) {
+        return text.into_owned();
+    }
+    text.chars().map(|c| if c.is_control() { c.escape_default().to_string() } else { c.to_string() }).collect()
+}
+
+/// `text` with every control character but newline and tab escaped as [`shown`] does: the
+/// last guard of everything written to the terminal ([`emit`], [`report_error`]), for names a
+/// library put into a message (its own path, a glTF animation's name, …).
+pub fn terminal_safe(text: &str) -> std::borrow::Cow<'_, str> {
+    let unsafe_char = |c: char| c.is_control() && c != '\n' && c != '\t';
+    if !text.chars().any(unsafe_char) {
+        return text.into();
+    }
+    text.chars().map(|c| if unsafe_char(c) { c.escape_default().to_string() } else { c.to_string() }).collect()
+}
+
+/// Most worker threads `--threads` and `sweep --jobs` accept: 4 × the cores this process may
+/// use, at least 8. More threads than cores make nothing faster (the output never depends on
+/// the count), and thousands of them took minutes to start and hold gigabytes (issue 41:
+/// `--threads 65535`, `sweep --jobs 5000` ran past 60 s on trivial inputs).
+pub fn max_workers() -> u32 {
+    let cores = std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get);
+    u32::try_from(cores.saturating_mul(4)).unwrap_or(u32::MAX).max(8)
+}
+
+/// Parses a worker count for `--threads` and `--jobs`: 1 ..= [`max_workers`].
+pub fn parse_workers(text: &str) -> Result<u32, String> {
+    let n: u32 = text.trim().parse().map_err(|_| format!("'{text}' is not a positive number of threads"))?;
+    let max = max_workers();
+    match n {
+        0 => Err("0 threads: give at least 1".to_owned()),
+        n if n > max => Err(format!(
+            "{n} threads is more than this machine allows ({max}: 4 × its {} cores, at least 8); more threads than \
+             cores make nothing faster (the output is the same at any count) and thousands take minutes to start",
+            std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get)
+        )),
+        n => Ok(n),
+    }
 }
 
 /// An error with what was being done (usually the file concerned) in front of it.
@@ -93,6 +141,7 @@ pub fn parse_fps(text: &str) -> Result<f32, String> {
 /// Writes `text` to stdout. A closed pipe (`animcodec list | head`) ends output quietly
 /// instead of panicking as `println!` would.
 pub fn emit(text: &str) -> CmdResult {
+    let text = terminal_safe(text);
     let mut out = std::io::stdout().lock();
     match out.write_all(text.as_bytes()).and_then(|()| out.flush()) {
         Err(e) if e.kind() != std::io::ErrorKind::BrokenPipe => Err(Box::new(e)),
@@ -201,6 +250,19 @@ mod tests {
         for bad in ["0", "-3", "nan", "inf", "x", "1e-45", "1e5", "0.0009"] {
             assert!(parse_fps(bad).is_err(), "{bad}");
         }
+    }
+
+    #[test]
+    fn printed_names_escape_control_characters() {
+        assert_eq!(shown("plain/dir/a.pc2"), "plain/dir/a.pc2");
+        assert_eq!(shown("x\x1b[31mRED\x1b[0m.pc2"), "x\\u{1b}[31mRED\\u{1b}[0m.pc2");
+        assert_eq!(shown("two\nlines\r.obj"), "two\\nlines\\r.obj");
+        assert_eq!(terminal_safe("a\tb\nc\x07d\x1b"), "a\tb\nc\\u{7}d\\u{1b}");
+        assert!(parse_workers("0").is_err() && parse_workers("x").is_err());
+        assert_eq!(parse_workers("1"), Ok(1));
+        assert_eq!(parse_workers(&max_workers().to_string()), Ok(max_workers()));
+        let e = parse_workers("65535").unwrap_err();
+        assert!(e.contains("65535 threads") && e.contains("cores"), "{e}");
     }
 
     #[test]

@@ -5,7 +5,7 @@ use animcodec::formats::{self, WriteOptions};
 use animcodec::output::OutputPolicy;
 use codec_core::synth;
 
-use super::{emit, CmdResult};
+use super::{emit, shown, CmdResult};
 use crate::SynthArgs;
 
 /// Runs `synth`.
@@ -24,7 +24,7 @@ pub fn run(args: &SynthArgs) -> CmdResult {
         animation.vertex_count(),
         animation.triangles().len(),
         animation.frame_rate(),
-        args.output.display()
+        shown(&args.output)
     ))
 }
 
@@ -34,7 +34,7 @@ fn run_streamed_flag(args: &SynthArgs, cols: usize, rows: usize, frames: usize) 
     if !is_streamable_output(&args.output) {
         return Err(format!(
             "{}: flag:COLSxROWSxFRAMES is written frame by frame, to a .pc2 or .mdd file only",
-            args.output.display()
+            shown(&args.output)
         )
         .into());
     }
@@ -52,6 +52,6 @@ fn run_streamed_flag(args: &SynthArgs, cols: usize, rows: usize, frames: usize) 
         topology.vertex_count(),
         topology.triangle_count(),
         synth::FRAME_RATE,
-        args.output.display()
+        shown(&args.output)
     ))
 }

@@ -14,7 +14,7 @@ use serde_json::{json, Value};
 
 use super::encode::parse_params;
 use super::eval::{load_any, sted_params};
-use super::{emit, CmdResult, WithContext};
+use super::{emit, shown, CmdResult, WithContext};
 use crate::ViewArgs;
 
 /// A candidate as loaded: its label, the decoded animation and what the header shows.
@@ -27,6 +27,8 @@ struct Loaded {
 /// Runs `view`.
 pub fn run(args: &ViewArgs, limits: Limits) -> CmdResult {
     let start = Instant::now();
+    // A missing folder is refused before the (possibly long) loading and encoding.
+    animcodec::output::folder_exists(&args.output)?;
     // The page is checked before the (possibly long) loading and encoding.
     let mut policy = OutputPolicy::new(args.force).with_input(&args.reference);
     for c in args.candidates.iter().filter(|c| Path::new(c).exists()) {
@@ -40,14 +42,14 @@ pub fn run(args: &ViewArgs, limits: Limits) -> CmdResult {
     let read = ReadOptions { topology: args.topology.clone(), frame_rate: None, animation: args.animation.clone() };
     // Stages: the reference, each candidate, the measurements, the page.
     let stages = crate::progress::Stages::new("view", 3 + args.candidates.len() as u64, false);
-    stages.stage(format!("reading {}", args.reference));
+    stages.stage(format!("reading {}", shown(&args.reference)));
     let reference = load_any(&args.reference, &read, limits)?;
     let sted = sted_params(&args.sted)?;
     let mut loaded = Vec::new();
     // --animation chooses the reference's animation; a glTF candidate plays its first.
     let read_candidate = ReadOptions { animation: None, ..read };
     for spec in &args.candidates {
-        stages.stage(format!("candidate {spec}"));
+        stages.stage(format!("candidate {}", shown(spec)));
         loaded.push(load_candidate(&registry, spec, &reference, &read_candidate, limits)?);
     }
     // The files the read opened (a .gltf's buffers, …) are inputs too: refused before the work.
@@ -57,7 +59,7 @@ pub fn run(args: &ViewArgs, limits: Limits) -> CmdResult {
     let mut candidates = Vec::new();
     for c in &loaded {
         let report = metrics::evaluate(&reference, &c.animation, &eval)
-            .context(|| format!("comparing {} with {}", args.reference, c.label))?;
+            .context(|| format!("comparing {} with {}", shown(&args.reference), shown(&c.label)))?;
         candidates.push(Candidate {
             label: c.label.clone(),
             animation: &c.animation,
@@ -80,7 +82,7 @@ pub fn run(args: &ViewArgs, limits: Limits) -> CmdResult {
     drop(stages);
     emit(&format!(
         "{}: reference + {} candidate(s), {} frames × {} vertices, heat {} up to {:.4e}; {} bytes written in {:.2} s\n",
-        args.output.display(),
+        shown(&args.output),
         candidates.len(),
         reference.frame_count(),
         reference.vertex_count(),
@@ -124,9 +126,9 @@ fn load_candidate(
         // One pass over the stream: its codec from the header, then its frames.
         let size = std::fs::metadata(spec).map(|m| m.len()).unwrap_or(0);
         let decoder =
-            StreamDecoder::new(super::decode::open(Path::new(spec))?, registry, limits).context(|| spec.to_string())?;
+            StreamDecoder::new(super::decode::open(Path::new(spec))?, registry, limits).context(|| shown(spec))?;
         let codec = decoder.codec_name();
-        let animation = decoder.decode_all().context(|| spec.to_string())?;
+        let animation = decoder.decode_all().context(|| shown(spec))?;
         let info = json!({
             "codec": codec,
             "params": "not stored in the stream",

@@ -676,10 +676,20 @@ fn basis_geometry(a: &Animation, options: &GltfOptions) -> Result<Vec<Geometry>>
     if options.compress && a.frame_count() > 1 {
         let limit = options.targets.unwrap_or(usize::MAX);
         let pca = gltf_out_rd::pca(a)?;
-        let mut out = vec![Geometry::Quantized(gltf_out_rd::quantized_basis(a, &pca, options.target_kg, limit)?)];
-        if options.targets.is_none() {
-            let differences = gltf_out_rd::differences(a);
-            out.push(Geometry::Quantized(gltf_out_rd::quantized_basis(a, &differences, options.target_kg, limit)?));
+        let kg = options.target_kg;
+        let mut out = vec![Geometry::Quantized(gltf_out_rd::quantized_basis(a, &pca, kg, (limit, limit))?)];
+        match options.targets {
+            None => {
+                let differences = gltf_out_rd::differences(a);
+                out.push(Geometry::Quantized(gltf_out_rd::quantized_basis(a, &differences, kg, (limit, limit))?));
+            }
+            // `targets` counts every target written (issue 41: K components plus the base's
+            // residual made K + 1): K components, or K − 1 and the residual, whichever plays
+            // closer.
+            Some(k) if k > 0 => {
+                out.push(Geometry::Quantized(gltf_out_rd::quantized_basis(a, &pca, kg, (k - 1, k))?));
+            }
+            Some(_) => {}
         }
         Ok(out)
     } else {
@@ -913,10 +923,11 @@ mod tests {
             assert!(s.targets >= last);
             last = s.targets;
         }
-        // Compressed: 3 components (+ the base's residual target); uncompressed: exactly 3.
+        // Exactly 3 targets: compressed, 3 components or 2 and the base's residual (whichever
+        // plays closer); uncompressed, 3 components.
         let (_, s) = encode_gltf(&a, &GltfOptions { targets: Some(3), ..Default::default() }, true).unwrap();
-        assert_eq!(s.components, 3);
-        assert!(s.targets == 3 || s.targets == 4, "{s:?}");
+        assert!(s.components == 3 || s.components == 2, "{s:?}");
+        assert_eq!(s.targets, 3, "--targets K writes K targets in all, the base's residual included: {s:?}");
         let plain = GltfOptions { targets: Some(3), compress: false, ..Default::default() };
         assert_eq!(encode_gltf(&a, &plain, true).unwrap().1.targets, 3);
         let e = encode_gltf(&a, &GltfOptions { target_kg: 0.0, ..Default::default() }, true).unwrap_err();

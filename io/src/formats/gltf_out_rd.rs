@@ -176,9 +176,10 @@ fn round_i16(x: f64) -> i16 {
     x.round().clamp(-32767.0, 32767.0) as i16
 }
 
-/// Quantizes at distortion level `d` (see the module comment); `exact` also computes the KG
-/// the integers play (else only the estimate).
-fn quantize_at(a: &Animation, p: &Pca, units: &[Unit], d: f64, exact: bool) -> QBasis {
+/// Quantizes at distortion level `d` (see the module comment), writing at most `max_targets`
+/// targets (the base's residual only when a component left room for it); `exact` also computes
+/// the KG the integers play (else only the estimate).
+fn quantize_at(a: &Animation, p: &Pca, units: &[Unit], d: f64, max_targets: usize, exact: bool) -> QBasis {
     let (frames, n) = (p.coeffs.nrows(), p.mean.len());
     // Steps; a component whose reach rounds to zero is dropped.
     let mut kept = Vec::new();
@@ -235,7 +236,7 @@ fn quantize_at(a: &Animation, p: &Pca, units: &[Unit], d: f64, exact: bool) -> Q
     }
     let components = targets.len();
     let mut base_err = 0.0;
-    if scale > base_step * (1.0 + 1e-9) {
+    if targets.len() < max_targets && scale > base_step * (1.0 + 1e-9) {
         let values: Vec<[i16; 3]> = base
             .chunks_exact(3)
             .zip(&base_int)
@@ -309,11 +310,17 @@ fn played_error(a: &Animation, q: &QBasis) -> f64 {
 }
 
 /// The quantized basis meeting `target_kg` (KG %) with the fewest bytes this scheme finds,
-/// using at most `limit` components: the distortion level is bisected on the estimate, then
-/// the exact KG is checked and the aim lowered until it holds (at most a few rounds; the
-/// finest quantization is returned when even that misses).
-pub(super) fn quantized_basis(a: &Animation, p: &Pca, target_kg: f64, limit: usize) -> Result<QBasis> {
-    let units = units(p, limit);
+/// using at most `components` components and `targets` targets in all (components and the
+/// base's residual): the distortion level is bisected on the estimate, then the exact KG is
+/// checked and the aim lowered until it holds (at most a few rounds; the finest quantization is
+/// returned when even that misses).
+pub(super) fn quantized_basis(
+    a: &Animation,
+    p: &Pca,
+    target_kg: f64,
+    (components, targets): (usize, usize),
+) -> Result<QBasis> {
+    let units = units(p, components);
     let diag = a.bounding_box_diagonal().max(f64::MIN_POSITIVE);
     let mut aim = target_kg;
     let mut best: Option<QBasis> = None;
@@ -322,13 +329,13 @@ pub(super) fn quantized_basis(a: &Animation, p: &Pca, target_kg: f64, limit: usi
         let (mut lo, mut hi) = ((diag * 1e-9).ln(), diag.ln());
         for _ in 0..40 {
             let mid = 0.5 * (lo + hi);
-            if quantize_at(a, p, &units, mid.exp(), false).estimate <= aim {
+            if quantize_at(a, p, &units, mid.exp(), targets, false).estimate <= aim {
                 lo = mid;
             } else {
                 hi = mid;
             }
         }
-        let q = quantize_at(a, p, &units, lo.exp(), true);
+        let q = quantize_at(a, p, &units, lo.exp(), targets, true);
         if !q.kg.is_finite() {
             return Err(Error::InvalidAnimation("glTF export: the quantized basis is not finite".into()));
         }
@@ -358,7 +365,7 @@ mod tests {
         let a = synth::waving_flag(16, 10, 30);
         let mut last = usize::MAX;
         for t in [1.0, 0.1, 0.01] {
-            let q = quantized_basis(&a, &pca(&a).unwrap(), t, usize::MAX).unwrap();
+            let q = quantized_basis(&a, &pca(&a).unwrap(), t, (usize::MAX, usize::MAX)).unwrap();
             assert!(q.kg <= t, "target {t}: exact KG {}", q.kg);
             assert!((q.estimate - q.kg).abs() <= 0.2 * t, "target {t}: estimate {} exact {}", q.estimate, q.kg);
             assert!(q.weights.iter().all(|w| (0.0..=1.0).contains(w)));
