@@ -108,9 +108,9 @@ fn default_encodes_hold_the_quality_on_every_part() {
             let e = ok_json(&["eval", &input, &out, "--json", "--no-sted", "--no-hausdorff"]);
             let worst = &e["worst_part"];
             assert!(e["parts"].as_u64().unwrap() >= 2, "{e}");
-            assert_eq!(worst["first_vertex"], 0, "{name} -c {codec}: the body is the worst part: {e}");
             let kg = number(worst, "kg");
-            assert!(kg <= DEFAULT_TARGET.value, "{name} -c {codec}: the body decodes at KG {kg} %: {e}");
+            // The worst part (the body, or the static part when the body is coded finer) meets it.
+            assert!(kg <= DEFAULT_TARGET.value, "{name} -c {codec}: a part decodes at KG {kg} %: {e}");
             assert!(number(&e, "kg") <= kg, "{e}");
             // The encode's own figures are these.
             assert_eq!(number(&encoded, "worst_part_kg"), kg, "{name} -c {codec}: {encoded}");
@@ -239,20 +239,30 @@ fn isolated_vertices_are_points_to_hausdorff() {
     assert!(number(&e, "hausdorff") <= 0.01, "{e}");
 }
 
-/// 10f: a static pose (two equal frames) encodes at the default quality with hosvd; every
-/// part is measured against its spatial spread, which a static pose has.
+/// 10f: a static pose. With a dozen frames every codec encodes it at the default quality (each
+/// part is measured against its spatial spread, which a static pose has). With two frames hosvd
+/// cannot code it at any ladder step; the error says so and which codec to use, instead of "kg
+/// is undefined for this input" (it is defined); `-c auto` and the other codecs encode it.
 #[test]
 fn a_static_pose_encodes_by_default() {
     let s = Scratch::new("round4-parts-static");
     let (b, tris) = body(10, 1);
     let frame: Vec<f32> = b[0].iter().flatten().copied().collect();
-    let a = Animation::from_parts(100, tris, [frame.clone(), frame].concat(), 30.0).unwrap();
-    let input = write(&s, "pose", &a);
-    for codec in ["hosvd", "pca-aoi", "quant-delta", "stseg", "auto"] {
-        let out = s.path(&format!("pose.{codec}.anim"));
-        let o = animcodec(&["encode", &input, "-c", codec, "-o", &out, "-f"]);
-        assert!(o.status.success(), "-c {codec}: {}", stderr(&o));
-        let e = ok_json(&["eval", &input, &out, "--json", "--no-sted", "--no-hausdorff"]);
-        assert!(number(&e, "kg") <= DEFAULT_TARGET.value, "-c {codec}: {e}");
+    for frames in [2usize, 12] {
+        let a = Animation::from_parts(100, tris.clone(), frame.repeat(frames), 30.0).unwrap();
+        let input = write(&s, &format!("pose{frames}"), &a);
+        for codec in ["hosvd", "pca-aoi", "quant-delta", "stseg", "auto"] {
+            let out = s.path(&format!("pose{frames}.{codec}.anim"));
+            let args = ["encode", input.as_str(), "-c", codec, "-o", out.as_str(), "-f"];
+            if frames == 2 && codec == "hosvd" {
+                let err = fails(&args, &["the codec refused every candidate", "quant-delta"]);
+                assert!(!err.contains("undefined"), "{err}");
+                continue;
+            }
+            let o = animcodec(&args);
+            assert!(o.status.success(), "{frames} frames -c {codec}: {}", stderr(&o));
+            let e = ok_json(&["eval", &input, &out, "--json", "--no-sted", "--no-hausdorff"]);
+            assert!(number(&e, "kg") <= DEFAULT_TARGET.value, "{frames} frames -c {codec}: {e}");
+        }
     }
 }
