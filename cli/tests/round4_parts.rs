@@ -196,7 +196,18 @@ fn sweeps_and_the_viewer_carry_the_worst_part() {
     let input = write(&s, "ground", &a);
     let (json, csv) = (s.path("s.json"), s.path("s.csv"));
     let text = ok(&[
-        "sweep", &input, "-c", "quant-delta", "--ladder", "--points", "2", "--no-sted", "--json", &json, "--csv", &csv,
+        "sweep",
+        &input,
+        "-c",
+        "quant-delta",
+        "--ladder",
+        "--points",
+        "2",
+        "--no-sted",
+        "--json",
+        &json,
+        "--csv",
+        &csv,
     ]);
     assert!(text.contains("part kg (%)"), "{text}");
     let doc: Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();

@@ -24,7 +24,10 @@ pub mod sted;
 pub use bpvf::{bpvf, geometry_bpvf};
 pub use common::check_compatible;
 pub use displacement::{displacement_stats, kg_error, per_vertex_displacement, DisplacementStats, VertexDisplacement};
-pub use hausdorff::{hausdorff, isolated_vertex_count, point_triangle_distance, vertex_to_surface_distances, HausdorffMode, HausdorffStats};
+pub use hausdorff::{
+    hausdorff, isolated_vertex_count, point_triangle_distance, vertex_to_surface_distances, HausdorffMode,
+    HausdorffStats,
+};
 pub use parts::{connected_parts, part_errors, worst_part, PartError, Parts, NO_PART, PART_SPREAD_FLOOR};
 pub use report::{evaluate, EvalOptions, MetricReport};
 pub use sted::{diameter, sted, sted_local_deviations, sted_with_fields, EdgeDifference, StedParams, StedResult};

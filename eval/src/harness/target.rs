@@ -193,7 +193,11 @@ impl fmt::Display for TargetMiss {
             // Nothing measured because the codec refused every candidate: the metric is not
             // undefined, the codec said why (issue 41, 10f).
             None if !self.refused.is_empty() => {
-                write!(f, "{}: no rate-ladder point meets {}: the codec refused every candidate", self.codec, self.target)
+                write!(
+                    f,
+                    "{}: no rate-ladder point meets {}: the codec refused every candidate",
+                    self.codec, self.target
+                )
             }
             None => write!(
                 f,
