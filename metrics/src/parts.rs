@@ -169,8 +169,7 @@ pub fn part_errors(reference: &Animation, candidate: &Animation) -> Result<(Part
             for t in b * per_block..((b + 1) * per_block).min(frames) {
                 let (fa, fb) = (reference.frame(t), candidate.frame(t));
                 centre.fill([0.0; 3]);
-                for v in 0..n {
-                    let l = label[v];
+                for (v, &l) in label.iter().enumerate() {
                     if l == NO_PART {
                         continue;
                     }
@@ -185,8 +184,7 @@ pub fn part_errors(reference: &Animation, candidate: &Animation) -> Result<(Part
                         *ck /= s as f64;
                     }
                 }
-                for v in 0..n {
-                    let l = label[v];
+                for (v, &l) in label.iter().enumerate() {
                     if l == NO_PART {
                         continue;
                     }
