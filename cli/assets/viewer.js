@@ -76,6 +76,8 @@ function headerLines(anim) {
   if (anim.metrics) {
     const m = anim.metrics;
     lines.push(`KG ${fmt(m.kg)} % · STED ${fmt(m.sted)} · Hausdorff ${fmt(m.hausdorff)} · RMSE ${fmt(m.rmse)}`);
+    // Issue 41: with several parts, the worst one's KG against its own spread.
+    if (m.parts > 1) lines.push(`worst of ${m.parts} parts: KG ${fmt(m.worst_part_kg)} % of its own spread`);
   }
   return lines;
 }
@@ -486,7 +488,7 @@ async function mountReport(root, data, THREE, OrbitControls) {
       dot.addEventListener('mouseenter', (ev) => {
         tip.textContent = `${r.series || r.codec}${onEnvelope ? ' (on its lower envelope)' : ''}\n${JSON.stringify(r.params)}\n` +
           `${r.bytes} bytes, ${fmt(r.bpvf)} bpvf\n` +
-          `KG ${fmt(r.kg)} %, STED ${fmt(r.sted)}\nHausdorff ${fmt(r.hausdorff)}, MSE ${fmt(r.mse)}, RMSE ${fmt(r.rmse)}\n` +
+          `KG ${fmt(r.kg)} %${(r.parts || 0) > 1 ? ` (worst part ${fmt(r.worst_part_kg)} %)` : ''}, STED ${fmt(r.sted)}\nHausdorff ${fmt(r.hausdorff)}, MSE ${fmt(r.mse)}, RMSE ${fmt(r.rmse)}\n` +
           `max error ${fmt(r.max_error)}; encode ${fmt(r.encode_seconds, 3)} s, decode ${fmt(r.decode_seconds, 3)} s`;
         tip.style.display = 'block';
         tip.style.left = `${ev.pageX + 12}px`;
@@ -512,8 +514,10 @@ async function mountReport(root, data, THREE, OrbitControls) {
 
   function table() {
     const params = varyingParams();
-    const metrics = ['bytes', 'bpvf', 'kg', 'sted', 'hausdorff', 'rmse', 'max_error', 'encode_seconds', 'decode_seconds'];
-    const heads = { kg: 'KG (%)', sted: 'STED', max_error: 'max error', encode_seconds: 'enc s', decode_seconds: 'dec s' };
+    // The worst part's KG (issue 41) only when some row has several parts.
+    const parted = data.rows.some((r) => (r.parts || 0) > 1);
+    const metrics = ['bytes', 'bpvf', 'kg', ...(parted ? ['worst_part_kg'] : []), 'sted', 'hausdorff', 'rmse', 'max_error', 'encode_seconds', 'decode_seconds'];
+    const heads = { kg: 'KG (%)', worst_part_kg: 'worst part KG (%)', sted: 'STED', max_error: 'max error', encode_seconds: 'enc s', decode_seconds: 'dec s' };
     const t = el('table', { class: 'rows' });
     // Two header rows: the codec each group of parameter columns belongs to, then the names.
     const groups = [];

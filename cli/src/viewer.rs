@@ -181,6 +181,7 @@ pub fn viewer_data(reference: &Animation, candidates: &[Candidate<'_>], options:
             "info": c.info,
             "metrics": c.report.as_ref().map(|r| json!({
                 "kg": r.kg, "sted": r.sted, "hausdorff": r.hausdorff, "rmse": r.rmse, "max_error": r.max_error,
+                "parts": r.parts, "worst_part_kg": r.worst_part_kg(),
             })),
             "heat": pack(&heat_bytes(field)),
             "heat_largest": largest_here,

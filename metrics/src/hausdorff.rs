@@ -97,13 +97,37 @@ pub fn vertex_to_surface_distances(from: &[f32], to: &[f32], triangles: &[[u32; 
     Ok((0..n).map(|v| nearest2(&bvh, to, &tris, &inc, point(from, v), v).sqrt()).collect())
 }
 
-/// The triangle list to search, or one degenerate triangle per vertex for point clouds.
-fn surface_triangles(triangles: &[[u32; 3]], n: usize) -> (Vec<[u32; 3]>, HausdorffMode) {
-    if triangles.is_empty() {
-        ((0..n as u32).map(|v| [v, v, v]).collect(), HausdorffMode::PointToPoint)
-    } else {
-        (triangles.to_vec(), HausdorffMode::PointToTriangle)
+/// The triangle list to search: the mesh's triangles plus one degenerate triangle `[v, v, v]`
+/// per vertex in no triangle, so an isolated vertex is measured as the point it is (issue 41:
+/// without it, an isolated vertex of one frame was compared with the other frame's *surface*
+/// alone, and an animation measured against itself reported 40 % of its bounding box). For a
+/// point cloud (no triangles at all) every vertex is such a point.
+pub(crate) fn surface_triangles(triangles: &[[u32; 3]], n: usize) -> (Vec<[u32; 3]>, HausdorffMode) {
+    let mut used = vec![false; n];
+    for t in triangles {
+        for &i in t {
+            if let Some(u) = used.get_mut(i as usize) {
+                *u = true;
+            }
+        }
     }
+    let mut all = triangles.to_vec();
+    all.extend((0..n as u32).filter(|&v| !used[v as usize]).map(|v| [v, v, v]));
+    let mode = if triangles.is_empty() { HausdorffMode::PointToPoint } else { HausdorffMode::PointToTriangle };
+    (all, mode)
+}
+
+/// How many vertices are in no triangle (measured as points by [`hausdorff`]).
+pub fn isolated_vertex_count(triangles: &[[u32; 3]], n: usize) -> usize {
+    let mut used = vec![false; n];
+    for t in triangles {
+        for &i in t {
+            if let Some(u) = used.get_mut(i as usize) {
+                *u = true;
+            }
+        }
+    }
+    used.iter().filter(|u| !**u).count()
 }
 
 /// `max(floor, max_v d²(from_v, surface of to))`, exactly, with most searches skipped.
@@ -522,6 +546,28 @@ mod tests {
         // → every point has a zero-distance match.
         let s = Animation::from_parts(2, vec![], vec![3., 0., 0., 0., 0., 0.], 30.0).unwrap();
         assert_eq!(hausdorff(&r, &s).unwrap().max, 0.0);
+    }
+
+    /// Issue 41 (hausdorff-isolated): vertices in no triangle are points. An animation against
+    /// itself is at distance 0, and an isolated point moved by 0.25 far from the surface is at
+    /// 0.25 (it was compared with the other frame's surface alone: 40 % of the box).
+    #[test]
+    fn isolated_vertices_are_points() {
+        // A triangle near the origin and two free points at x = 10 and x = 20.
+        let f0 = [0., 0., 0., 1., 0., 0., 0., 1., 0., 10., 0., 0., 20., 0., 0.];
+        let tris = vec![[0, 1, 2]];
+        let r = Animation::from_parts(5, tris.clone(), [f0, f0].concat(), 30.0).unwrap();
+        let h = hausdorff(&r, &r).unwrap();
+        assert_eq!((h.max, h.mode), (0.0, HausdorffMode::PointToTriangle));
+        let mut moved = f0;
+        moved[10] = 0.25;
+        let c = Animation::from_parts(5, tris.clone(), [f0, moved].concat(), 30.0).unwrap();
+        let h = hausdorff(&r, &c).unwrap();
+        assert_eq!(h.per_frame[0], 0.0);
+        assert!(close(h.per_frame[1], 0.25), "{:?}", h.per_frame);
+        assert_eq!(isolated_vertex_count(&tris, 5), 2);
+        let d = vertex_to_surface_distances(&f0, &f0, &tris).unwrap();
+        assert!(d.iter().all(|&x| x == 0.0), "{d:?}");
     }
 
     /// BVH search against brute force on a bumpy grid with random-ish query points.

@@ -10,18 +10,24 @@
 //! * [`sted`] — Váša & Skala's spatio-temporal edge difference with [`StedParams`],
 //! * [`per_vertex_displacement`], [`sted_with_fields`] — per-vertex fields for heatmaps,
 //! * [`bpvf`] / [`geometry_bpvf`] — bits per vertex per frame from byte counts,
+//! * [`part_errors`] — the KG error of every connected part against its own spread (issue 41),
 //! * [`evaluate`] — everything at once as a serializable [`MetricReport`].
 
 pub mod bpvf;
 pub mod common;
 pub mod displacement;
 pub mod hausdorff;
+pub mod parts;
 pub mod report;
 pub mod sted;
 
 pub use bpvf::{bpvf, geometry_bpvf};
 pub use common::check_compatible;
 pub use displacement::{displacement_stats, kg_error, per_vertex_displacement, DisplacementStats, VertexDisplacement};
-pub use hausdorff::{hausdorff, point_triangle_distance, vertex_to_surface_distances, HausdorffMode, HausdorffStats};
+pub use hausdorff::{
+    hausdorff, isolated_vertex_count, point_triangle_distance, vertex_to_surface_distances, HausdorffMode,
+    HausdorffStats,
+};
+pub use parts::{connected_parts, part_errors, worst_part, PartError, Parts, NO_PART, PART_SPREAD_FLOOR};
 pub use report::{evaluate, EvalOptions, MetricReport};
 pub use sted::{diameter, sted, sted_local_deviations, sted_with_fields, EdgeDifference, StedParams, StedResult};

@@ -5,7 +5,8 @@ use serde::Serialize;
 
 use crate::common::check_compatible;
 use crate::displacement::{displacement_stats, kg_error};
-use crate::hausdorff::{hausdorff, HausdorffMode};
+use crate::hausdorff::{hausdorff, isolated_vertex_count, HausdorffMode};
+use crate::parts::{part_errors, worst_part, PartError};
 use crate::sted::{sted, StedParams};
 
 /// What [`evaluate`] computes.
@@ -17,6 +18,21 @@ pub struct EvalOptions {
     pub compute_sted: bool,
     /// Compute the Hausdorff distance, the slowest metric (default true).
     pub compute_hausdorff: bool,
+}
+
+impl MetricReport {
+    /// The KG a quality bound applies to: the larger of the whole animation's and the worst
+    /// part's (issue 41: a large static part must not hide a destroyed small one). `None` when
+    /// the global KG is undefined.
+    pub fn kg_bound(&self) -> Option<f64> {
+        let part = self.worst_part.as_ref().and_then(|w| w.kg);
+        self.kg.map(|kg| part.map_or(kg, |p| kg.max(p)))
+    }
+
+    /// The worst part's KG, percent (`None` without parts).
+    pub fn worst_part_kg(&self) -> Option<f64> {
+        self.worst_part.as_ref().and_then(|w| w.kg)
+    }
 }
 
 impl Default for EvalOptions {
@@ -58,6 +74,12 @@ pub struct MetricReport {
     pub rmse_relative: Option<f64>,
     /// Largest vertex displacement.
     pub max_error: f64,
+    /// Number of parts: connected components of the triangles (isolated vertices are in none;
+    /// see [`crate::parts`]).
+    pub parts: usize,
+    /// The part of largest KG against its own spread (`None` without triangles): the
+    /// default quality and a `kg=` target hold for it as for the whole (issue 41).
+    pub worst_part: Option<PartError>,
     /// STED parameters used (reported even when STED was skipped).
     pub sted_params: StedParams,
     /// Reference bounding-box diagonal over all frames (`diag` above).
@@ -83,6 +105,14 @@ pub fn evaluate(reference: &Animation, candidate: &Animation, options: &EvalOpti
         notes.push("relative values undefined: the reference bounding box has zero diagonal".to_string());
     }
     let kg = kg_error(reference, candidate).map_err(|e| notes.push(e.to_string())).ok();
+    let (parts, errors) = part_errors(reference, candidate)?;
+    let mut worst = worst_part(&errors).cloned();
+    // One part holding every vertex is the whole animation: its KG is the global KG (the same
+    // ratio summed in another order), taken as is so that a single-component input meets a
+    // bound exactly as before (a target set to a measured KG stays met).
+    if let Some(w) = worst.as_mut().filter(|_| parts.count() == 1 && parts.isolated() == 0 && kg.is_some()) {
+        w.kg = kg;
+    }
     let st = if options.compute_sted {
         sted(reference, candidate, &options.sted).map_err(|e| notes.push(e.to_string())).ok()
     } else {
@@ -111,6 +141,11 @@ pub fn evaluate(reference: &Animation, candidate: &Animation, options: &EvalOpti
         let h = hausdorff(reference, candidate)?;
         if h.mode == HausdorffMode::PointToPoint {
             notes.push("hausdorff: the mesh has no triangles, distances are point-to-point".to_string());
+        } else {
+            let isolated = isolated_vertex_count(reference.triangles(), reference.vertex_count());
+            if isolated > 0 {
+                notes.push(format!("hausdorff: {isolated} vertices in no triangle are measured as points"));
+            }
         }
         Some(h)
     } else {
@@ -132,6 +167,8 @@ pub fn evaluate(reference: &Animation, candidate: &Animation, options: &EvalOpti
         mse_relative: disp.mse_relative,
         rmse_relative: disp.rmse_relative,
         max_error: disp.max_error,
+        parts: parts.count(),
+        worst_part: worst,
         sted_params: options.sted,
         bbox_diagonal: disp.bbox_diagonal,
         vertex_count: reference.vertex_count(),

@@ -591,6 +591,8 @@ fn encode_to_target<'py>(
         "params": params_json(&p.params),
         "target": { "metric": target.metric.name(), "value": target.value },
         "reached": value_of(p),
+        "parts": p.report.parts,
+        "worst_part_kg": p.report.worst_part_kg(),
         "bytes": p.bytes,
         "bpvf": p.bpvf,
         "linear_fallback": hit.linear_fallback,

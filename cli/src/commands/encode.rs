@@ -50,6 +50,7 @@ pub fn parse_params(codec: &dyn AnimationCodec, pairs: &[String]) -> CmdResult<P
 fn add_evaluation(out: &mut Value, evaluation: Option<&(MetricReport, f64)>) {
     if let (Some((report, seconds)), Value::Object(map)) = (evaluation, out) {
         map.insert("kg".into(), report.kg.into());
+        map.insert("worst_part_kg".into(), report.worst_part_kg().into());
         map.insert("sted".into(), report.sted.into());
         map.insert("metrics".into(), harness::report_json(report));
         map.insert("eval_seconds".into(), (*seconds).into());
@@ -203,6 +204,7 @@ pub fn run(args: &EncodeArgs, limits: Limits) -> CmdResult {
             r.rmse,
             r.max_error,
         ));
+        text.push_str(&worst_part_line(r));
         for n in &r.notes {
             text.push_str(&format!("note: {n}\n"));
         }
@@ -512,6 +514,8 @@ fn run_target(args: &EncodeArgs, target: Target, by_default: bool, limits: Limit
             "rejected": hit.rejected,
             "notes": notes,
             "reached": reached,
+            "parts": p.report.parts,
+            "worst_part_kg": p.report.worst_part_kg(),
             "bytes": p.bytes,
             "bpvf": p.bpvf,
             "ratio": raw_bytes(v, f) as f64 / p.bytes as f64,
@@ -538,7 +542,7 @@ fn run_target(args: &EncodeArgs, target: Target, by_default: bool, limits: Limit
     let mut out = format!(
         "{input}: {f} frames × {v} vertices (read in {read_seconds:.2} s)\n\
          target {target}{default}: {codec} [{params}] reaches {metric}={reached:.6} → {output}\n\
-         {bytes} bytes, {rate:.3} bits/vertex/frame; searched {n} points in {search_seconds:.2} s{fallback}\n",
+         {parts}{bytes} bytes, {rate:.3} bits/vertex/frame; searched {n} points in {search_seconds:.2} s{fallback}\n",
         input = args.input,
         default = if by_default { " (the default quality; -p or --target for other choices)" } else { "" },
         codec = p.codec,
@@ -548,6 +552,18 @@ fn run_target(args: &EncodeArgs, target: Target, by_default: bool, limits: Limit
         bytes = p.bytes,
         rate = p.bpvf,
         n = hit.tried.len(),
+        // Issue 41: a KG bound holds for every part; say which figure it was.
+        parts = match (&p.report.worst_part, target.metric) {
+            (Some(w), TargetMetric::Kg) if p.report.parts > 1 => format!(
+                "kg is the larger of the whole animation's ({}) and the worst of its {} parts' (part {}, {} vertices: {})\n",
+                p.report.kg.map_or_else(|| "n/a".to_string(), |x| format!("{x:.6}")),
+                p.report.parts,
+                w.part,
+                w.vertices,
+                w.kg.map_or_else(|| "n/a".to_string(), |x| format!("{x:.6}")),
+            ),
+            _ => String::new(),
+        },
         fallback = if hit.linear_fallback { " (errors not monotone along the ladder: linear scan used)" } else { "" },
     );
     for r in &hit.rejected {
@@ -563,6 +579,7 @@ fn run_target(args: &EncodeArgs, target: Target, by_default: bool, limits: Limit
             r.rmse,
             r.max_error,
         ));
+        out.push_str(&worst_part_line(r));
     }
     for o in &others {
         out.push_str(&format!(
@@ -571,6 +588,24 @@ fn run_target(args: &EncodeArgs, target: Target, by_default: bool, limits: Limit
         ));
     }
     emit(&out)
+}
+
+/// `--eval`'s line on the worst part (issue 41): its KG against its own spread, beside the
+/// global figures; empty for a mesh of one part (its KG is the global one) or without triangles.
+pub fn worst_part_line(r: &MetricReport) -> String {
+    match &r.worst_part {
+        Some(w) if r.parts > 1 => format!(
+            "worst part: KG {} % of its own spread (part {} of {}: {} vertices from vertex {}), RMSE {:.4e}, max error {:.4e}\n",
+            w.kg.map_or_else(|| "n/a".to_string(), |x| format!("{x:.4e}")),
+            w.part,
+            r.parts,
+            w.vertices,
+            w.first_vertex,
+            w.rmse,
+            w.max_error
+        ),
+        _ => String::new(),
+    }
 }
 
 /// KG (%) above which a stream chosen for a STED target gets a note: it keeps the shape but

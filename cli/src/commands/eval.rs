@@ -99,6 +99,8 @@ fn text(args: &EvalArgs, r: &MetricReport, seconds: f64) -> String {
     );
     let rows = [
         ("kg (%)", num(r.kg)),
+        // Issue 41: the worst connected part against its own spread, beside the global KG.
+        ("worst_part_kg (%)", num(r.worst_part_kg())),
         ("sted", num(r.sted)),
         ("sted_spatial", num(r.sted_spatial)),
         ("sted_temporal", num(r.sted_temporal)),
@@ -124,6 +126,19 @@ fn text(args: &EvalArgs, r: &MetricReport, seconds: f64) -> String {
             EdgeDifference::Absolute => "absolute",
         }
     ));
+    if let Some(w) = &r.worst_part {
+        out.push_str(&format!(
+            "  worst part: part {} of {} ({} vertices from vertex {}), RMSE {:.6e}, max error {:.6e}, spread {:.6e}{}\n",
+            w.part,
+            r.parts,
+            w.vertices,
+            w.first_vertex,
+            w.rmse,
+            w.max_error,
+            w.spread,
+            if w.floored { " (below the floor: KG measured against the floor)" } else { "" }
+        ));
+    }
     for n in &r.notes {
         out.push_str(&format!("  note: {n}\n"));
     }

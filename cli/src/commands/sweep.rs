@@ -223,14 +223,26 @@ fn table(input: &str, animation: &codec_core::Animation, sweep: &Sweep, seconds:
         animation.vertex_count(),
         sweep.points.len()
     );
+    // Issue 41: with several parts, the worst part's KG (against its own spread) beside the
+    // whole animation's.
+    let parts = sweep.points.iter().map(|p| p.report.parts).max().unwrap_or(0);
+    let part_column = |v: Option<f64>| if parts > 1 { format!(" {:>11}", num(v)) } else { String::new() };
+    if parts > 1 {
+        let _ = writeln!(
+            out,
+            "{parts} parts (connected components): 'part kg' is the worst part's KG against its own spread, \
+             which the default quality and --target kg= bound too"
+        );
+    }
     let _ = writeln!(
         out,
-        "{:<w$} {:<16} {:>10} {:>8} {:>11} {:>11} {:>11} {:>11} {:>8} {:>8}",
+        "{:<w$} {:<16} {:>10} {:>8} {:>11}{} {:>11} {:>11} {:>11} {:>8} {:>8}",
         "codec",
         "knob",
         "bytes",
         "bpvf",
         "kg (%)",
+        if parts > 1 { format!(" {:>11}", "part kg (%)") } else { String::new() },
         "sted",
         "hausdorff",
         "mse",
@@ -252,12 +264,13 @@ fn table(input: &str, animation: &codec_core::Animation, sweep: &Sweep, seconds:
         let r = &p.report;
         let _ = writeln!(
             out,
-            "{:<w$} {:<16} {:>10} {:>8.4} {:>11} {:>11} {:>11} {:>11} {:>8.3} {:>8.3}",
+            "{:<w$} {:<16} {:>10} {:>8.4} {:>11}{} {:>11} {:>11} {:>11} {:>8.3} {:>8.3}",
             p.series,
             knob,
             p.bytes,
             p.bpvf,
             num(r.kg),
+            part_column(r.worst_part_kg()),
             num(r.sted),
             num(r.hausdorff),
             num(Some(r.mse)),

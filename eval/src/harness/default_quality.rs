@@ -135,7 +135,19 @@ pub fn search_default_quality(request: &SearchRequest<'_>, codec: &dyn Animation
             }
         }
     }
-    let best = tried.iter().filter(|(p, _)| usable(p) && meets(target, p)).min_by_key(|(p, _)| p.bytes).cloned();
+    let mut best = tried.iter().filter(|(p, _)| usable(p) && meets(target, p)).min_by_key(|(p, _)| p.bytes).cloned();
+    // Issue 41 (10f): when the codec refused candidates (hosvd on a two-frame static pose
+    // refuses its default `ss` and every larger one, and the gallop after a miss only climbs),
+    // nothing passed and the refusals may hide steps that work: scan the rest of the ladder
+    // (short; a refusal costs no encode).
+    if best.is_none() && !rejected.is_empty() {
+        let seen: Vec<usize> = tried.iter().map(|(p, _)| p.ladder_index).collect();
+        for i in (0..n).filter(|i| !seen.contains(i) && *i != first) {
+            let Ok(params) = at(i) else { continue };
+            measure(&params, i, &mut tried, &mut rejected)?;
+        }
+        best = tried.iter().filter(|(p, _)| usable(p) && meets(target, p)).min_by_key(|(p, _)| p.bytes).cloned();
+    }
     match best {
         Some((point, stream)) => Ok(TargetHit {
             point,

@@ -170,7 +170,7 @@ mod tests {
         assert_eq!(
             lines[0],
             "codec,series,params,ladder_index,bytes,bpvf,kg,sted,sted_spatial,sted_temporal,hausdorff,\
-             hausdorff_relative,mse,rmse,max_error,encode_seconds,decode_seconds"
+             hausdorff_relative,mse,rmse,max_error,parts,worst_part_kg,encode_seconds,decode_seconds"
         );
         let r = &p.report;
         let params: Vec<String> = p.params.iter().map(|(n, v)| format!("{n}={v}")).collect();
@@ -191,6 +191,8 @@ mod tests {
             format!("{}", r.mse),
             format!("{}", r.rmse),
             format!("{}", r.max_error),
+            r.parts.to_string(),
+            opt(r.worst_part_kg()),
             "100".into(),
             "0.000031".into(),
         ];
@@ -210,5 +212,100 @@ mod tests {
         assert_eq!(miss.best.as_ref().unwrap().ladder_index, top);
         let text = miss.to_string();
         assert!(text.contains("best reached is max_error=") && text.contains("quant-delta"), "{text}");
+    }
+}
+
+/// Issue 41 (small-object-destroyed): the default quality and `kg=` targets hold for every
+/// part, not only for the whole scene a large static part dominates.
+#[cfg(test)]
+mod parts_tests {
+    use super::*;
+    use codec_core::{Animation, CodecRegistry};
+
+    fn registry() -> CodecRegistry {
+        CodecRegistry::new(vec![Box::new(codec_core::quant_delta::QuantDelta), Box::new(codec_pca_aoi::PcaAoi)])
+            .expect("unique codec names")
+    }
+
+    /// A deforming `n × n` unit plane (the probe's body) beside a static square of side
+    /// `floor` centred at `(offset, 0, -0.5)`, `frames` frames.
+    pub(crate) fn scene(n: usize, frames: usize, floor: f32, offset: f32) -> Animation {
+        let mut tris = Vec::new();
+        for j in 0..n - 1 {
+            for i in 0..n - 1 {
+                let a = (j * n + i) as u32;
+                tris.push([a, a + 1, a + n as u32 + 1]);
+                tris.push([a, a + n as u32 + 1, a + n as u32]);
+            }
+        }
+        let b = (n * n) as u32;
+        tris.extend([[b, b + 1, b + 2], [b, b + 2, b + 3]]);
+        let h = floor / 2.0;
+        let square = [[-h, -h], [h, -h], [h, h], [-h, h]];
+        let mut positions = Vec::new();
+        for t in 0..frames {
+            for j in 0..n {
+                for i in 0..n {
+                    let (x, y) = (i as f32 / (n - 1) as f32, j as f32 / (n - 1) as f32);
+                    let phase = std::f32::consts::TAU * t as f32 / frames as f32;
+                    positions.extend([x, y, 0.3 * (3.0 * x + phase).sin() * (2.0 * y).cos()]);
+                }
+            }
+            for [x, y] in square {
+                positions.extend([offset + x, y, -0.5]);
+            }
+        }
+        Animation::from_parts(n * n + 4, tris, positions, 30.0).unwrap()
+    }
+
+    #[test]
+    fn the_default_quality_holds_for_the_small_part() {
+        let registry = registry();
+        // The probe's ground plane (1000 × 1000 beside a 1 × 1 body) and a far copy of it.
+        for (floor, offset) in [(1000.0, 0.0), (1.0, 1.0e4)] {
+            let a = scene(12, 16, floor, offset);
+            for codec in registry.iter() {
+                let request = SearchRequest::default_quality(&registry, &a);
+                match search_default_quality(&request, codec) {
+                    Ok(hit) => {
+                        let r = &hit.point.report;
+                        let worst = r.worst_part.as_ref().expect("two parts");
+                        assert_eq!(r.parts, 2);
+                        assert_eq!(worst.first_vertex, 0, "the body is the worst part: {worst:?}");
+                        assert!(worst.kg.unwrap() <= DEFAULT_TARGET.value, "{}: {worst:?}", codec.name());
+                        assert!(r.kg.unwrap() < worst.kg.unwrap(), "the scene's KG hides the body's");
+                        // The report is the measurement of the stream itself.
+                        let decoded = codec_core::StreamDecoder::new(
+                            hit.stream.as_slice(),
+                            &registry,
+                            codec_core::Limits::default(),
+                        )
+                        .unwrap()
+                        .decode_all()
+                        .unwrap();
+                        let (_, errors) = metrics::part_errors(&a, &decoded).unwrap();
+                        assert_eq!(errors[0].kg, worst.kg);
+                    }
+                    // Missing the target is an honest answer; the message names the part.
+                    Err(EvalError::TargetMiss(miss)) => {
+                        let text = miss.to_string();
+                        assert!(text.contains("kg="), "{text}");
+                    }
+                    Err(e) => panic!("{}: {e}", codec.name()),
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn a_kg_target_is_the_worst_part() {
+        let a = scene(8, 6, 1000.0, 0.0);
+        let registry = registry();
+        let codec = registry.by_name("quant-delta").unwrap();
+        let target = Target { metric: TargetMetric::Kg, value: 1.0 };
+        let hit = search_target(&SearchRequest::new(&registry, &a, target), codec, &codec.default_params()).unwrap();
+        let r = &hit.point.report;
+        assert!(r.worst_part_kg().unwrap() <= 1.0 && r.kg_bound() == r.worst_part_kg(), "{r:?}");
+        assert_eq!(target.metric.value(r), r.worst_part_kg());
     }
 }

@@ -55,6 +55,14 @@ pub struct SweepRow {
     pub rmse: f64,
     /// Largest vertex displacement.
     pub max_error: f64,
+    /// Number of parts (connected components of the triangles); absent in rows written
+    /// before issue 41 (read as 0).
+    #[serde(default)]
+    pub parts: usize,
+    /// KG of the worst part against its own spread, percent (issue 41; `null` without
+    /// parts).
+    #[serde(default)]
+    pub worst_part_kg: Option<f64>,
     /// Encoding time.
     pub encode_seconds: f64,
     /// Decoding time.
@@ -63,6 +71,9 @@ pub struct SweepRow {
 
 /// Fields of [`SweepRow`] the CSV leaves out: the ladder's parameter is in `params` already.
 const NOT_IN_CSV: &[&str] = &["ladder_param"];
+
+/// Fields a row read back may lack (added after rows were first written: issue 41).
+const MAY_BE_MISSING: &[&str] = &["parts", "worst_part_kg"];
 
 impl From<&Point> for SweepRow {
     fn from(p: &Point) -> Self {
@@ -84,6 +95,8 @@ impl From<&Point> for SweepRow {
             mse: r.mse,
             rmse: r.rmse,
             max_error: r.max_error,
+            parts: r.parts,
+            worst_part_kg: r.worst_part_kg(),
             encode_seconds: p.encode_seconds,
             decode_seconds: p.decode_seconds,
         }
@@ -107,7 +120,9 @@ impl SweepRow {
         // serde's own error on a `Value` does not name the field, so the culprit is found by
         // replacing one field at a time with the template's value.
         let Value::Object(template) = Self::template().to_json() else { unreachable!("a row is an object") };
-        if let Some(missing) = template.keys().find(|k| !given.contains_key(*k)) {
+        if let Some(missing) =
+            template.keys().find(|k| !given.contains_key(*k) && !MAY_BE_MISSING.contains(&k.as_str()))
+        {
             return Err(bad(missing, "is missing".into()));
         }
         match serde_json::from_value::<Self>(row.clone()) {
@@ -145,6 +160,8 @@ impl SweepRow {
             mse: 0.0,
             rmse: 0.0,
             max_error: 0.0,
+            parts: 0,
+            worst_part_kg: None,
             encode_seconds: 0.0,
             decode_seconds: 0.0,
         }
@@ -189,6 +206,18 @@ impl SweepRow {
             mse_relative: None,
             rmse_relative: None,
             max_error: self.max_error,
+            parts: self.parts,
+            // A row carries the worst part's KG alone; the rest of the part is unknown here.
+            worst_part: self.worst_part_kg.map(|kg| metrics::PartError {
+                part: 0,
+                first_vertex: 0,
+                vertices: 0,
+                kg: Some(kg),
+                rmse: f64::NAN,
+                max_error: f64::NAN,
+                spread: f64::NAN,
+                floored: false,
+            }),
             sted_params: eval.sted,
             bbox_diagonal: f64::NAN,
             vertex_count: vertices,

@@ -39,10 +39,13 @@ impl TargetMetric {
         Self::ALL.iter().find(|(m, _)| *m == self).map(|(_, n)| *n).unwrap_or("?")
     }
 
-    /// The metric's value in `report` (`None` when undefined or not computed).
+    /// The metric's value in `report` (`None` when undefined or not computed). For KG this is
+    /// [`MetricReport::kg_bound`]: the larger of the global and the worst part's KG.
     pub fn value(self, report: &MetricReport) -> Option<f64> {
         match self {
-            TargetMetric::Kg => report.kg,
+            // The larger of the whole's and the worst part's (issue 41): a large static part
+            // must not hide a destroyed small one.
+            TargetMetric::Kg => report.kg_bound(),
             TargetMetric::Sted => report.sted,
             TargetMetric::Hausdorff => report.hausdorff,
             TargetMetric::MaxError => Some(report.max_error),
@@ -187,6 +190,15 @@ impl fmt::Display for TargetMiss {
                 b.bytes,
                 b.bpvf
             ),
+            // Nothing measured because the codec refused every candidate: the metric is not
+            // undefined, the codec said why (issue 41, 10f).
+            None if !self.refused.is_empty() => {
+                write!(
+                    f,
+                    "{}: no rate-ladder point meets {}: the codec refused every candidate",
+                    self.codec, self.target
+                )
+            }
             None => write!(
                 f,
                 "{}: no rate-ladder point meets {}: {} is undefined for this input",
@@ -195,6 +207,18 @@ impl fmt::Display for TargetMiss {
                 m.name()
             ),
         }?;
+        // Issue 41: say when the bound was the worst part's, not the whole animation's.
+        if let Some(b) = self.best.as_ref().filter(|b| m == TargetMetric::Kg && b.report.parts > 1) {
+            if let (Some(w), Some(kg)) = (&b.report.worst_part, b.report.kg) {
+                if w.kg.is_some_and(|p| p > kg) {
+                    write!(
+                        f,
+                        " (the worst of {} parts: part {}, {} vertices from vertex {}; the whole animation is at kg={kg:.6})",
+                        b.report.parts, w.part, w.vertices, w.first_vertex
+                    )?;
+                }
+            }
+        }
         // The codec's own reasons come last: they say what would work.
         if let Some(first) = self.refused.first() {
             write!(f, "; where the codec refused: {first}")?;
@@ -214,9 +238,10 @@ impl std::error::Error for TargetMiss {}
 /// chicken-crossing). Such points never meet a target and are left out of the envelopes.
 pub const DEGENERATE_KG: f64 = 50.0;
 
-/// Whether `p` is a usable reconstruction (KG, when measured, at most [`DEGENERATE_KG`]).
+/// Whether `p` is a usable reconstruction (KG, when measured, at most [`DEGENERATE_KG`], for
+/// the whole animation and for its worst part: issue 41).
 pub fn usable(p: &Point) -> bool {
-    p.report.kg.is_none_or(|kg| kg.is_finite() && kg <= DEGENERATE_KG)
+    p.report.kg_bound().is_none_or(|kg| kg.is_finite() && kg <= DEGENERATE_KG)
 }
 
 pub(crate) fn meets(target: Target, p: &Point) -> bool {

@@ -1,0 +1,353 @@
+//! Errors per part (issue 41): the KG error of every connected part of the mesh against its
+//! own extent and motion.
+//!
+//! The global KG error is normalised by the spread of the whole scene, so a large or far part
+//! (a static 1000 × 1000 floor, a triangle at x = 1e5, a second copy 1e4 away) hides a part
+//! that is destroyed: a deforming 1 × 1 plane beside such a floor decoded at KG 18–5200 % of
+//! its own spread while the scene's KG read 0.003–0.49 %. Every part a user sees must hold the
+//! quality on its own, so [`part_errors`] measures each part as if it were the whole
+//! animation.
+//!
+//! * **Parts** are the connected components of the triangle graph (two vertices are connected
+//!   when a triangle holds both). The loaded [`Animation`] carries no grouping of its own
+//!   (glTF meshes, USD prims and Alembic objects are merged into one vertex list when read),
+//!   so connected components are the parts; two objects welded into one component are one
+//!   part. Parts are numbered by their smallest vertex index.
+//! * **Isolated vertices** (in no triangle) belong to no part: they are points, not a
+//!   surface, and stay in the global figures only. A mesh without triangles has no parts.
+//! * **Part KG** is [`kg_error`](crate::kg_error) on the part's vertices alone: `100 ·
+//!   ‖A_p − Â_p‖ / ‖A_p − E(A_p)‖` with `E(A_p)` the per-frame centroid of the part in the
+//!   reference. A static part is normalised by its spatial spread, so it has a well-defined
+//!   KG.
+//! * **Floor.** A part's spread is measured in the coordinates it sits at, which `f32` resolves
+//!   only to about `2⁻²⁴ · |x|`; a part far smaller than that resolution cannot be held to a
+//!   relative error at all. The RMS spread of a part is therefore floored at
+//!   [`PART_SPREAD_FLOOR`] times the largest coordinate magnitude of the part (a 1-unit
+//!   triangle at x = 1e5 is measured at its own size; a 1e-4-unit one there against 0.1).
+//!   A part whose every vertex sits at the origin in every frame has no defined KG (`None`),
+//!   as for the whole animation.
+//!
+//! One pass over the frames, `O(V · F)`, in blocks of frames summed in frame order, so the
+//! result does not depend on the thread count.
+
+use codec_core::{Animation, Result};
+use rayon::prelude::*;
+use serde::Serialize;
+
+use crate::common::{check_compatible, point, vertex_dist2};
+
+/// Label of a vertex in no triangle (in no part).
+pub const NO_PART: u32 = u32::MAX;
+
+/// A part's RMS spread is floored at this fraction of its largest coordinate magnitude
+/// (2⁻¹⁶, 256 `f32` units in the last place): 0.5 % of the floored spread is still about one
+/// unit in the last place of the coordinates, the finest error a decoded `f32` part can show.
+pub const PART_SPREAD_FLOOR: f64 = 1.0 / 65536.0;
+
+/// The connected parts of a triangle list.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Parts {
+    /// Part of every vertex ([`NO_PART`] for a vertex in no triangle).
+    pub label: Vec<u32>,
+    /// Vertex count of every part.
+    pub sizes: Vec<usize>,
+    /// Smallest vertex index of every part (parts are numbered in this order).
+    pub first_vertex: Vec<usize>,
+}
+
+impl Parts {
+    /// Number of parts.
+    pub fn count(&self) -> usize {
+        self.sizes.len()
+    }
+
+    /// Vertices in no triangle.
+    pub fn isolated(&self) -> usize {
+        self.label.iter().filter(|&&l| l == NO_PART).count()
+    }
+}
+
+/// Connected components of `triangles` over `vertex_count` vertices (union–find, `O(V + T)`).
+/// Indices out of range are ignored (the animation checks them on construction).
+pub fn connected_parts(vertex_count: usize, triangles: &[[u32; 3]]) -> Parts {
+    let mut parent: Vec<u32> = (0..vertex_count as u32).collect();
+    let mut used = vec![false; vertex_count];
+    fn find(parent: &mut [u32], mut x: u32) -> u32 {
+        while parent[x as usize] != x {
+            let up = parent[parent[x as usize] as usize];
+            parent[x as usize] = up;
+            x = up;
+        }
+        x
+    }
+    for t in triangles {
+        if t.iter().any(|&i| i as usize >= vertex_count) {
+            continue;
+        }
+        for &i in t {
+            used[i as usize] = true;
+        }
+        for k in 1..3 {
+            let (a, b) = (find(&mut parent, t[0]), find(&mut parent, t[k]));
+            if a != b {
+                // The smaller index is the root, so a root is its part's smallest vertex.
+                let (lo, hi) = (a.min(b), a.max(b));
+                parent[hi as usize] = lo;
+            }
+        }
+    }
+    let mut label = vec![NO_PART; vertex_count];
+    let mut sizes = Vec::new();
+    let mut first_vertex = Vec::new();
+    for v in 0..vertex_count {
+        if !used[v] {
+            continue;
+        }
+        let root = find(&mut parent, v as u32) as usize;
+        // Roots are the smallest vertex of their part, so a root is met before its members.
+        if root == v {
+            label[v] = sizes.len() as u32;
+            sizes.push(0);
+            first_vertex.push(v);
+        } else {
+            label[v] = label[root];
+        }
+        sizes[label[v] as usize] += 1;
+    }
+    Parts { label, sizes, first_vertex }
+}
+
+/// The error of one part.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct PartError {
+    /// Part number (parts are numbered by their smallest vertex index).
+    pub part: usize,
+    /// Its smallest vertex index.
+    pub first_vertex: usize,
+    /// Its vertex count.
+    pub vertices: usize,
+    /// KG error of the part alone, percent, against its own spread (floored, see the module
+    /// notes); `None` when the part is a single point at the origin in every frame.
+    pub kg: Option<f64>,
+    /// RMS vertex displacement over the part.
+    pub rmse: f64,
+    /// Largest vertex displacement in the part.
+    pub max_error: f64,
+    /// RMS distance of the part's vertices from their per-frame centroid (the KG's unit).
+    pub spread: f64,
+    /// True when `spread` was below the floor and the floor was used instead.
+    pub floored: bool,
+}
+
+/// Every part's error, by part number. Fails if the animations do not match.
+pub fn part_errors(reference: &Animation, candidate: &Animation) -> Result<(Parts, Vec<PartError>)> {
+    check_compatible(reference, candidate)?;
+    let n = reference.vertex_count();
+    let parts = connected_parts(n, reference.triangles());
+    let count = parts.count();
+    let frames = reference.frame_count();
+    if count == 0 || frames == 0 {
+        return Ok((parts, Vec::new()));
+    }
+    // Fixed blocks of frames (independent of the thread count), summed in order.
+    const BLOCKS: usize = 64;
+    let per_block = frames.div_ceil(BLOCKS);
+    #[derive(Clone, Copy, Default)]
+    struct Acc {
+        num: f64,
+        den: f64,
+        max2: f64,
+        magnitude: f64,
+    }
+    let label = &parts.label;
+    let sizes = &parts.sizes;
+    let blocks: Vec<Vec<Acc>> = (0..frames.div_ceil(per_block))
+        .into_par_iter()
+        .map(|b| {
+            let mut acc = vec![Acc::default(); count];
+            let mut centre = vec![[0.0f64; 3]; count];
+            for t in b * per_block..((b + 1) * per_block).min(frames) {
+                let (fa, fb) = (reference.frame(t), candidate.frame(t));
+                centre.fill([0.0; 3]);
+                for (v, &l) in label.iter().enumerate() {
+                    if l == NO_PART {
+                        continue;
+                    }
+                    let p = point(fa, v);
+                    let c = &mut centre[l as usize];
+                    for k in 0..3 {
+                        c[k] += p[k];
+                    }
+                }
+                for (c, &s) in centre.iter_mut().zip(sizes) {
+                    for ck in c.iter_mut() {
+                        *ck /= s as f64;
+                    }
+                }
+                for (v, &l) in label.iter().enumerate() {
+                    if l == NO_PART {
+                        continue;
+                    }
+                    let (p, c, a) = (point(fa, v), centre[l as usize], &mut acc[l as usize]);
+                    let d2 = vertex_dist2(fa, fb, v);
+                    a.num += d2;
+                    a.max2 = a.max2.max(d2);
+                    a.den += (p[0] - c[0]).powi(2) + (p[1] - c[1]).powi(2) + (p[2] - c[2]).powi(2);
+                    a.magnitude = a.magnitude.max(p[0].abs()).max(p[1].abs()).max(p[2].abs());
+                }
+            }
+            acc
+        })
+        .collect();
+    let mut total = vec![Acc::default(); count];
+    for block in &blocks {
+        for (t, a) in total.iter_mut().zip(block) {
+            t.num += a.num;
+            t.den += a.den;
+            t.max2 = t.max2.max(a.max2);
+            t.magnitude = t.magnitude.max(a.magnitude);
+        }
+    }
+    let errors = total
+        .iter()
+        .enumerate()
+        .map(|(i, a)| {
+            let samples = (sizes[i] * frames) as f64;
+            let spread = (a.den / samples).sqrt();
+            let floor = PART_SPREAD_FLOOR * a.magnitude;
+            let floored = spread < floor;
+            let unit = spread.max(floor);
+            PartError {
+                part: i,
+                first_vertex: parts.first_vertex[i],
+                vertices: sizes[i],
+                kg: (unit > 0.0).then(|| 100.0 * (a.num / samples).sqrt() / unit),
+                rmse: (a.num / samples).sqrt(),
+                max_error: a.max2.sqrt(),
+                spread,
+                floored,
+            }
+        })
+        .collect();
+    Ok((parts, errors))
+}
+
+/// The part of largest KG (ties: the lower part number), or `None` when no part has one.
+pub fn worst_part(errors: &[PartError]) -> Option<&PartError> {
+    errors.iter().filter(|e| e.kg.is_some_and(f64::is_finite)).fold(None, |best: Option<&PartError>, e| match best {
+        Some(b) if b.kg >= e.kg => Some(b),
+        _ => Some(e),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::kg_error;
+
+    #[test]
+    fn components_are_numbered_by_smallest_vertex() {
+        // Parts {0, 3, 4} and {1, 2}; vertex 5 is isolated.
+        let p = connected_parts(6, &[[4, 3, 0], [2, 1, 1]]);
+        assert_eq!(p.label, vec![0, 1, 1, 0, 0, NO_PART]);
+        assert_eq!(p.sizes, vec![3, 2]);
+        assert_eq!(p.first_vertex, vec![0, 1]);
+        assert_eq!((p.count(), p.isolated()), (2, 1));
+        // A chain joined through a later triangle is one part.
+        let p = connected_parts(7, &[[5, 6, 4], [0, 1, 2], [2, 3, 4]]);
+        assert_eq!(p.sizes, vec![7]);
+        assert_eq!(connected_parts(3, &[]).count(), 0);
+    }
+
+    fn tri(offset: f32, scale: f32) -> [f32; 9] {
+        [offset, 0., 0., offset + scale, 0., 0., offset, scale, 0.]
+    }
+
+    /// A single part without isolated vertices has the global KG.
+    #[test]
+    fn one_part_is_the_global_kg() {
+        let f0 = tri(0.0, 1.0);
+        let mut f1 = tri(0.0, 1.0);
+        f1[4] = 0.5;
+        let r = Animation::from_parts(3, vec![[0, 1, 2]], [f0, f1].concat(), 30.0).unwrap();
+        let mut c = r.positions().to_vec();
+        c[0] += 0.01;
+        c[13] -= 0.02;
+        let c = Animation::from_parts(3, vec![[0, 1, 2]], c, 30.0).unwrap();
+        let (_, e) = part_errors(&r, &c).unwrap();
+        let global = kg_error(&r, &c).unwrap();
+        assert_eq!(e.len(), 1);
+        assert!((e[0].kg.unwrap() - global).abs() < 1e-9 * global, "{e:?} vs {global}");
+        assert!(!e[0].floored);
+    }
+
+    /// A small part wrecked beside a large static one: the global KG is tiny, the part's is
+    /// its own ratio (hand computation).
+    #[test]
+    fn a_small_part_is_measured_against_itself() {
+        // Part 0: unit triangle at the origin, static, two frames. Its centroid is (1/3, 1/3, 0);
+        // squared distances of the corners: 2/9, 5/9, 5/9 → 12/9 per frame, spread² = (12/9)/3.
+        // Part 1: a triangle of size 1000 at x = 5000, static.
+        let frame: Vec<f32> = [tri(0.0, 1.0), tri(5000.0, 1000.0)].concat();
+        let tris = vec![[0, 1, 2], [3, 4, 5]];
+        let r = Animation::from_parts(6, tris.clone(), [frame.clone(), frame.clone()].concat(), 30.0).unwrap();
+        // Move vertex 0 by 0.1 in frame 1 only: num = 0.01 over 6 part-vertex-frames.
+        let mut c = r.positions().to_vec();
+        c[18 + 2] = 0.1;
+        let c = Animation::from_parts(6, tris, c, 30.0).unwrap();
+        let (parts, e) = part_errors(&r, &c).unwrap();
+        assert_eq!(parts.count(), 2);
+        // (0.1 is stored as an f32: a relative tolerance.)
+        let expected = 100.0 * (0.01f64 / 6.0).sqrt() / (12.0f64 / 9.0 / 3.0).sqrt();
+        assert!((e[0].kg.unwrap() - expected).abs() < 1e-6 * expected, "{e:?} vs {expected}");
+        assert!((e[0].max_error - 0.1).abs() < 1e-7 && e[1].kg == Some(0.0));
+        assert!(kg_error(&r, &c).unwrap() < expected / 1000.0);
+        assert_eq!(worst_part(&e).unwrap().part, 0);
+    }
+
+    /// A part below the floor is measured against the floor; isolated vertices are no part.
+    #[test]
+    fn tiny_parts_are_floored_and_points_are_no_part() {
+        // A triangle of size 1e-3 at x = 1e5: floor 1e5 · 2⁻¹⁶ ≈ 1.53 ≫ its spread.
+        let frame: Vec<f32> = [tri(1.0e5, 1.0e-3).as_slice(), &[7.0, 7.0, 7.0]].concat();
+        let r = Animation::from_parts(4, vec![[0, 1, 2]], frame.clone(), 30.0).unwrap();
+        let mut moved = frame.clone();
+        moved[9] = 8.0;
+        moved[1] = 0.0153;
+        let c = Animation::from_parts(4, vec![[0, 1, 2]], moved, 30.0).unwrap();
+        let (parts, e) = part_errors(&r, &c).unwrap();
+        assert_eq!((parts.count(), parts.isolated()), (1, 1));
+        assert!(e[0].floored);
+        // The largest coordinate is 1e5 (1e5 + 1e-3 rounds to it in f32); one displaced vertex
+        // of three, one frame.
+        let floor = PART_SPREAD_FLOOR * 1.0e5;
+        let expected = 100.0 * ((0.0153f32 as f64).powi(2) / 3.0).sqrt() / floor;
+        assert!((e[0].kg.unwrap() - expected).abs() < 1e-6 * expected, "{e:?} vs {expected}");
+    }
+
+    #[test]
+    fn result_is_the_same_for_every_block_split() {
+        // 130 frames (three blocks of 3 frames … the split depends on the frame count only);
+        // compare with the per-part KG computed on the part's own animation.
+        let frames = 130;
+        let mut pos = Vec::new();
+        let mut cand = Vec::new();
+        for t in 0..frames {
+            let s = (t as f32 * 0.1).sin();
+            let f: Vec<f32> = [tri(0.0, 1.0 + s), tri(100.0, 50.0)].concat();
+            let mut g = f.clone();
+            g[3] += 0.01 * s;
+            pos.extend(f);
+            cand.extend(g);
+        }
+        let tris = vec![[0, 1, 2], [3, 4, 5]];
+        let r = Animation::from_parts(6, tris.clone(), pos.clone(), 30.0).unwrap();
+        let c = Animation::from_parts(6, tris, cand.clone(), 30.0).unwrap();
+        let (_, e) = part_errors(&r, &c).unwrap();
+        let first = |p: &[f32]| p.chunks(18).flat_map(|f| f[..9].to_vec()).collect::<Vec<f32>>();
+        let ra = Animation::from_parts(3, vec![[0, 1, 2]], first(&pos), 30.0).unwrap();
+        let ca = Animation::from_parts(3, vec![[0, 1, 2]], first(&cand), 30.0).unwrap();
+        let alone = kg_error(&ra, &ca).unwrap();
+        assert!((e[0].kg.unwrap() - alone).abs() < 1e-9 * alone, "{} vs {alone}", e[0].kg.unwrap());
+    }
+}
