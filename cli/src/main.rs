@@ -641,9 +641,10 @@ pub struct SynthArgs {
     pub output: PathBuf,
 
     /// Replace the existing output file (without it, an existing output is an error). It names
-    /// the .pc2/.mdd only: an existing STEM.obj beside it is replaced only when animcodec wrote
-    /// it for this cache or it holds the same mesh; any other (the topology of another cache of
-    /// the same stem, a model) is refused by name: remove it or choose another output name.
+    /// the .pc2/.mdd only: an existing STEM.obj beside it is replaced only when it was written
+    /// for this cache (by this program) or holds the same mesh; any other (the topology of
+    /// another cache of the same stem, a model) is refused by name: remove it or choose another
+    /// output name.
     #[arg(short, long)]
     pub force: bool,
 }

@@ -1055,12 +1055,13 @@ pub fn encode_block(
         (gain * ex + (pos_norm + centred_norm + 2.0 * gain * ex) * 2.0f64.powi(-23) + 1e-30) * (1.0 + 1e-9);
 
     // The encoder measures its reconstruction against the input (issue 41): the error the
-    // chosen ranks and steps promise is the truncation error plus the quantization budget,
-    // mapped through the transforms; far beyond it (numerical precision lost on an input far
-    // from its centre, e.g. a block travelling a long way) no stream is written.
+    // chosen ranks and steps promise is `error_bound` (truncation, quantization of every factor
+    // and of the transforms, the factors' loss of orthogonality, the f32 roundings), proved
+    // above; far beyond it (numerical precision lost on an input far from its centre, e.g. a
+    // block travelling a long way) no stream is written.
     let mut rec = tensor::reconstruct(&m);
     add_centre(&mut rec, centre32)?;
-    check_precision(positions, &rec, gain * (trunc2 + budget).sqrt(), gain * (1e-6 * norm + g2 * norm), v, f)?;
+    check_precision(positions, &rec, error_bound, 0.0, v, f)?;
     let reconstruction = want_reconstruction.then_some(rec);
     let code_seconds = code_start.elapsed().as_secs_f64();
     let stats = BlockStats {
@@ -1107,7 +1108,9 @@ fn check_precision(positions: &[f32], rec: &[f32], promised: f64, slack: f64, v:
     Err(Error::Unsupported {
         context: NAME.into(),
         detail: format!(
-            "the decoded block is {err:.3e} from the input (Frobenius), beyond the {allowed:.3e} that its ranks              (v = {v}, f = {f}) and quantization promise: numerical precision was lost (coordinates far from              their centre next to the shape's size?); no stream written. Use smaller temporal blocks (-p block=N)              or another codec (quant-delta)"
+            "the decoded block is {err:.3e} from the input (Frobenius), beyond the {allowed:.3e} that its ranks (v = {v}, f = {f}) and quantization promise: numerical \
+             precision was lost (coordinates far from their centre next to the shape's size?); no stream \
+             written. Use smaller temporal blocks (-p block=N) or another codec (quant-delta)"
         ),
     })
 }

@@ -39,11 +39,22 @@ def test_evaluate_reports_the_worst_part():
 
 def test_default_encode_and_targets_hold_for_the_worst_part():
     positions, faces = _ground_plane()
-    stream = animcodec.encode(positions, faces, "pca-aoi")
-    decoded = animcodec.decode(stream)
-    m = animcodec.evaluate(positions, decoded.positions, faces, sted=False, hausdorff=False)
     assert animcodec.DEFAULT_TARGET == "kg=0.5"
-    assert m["worst_part"]["kg"] <= 0.5, m
+    # Every default encode either holds the worst part at the default KG or refuses, naming the
+    # worst part (a codec that models the scene as a whole may not reach it); never a stream
+    # whose small part is wrecked.
+    met = []
+    for codec in ["quant-delta", "pca-aoi", "hosvd"]:
+        try:
+            stream = animcodec.encode(positions, faces, codec)
+        except animcodec.AnimcodecError as e:
+            assert "worst of 2 parts" in str(e), e
+            continue
+        decoded = animcodec.decode(stream)
+        m = animcodec.evaluate(positions, decoded.positions, faces, sted=False, hausdorff=False)
+        assert m["worst_part"]["kg"] <= 0.5, (codec, m)
+        met.append(codec)
+    assert met, "no codec met the default quality on the worst part"
     found = animcodec.encode_to_target(positions, faces, "quant-delta", kg=1.0)
     assert found.details["parts"] == 2
     assert found.details["worst_part_kg"] <= 1.0

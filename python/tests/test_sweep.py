@@ -146,11 +146,12 @@ def test_sweep_local_reports_progress_per_point():
     assert all(e["total"] == total for e in events)
     assert sorted(e["done"] for e in finished) == list(range(1, total + 1))
     assert {e["series"] for e in started} == {"quant-delta", "pca-aoi"}
-    # A callback that raises does not stop the sweep.
+    # A callback that raises stops the sweep, and its exception reaches the caller (issue 41:
+    # it used to be printed and swallowed).
     def boom(_):
         raise RuntimeError("callback failure")
-    again = animcodec.sweep_local("synth:flag", ["quant-delta"], points=2, progress=boom)
-    assert len(again["rows"]) == 2
+    with pytest.raises(RuntimeError, match="callback failure"):
+        animcodec.sweep_local("synth:flag", ["quant-delta"], points=2, progress=boom)
 
 
 def test_sweep_local_takes_an_animation_like_its_file(tmp_path, flag):

@@ -360,6 +360,9 @@ impl FrameDecoder for TemplateDecoder {
             }
             out.extend(frame);
         }
+        // Every coded word must have been read, and none past the end: a stream whose header
+        // declares more (or fewer) values than its codes hold is malformed, not decoded.
+        coder.finish()?;
         Ok(out)
     }
 }
