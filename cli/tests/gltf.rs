@@ -16,7 +16,7 @@ use animcodec::formats::{read_animation, ReadOptions};
 use codec_core::synth::{self, SynthSize};
 use codec_core::testing::skip;
 use codec_core::Animation;
-use common::{gltfpack, node_packages, shared_data, Scratch};
+use common::{gltfpack, join_glb, node_packages, shared_data, split_glb, Scratch};
 use serde_json::Value;
 
 /// What three.js plays: animation `index` at `t0 + k / fps` for `frames` frames (0: at rest).
@@ -235,34 +235,6 @@ fn robot_dance_encodes_decodes_to_a_valid_glb() {
 
 // ---- Issue 27: hostile glTF input (the reproducers of ../shared/probe-round3, built here from
 // a synthetic export the way its glb.py builds them, so they run without ../shared) ----------
-
-/// A GLB's JSON and BIN chunk.
-fn split_glb(glb: &[u8]) -> (Value, Vec<u8>) {
-    let u32_at = |at: usize| u32::from_le_bytes(glb[at..at + 4].try_into().unwrap()) as usize;
-    let json_len = u32_at(12);
-    let json = serde_json::from_slice(&glb[20..20 + json_len]).unwrap();
-    let bin_len = u32_at(20 + json_len);
-    (json, glb[28 + json_len..28 + json_len + bin_len].to_vec())
-}
-
-/// A GLB from JSON and a BIN chunk (both padded to 4 bytes), as glb.py writes it.
-fn join_glb(json: &Value, bin: &[u8]) -> Vec<u8> {
-    let mut js = serde_json::to_vec(json).unwrap();
-    js.resize(js.len().next_multiple_of(4), b' ');
-    let mut bin = bin.to_vec();
-    bin.resize(bin.len().next_multiple_of(4), 0);
-    let total = 12 + 8 + js.len() + 8 + bin.len();
-    let mut out = b"glTF".to_vec();
-    for x in [2, total as u32, js.len() as u32] {
-        out.extend(x.to_le_bytes());
-    }
-    out.extend(b"JSON");
-    out.extend(&js);
-    out.extend((bin.len() as u32).to_le_bytes());
-    out.extend(b"BIN\0");
-    out.extend(&bin);
-    out
-}
 
 /// The synthetic flag (240 vertices, 40 frames) exported uncompressed (plain f32 accessors,
 /// so a mutation hits the geometry itself), split for mutation.

@@ -2,11 +2,14 @@
 
 use crate::error::{Error, Result};
 
-/// Frame rates a stream may carry: exactly the ones the file readers accept (`io`'s
-/// `formats::FRAME_RATE_RANGE`, one frame per 1000 s to 10 000 frames per second; a test in
-/// the conformance suite keeps the two equal). Issue 41 (round 4): a stream whose header said
-/// 1e30 fps used to decode to a `.usda` that no reader would take back; the container now
-/// refuses such a rate when it is written ([`check_stream_frame_rate`]) and when it is read.
+/// Frame rates a stream may carry, and the ones the file readers accept (`io` re-exports this
+/// constant as `formats::FRAME_RATE_RANGE`): one frame per 1000 s to 10 000 frames per second.
+/// Outside it, key times `frame / fps` stop being representable or distinguishable as `f32`
+/// seconds (at 1e-45 fps frame 1 is at +inf s; at 1e5 fps over a minute the key spacing nears
+/// the f32 rounding step), and no capture or playback device works there. Issue 41 (round 4): a
+/// stream whose header said 1e30 fps used to decode to a `.usda` that no reader would take
+/// back; the container now refuses such a rate when it is written ([`check_stream_frame_rate`])
+/// and when it is read.
 pub const FRAME_RATE_RANGE: std::ops::RangeInclusive<f32> = 1e-3..=1e4;
 
 /// `fps` when a stream may carry it ([`FRAME_RATE_RANGE`]), else an error saying so.

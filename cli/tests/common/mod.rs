@@ -130,3 +130,31 @@ pub fn gltfpack(tools: &Path, input: &Path, output: &Path, args: &[&str]) {
         .unwrap();
     assert!(o.status.success(), "gltfpack failed on {}: {}", input.display(), String::from_utf8_lossy(&o.stderr));
 }
+
+/// A GLB's JSON and BIN chunk.
+pub fn split_glb(glb: &[u8]) -> (serde_json::Value, Vec<u8>) {
+    let u32_at = |at: usize| u32::from_le_bytes(glb[at..at + 4].try_into().unwrap()) as usize;
+    let json_len = u32_at(12);
+    let json = serde_json::from_slice(&glb[20..20 + json_len]).unwrap();
+    let bin_len = u32_at(20 + json_len);
+    (json, glb[28 + json_len..28 + json_len + bin_len].to_vec())
+}
+
+/// A GLB from JSON and a BIN chunk (both padded to 4 bytes), as the probes' glb.py writes it.
+pub fn join_glb(json: &serde_json::Value, bin: &[u8]) -> Vec<u8> {
+    let mut js = serde_json::to_vec(json).unwrap();
+    js.resize(js.len().next_multiple_of(4), b' ');
+    let mut bin = bin.to_vec();
+    bin.resize(bin.len().next_multiple_of(4), 0);
+    let total = 12 + 8 + js.len() + 8 + bin.len();
+    let mut out = b"glTF".to_vec();
+    for x in [2, total as u32, js.len() as u32] {
+        out.extend(x.to_le_bytes());
+    }
+    out.extend(b"JSON");
+    out.extend(&js);
+    out.extend((bin.len() as u32).to_le_bytes());
+    out.extend(b"BIN\0");
+    out.extend(&bin);
+    out
+}

@@ -71,12 +71,9 @@ impl ReadOptions {
     }
 }
 
-/// Frame rates accepted wherever one enters (`--fps`, reading, glTF export and read-back): one
-/// frame per 1000 s to 10 000 frames per second. Outside it, key times `frame / fps` stop being
-/// representable or distinguishable as `f32` seconds (at 1e-45 fps frame 1 is at +inf s; at
-/// 1e5 fps over a minute the key spacing nears the f32 rounding step), and no capture or
-/// playback device works there.
-pub const FRAME_RATE_RANGE: std::ops::RangeInclusive<f32> = 1e-3..=1e4;
+/// Frame rates accepted wherever one enters (`--fps`, reading, glTF export and read-back): the
+/// ones a stream may carry, so whatever decodes can be read back (one constant for both).
+pub use codec_core::animation::FRAME_RATE_RANGE;
 
 /// `fps` when it lies in [`FRAME_RATE_RANGE`], else an error saying so.
 pub fn check_frame_rate(fps: f32) -> Result<f32> {
