@@ -1084,9 +1084,10 @@ pub fn encode_block(
     Ok(EncodedBlock { payload, reconstruction, stats })
 }
 
-/// How far the measured error may exceed the one the chosen ranks and steps promise before the
-/// encoder refuses (the quantization meets its budget only approximately; 2 leaves room for it
-/// and is far below the failures this check is for: KG 20 % instead of 3 %).
+/// How far the measured error may exceed the bound the chosen ranks and steps promise
+/// (`BlockStats::error_bound`, which every sound encode meets) before the encoder refuses: a
+/// margin against the bound's own rounding, far below the failures this check is for (KG 20 %
+/// instead of 3 %).
 const PRECISION_MARGIN: f64 = 2.0;
 
 /// Issue 41: refuses a block whose reconstruction `rec` is further from `positions` (Frobenius)
