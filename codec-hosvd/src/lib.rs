@@ -66,10 +66,10 @@ const FLAG_REGRESS: u8 = 16;
 /// encoder, whatever the coding.
 const FLAG_CENTRE: u8 = 32;
 
-/// Bytes of the centre at the end of a [`FLAG_CENTRE`] packet.
+/// Bytes of the centre at the end of a `FLAG_CENTRE` packet.
 const CENTRE_BYTES: usize = 12;
 
-/// Stream version the encoder writes (6: [`FLAG_CENTRE`]); versions 1 to 5 keep decoding.
+/// Stream version the encoder writes (6: `FLAG_CENTRE`); versions 1 to 5 keep decoding.
 pub const STREAM_VERSION: u16 = 6;
 
 codec_core::declare_params! {
@@ -1332,7 +1332,7 @@ impl HosvdDecoder {
 }
 
 impl HosvdDecoder {
-    /// A packet without [`FLAG_CENTRE`] (every packet of versions 1 to 5; a version 6 packet
+    /// A packet without `FLAG_CENTRE` (every packet of versions 1 to 5; a version 6 packet
     /// after [`FrameDecoder::decode_packet`] took its centre off).
     fn decode_uncentred(&mut self, packet: &Packet) -> Result<Vec<f32>> {
         let (k, frames) = (self.k, packet.frame_count as usize);
@@ -1515,7 +1515,7 @@ impl HosvdDecoder {
 }
 
 impl FrameDecoder for HosvdDecoder {
-    /// Stream version 6 (issue 41): a packet with [`FLAG_CENTRE`] ends with the centre the
+    /// Stream version 6 (issue 41): a packet with `FLAG_CENTRE` ends with the centre the
     /// encoder subtracted; the rest, with that flag cleared, is a version 5 packet. The centre
     /// is added to every decoded coordinate ([`add_centre`]).
     fn decode_packet(&mut self, packet: &Packet) -> Result<Vec<f32>> {
