@@ -74,11 +74,11 @@ pub struct MetricReport {
     pub rmse_relative: Option<f64>,
     /// Largest vertex displacement.
     pub max_error: f64,
-    /// Number of parts: connected components of the triangles (isolated vertices are in none;
-    /// see [`crate::parts`]).
+    /// Number of parts: connected components of the triangles, seams welded (isolated vertices
+    /// are in none; see [`crate::parts::visible_parts`]).
     pub parts: usize,
     /// The part of largest KG against its own spread (`None` without triangles): the
-    /// default quality and a `kg=` target hold for it as for the whole (issue 41).
+    /// default quality and a `kg=` target hold for it as for the whole.
     pub worst_part: Option<PartError>,
     /// STED parameters used (reported even when STED was skipped).
     pub sted_params: StedParams,
