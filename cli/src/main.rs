@@ -137,9 +137,16 @@ pub struct ExportArgs {
     #[arg(long, value_name = "auto|on|off", default_value = "auto")]
     pub rigid: String,
 
-    /// Write plain f32 positions and targets: no KHR_mesh_quantization (16-bit positions) and
-    /// no EXT_meshopt_compression (meshoptimizer's codecs), which are the default.
-    #[arg(long)]
+    /// How the file stores its geometry, for the importer it is meant for. meshopt (default):
+    /// KHR_mesh_quantization (16-bit positions) + EXT_meshopt_compression (meshoptimizer's
+    /// codecs), the smallest, for engines and web viewers (three.js, Babylon.js, glTFast,
+    /// Godot 4); Blender 5.0 cannot import it. quantized: KHR_mesh_quantization alone, for DCC
+    /// tools (Blender 5.0 imports it). none: plain f32 positions, no extension.
+    #[arg(long, value_name = "meshopt|quantized|none", default_value = "meshopt")]
+    pub compression: String,
+
+    /// The same as --compression none.
+    #[arg(long, conflicts_with = "compression")]
     pub no_compress: bool,
 
     /// Keep the input's vertices as they are. By default a compressed export welds vertices

@@ -1,18 +1,18 @@
-//! Blender as a tested client of what animcodec writes: Debian's Blender (`apt-get install
-//! blender`, 3.4 on Debian 12) runs headless (`blender -b --factory-startup --python
-//! cli/tests/blender/evaluate.py`) on
+//! Blender as a tested client of what animcodec writes: Blender 5.0 as a Python module (`pip
+//! install bpy==5.0.1`, headless, no display) runs `cli/tests/blender/evaluate.py` on
 //!
 //! - our decoded PC2 (`decode -o X.pc2 --topology-obj`), played by the Mesh Cache modifier on a
 //!   mesh built from the topology OBJ, and
-//! - our exported GLB (`export -o X.glb --no-compress`: morph targets + weights; Blender 3.4's
-//!   importer cannot read EXT_meshopt_compression, which the default export uses), imported
-//!   with Blender's glTF importer (shape keys),
+//! - our exported GLB in every form Blender can import (`--compression quantized`: 16-bit
+//!   positions, and `none`: f32), both layouts, imported with Blender's glTF importer (shape
+//!   keys); the default form (`meshopt`) is refused by Blender 5.0's importer, which the test
+//!   checks so that the README's statement fails here the day it changes,
 //!
 //! evaluates the mesh through the depsgraph (modifiers, shape keys, object transforms applied)
 //! at several frames and compares the world-space positions with our own decode of the same
 //! file (the PC2 as we read it; the GLB as our glTF reader plays it). Tolerances are relative to
 //! the bounding-box diagonal and stated at each assertion; the measured maxima are printed.
-//! Without Blender the tests skip through `codec_core::testing::skip` (a failure under
+//! Without bpy 5 the tests skip through `codec_core::testing::skip` (a failure under
 //! `ANIMCODEC_REQUIRE_ALL=1`, as in CI, whose `.ci/run` installs it).
 
 mod common;
@@ -31,34 +31,49 @@ fn script() -> PathBuf {
     PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/blender/evaluate.py"))
 }
 
+/// `Ok` when `python3` imports Blender 5 (`bpy`), else why not.
 fn blender() -> Result<(), String> {
-    match Command::new("blender").args(["-b", "--factory-startup", "--version"]).output() {
-        Ok(o) if o.status.success() => Ok(()),
-        Ok(o) => Err(format!("blender -b --version failed: {}", String::from_utf8_lossy(&o.stderr))),
-        Err(e) => Err(format!("blender not found ({e}); apt-get install blender")),
+    let probe = "import bpy; print(bpy.app.version_string)";
+    match Command::new("python3").args(["-c", probe]).output() {
+        Ok(o) if o.status.success() && String::from_utf8_lossy(&o.stdout).trim_start().starts_with("5.") => Ok(()),
+        Ok(o) if o.status.success() => {
+            Err(format!("bpy {} is not Blender 5 (pip install bpy==5.0.1)", String::from_utf8_lossy(&o.stdout).trim()))
+        }
+        Ok(o) => {
+            Err(format!("bpy not installed (pip install bpy==5.0.1): {}", String::from_utf8_lossy(&o.stderr).trim()))
+        }
+        Err(e) => Err(format!("python3 not found: {e}")),
     }
 }
 
-/// Runs evaluate.py; returns its report and the evaluated positions (frames × vertices × 3).
-fn evaluate(mode: &str, file: &str, obj: &str, fps: f32, frames: &[usize], out: &str) -> (Value, Vec<f32>) {
-    let mut cmd = Command::new("blender");
-    cmd.args(["-b", "--factory-startup", "--python-exit-code", "1", "--python"]).arg(script()).args([
-        "--",
-        mode,
-        file,
-        obj,
-        &fps.to_string(),
-        out,
-    ]);
+/// Runs evaluate.py; returns its report and the evaluated positions (frames × vertices × 3),
+/// or what Blender printed when the script failed.
+fn try_evaluate(
+    mode: &str,
+    file: &str,
+    obj: &str,
+    fps: f32,
+    frames: &[usize],
+    out: &str,
+) -> Result<(Value, Vec<f32>), String> {
+    let mut cmd = Command::new("python3");
+    cmd.arg(script()).args(["--", mode, file, obj, &fps.to_string(), out]);
     cmd.args(frames.iter().map(|f| f.to_string()));
-    let o = cmd.output().expect("blender runs");
+    let o = cmd.output().expect("python3 runs");
     let text = String::from_utf8_lossy(&o.stdout);
-    assert!(o.status.success(), "blender failed: {text}\n{}", String::from_utf8_lossy(&o.stderr));
+    if !o.status.success() {
+        return Err(format!("{text}\n{}", String::from_utf8_lossy(&o.stderr)));
+    }
     let line =
         text.lines().find_map(|l| l.strip_prefix("BLENDER_RESULT ")).unwrap_or_else(|| panic!("no result: {text}"));
     let report: Value = serde_json::from_str(line).unwrap();
     let bytes = std::fs::read(out).unwrap();
-    (report, bytes.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect())
+    Ok((report, bytes.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect()))
+}
+
+/// [`try_evaluate`], which must succeed.
+fn evaluate(mode: &str, file: &str, obj: &str, fps: f32, frames: &[usize], out: &str) -> (Value, Vec<f32>) {
+    try_evaluate(mode, file, obj, fps, frames, out).unwrap_or_else(|e| panic!("Blender failed on {file}: {e}"))
 }
 
 /// Largest coordinate difference between `ours` at `frames` and Blender's, over the diagonal.
@@ -121,38 +136,42 @@ fn blender_gltf_importer_plays_our_exported_glb() {
         let source = read_animation(Path::new(&input), &ReadOptions::default()).unwrap();
         let read = ReadOptions { frame_rate: Some(source.frame_rate()), ..Default::default() };
         for layout in ["frames", "basis"] {
-            let glb = dir.path(&format!("{name}-{layout}.glb"));
-            // Debian 12's Blender 3.4 glTF importer has no EXT_meshopt_compression ("Extension
-            // EXT_meshopt_compression is not available on this addon version"), which our
-            // default export requires: Blender gets the uncompressed form (`--no-compress`).
-            ok(&["export", &input, "-o", &glb, "--layout", layout, "--no-compress"]);
-            let ours = read_animation(Path::new(&glb), &read).unwrap();
-            let last = ours.frame_count() - 1;
-            let frames = [0, 1, last / 3, last / 2, last];
-            let out = dir.path(&format!("{name}-{layout}.f32"));
-            let (report, theirs) = evaluate("glb", &glb, "", ours.frame_rate(), &frames, &out);
-            assert_eq!(report["objects"], 1, "{report}");
-            assert!(report["shape_keys"][0].as_u64().unwrap() > 1, "{report}");
-            let w = worst(&ours, &frames, &theirs);
-            eprintln!("blender glb {name} {layout}: max |Blender − ours| = {w:.3e} × diagonal, frames {frames:?}, {} shape keys", report["shape_keys"][0]);
-            // Blender mixes shape keys in float32 (basis + Σ wᵢ·(keyᵢ − basis)) from the
-            // dequantized targets, we in float64 then round: a few float32 ulps of the largest
-            // coordinate.
-            const TOLERANCE: f64 = 1e-5;
-            if layout == "frames" {
-                // One target per frame, weights 0/1: inside Blender's default slider range.
-                assert!(w <= TOLERANCE, "{name}: Blender's glTF playback differs from ours by {w:e} × diagonal");
-                continue;
+            for compression in ["quantized", "none"] {
+                let glb = dir.path(&format!("{name}-{layout}-{compression}.glb"));
+                let out = ok(&["export", &input, "-o", &glb, "--layout", layout, "--compression", compression]);
+                assert!(out.contains("Blender 5.0") || compression == "none", "{out}");
+                let ours = read_animation(Path::new(&glb), &read).unwrap();
+                let last = ours.frame_count() - 1;
+                let frames = [0, 1, last / 3, last / 2, last];
+                let out = dir.path(&format!("{name}-{layout}-{compression}.f32"));
+                let (report, theirs) = evaluate("glb", &glb, "", ours.frame_rate(), &frames, &out);
+                assert_eq!(report["objects"], 1, "{report}");
+                assert!(report["shape_keys"][0].as_u64().unwrap() > 1, "{report}");
+                let w = worst(&ours, &frames, &theirs);
+                eprintln!(
+                    "blender glb {name} {layout} {compression}: max |Blender − ours| = {w:.3e} × diagonal, frames \
+                     {frames:?}, {} shape keys, sliders {}",
+                    report["shape_keys"][0], report["sliders"]
+                );
+                // Blender mixes shape keys in float32 (basis + Σ wᵢ·(keyᵢ − basis)) from the
+                // dequantized targets, we in float64 then round: a few float32 ulps of the
+                // largest coordinate. Every weight lies in [0, 1], inside the slider range
+                // Blender clamps shape keys to, so no slider needs widening.
+                const TOLERANCE: f64 = 1e-5;
+                assert!(
+                    w <= TOLERANCE,
+                    "{name} {layout} {compression}: Blender's glTF playback differs from ours by {w:e} × diagonal"
+                );
             }
-            // The basis layout animates weights in [-1, 1]; Blender 3.4 clamps each shape key to
-            // the slider range it derives from the default weights ([0, 1]), so it plays the
-            // file wrong — by far more than the tolerance (measured 0.12 × diagonal on the flag)
-            // — until the sliders are widened, when it agrees with us.
-            assert!(w > 100.0 * TOLERANCE, "{name}: Blender 3.4 no longer clamps shape keys ({w:e}): update the test");
-            let (_, unclamped) = evaluate("glb-unclamped", &glb, "", ours.frame_rate(), &frames, &out);
-            let w = worst(&ours, &frames, &unclamped);
-            eprintln!("blender glb {name} {layout}, sliders widened: max |Blender − ours| = {w:.3e} × diagonal");
-            assert!(w <= TOLERANCE, "{name}: Blender's unclamped glTF playback differs from ours by {w:e} × diagonal");
         }
+        // The default form: Blender 5.0's importer has no EXT_meshopt_compression, as `export`
+        // says in its output. When this fails, Blender reads it: update the export's message
+        // and the README.
+        let glb = dir.path(&format!("{name}-meshopt.glb"));
+        let out = ok(&["export", &input, "-o", &glb]);
+        assert!(out.contains("Blender 5.0 does not"), "{out}");
+        let refused = try_evaluate("glb", &glb, "", source.frame_rate(), &[0], &dir.path("meshopt.f32"));
+        let why = refused.expect_err("Blender 5.0 imported EXT_meshopt_compression");
+        assert!(why.contains("EXT_meshopt_compression is not available"), "{why}");
     }
 }

@@ -11,7 +11,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use animcodec::formats::gltf::{self, GltfSelection};
-use animcodec::formats::gltf_out::{encode_gltf, GltfLayout, GltfOptions};
+use animcodec::formats::gltf_out::{encode_gltf, GltfCompression, GltfLayout, GltfOptions};
 use animcodec::formats::{read_animation, ReadOptions};
 use codec_core::synth::{self, SynthSize};
 use codec_core::testing::skip;
@@ -129,17 +129,21 @@ fn writer_inputs() -> Vec<(String, Animation)> {
 }
 
 /// Every glTF variant we write: basis and frames layouts, .glb and .gltf, compressed
-/// (KHR_mesh_quantization + EXT_meshopt_compression, the default) or not.
+/// (KHR_mesh_quantization + EXT_meshopt_compression, the default), quantized only, or plain.
 fn variants() -> Vec<(String, GltfOptions, bool)> {
     let mut out = Vec::new();
-    for compress in [true, false] {
+    for compression in [GltfCompression::Meshopt, GltfCompression::Quantized, GltfCompression::None] {
         for layout in [GltfLayout::Basis, GltfLayout::Frames] {
             for glb in [true, false] {
-                let options = GltfOptions { layout, target_kg: 0.5, compress, ..Default::default() };
+                let options = GltfOptions { layout, target_kg: 0.5, compression, ..Default::default() };
                 let name = format!(
                     "{}{}.{}",
                     if layout == GltfLayout::Basis { "basis" } else { "frames" },
-                    if compress { "-meshopt" } else { "" },
+                    match compression {
+                        GltfCompression::Meshopt => "-meshopt",
+                        GltfCompression::Quantized => "-quantized",
+                        GltfCompression::None => "",
+                    },
                     if glb { "glb" } else { "gltf" }
                 );
                 out.push((name, options, glb));
@@ -149,7 +153,7 @@ fn variants() -> Vec<(String, GltfOptions, bool)> {
     // The rigid motion as node animation (parent node translation + rotation, LINEAR/slerp).
     let rigid = GltfOptions { target_kg: 0.5, rigid: Some(true), ..Default::default() };
     out.push(("basis-rigid-meshopt.glb".into(), rigid.clone(), true));
-    out.push(("basis-rigid.gltf".into(), GltfOptions { compress: false, ..rigid }, false));
+    out.push(("basis-rigid.gltf".into(), GltfOptions { compression: GltfCompression::None, ..rigid }, false));
     out
 }
 
@@ -240,7 +244,7 @@ fn robot_dance_encodes_decodes_to_a_valid_glb() {
 /// so a mutation hits the geometry itself), split for mutation.
 fn exported_flag() -> (Animation, Value, Vec<u8>) {
     let a = synth::by_name("flag", SynthSize::Small).unwrap();
-    let options = GltfOptions { compress: false, ..Default::default() };
+    let options = GltfOptions { compression: GltfCompression::None, ..Default::default() };
     let (glb, _) = encode_gltf(&a, &options, true).unwrap();
     let (json, bin) = split_glb(&glb);
     (a, json, bin)
@@ -481,7 +485,7 @@ fn frame_rates_are_bounded_at_every_entry_point() {
         let e = encode_gltf(&odd, &GltfOptions::default(), true).unwrap_err().to_string();
         assert!(e.contains("frame rate") && e.contains("outside"), "{fps}: {e}");
     }
-    let plain = GltfOptions { compress: false, rigid: Some(false), ..Default::default() };
+    let plain = GltfOptions { compression: GltfCompression::None, rigid: Some(false), ..Default::default() };
     let (glb, _) = encode_gltf(&a, &plain, true).unwrap();
     for fps in [0.0, 1e-45, 2e4, f32::NAN] {
         let selection = GltfSelection { frame_rate: Some(fps), ..Default::default() };
@@ -568,7 +572,8 @@ fn what_gltfpack_writes_is_read_like_three_js_plays_it() {
     // The synthetic input: the tumbling flag's rigid motion as node animation, plus normals
     // (gltfpack encodes them with the octahedral filter; our reader never needs them).
     let a = synth::by_name("flag", SynthSize::Small).unwrap();
-    let options = GltfOptions { compress: false, rigid: Some(true), target_kg: 0.5, ..Default::default() };
+    let options =
+        GltfOptions { compression: GltfCompression::None, rigid: Some(true), target_kg: 0.5, ..Default::default() };
     let (glb, _) = encode_gltf(&a, &options, true).unwrap();
     let (mut j, mut bin) = split_glb(&glb);
     let at = bin.len().next_multiple_of(4);

@@ -15,7 +15,7 @@ use std::path::Path;
 use std::process::Command;
 
 use animcodec::formats::gltf::{self, GltfSelection};
-use animcodec::formats::gltf_out::{encode_gltf, GltfLayout, GltfOptions};
+use animcodec::formats::gltf_out::{encode_gltf, GltfCompression, GltfLayout, GltfOptions};
 use animcodec::formats::{read_animation, ReadOptions};
 use codec_core::synth::{self, SynthSize};
 use codec_core::testing::skip;
@@ -113,7 +113,12 @@ struct Row {
 fn compare(tools: &Path, s: &Scratch, name: &str, a: &Animation) -> Row {
     let fps = a.frame_rate();
     let frames = s.0.join(format!("{name}-frames.glb"));
-    let options = GltfOptions { layout: GltfLayout::Frames, compress: false, name: name.into(), ..Default::default() };
+    let options = GltfOptions {
+        layout: GltfLayout::Frames,
+        compression: GltfCompression::None,
+        name: name.into(),
+        ..Default::default()
+    };
     std::fs::write(&frames, encode_gltf(a, &options, true).unwrap().0).unwrap();
     let packed_path = s.0.join(format!("{name}-gltfpack.glb"));
     gltfpack_cc(tools, &frames, &packed_path, fps);

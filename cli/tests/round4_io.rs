@@ -9,7 +9,7 @@
 
 use std::path::Path;
 
-use animcodec::formats::gltf_out::{encode_gltf, GltfOptions};
+use animcodec::formats::gltf_out::{encode_gltf, GltfCompression, GltfOptions};
 use base64::Engine as _;
 use codec_core::synth::{self, SynthSize};
 use serde_json::Value;
@@ -20,7 +20,7 @@ use common::*;
 /// The synthetic flag exported as a GLB (uncompressed), split.
 fn exported_flag() -> (Value, Vec<u8>) {
     let a = synth::by_name("flag", SynthSize::Small).unwrap();
-    let options = GltfOptions { compress: false, ..Default::default() };
+    let options = GltfOptions { compression: GltfCompression::None, ..Default::default() };
     let (glb, _) = encode_gltf(&a, &options, true).unwrap();
     split_glb(&glb)
 }

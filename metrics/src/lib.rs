@@ -28,6 +28,8 @@ pub use hausdorff::{
     hausdorff, isolated_vertex_count, point_triangle_distance, vertex_to_surface_distances, HausdorffMode,
     HausdorffStats,
 };
-pub use parts::{connected_parts, part_errors, visible_parts, worst_part, PartError, Parts, NO_PART, PART_SPREAD_FLOOR};
+pub use parts::{
+    connected_parts, part_errors, visible_parts, worst_part, PartError, Parts, NO_PART, PART_SPREAD_FLOOR,
+};
 pub use report::{evaluate, EvalOptions, MetricReport};
 pub use sted::{diameter, sted, sted_local_deviations, sted_with_fields, EdgeDifference, StedParams, StedResult};

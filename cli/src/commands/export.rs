@@ -4,7 +4,7 @@
 use std::path::Path;
 use std::time::Instant;
 
-use animcodec::formats::gltf_out::{encode_gltf, restore_vertices, GltfLayout, GltfOptions};
+use animcodec::formats::gltf_out::{encode_gltf, restore_vertices, GltfCompression, GltfLayout, GltfOptions};
 use animcodec::formats::{gltf, ReadOptions};
 use animcodec::harness::{self, TargetMetric};
 use animcodec::output::OutputPolicy;
@@ -59,14 +59,20 @@ pub fn run(args: &ExportArgs, limits: Limits) -> CmdResult {
         "off" => Some(false),
         other => return Err(format!("--rigid '{other}': expected auto, on or off").into()),
     };
+    let compression = match (args.no_compress, args.compression.as_str()) {
+        (true, _) | (false, "none") => GltfCompression::None,
+        (false, "meshopt") => GltfCompression::Meshopt,
+        (false, "quantized") => GltfCompression::Quantized,
+        (false, other) => return Err(format!("--compression '{other}': expected meshopt, quantized or none").into()),
+    };
     let options = GltfOptions {
         layout,
         targets: args.targets,
         target_kg,
         name,
-        compress: !args.no_compress,
+        compression,
         rigid,
-        reorder: !args.no_compress && !args.keep_vertices,
+        reorder: compression.quantized() && !args.keep_vertices,
     };
     let start = Instant::now();
     stages.stage(format!(
@@ -107,13 +113,18 @@ pub fn run(args: &ExportArgs, limits: Limits) -> CmdResult {
             "vertices": animation.vertex_count(),
             "frame_rate": animation.frame_rate(),
             "export_seconds": seconds,
+            "compression": args_compression_name(compression),
+            "extensions_required": compression.extensions(),
+            "importers": importers(compression),
         }));
     }
     let num = |x: Option<f64>| x.map_or_else(|| "n/a".to_string(), |x| format!("{x:.4e}"));
     emit(&format!(
         "{input}: {f} frames × {v} vertices at {fps} fps → {out}\n\
          {layout} layout, {k} morph targets{rigid}, {bytes} bytes, {rate:.3} bits/vertex/frame (written in {seconds:.2} s)\n\
-         played back (read with animcodec's glTF reader at {fps} fps): KG {kg} %, STED {sted}, max error {max:.4e}\n",
+         played back (read with animcodec's glTF reader at {fps} fps): KG {kg} %, STED {sted}, max error {max:.4e}\n\
+         {importers}\n",
+        importers = importers(compression),
         input = shown(&args.input),
         f = animation.frame_count(),
         v = animation.vertex_count(),
@@ -127,4 +138,28 @@ pub fn run(args: &ExportArgs, limits: Limits) -> CmdResult {
         sted = num(report.sted),
         max = report.max_error,
     ))
+}
+
+/// The `--compression` name of `c`.
+fn args_compression_name(c: GltfCompression) -> &'static str {
+    match c {
+        GltfCompression::Meshopt => "meshopt",
+        GltfCompression::Quantized => "quantized",
+        GltfCompression::None => "none",
+    }
+}
+
+/// Which importers open a file of this form (checked: three.js and the Khronos validator for
+/// every form, Blender 5.0 for quantized and none; cli/tests/gltf.rs, cli/tests/blender.rs).
+fn importers(c: GltfCompression) -> &'static str {
+    match c {
+        GltfCompression::Meshopt => {
+            "requires EXT_meshopt_compression + KHR_mesh_quantization: engines and web viewers read it (three.js, \
+             Babylon.js, Unity glTFast, Godot 4); Blender 5.0 does not — use --compression quantized for DCC tools"
+        }
+        GltfCompression::Quantized => {
+            "requires KHR_mesh_quantization: Blender 5.0, three.js, Babylon.js and most engines read it"
+        }
+        GltfCompression::None => "no extensions: every glTF 2.0 importer reads it",
+    }
 }

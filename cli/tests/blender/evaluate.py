@@ -1,12 +1,12 @@
-"""Blender (Debian's, headless) as a client of what animcodec writes. Run by cli/tests/blender.rs:
+"""Blender 5 (the `bpy` module from PyPI, headless) as a client of what animcodec writes. Run by
+cli/tests/blender.rs:
 
-    blender -b --factory-startup --python-exit-code 1 --python evaluate.py -- MODE FILE OBJ FPS OUT FRAME...
+    python3 evaluate.py -- MODE FILE OBJ FPS OUT FRAME...
 
 MODE pc2: a mesh is built from OBJ's vertices and faces (in file order, no importer axis
 conversion) and given a Mesh Cache modifier reading the PC2 FILE (Blender's native axes, frame
 start 0). MODE glb: FILE is imported with Blender's glTF importer (shape keys, node animation;
-its Y-up to Z-up conversion is undone below); glb-unclamped: the same with every shape key's
-slider range widened to [-10, 10] (see below). For each FRAME (a scene frame, at FPS), the
+its Y-up to Z-up conversion is undone below). For each FRAME (a scene frame, at FPS), the
 depsgraph-evaluated mesh's world-space vertex positions are appended to OUT as little-endian
 float32, in our axes (glTF's Y up for glb). Prints one JSON line: what was evaluated.
 """
@@ -55,25 +55,15 @@ if mode == "pc2":
     mod.up_axis = "POS_Z"
     objects = [obj]
     convert = lambda v: (v[0], v[1], v[2])
-elif mode in ("glb", "glb-unclamped"):
-    # Debian 12 pairs Blender 3.4 with numpy 1.24, which removed the `numpy.bool` alias the
-    # 3.4 glTF importer still uses ("module 'numpy' has no attribute 'bool'"): restore it.
-    import numpy
-
-    if not hasattr(numpy, "bool"):
-        numpy.bool = bool
+elif mode == "glb":
     bpy.ops.import_scene.gltf(filepath=path)
     objects = [o for o in scene.objects if o.type == "MESH"]
-    # Blender 3.4's importer sets each shape key's slider range from the mesh's default
-    # weights only ([0, 1] unless a default is negative), so animated weights outside it are
-    # clamped. "glb-unclamped" widens the sliders to Blender's hard limits [-10, 10], as a user
-    # would, to show what the file itself holds.
+    # The importer sets each shape key's slider range from the mesh's default weights and
+    # clamps animated values to it: reported, not changed (what a user sees).
     report_sliders = []
     for o in objects:
         for kb in o.data.shape_keys.key_blocks if o.data.shape_keys else []:
             report_sliders.append([kb.slider_min, kb.slider_max])
-            if mode == "glb-unclamped":
-                kb.slider_min, kb.slider_max = -10.0, 10.0
     # The importer turns glTF's Y up into Blender's Z up: (x, y, z) -> (x, -z, y).
     convert = lambda v: (v[0], v[2], -v[1])
 else:

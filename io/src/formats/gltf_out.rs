@@ -7,8 +7,8 @@
 //!   of the frames (centred on that mean) as morph targets; weights keyed at every frame,
 //!   `LINEAR`. Compressed (the default): every component quantized at its own step for the KG
 //!   target, the ones that round to nothing dropped, weights in [0, 1] ([`super::gltf_out_rd`]).
-//!   Uncompressed: the `k` leading components in f32, each scaled so its weights lie in
-//!   [−1, 1], `k` the smallest meeting the KG target (computed exactly from the PCA's discarded
+//!   Uncompressed: the `k` leading components in f32, each shifted and scaled so its weights
+//!   lie in [0, 1] (the slider range DCC importers clamp shape keys to), `k` the smallest meeting the KG target (computed exactly from the PCA's discarded
 //!   energy), or given.
 //! - [`GltfLayout::Frames`]: frame 0 as the base mesh and one morph target per later frame
 //!   (its difference from frame 0), `STEP` weights selecting one target per frame: exact, large.
@@ -46,10 +46,9 @@ pub struct GltfOptions {
     pub target_kg: f64,
     /// Mesh, node and animation name.
     pub name: String,
-    /// `KHR_mesh_quantization` (16-bit positions and targets) + `EXT_meshopt_compression`
-    /// (meshoptimizer's vertex and index codecs on the quantized data, the weights and the key
-    /// times). Default true; the frames layout is then exact up to the 16-bit quantization.
-    pub compress: bool,
+    /// How the geometry and the keys are stored. Default [`GltfCompression::Meshopt`]; the
+    /// frames layout is exact up to the 16-bit quantization when quantized.
+    pub compression: GltfCompression,
     /// `Basis`: move the per-frame rigid motion (Kabsch fit of each frame to the mean shape:
     /// rotation + translation) to a parent node's `rotation`/`translation` animation and
     /// decompose only what is left. `Some(true)`/`Some(false)` force it; `None` (default) writes
@@ -70,9 +69,45 @@ impl Default for GltfOptions {
             targets: None,
             target_kg: 0.05,
             name: "animcodec".into(),
-            compress: true,
+            compression: GltfCompression::Meshopt,
             rigid: None,
             reorder: false,
+        }
+    }
+}
+
+/// How a glTF file stores its geometry: what the importer it is meant for can read.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum GltfCompression {
+    /// `KHR_mesh_quantization` (16-bit positions and targets) + `EXT_meshopt_compression`
+    /// (meshoptimizer's vertex and index codecs on the quantized data, the weights and the key
+    /// times): the smallest; engines and web viewers read it (three.js, Babylon.js, Unity's
+    /// glTFast, Godot 4), Blender 5.0's importer does not.
+    Meshopt,
+    /// `KHR_mesh_quantization` alone: the same quantized geometry stored plainly, for DCC tools
+    /// (Blender 5.0 imports it).
+    Quantized,
+    /// Plain `f32` positions and targets: no extension at all.
+    None,
+}
+
+impl GltfCompression {
+    /// Positions and targets are 16-bit integers (`KHR_mesh_quantization`).
+    pub fn quantized(self) -> bool {
+        self != GltfCompression::None
+    }
+
+    /// Views are meshoptimizer-coded (`EXT_meshopt_compression`).
+    pub fn meshopt(self) -> bool {
+        self == GltfCompression::Meshopt
+    }
+
+    /// The extensions a file of this form uses and requires.
+    pub fn extensions(self) -> &'static [&'static str] {
+        match self {
+            GltfCompression::Meshopt => &["KHR_mesh_quantization", "EXT_meshopt_compression"],
+            GltfCompression::Quantized => &["KHR_mesh_quantization"],
+            GltfCompression::None => &[],
         }
     }
 }
@@ -165,14 +200,14 @@ pub fn restore_vertices(played: &Animation, map: &[u32], triangles: &[[u32; 3]])
     Animation::from_parts(map.len(), triangles.to_vec(), positions, played.frame_rate())
 }
 
-/// Little-endian binary buffer with 4-byte aligned views. With `compress`, view data is
+/// Little-endian binary buffer with 4-byte aligned views. With `meshopt`, view data is
 /// meshoptimizer-encoded into buffer 0 and the view itself points into buffer 1, the
 /// `EXT_meshopt_compression` fallback buffer that holds no data (`fallback` = its length).
 struct Buffer {
     bin: Vec<u8>,
     views: Vec<Value>,
     accessors: Vec<Value>,
-    compress: bool,
+    meshopt: bool,
     fallback: usize,
     /// Triangles may come back with their corners rotated (the vertices were welded and
     /// renumbered anyway): meshopt's triangle codec (mode `TRIANGLES`), else the exact index
@@ -215,8 +250,8 @@ fn encode_stride(raw: &[u8], stride: usize) -> Result<Vec<u8>> {
 }
 
 impl Buffer {
-    fn new(compress: bool) -> Self {
-        Self { bin: Vec::new(), views: Vec::new(), accessors: Vec::new(), compress, fallback: 0, rotate: false }
+    fn new(meshopt: bool) -> Self {
+        Self { bin: Vec::new(), views: Vec::new(), accessors: Vec::new(), meshopt, fallback: 0, rotate: false }
     }
 
     /// Appends a view holding `raw`; returns its index.
@@ -230,7 +265,7 @@ impl Buffer {
         if let Some(t) = target {
             view["target"] = t.into();
         }
-        if self.compress {
+        if self.meshopt {
             let (encoded, count, mode) = (encode_stride(raw, stride)?, raw.len() / stride, "ATTRIBUTES");
             if encoded.len() >= raw.len() {
                 // The codec gains nothing on this view (f32 weights of a short clip): plain.
@@ -340,7 +375,7 @@ impl Buffer {
         } else {
             (data.iter().flat_map(|x| x.to_le_bytes()).collect(), 5125, 4)
         };
-        let view = if self.compress && !data.is_empty() {
+        let view = if self.meshopt && !data.is_empty() {
             align4(&mut self.bin);
             let (encoded, mode) = match self.rotate {
                 true => (meshopt::encode_index_buffer(data, vertex_count).ok(), "TRIANGLES"),
@@ -393,13 +428,20 @@ fn basis_morphs(a: &Animation, options: &GltfOptions) -> Result<Morphs> {
         Some(k) => k.min(rank),
         None => (0..=rank).find(|&k| kg_with(k) <= options.target_kg).unwrap_or(rank),
     };
+    let mut base = mean;
     let mut targets = Vec::with_capacity(k);
     let mut weights = vec![0.0f32; frames * k];
     for j in 0..k {
         let u = vectors.col(j);
         let sigma = lambda[j].sqrt();
-        // Component j: direction Xᵀu/σ (unit length), weight σ·u(f); scaled so |weights| ≤ 1.
-        let scale = (0..frames).map(|f| (sigma * u[f]).abs()).fold(0.0, f64::max).max(f64::MIN_POSITIVE);
+        // Component j: direction d = Xᵀu/σ (unit length), coordinate c(f) = σ·u(f). Written as
+        // target (hi − lo)·d with weight (c − lo)/(hi − lo) ∈ [0, 1] and lo·d moved into the base:
+        // the same frames, and the weights stay inside the [0, 1] slider range that DCC importers
+        // clamp shape keys to.
+        let coordinate = |f: usize| sigma * u[f];
+        let lo = (0..frames).map(coordinate).fold(f64::INFINITY, f64::min);
+        let hi = (0..frames).map(coordinate).fold(f64::NEG_INFINITY, f64::max);
+        let span = (hi - lo).max(f64::MIN_POSITIVE);
         let mut dir = vec![0.0f64; n];
         for f in 0..frames {
             let w = u[f] / sigma;
@@ -407,12 +449,15 @@ fn basis_morphs(a: &Animation, options: &GltfOptions) -> Result<Morphs> {
                 *d += w * x;
             }
         }
-        targets.push(dir.iter().map(|&d| (d * scale) as f32).collect());
+        for (b, &d) in base.iter_mut().zip(&dir) {
+            *b += lo * d;
+        }
+        targets.push(dir.iter().map(|&d| (d * span) as f32).collect());
         for f in 0..frames {
-            weights[f * k + j] = (sigma * u[f] / scale) as f32;
+            weights[f * k + j] = ((coordinate(f) - lo) / span).clamp(0.0, 1.0) as f32;
         }
     }
-    Ok(Morphs { base: mean.iter().map(|&m| m as f32).collect(), targets, weights, basis_kg: kg_with(k) })
+    Ok(Morphs { base: base.iter().map(|&m| m as f32).collect(), targets, weights, basis_kg: kg_with(k) })
 }
 
 /// Frame 0 + one target per later frame.
@@ -532,9 +577,9 @@ struct Quantized {
 }
 
 /// Quantizes the morphs: the base about the centre of the animation's bounding box (over every
-/// frame) in steps of half its extent per axis / 32767; each target rescaled to use the full
-/// 16-bit range (its weights multiplied by the same factor, so the played frames are
-/// unchanged up to rounding).
+/// frame) in steps of half its extent per axis / 32767 (coarser when a target reaches further);
+/// each target rescaled to use the full 16-bit range (its weights multiplied by the same factor,
+/// at most 1, so the played frames are unchanged up to rounding and weights stay in [0, 1]).
 fn quantize(animation: &Animation, morphs: &mut Morphs) -> Quantized {
     let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
     for p in animation.positions().chunks_exact(3) {
@@ -545,8 +590,16 @@ fn quantize(animation: &Animation, morphs: &mut Morphs) -> Quantized {
     }
     let widest = (0..3).map(|a| hi[a] - lo[a]).fold(0.0, f64::max).max(1e-30);
     // A flat axis still gets a usable step (targets may move along it).
-    let half: [f64; 3] = std::array::from_fn(|a| ((hi[a] - lo[a]) / 2.0).max(widest * 1e-3));
+    let mut half: [f64; 3] = std::array::from_fn(|a| ((hi[a] - lo[a]) / 2.0).max(widest * 1e-3));
     let centre: [f64; 3] = std::array::from_fn(|a| (hi[a] + lo[a]) / 2.0);
+    // A target's reach: its largest coordinate in units of the half extent. A target reaching
+    // past the half extent (a walk's last frame against its first) would need a weight above 1
+    // to fit 16 bits, which DCC importers clamp to their [0, 1] sliders: the step grows instead.
+    let reach = |t: &[f32], half: &[f64; 3]| {
+        t.chunks_exact(3).flat_map(|d| (0..3).map(move |a| (d[a] as f64).abs() / half[a])).fold(0.0, f64::max)
+    };
+    let widest_reach = morphs.targets.iter().map(|t| reach(t, &half)).fold(1.0, f64::max);
+    half = half.map(|h| h * widest_reach);
     let to_short = |x: f64| x.round().clamp(-32767.0, 32767.0) as i16;
     let base = morphs
         .base
@@ -556,14 +609,14 @@ fn quantize(animation: &Animation, morphs: &mut Morphs) -> Quantized {
     let k = morphs.targets.len();
     let mut targets = Vec::with_capacity(k);
     for (j, t) in morphs.targets.iter().enumerate() {
-        let reach =
-            t.chunks_exact(3).flat_map(|d| (0..3).map(move |a| (d[a] as f64).abs() / half[a])).fold(0.0, f64::max);
-        let factor = if reach > 0.0 { reach } else { 1.0 };
+        let r = reach(t, &half);
+        let factor = if r > 0.0 { r } else { 1.0 };
         targets.push(
             t.chunks_exact(3)
                 .map(|d| std::array::from_fn(|a| to_short(d[a] as f64 / (factor * half[a]) * 32767.0)))
                 .collect(),
         );
+        // factor ≤ 1: weights in [0, 1] stay there.
         for f in 0..morphs.weights.len() / k.max(1) {
             morphs.weights[f * k + j] = (morphs.weights[f * k + j] as f64 * factor) as f32;
         }
@@ -673,7 +726,7 @@ impl Geometry {
 /// `targets`) the differences from frame 0, each quantized for the KG target; else float.
 fn basis_geometry(a: &Animation, options: &GltfOptions) -> Result<Vec<Geometry>> {
     // One frame is a plain mesh: 16-bit positions, as the frames layout writes it.
-    if options.compress && a.frame_count() > 1 {
+    if options.compression.quantized() && a.frame_count() > 1 {
         let limit = options.targets.unwrap_or(usize::MAX);
         let pca = gltf_out_rd::pca(a)?;
         let kg = options.target_kg;
@@ -710,7 +763,7 @@ fn finish(
     let frames = animation.frame_count();
     // With rigid motion: node 0 carries it, its child node 1 the mesh.
     let mesh_node = if motion.is_some() { 1 } else { 0 };
-    let mut buf = Buffer::new(options.compress);
+    let mut buf = Buffer::new(options.compression.meshopt());
     buf.rotate = rotate;
     let tri: Vec<u32> = animation.triangles().iter().flatten().copied().collect();
     let indices = buf.indices(&tri, animation.vertex_count());
@@ -724,7 +777,7 @@ fn finish(
                     GltfLayout::Frames => format!("frame {}", j + 1),
                 })
                 .collect();
-            let (position, targets) = if options.compress {
+            let (position, targets) = if options.compression.quantized() {
                 let q = quantize(animation, &mut morphs);
                 node["translation"] = json!(q.translation);
                 node["scale"] = json!(q.scale);
@@ -821,10 +874,12 @@ fn finish(
     align4(&mut bin);
     let summary = GltfSummary { targets: k, components, basis_kg, rigid: motion.is_some(), vertex_map: None };
     let mut buffers = vec![json!({"byteLength": bin.len()})];
-    if options.compress {
-        let used = json!(["KHR_mesh_quantization", "EXT_meshopt_compression"]);
-        root["extensionsUsed"] = used.clone();
-        root["extensionsRequired"] = used;
+    let extensions = options.compression.extensions();
+    if !extensions.is_empty() {
+        root["extensionsUsed"] = json!(extensions);
+        root["extensionsRequired"] = json!(extensions);
+    }
+    if options.compression.meshopt() {
         buffers
             .push(json!({"byteLength": buf.fallback, "extensions": {"EXT_meshopt_compression": {"fallback": true}}}));
     }
@@ -886,26 +941,92 @@ mod tests {
     /// (rescaled) target, 3 · half-extent / 65534 per axis, below 2.5e-5 × the diagonal.
     #[test]
     fn frames_layout_plays_back_every_frame() {
+        use GltfCompression::*;
         let a = synth::waving_flag(10, 6, 12);
-        for (glb, compress) in [(true, false), (false, false), (true, true), (false, true)] {
-            let opts = GltfOptions { layout: GltfLayout::Frames, compress, ..Default::default() };
-            let (bytes, summary) = encode_gltf(&a, &opts, glb).unwrap();
-            assert_eq!(summary.targets, 11);
-            let b = read_back(&bytes, a.frame_rate());
-            assert_eq!((b.frame_count(), b.vertex_count()), (12, a.vertex_count()));
-            assert_eq!(b.triangles(), a.triangles());
-            let bound = if compress { 2.5e-5 * a.bounding_box_diagonal() as f32 } else { 1e-5 };
-            assert!(max_diff(&a, &b) < bound, "compress {compress}: {} > {bound}", max_diff(&a, &b));
-            let text = String::from_utf8_lossy(&bytes);
-            assert_eq!(text.contains("EXT_meshopt_compression"), compress);
-            assert_eq!(text.contains("KHR_mesh_quantization"), compress);
+        for glb in [true, false] {
+            for compression in [None, Quantized, Meshopt] {
+                let opts = GltfOptions { layout: GltfLayout::Frames, compression, ..Default::default() };
+                let (bytes, summary) = encode_gltf(&a, &opts, glb).unwrap();
+                assert_eq!(summary.targets, 11);
+                let b = read_back(&bytes, a.frame_rate());
+                assert_eq!((b.frame_count(), b.vertex_count()), (12, a.vertex_count()));
+                assert_eq!(b.triangles(), a.triangles());
+                let bound = if compression.quantized() { 2.5e-5 * a.bounding_box_diagonal() as f32 } else { 1e-5 };
+                assert!(max_diff(&a, &b) < bound, "{compression:?}: {} > {bound}", max_diff(&a, &b));
+                let text = String::from_utf8_lossy(&bytes);
+                assert_eq!(text.contains("EXT_meshopt_compression"), compression.meshopt());
+                assert_eq!(text.contains("KHR_mesh_quantization"), compression.quantized());
+            }
         }
-        // Compression makes the file smaller.
-        let size = |compress| {
-            let opts = GltfOptions { layout: GltfLayout::Frames, compress, ..Default::default() };
+        // Quantization makes the file smaller; meshopt's codecs gain nothing on a mesh this small
+        // (60 vertices: the extension's JSON outweighs them), so it is only bounded here.
+        let size = |compression| {
+            let opts = GltfOptions { layout: GltfLayout::Frames, compression, ..Default::default() };
             encode_gltf(&a, &opts, true).unwrap().0.len()
         };
-        assert!(size(true) < size(false), "{} vs {}", size(true), size(false));
+        let (meshopt, quantized, plain) = (size(Meshopt), size(Quantized), size(None));
+        assert!(quantized < plain && meshopt < plain, "{meshopt} {quantized} {plain}");
+    }
+
+    /// The `weights` sampler output of a GLB whose views are stored plainly (no meshopt).
+    fn plain_weights(glb: &[u8]) -> Vec<f32> {
+        let json_len = u32::from_le_bytes(glb[12..16].try_into().unwrap()) as usize;
+        let doc: Value = serde_json::from_slice(&glb[20..20 + json_len]).unwrap();
+        let bin = &glb[20 + json_len + 8..];
+        let animation = &doc["animations"][0];
+        let channel =
+            animation["channels"].as_array().unwrap().iter().find(|c| c["target"]["path"] == "weights").unwrap();
+        let accessor = &doc["accessors"]
+            [animation["samplers"][channel["sampler"].as_u64().unwrap() as usize]["output"].as_u64().unwrap() as usize];
+        let view = &doc["bufferViews"][accessor["bufferView"].as_u64().unwrap() as usize];
+        assert!(view.get("extensions").is_none(), "a plain view: {view}");
+        let start =
+            view["byteOffset"].as_u64().unwrap() as usize + accessor["byteOffset"].as_u64().unwrap_or(0) as usize;
+        let count = accessor["count"].as_u64().unwrap() as usize;
+        bin[start..start + 4 * count].chunks_exact(4).map(|b| f32::from_le_bytes(b.try_into().unwrap())).collect()
+    }
+
+    /// Every weight written lies in [0, 1], the range DCC importers give a shape key's slider
+    /// (Blender 5.0 clamps animated values to it): the basis layout with and without the rigid
+    /// motion split off (the meshopt form writes the quantized form's weights, compressed), and
+    /// the frames layout of a travelling body.
+    #[test]
+    fn weights_lie_in_zero_one() {
+        let a = synth::waving_flag(16, 10, 30);
+        for rigid in [Some(false), Some(true)] {
+            let mut kgs = Vec::new();
+            for compression in [GltfCompression::None, GltfCompression::Quantized, GltfCompression::Meshopt] {
+                let opts = GltfOptions { target_kg: 0.01, compression, rigid, ..Default::default() };
+                let (bytes, s) = encode_gltf(&a, &opts, true).unwrap();
+                assert!(s.targets > 1, "{s:?}");
+                let kg = metrics::kg_error(&a, &read_back(&bytes, a.frame_rate())).unwrap();
+                assert!(kg <= 0.01 * 1.05 + 1e-4, "{compression:?} {rigid:?}: KG {kg}");
+                kgs.push(kg);
+                if compression.meshopt() {
+                    continue;
+                }
+                let weights = plain_weights(&bytes);
+                assert_eq!(weights.len(), s.targets * a.frame_count());
+                let (lo, hi) = weights.iter().fold((f32::MAX, f32::MIN), |(l, h), &w| (l.min(w), h.max(w)));
+                assert!(lo >= 0.0 && hi <= 1.0, "{compression:?} {rigid:?}: weights in [{lo}, {hi}]");
+            }
+            assert_eq!(kgs[1], kgs[2], "meshopt stores the quantized form's values");
+        }
+        // Frames layout of a body that travels further than half its box (a target then reaches
+        // past the base's 16-bit range): the step grows, the weights stay 0 or 1.
+        let mut travel = Vec::new();
+        for f in 0..a.frame_count() {
+            travel.extend(a.frame(f).chunks_exact(3).flat_map(|p| [p[0] + 0.5 * f as f32, p[1], p[2]]));
+        }
+        let travel = Animation::from_parts(a.vertex_count(), a.triangles().to_vec(), travel, 30.0).unwrap();
+        let opts =
+            GltfOptions { layout: GltfLayout::Frames, compression: GltfCompression::Quantized, ..Default::default() };
+        let (bytes, _) = encode_gltf(&travel, &opts, true).unwrap();
+        let weights = plain_weights(&bytes);
+        assert!(weights.iter().all(|&w| (0.0..=1.0).contains(&w)), "frames layout weights leave [0, 1]");
+        let played = read_back(&bytes, 30.0);
+        let bound = 5e-5 * travel.bounding_box_diagonal() as f32;
+        assert!(max_diff(&travel, &played) < bound, "{} > {bound}", max_diff(&travel, &played));
     }
 
     /// Basis layout: the KG target is met on playback, more targets for a tighter target, and
@@ -928,7 +1049,7 @@ mod tests {
         let (_, s) = encode_gltf(&a, &GltfOptions { targets: Some(3), ..Default::default() }, true).unwrap();
         assert!(s.components == 3 || s.components == 2, "{s:?}");
         assert_eq!(s.targets, 3, "--targets K writes K targets in all, the base's residual included: {s:?}");
-        let plain = GltfOptions { targets: Some(3), compress: false, ..Default::default() };
+        let plain = GltfOptions { targets: Some(3), compression: GltfCompression::None, ..Default::default() };
         assert_eq!(encode_gltf(&a, &plain, true).unwrap().1.targets, 3);
         let e = encode_gltf(&a, &GltfOptions { target_kg: 0.0, ..Default::default() }, true).unwrap_err();
         assert!(e.to_string().contains("target_kg"), "{e}");
