@@ -198,6 +198,30 @@ fn synth_encode_info_decode_round_trip_through_pc2() {
     assert!(max_err > 0.0, "16-bit quantization cannot be lossless on this animation");
 }
 
+/// `decode` of an animation file that is not a stream converts it: the positions written are
+/// the input's as read (a GLB to PC2 here), and the JSON says no codec was involved.
+#[test]
+fn decode_converts_an_input_that_is_not_a_stream() {
+    let s = Scratch::new("decode-converts");
+    let src = s.path("flag.pc2");
+    ok(&["synth", "flag", "--size", "small", "-o", &src]);
+    let glb = s.path("flag.glb");
+    ok(&["export", &src, "-o", &glb, "--layout", "frames", "--compression", "none"]);
+    let dst = s.path("from-glb.pc2");
+    let d = ok_json(&["decode", &glb, "-o", &dst, "--topology-obj", "--json"]);
+    assert_eq!(d["codec"], "none", "{d}");
+    let opts = animcodec::formats::ReadOptions::default();
+    let read = animcodec::formats::read_animation(Path::new(&glb), &opts).unwrap();
+    let converted = animcodec::formats::read_animation(Path::new(&dst), &opts).unwrap();
+    assert_eq!(d["frames"], read.frame_count());
+    assert_eq!(converted.positions(), read.positions(), "PC2 stores the glTF's played f32 positions exactly");
+    assert_eq!(converted.triangles(), read.triangles());
+    // A file that is neither a stream nor a readable animation: the reader's error.
+    let junk = s.path("junk.bin");
+    std::fs::write(&junk, b"not an animation").unwrap();
+    fails(&["decode", &junk, "-o", &s.path("x.pc2")], &["junk.bin", "unknown format"]);
+}
+
 #[test]
 fn streamed_flag_encodes_to_the_same_bytes_as_the_whole_flag() {
     let s = Scratch::new("streamed-flag");

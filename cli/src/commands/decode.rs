@@ -33,6 +33,9 @@ pub fn run(args: &DecodeArgs, limits: Limits) -> CmdResult {
     if !formats::obj::is_directory_target(&args.output) {
         options.policy.check(&args.output)?;
     }
+    if !is_stream(&args.input) {
+        return run_conversion(args, &options);
+    }
     let registry = animcodec::registry();
     if cache_stream::is_streamable_output(&args.output) {
         return run_streaming(args, limits, &options);
@@ -61,6 +64,40 @@ pub fn run(args: &DecodeArgs, limits: Limits) -> CmdResult {
         decode_seconds,
         write_seconds,
         how: "written",
+    };
+    report.emit(args, &written)
+}
+
+/// True when `path` is a file starting with the container's magic bytes (anything else is an
+/// animation file to convert).
+fn is_stream(path: &Path) -> bool {
+    use std::io::Read as _;
+    let mut magic = [0u8; 8];
+    File::open(path).and_then(|mut f| f.read_exact(&mut magic)).is_ok() && magic == codec_core::container::MAGIC
+}
+
+/// `decode` of an input that is not a stream: read as `encode` reads it (defaults: the first
+/// glTF animation, the file's own frame rate) and written, so `decode X.glb -o X.pc2` converts.
+fn run_conversion(args: &DecodeArgs, options: &WriteOptions) -> CmdResult {
+    let start = Instant::now();
+    let input = args.input.display().to_string();
+    let stages = crate::progress::Stages::new("decode", 2, args.json);
+    stages.stage(format!("reading {input} (not an animcodec stream: converting it)"));
+    let animation = super::load_animation(&input, &formats::ReadOptions::default())?;
+    let decode_seconds = start.elapsed().as_secs_f64();
+    let write_start = Instant::now();
+    stages.stage(format!("writing {}", args.output.display()));
+    let written = formats::write_animation_with(&args.output, &animation, options)?;
+    drop(stages);
+    let report = Report {
+        codec: "none",
+        frames: animation.frame_count(),
+        vertices: animation.vertex_count(),
+        triangles: animation.triangles().len(),
+        frame_rate: animation.frame_rate(),
+        decode_seconds,
+        write_seconds: write_start.elapsed().as_secs_f64(),
+        how: "not a stream: converted",
     };
     report.emit(args, &written)
 }
