@@ -221,6 +221,92 @@ fn our_glb_beats_gltfpack_on_the_real_animations() {
     println!("| animation | frames × vertices | gltfpack -cc bytes | its KG | ours bytes | our KG | ratio | targets |");
     let rows: Vec<Row> = inputs.iter().map(|(name, a)| compare(&tools, &s, name, a)).collect();
     for row in &rows {
-        assert_beats(row);
+        assert!(
+            row.ours_kg <= row.gltfpack_kg,
+            "{}: our KG {} > gltfpack's {}",
+            row.name,
+            row.ours_kg,
+            row.gltfpack_kg
+        );
+        assert!(
+            row.ours_bytes < row.gltfpack_bytes,
+            "{}: {} bytes ≥ gltfpack's {}",
+            row.name,
+            row.ours_bytes,
+            row.gltfpack_bytes
+        );
+    }
+}
+
+/// The first `frames` frames of `a`.
+fn clip(a: &Animation, frames: usize) -> Animation {
+    let per = 3 * a.vertex_count();
+    Animation::from_parts(
+        a.vertex_count(),
+        a.triangles().to_vec(),
+        a.positions()[..frames * per].to_vec(),
+        a.frame_rate(),
+    )
+    .unwrap()
+}
+
+/// Short clips, where the JSON's share of the file is largest: Horse.glb (16 frames, a morph
+/// animation) and the first 10, 15 and 22 frames of samba and of RobotExpressive's Walking.
+/// Measured: 0.65–0.94× gltfpack's bytes at its KG (the table in `docs/notes/session-2026-11-28.md`);
+/// the 0.7× the long clips meet is not reached below about 20 frames, so this asserts what holds
+/// on every clip: smaller than gltfpack at no larger KG.
+#[test]
+fn our_glb_beats_gltfpack_on_short_clips() {
+    let test = "our_glb_beats_gltfpack_on_short_clips";
+    let tools = match node_packages(&["gltfpack", "gltf-validator"]) {
+        Ok(t) => t,
+        Err(why) => return skip(test, &why),
+    };
+    let s = Scratch::new("gltfpack-short");
+    let mut inputs: Vec<(String, Animation)> = Vec::new();
+    match shared_data("horse-glb/Horse.glb") {
+        Some(horse) => inputs.push(("Horse.glb".into(), read_animation(&horse, &ReadOptions::default()).unwrap())),
+        None => skip(&format!("{test} (Horse.glb)"), "not found in ../shared/data"),
+    }
+    let mut long = Vec::new();
+    match (shared_data("samba/samba.pc2"), shared_data("samba/samba.obj")) {
+        (Some(pc2), Some(obj)) => {
+            let read = ReadOptions { topology: Some(obj), ..Default::default() };
+            long.push(("samba".to_owned(), read_animation(&pc2, &read).unwrap()));
+        }
+        _ => skip(&format!("{test} (samba)"), "not found in ../shared/data"),
+    }
+    match shared_data("robot-expressive/RobotExpressive.glb") {
+        Some(robot) => {
+            let read = ReadOptions { animation: Some("Walking".into()), ..Default::default() };
+            long.push(("robot-Walking".to_owned(), read_animation(&robot, &read).unwrap()));
+        }
+        None => skip(&format!("{test} (RobotExpressive)"), "not found in ../shared/data"),
+    }
+    for (name, a) in &long {
+        for frames in [10, 15, 22] {
+            inputs.push((format!("{name}[..{frames}]"), clip(a, frames)));
+        }
+    }
+    if inputs.is_empty() {
+        return;
+    }
+    println!("| animation | frames × vertices | gltfpack -cc bytes | its KG | ours bytes | our KG | ratio | targets |");
+    let rows: Vec<Row> = inputs.iter().map(|(name, a)| compare(&tools, &s, name, a)).collect();
+    for row in &rows {
+        assert!(
+            row.ours_kg <= row.gltfpack_kg,
+            "{}: our KG {} > gltfpack's {}",
+            row.name,
+            row.ours_kg,
+            row.gltfpack_kg
+        );
+        assert!(
+            row.ours_bytes < row.gltfpack_bytes,
+            "{}: {} bytes ≥ gltfpack's {}",
+            row.name,
+            row.ours_bytes,
+            row.gltfpack_bytes
+        );
     }
 }

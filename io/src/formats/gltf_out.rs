@@ -328,29 +328,47 @@ impl Buffer {
         self.views.len() - 1
     }
 
-    /// Appends `KHR_mesh_quantization` positions: signed 16-bit integers (not normalized) in
-    /// 8-byte records, with the min/max glTF requires; returns the accessor index.
-    fn shorts(&mut self, data: &[[i16; 3]]) -> Result<usize> {
-        let raw: Vec<u8> = data.iter().flat_map(|p| [p[0], p[1], p[2], 0]).flat_map(|x| x.to_le_bytes()).collect();
-        let view = self.view(&raw, Stream::Attributes { stride: 8, vertex_stride: true }, Some(34962))?;
-        let lo: Vec<i16> = (0..3).map(|k| data.iter().map(|p| p[k]).min().unwrap_or(0)).collect();
-        let hi: Vec<i16> = (0..3).map(|k| data.iter().map(|p| p[k]).max().unwrap_or(0)).collect();
-        self.accessors.push(json!({"bufferView": view, "componentType": 5122, "count": data.len(), "type": "VEC3",
-            "min": lo, "max": hi}));
-        Ok(self.accessors.len() - 1)
-    }
-
-    /// Appends `KHR_mesh_quantization` morph-target positions that fit signed bytes: BYTE (not
-    /// normalized) in 4-byte records; returns the accessor index.
-    fn signed_bytes(&mut self, data: &[[i16; 3]]) -> Result<usize> {
-        let raw: Vec<u8> =
-            data.iter().flat_map(|p| [p[0] as i8 as u8, p[1] as i8 as u8, p[2] as i8 as u8, 0]).collect();
-        let view = self.view(&raw, Stream::Attributes { stride: 4, vertex_stride: true }, Some(34962))?;
-        let lo: Vec<i16> = (0..3).map(|k| data.iter().map(|p| p[k]).min().unwrap_or(0)).collect();
-        let hi: Vec<i16> = (0..3).map(|k| data.iter().map(|p| p[k]).max().unwrap_or(0)).collect();
-        self.accessors.push(json!({"bufferView": view, "componentType": 5120, "count": data.len(), "type": "VEC3",
-            "min": lo, "max": hi}));
-        Ok(self.accessors.len() - 1)
+    /// Appends `KHR_mesh_quantization` positions (the base, then every morph target): one view
+    /// of signed 16-bit integers (not normalized) in 8-byte records for the arrays with
+    /// `bytes[i]` false, one of signed bytes in 4-byte records for the others, each array an
+    /// accessor at its offset in its view, with the min/max glTF requires. Few views keep the
+    /// JSON small (a view and its meshopt entry cost about 150 bytes; a 16-frame clip has 16
+    /// arrays). Returns the accessor of every array, in order.
+    fn positions(&mut self, arrays: &[&[[i16; 3]]], bytes: &[bool]) -> Result<Vec<usize>> {
+        let mut accessors = vec![0; arrays.len()];
+        for narrow in [false, true] {
+            let members: Vec<usize> = (0..arrays.len()).filter(|&i| bytes[i] == narrow).collect();
+            if members.is_empty() {
+                continue;
+            }
+            let stride = if narrow { 4 } else { 8 };
+            let mut raw = Vec::new();
+            let mut offsets = Vec::with_capacity(members.len());
+            for &i in &members {
+                offsets.push(raw.len());
+                for p in arrays[i] {
+                    if narrow {
+                        raw.extend_from_slice(&[p[0] as i8 as u8, p[1] as i8 as u8, p[2] as i8 as u8, 0]);
+                    } else {
+                        raw.extend([p[0], p[1], p[2], 0].iter().flat_map(|x| x.to_le_bytes()));
+                    }
+                }
+            }
+            let view = self.view(&raw, Stream::Attributes { stride, vertex_stride: true }, Some(34962))?;
+            for (&i, offset) in members.iter().zip(offsets) {
+                let data = arrays[i];
+                let lo: Vec<i16> = (0..3).map(|k| data.iter().map(|p| p[k]).min().unwrap_or(0)).collect();
+                let hi: Vec<i16> = (0..3).map(|k| data.iter().map(|p| p[k]).max().unwrap_or(0)).collect();
+                let mut accessor = json!({"bufferView": view, "componentType": if narrow { 5120 } else { 5122 },
+                    "count": data.len(), "type": "VEC3", "min": lo, "max": hi});
+                if offset > 0 {
+                    accessor["byteOffset"] = offset.into();
+                }
+                self.accessors.push(accessor);
+                accessors[i] = self.accessors.len() - 1;
+            }
+        }
+        Ok(accessors)
     }
 
     /// Appends a weights sampler output (`F × k` f32, frame-major). Compressed, a meshopt record
@@ -722,6 +740,9 @@ impl Geometry {
     }
 }
 
+/// Clips up to this many frames also try successive differences as targets.
+const SUCCESSIVE_DIFFERENCES_FRAMES: usize = 64;
+
 /// The basis layout's candidate morphs: compressed, the principal components and (without
 /// `targets`) the differences from frame 0, each quantized for the KG target; else float.
 fn basis_geometry(a: &Animation, options: &GltfOptions) -> Result<Vec<Geometry>> {
@@ -735,6 +756,13 @@ fn basis_geometry(a: &Animation, options: &GltfOptions) -> Result<Vec<Geometry>>
             None => {
                 let differences = gltf_out_rd::differences(a);
                 out.push(Geometry::Quantized(gltf_out_rd::quantized_basis(a, &differences, kg, (limit, limit))?));
+                // Short clips, where one target per frame is what a KG target needs: frame-to-
+                // frame steps. (On long clips the principal components win and this candidate's
+                // F − 1 targets would only cost time.)
+                if a.frame_count() <= SUCCESSIVE_DIFFERENCES_FRAMES {
+                    let steps = gltf_out_rd::successive_differences(a);
+                    out.push(Geometry::Quantized(gltf_out_rd::quantized_basis(a, &steps, kg, (limit, limit))?));
+                }
             }
             // `targets` counts every target written (issue 41: K components plus the base's
             // residual made K + 1): K components, or K − 1 and the residual, whichever plays
@@ -781,10 +809,11 @@ fn finish(
                 let q = quantize(animation, &mut morphs);
                 node["translation"] = json!(q.translation);
                 node["scale"] = json!(q.scale);
-                let position = buf.shorts(&q.base)?;
-                let targets: Vec<Value> =
-                    q.targets.iter().map(|t| Ok(json!({"POSITION": buf.shorts(t)?}))).collect::<Result<_>>()?;
-                (position, targets)
+                let arrays: Vec<&[[i16; 3]]> =
+                    std::iter::once(q.base.as_slice()).chain(q.targets.iter().map(Vec::as_slice)).collect();
+                let accessors = buf.positions(&arrays, &vec![false; arrays.len()])?;
+                let targets = accessors[1..].iter().map(|&a| json!({"POSITION": a})).collect();
+                (accessors[0], targets)
             } else {
                 let position = buf.floats(&morphs.base, "VEC3", Some(34962), true)?;
                 let targets: Vec<Value> = morphs
@@ -800,15 +829,12 @@ fn finish(
             node["translation"] = json!(q.translation.map(|x| x as f32));
             let scale = q.scale as f32;
             node["scale"] = json!([scale, scale, scale]);
-            let position = buf.shorts(&q.base)?;
-            let targets: Vec<Value> = q
-                .targets
-                .iter()
-                .map(|t| {
-                    let accessor = if t.bytes { buf.signed_bytes(&t.values)? } else { buf.shorts(&t.values)? };
-                    Ok(json!({"POSITION": accessor}))
-                })
-                .collect::<Result<_>>()?;
+            let arrays: Vec<&[[i16; 3]]> =
+                std::iter::once(q.base.as_slice()).chain(q.targets.iter().map(|t| t.values.as_slice())).collect();
+            let bytes: Vec<bool> = std::iter::once(false).chain(q.targets.iter().map(|t| t.bytes)).collect();
+            let accessors = buf.positions(&arrays, &bytes)?;
+            let position = accessors[0];
+            let targets: Vec<Value> = accessors[1..].iter().map(|&a| json!({"POSITION": a})).collect();
             let names = (0..q.targets.len())
                 .map(|j| if j < q.components { format!("component {j}") } else { "base residual".into() })
                 .collect();

@@ -121,6 +121,21 @@ pub(super) fn differences(a: &Animation) -> Pca {
     Pca { mean: first, dirs, coeffs, lambda, energy: kg_energy(a) }
 }
 
+/// The frames as successive differences, in the same form as [`pca`]: "component" j is frame
+/// j + 1 minus frame j, its weight 1 on frames j + 1 … F − 1 and 0 before (frame f is frame 0
+/// plus the first f differences). A frame-to-frame step is smaller than the whole way from
+/// frame 0, so it quantizes into fewer bits; each difference's error is carried by every later
+/// frame, which the weights' energy (`F − 1 − j`) charges it in the step allocation.
+pub(super) fn successive_differences(a: &Animation) -> Pca {
+    let (frames, n) = (a.frame_count(), a.vertex_count() * 3);
+    let first: Vec<f64> = a.frame(0).iter().map(|&x| x as f64).collect();
+    let k = frames.saturating_sub(1);
+    let dirs = Mat::<f64>::from_fn(k, n, |j, i| a.frame(j + 1)[i] as f64 - a.frame(j)[i] as f64);
+    let coeffs = Mat::<f64>::from_fn(frames, k, |f, j| if f > j { 1.0 } else { 0.0 });
+    let lambda = (0..k).map(|j| (0..n).map(|i| dirs[(j, i)].powi(2)).sum()).collect();
+    Pca { mean: first, dirs, coeffs, lambda, energy: kg_energy(a) }
+}
+
 /// A quantized morph target: integers in units of `S · weight`.
 pub(super) struct QTarget {
     pub(super) values: Vec<[i16; 3]>,
