@@ -555,7 +555,8 @@ pub struct SweepArgs {
 /// Arguments of `animcodec decode`.
 #[derive(Debug, Args)]
 pub struct DecodeArgs {
-    /// Input `.anim` container. Any other input (a .glb, .usda, .pc2, …) is converted: read as
+    /// Input `.anim` container. Any other input (a .glb, .usda, .pc2, … not named .anim and not
+    /// starting with a container's magic bytes) is converted: read as
     /// `encode` reads it with default options (the first glTF animation, the file's own frame
     /// rate) and written.
     #[arg(value_name = "IN.anim")]

@@ -33,7 +33,9 @@ pub fn run(args: &DecodeArgs, limits: Limits) -> CmdResult {
     if !formats::obj::is_directory_target(&args.output) {
         options.policy.check(&args.output)?;
     }
-    if !is_stream(&args.input) {
+    // A damaged `.anim` gets the container's error, not the readers' "unknown format".
+    let named_stream = args.input.extension().is_some_and(|e| e.eq_ignore_ascii_case("anim"));
+    if !named_stream && !is_stream(&args.input) {
         return run_conversion(args, &options);
     }
     let registry = animcodec::registry();
