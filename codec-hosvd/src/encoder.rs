@@ -13,7 +13,7 @@ use faer::Mat;
 use crate::decoder::add_centre;
 use crate::params::{Coding, HosvdParams};
 use crate::strategy::{self, Dims, Strategy};
-use crate::tensor::{self, Affine, Model, Tensor, Tucker};
+use crate::tensor::{self, Affine, Model, Spectrum, Tensor, Tucker};
 use crate::{coding, motion, paper, spectra};
 use crate::{FLAG_CENTRE, FLAG_DENOISE, FLAG_MOTION, FLAG_REGRESS, FLAG_TOOLKIT, NAME};
 
@@ -229,29 +229,7 @@ pub fn encode_block(
 ) -> Result<EncodedBlock> {
     let frames = positions.len() / (3 * k);
     let start = Instant::now();
-    // Stream version 6: the block is centred first (see `block_centre`).
-    let centre32 = block_centre(positions, k, p.rigid);
-    let centre = centre32.map(|c| c as f64);
-    // Stream version 3: with the toolkit coding the transforms are quantized in closed loop
-    // while the frames are normalised (`motion.rs`).
-    let mut motion_coder = (p.rigid && p.coding == Coding::Toolkit).then(|| {
-        let radius = rms_radius(positions, k);
-        let bits = match p.motion_bits {
-            0 if p.edge_noise > 0.0 => {
-                let first: Vec<f64> = positions[..(3 * k).min(positions.len())].iter().map(|&x| x as f64).collect();
-                motion::auto_bits(p.edge_noise, radius, mean_squared_edge(&first, k, graph).sqrt())
-            }
-            0 => motion::DEFAULT_BITS,
-            bits => bits,
-        };
-        motion::MotionEncoder::new(radius, bits)
-    });
-    let (transforms, x) = match motion_coder.as_mut() {
-        Some(mc) => tensor::remove_affine_motion_centred(positions, k, frames, p.affine, centre, &mut |a, fb, mu| {
-            mc.store(a, fb, mu)
-        }),
-        None => normalise_centred(positions, k, frames, p.rigid, p.affine, centre),
-    };
+    let (centre32, motion_coder, transforms, x) = normalise_block(positions, k, frames, p, graph);
     let t = Tensor::new(&x, k, frames);
     let edge2 = mean_squared_edge(&x, k, graph);
     let dims = Dims { k, f: frames, rigid: p.rigid };
@@ -273,47 +251,9 @@ pub fn encode_block(
     let decompose_a = start.elapsed().as_secs_f64();
 
     let search_start = Instant::now();
-    let choice = if explicit {
-        strategy::Choice {
-            v: (p.v as usize).clamp(1, dims.max_v()),
-            f: (p.f as usize).clamp(1, dims.max_f()),
-            evaluations: 0,
-            over_budget: false,
-        }
-    } else {
-        match (p.strategy, &spectrum, list.as_slice()) {
-            (Strategy::Diagonal, _, _) => strategy::diagonal(dims, p.ss),
-            (_, _, []) => strategy::Choice { v: 1, f: 1, evaluations: 0, over_budget: true },
-            (_, None, &[(v, f), ..]) => strategy::Choice { v, f, evaluations: 0, over_budget: false },
-            (Strategy::Iterative, Some(s), _) => {
-                strategy::iterative(&list, p.samples as usize, p.depth as usize, |v, f| s.truncation_error2(v, f))
-            }
-            (Strategy::Exhaustive, Some(s), _) => strategy::exhaustive(&list, |v, f| s.truncation_error2(v, f)),
-        }
-    };
+    let choice = choose_ranks(p, dims, &list, spectrum.as_deref());
     let search_seconds = search_start.elapsed().as_secs_f64();
-    // The candidate strategies' fallback when nothing fits the budget: the smallest model that
-    // is not flat (`Dims::smallest`; the diagonal strategy keeps the paper's `(1, 1)`).
-    let (mut v, mut f) = match (choice.over_budget, p.strategy) {
-        (true, Strategy::Iterative | Strategy::Exhaustive) => dims.smallest(),
-        _ => (choice.v, choice.f),
-    };
-    // Not in the paper: when the chosen ranks already reproduce the tensor to the numerical
-    // floor (the quantization budget's floor, 1e-12‖X‖²; e.g. an exactly low-rank skinned
-    // animation), more rank buys nothing but coded near-zero columns: keep the smallest ranks
-    // that stay at the floor, so a smaller `ss` never gives a different stream for nothing.
-    // The paper coding keeps the paper's choice.
-    if let (false, Some(s), Coding::Toolkit) = (explicit, &spectrum, p.coding) {
-        let floor = 1e-12 * t.norm2;
-        if s.truncation_error2(v, f) <= floor {
-            while v > 1 && s.truncation_error2(v - 1, f) <= floor {
-                v -= 1;
-            }
-            while f > 1 && s.truncation_error2(v, f - 1) <= floor {
-                f -= 1;
-            }
-        }
-    }
+    let (v, f) = final_ranks(p, dims, &choice, spectrum.as_deref(), t.norm2);
 
     let trunc_start = Instant::now();
     let mut tk = match &spectrum {
@@ -336,25 +276,9 @@ pub fn encode_block(
     let norm2 = t.norm2;
     let trunc2 = (norm2 - tk.captured_norm2()).max(0.0);
     drop(t);
-    let u1 = row_major(&tk.u1);
-    let u3 = row_major(&tk.u3);
-    let core = tk.core;
-    // Slice norms of the core: how much each factor column is scaled in the reconstruction.
-    let s1: Vec<f64> =
-        (0..v).map(|i| core[i * 3 * f..(i + 1) * 3 * f].iter().map(|c| c * c).sum::<f64>().sqrt()).collect();
-    let s3: Vec<f64> = (0..f).map(|l| (0..v * 3).map(|ij| core[ij * f + l].powi(2)).sum::<f64>().sqrt()).collect();
+    let factors = Factors::new(tk, v, f);
 
-    // Quantization plan: total noise budget D = (quant · ε)², ε = truncation error (floored at
-    // 1e-6‖X‖ so a lossless truncation still gets finite steps), split evenly between U1, U3 and
-    // the core; within a factor, evenly between columns, each column's step scaled by 1/s_i so
-    // its contribution (entries × step²/12 × s_i²) is the same.
-    let eps2 = trunc2.max(1e-12 * norm2);
-    let mut budget = p.quant * p.quant * eps2;
-    // STED cap (`edge_noise`): at most (η·L̄)² per coordinate, L̄ the RMS edge length, so at
-    // low rates (large ε) the noise stays a small fraction of an edge. Not in the paper.
-    if p.edge_noise > 0.0 && edge2 > 0.0 {
-        budget = budget.min(p.edge_noise * p.edge_noise * edge2 * (3 * k * frames) as f64);
-    }
+    let budget = noise_budget(p, trunc2, norm2, edge2, 3 * k * frames);
     let mut side = ByteWriter::new();
     for i in 0..9 {
         side.f32(u2r[(i / 3, i % 3)] as f32);
@@ -375,102 +299,15 @@ pub fn encode_block(
         core: Vec::new(),
         transforms: if p.rigid { transforms.clone() } else { vec![Affine::IDENTITY; frames] },
     };
-    let mut w = ByteWriter::new();
-    let mut regression_fallbacks = 0;
-    // Per-column bounds of ‖δu1_i‖, ‖δu3_l‖, and ‖δC‖, for the error bound below.
-    let (n1, n3, dc) = match p.coding {
-        Coding::Paper => paper::code(&mut w, side, &mut m, p, &u1, &u3, &core, &s1, &s3, budget)?,
-        Coding::Toolkit => {
-            let op = coding::Operator { k, frames, v, f, u1: &u1, u3: &u3, core: &core, s1: &s1, s3: &s3 };
-            let settings = coding::Settings {
-                mesh: p.mesh_predictor,
-                time: p.time_predictor,
-                shaping: p.shaping,
-                rdq: p.rdq,
-                edge_weight: p.edge_weight,
-                denoise: p.denoise,
-                regress: p.regress,
-                force_unguarded_regression: p.force_unguarded_regression,
-            };
-            let coded = coding::code(&op, graph, &settings, budget);
-            // The encoder checks its own output: a component whose closed loop
-            // failed with no safer mode left is never written.
-            if let Some(&c) = coded.failed.first() {
-                return Err(Error::Unsupported {
-                    context: NAME.into(),
-                    detail: format!(
-                        "component {c} of the coded operator (v = {v}, f = {f}) does not reconstruct within its \
-                         quantization step; no stream written"
-                    ),
-                });
-            }
-            regression_fallbacks = coded.fallbacks.len();
-            for &step in &coded.steps {
-                side.f32(step);
-            }
-            w.u8(p.rigid as u8
-                | FLAG_TOOLKIT
-                | if motion_coder.is_some() { FLAG_MOTION } else { 0 }
-                | if p.denoise { FLAG_DENOISE } else { 0 }
-                | if p.regress { FLAG_REGRESS } else { 0 });
-            w.varint(v as u64);
-            w.varint(f as u64);
-            w.u8(p.mesh_predictor.code());
-            w.u8(p.time_predictor.code());
-            w.length_prefixed(&entropy::compress(side.as_slice(), p.level));
-            w.length_prefixed(&coded.bytes);
-            if let Some(mc) = motion_coder.take() {
-                w.length_prefixed(&mc.finish());
-            }
-            if p.denoise {
-                w.bytes(&coded.smoothing);
-            }
-            if p.regress {
-                w.bytes(&coded.modes);
-            }
-            m.u1 = coded.u1;
-            m.u3 = coded.u3;
-            m.core = coded.core;
-            (coded.du1, coded.du3, coded.dc)
-        }
-    };
+    let (mut payload, terms, regression_fallbacks) =
+        code_operator(p, graph, &factors, side, motion_coder, &mut m, budget)?;
     // Stream version 6: the flag, and the centre at the end of the packet.
-    let mut payload = w.into_vec();
     payload[0] |= FLAG_CENTRE;
     for c in centre32 {
         payload.extend_from_slice(&c.to_le_bytes());
     }
-
-    // Error bound (Frobenius, original coordinates). With Û = U + δU, Ĉ = C + δC:
-    // Ĉ×₁Û1×₂U2×₃Û3 − C×₁U1×₂U2×₃U3 = δC×Û1×Û3 + C×δU1×Û3 + C×U1×δU3 (all ×₂U2), and
-    // ‖C ×₁ δU1‖ ≤ Σ_i ‖δu_i‖·s1_i; ‖Û‖₂ ≤ 1 + ‖δU‖_F.
-    let du1: f64 = n1.iter().map(|x| x * x).sum::<f64>().sqrt();
-    let du3: f64 = n3.iter().map(|x| x * x).sum::<f64>().sqrt();
-    let g2 = {
-        let mut dev = 0.0f64;
-        for i in 0..3 {
-            for j in 0..3 {
-                let dot: f64 = (0..3).map(|l| u2r[(i, l)] * u2r[(j, l)]).sum();
-                dev += (dot - if i == j { 1.0 } else { 0.0 }).powi(2);
-            }
-        }
-        dev.sqrt()
-    };
-    let t1: f64 = n1.iter().zip(&s1).map(|(n, s)| n * s).sum();
-    let t3: f64 = n3.iter().zip(&s3).map(|(n, s)| n * s).sum();
-    let norm = norm2.sqrt();
-    let ex =
-        trunc2.sqrt() + 1e-7 * norm + g2 * norm + (1.0 + g2) * (dc * (1.0 + du1) * (1.0 + du3) + t1 * (1.0 + du3) + t3);
-    let gain = m.transforms.iter().map(Affine::gain).fold(0.0, f64::max);
-    let pos_norm = positions.iter().map(|&x| (x as f64).powi(2)).sum::<f64>().sqrt();
-    // Version 6 rounds twice: the centred reconstruction to f32, then its sum with the centre.
-    let centred_norm = positions
-        .chunks_exact(3)
-        .map(|q| (0..3).map(|j| (q[j] as f64 - centre[j]).powi(2)).sum::<f64>())
-        .sum::<f64>()
-        .sqrt();
-    let error_bound =
-        (gain * ex + (pos_norm + centred_norm + 2.0 * gain * ex) * 2.0f64.powi(-23) + 1e-30) * (1.0 + 1e-9);
+    let centre = centre32.map(|c| c as f64);
+    let error_bound = block_error_bound(positions, centre, &m, &u2r, &factors, &terms, norm2, trunc2);
 
     // The encoder measures its reconstruction against the input: the error the
     // chosen ranks and steps promise is `error_bound` (truncation, quantization of every factor
@@ -500,6 +337,264 @@ pub fn encode_block(
         code_seconds,
     };
     Ok(EncodedBlock { payload, reconstruction, stats })
+}
+
+/// The quantization plan: total noise budget D = (quant · ε)², ε = truncation error (floored at
+/// 1e-6‖X‖ so a lossless truncation still gets finite steps), split evenly between U1, U3 and
+/// the core; within a factor, evenly between columns, each column's step scaled by 1/s_i so its
+/// contribution (entries × step²/12 × s_i²) is the same. `edge2` is the mean squared edge
+/// length of the normalised block of `coordinates` coordinates.
+fn noise_budget(p: &HosvdParams, trunc2: f64, norm2: f64, edge2: f64, coordinates: usize) -> f64 {
+    let eps2 = trunc2.max(1e-12 * norm2);
+    let budget = p.quant * p.quant * eps2;
+    // STED cap (`edge_noise`): at most (η·L̄)² per coordinate, L̄ the RMS edge length, so at
+    // low rates (large ε) the noise stays a small fraction of an edge. Not in the paper.
+    if p.edge_noise > 0.0 && edge2 > 0.0 {
+        return budget.min(p.edge_noise * p.edge_noise * edge2 * coordinates as f64);
+    }
+    budget
+}
+
+/// The block's centre (stream version 6: see [`block_centre`]), the motion coder when the
+/// transforms are coded (stream version 3: toolkit coding with `rigid`), and the normalised
+/// block (§2.3): the per-frame transforms and the `F × K × 3` positions less the centre, with
+/// the motion removed.
+#[allow(clippy::type_complexity)]
+fn normalise_block(
+    positions: &[f32],
+    k: usize,
+    frames: usize,
+    p: &HosvdParams,
+    graph: &CausalGraph,
+) -> ([f32; 3], Option<motion::MotionEncoder>, Vec<Affine>, Vec<f64>) {
+    let centre32 = block_centre(positions, k, p.rigid);
+    let centre = centre32.map(|c| c as f64);
+    // With the toolkit coding the transforms are quantized in closed loop while the frames are
+    // normalised (`motion.rs`).
+    let mut motion_coder = (p.rigid && p.coding == Coding::Toolkit).then(|| {
+        let radius = rms_radius(positions, k);
+        let bits = match p.motion_bits {
+            0 if p.edge_noise > 0.0 => {
+                let first: Vec<f64> = positions[..(3 * k).min(positions.len())].iter().map(|&x| x as f64).collect();
+                motion::auto_bits(p.edge_noise, radius, mean_squared_edge(&first, k, graph).sqrt())
+            }
+            0 => motion::DEFAULT_BITS,
+            bits => bits,
+        };
+        motion::MotionEncoder::new(radius, bits)
+    });
+    let (transforms, x) = match motion_coder.as_mut() {
+        Some(mc) => tensor::remove_affine_motion_centred(positions, k, frames, p.affine, centre, &mut |a, fb, mu| {
+            mc.store(a, fb, mu)
+        }),
+        None => normalise_centred(positions, k, frames, p.rigid, p.affine, centre),
+    };
+    (centre32, motion_coder, transforms, x)
+}
+
+/// The ranks `(v, f)` for `ss` by the parameters' strategy (§2.6, Alg. 3–4) over the candidate
+/// `list`, reading the truncation errors from the full-rank `spectrum` (present when there is
+/// more than one candidate), or the explicit ranks clamped to the tensor's.
+fn choose_ranks(p: &HosvdParams, dims: Dims, list: &[(usize, usize)], spectrum: Option<&Spectrum>) -> strategy::Choice {
+    if p.v != 0 {
+        return strategy::Choice {
+            v: (p.v as usize).clamp(1, dims.max_v()),
+            f: (p.f as usize).clamp(1, dims.max_f()),
+            evaluations: 0,
+            over_budget: false,
+        };
+    }
+    match (p.strategy, spectrum, list) {
+        (Strategy::Diagonal, _, _) => strategy::diagonal(dims, p.ss),
+        (_, _, []) => strategy::Choice { v: 1, f: 1, evaluations: 0, over_budget: true },
+        (_, None, &[(v, f), ..]) => strategy::Choice { v, f, evaluations: 0, over_budget: false },
+        (Strategy::Iterative, Some(s), _) => {
+            strategy::iterative(list, p.samples as usize, p.depth as usize, |v, f| s.truncation_error2(v, f))
+        }
+        (Strategy::Exhaustive, Some(s), _) => strategy::exhaustive(list, |v, f| s.truncation_error2(v, f)),
+    }
+}
+
+/// The ranks coded for `choice`: the candidate strategies' fallback when nothing fits the
+/// budget, and the smallest ranks at the numerical floor (below).
+fn final_ranks(
+    p: &HosvdParams,
+    dims: Dims,
+    choice: &strategy::Choice,
+    spectrum: Option<&Spectrum>,
+    norm2: f64,
+) -> (usize, usize) {
+    // The candidate strategies' fallback when nothing fits the budget: the smallest model that
+    // is not flat (`Dims::smallest`; the diagonal strategy keeps the paper's `(1, 1)`).
+    let (mut v, mut f) = match (choice.over_budget, p.strategy) {
+        (true, Strategy::Iterative | Strategy::Exhaustive) => dims.smallest(),
+        _ => (choice.v, choice.f),
+    };
+    // Not in the paper: when the chosen ranks already reproduce the tensor to the numerical
+    // floor (the quantization budget's floor, 1e-12‖X‖²; e.g. an exactly low-rank skinned
+    // animation), more rank buys nothing but coded near-zero columns: keep the smallest ranks
+    // that stay at the floor, so a smaller `ss` never gives a different stream for nothing.
+    // The paper coding keeps the paper's choice.
+    if let (false, Some(s), Coding::Toolkit) = (p.v != 0, spectrum, p.coding) {
+        let floor = 1e-12 * norm2;
+        if s.truncation_error2(v, f) <= floor {
+            while v > 1 && s.truncation_error2(v - 1, f) <= floor {
+                v -= 1;
+            }
+            while f > 1 && s.truncation_error2(v, f - 1) <= floor {
+                f -= 1;
+            }
+        }
+    }
+    (v, f)
+}
+
+/// The truncated operator, row-major, with the slice norms of the core: how much each factor
+/// column is scaled in the reconstruction.
+struct Factors {
+    u1: Vec<f64>,
+    u3: Vec<f64>,
+    core: Vec<f64>,
+    s1: Vec<f64>,
+    s3: Vec<f64>,
+}
+
+impl Factors {
+    fn new(tk: Tucker, v: usize, f: usize) -> Self {
+        let u1 = row_major(&tk.u1);
+        let u3 = row_major(&tk.u3);
+        let core = tk.core;
+        let s1: Vec<f64> =
+            (0..v).map(|i| core[i * 3 * f..(i + 1) * 3 * f].iter().map(|c| c * c).sum::<f64>().sqrt()).collect();
+        let s3: Vec<f64> = (0..f).map(|l| (0..v * 3).map(|ij| core[ij * f + l].powi(2)).sum::<f64>().sqrt()).collect();
+        Self { u1, u3, core, s1, s3 }
+    }
+}
+
+/// Bounds of the quantization errors: per column of `U1` and `U3` (`‖δu1_i‖`, `‖δu3_l‖`) and of
+/// the whole core (`‖δC‖`).
+struct ErrorTerms {
+    n1: Vec<f64>,
+    n3: Vec<f64>,
+    dc: f64,
+}
+
+/// Quantizes and codes the operator in the parameters' coding within the noise `budget`,
+/// writing the packet (without its centre) after the side block `side` (`U2` and, when not
+/// coded, the transforms); fills `m`'s factors and core with what the decoder reconstructs.
+/// Returns the packet, the bounds of the quantization errors and the number of regression
+/// columns re-coded with the mesh predictor.
+fn code_operator(
+    p: &HosvdParams,
+    graph: &CausalGraph,
+    factors: &Factors,
+    mut side: ByteWriter,
+    mut motion_coder: Option<motion::MotionEncoder>,
+    m: &mut Model,
+    budget: f64,
+) -> Result<(Vec<u8>, ErrorTerms, usize)> {
+    let Factors { u1, u3, core, s1, s3 } = factors;
+    let mut w = ByteWriter::new();
+    if p.coding == Coding::Paper {
+        let (n1, n3, dc) = paper::code(&mut w, side, m, p, u1, u3, core, s1, s3, budget)?;
+        return Ok((w.into_vec(), ErrorTerms { n1, n3, dc }, 0));
+    }
+    let (k, frames, v, f) = (m.k, m.frames, m.v, m.f);
+    let op = coding::Operator { k, frames, v, f, u1, u3, core, s1, s3 };
+    let settings = coding::Settings {
+        mesh: p.mesh_predictor,
+        time: p.time_predictor,
+        shaping: p.shaping,
+        rdq: p.rdq,
+        edge_weight: p.edge_weight,
+        denoise: p.denoise,
+        regress: p.regress,
+        force_unguarded_regression: p.force_unguarded_regression,
+    };
+    let coded = coding::code(&op, graph, &settings, budget);
+    // The encoder checks its own output: a component whose closed loop failed with no safer
+    // mode left is never written.
+    if let Some(&c) = coded.failed.first() {
+        return Err(Error::Unsupported {
+            context: NAME.into(),
+            detail: format!(
+                "component {c} of the coded operator (v = {v}, f = {f}) does not reconstruct within its \
+                 quantization step; no stream written"
+            ),
+        });
+    }
+    for &step in &coded.steps {
+        side.f32(step);
+    }
+    w.u8(p.rigid as u8
+        | FLAG_TOOLKIT
+        | if motion_coder.is_some() { FLAG_MOTION } else { 0 }
+        | if p.denoise { FLAG_DENOISE } else { 0 }
+        | if p.regress { FLAG_REGRESS } else { 0 });
+    w.varint(v as u64);
+    w.varint(f as u64);
+    w.u8(p.mesh_predictor.code());
+    w.u8(p.time_predictor.code());
+    w.length_prefixed(&entropy::compress(side.as_slice(), p.level));
+    w.length_prefixed(&coded.bytes);
+    if let Some(mc) = motion_coder.take() {
+        w.length_prefixed(&mc.finish());
+    }
+    if p.denoise {
+        w.bytes(&coded.smoothing);
+    }
+    if p.regress {
+        w.bytes(&coded.modes);
+    }
+    m.u1 = coded.u1;
+    m.u3 = coded.u3;
+    m.core = coded.core;
+    Ok((w.into_vec(), ErrorTerms { n1: coded.du1, n3: coded.du3, dc: coded.dc }, coded.fallbacks.len()))
+}
+
+/// Upper bound of `‖T − T̂‖_F` for the block in original coordinates ([`BlockStats::error_bound`]).
+/// With Û = U + δU, Ĉ = C + δC: Ĉ×₁Û1×₂U2×₃Û3 − C×₁U1×₂U2×₃U3 = δC×Û1×Û3 + C×δU1×Û3 + C×U1×δU3
+/// (all ×₂U2), and ‖C ×₁ δU1‖ ≤ Σ_i ‖δu_i‖·s1_i; ‖Û‖₂ ≤ 1 + ‖δU‖_F. Then the stored transforms'
+/// largest gain and the f32 roundings.
+#[allow(clippy::too_many_arguments)]
+fn block_error_bound(
+    positions: &[f32],
+    centre: [f64; 3],
+    m: &Model,
+    u2r: &Mat<f64>,
+    factors: &Factors,
+    terms: &ErrorTerms,
+    norm2: f64,
+    trunc2: f64,
+) -> f64 {
+    let ErrorTerms { n1, n3, dc } = terms;
+    let (s1, s3) = (&factors.s1, &factors.s3);
+    let du1: f64 = n1.iter().map(|x| x * x).sum::<f64>().sqrt();
+    let du3: f64 = n3.iter().map(|x| x * x).sum::<f64>().sqrt();
+    let g2 = {
+        let mut dev = 0.0f64;
+        for i in 0..3 {
+            for j in 0..3 {
+                let dot: f64 = (0..3).map(|l| u2r[(i, l)] * u2r[(j, l)]).sum();
+                dev += (dot - if i == j { 1.0 } else { 0.0 }).powi(2);
+            }
+        }
+        dev.sqrt()
+    };
+    let t1: f64 = n1.iter().zip(s1).map(|(n, s)| n * s).sum();
+    let t3: f64 = n3.iter().zip(s3).map(|(n, s)| n * s).sum();
+    let norm = norm2.sqrt();
+    let ex =
+        trunc2.sqrt() + 1e-7 * norm + g2 * norm + (1.0 + g2) * (dc * (1.0 + du1) * (1.0 + du3) + t1 * (1.0 + du3) + t3);
+    let gain = m.transforms.iter().map(Affine::gain).fold(0.0, f64::max);
+    let pos_norm = positions.iter().map(|&x| (x as f64).powi(2)).sum::<f64>().sqrt();
+    // Version 6 rounds twice: the centred reconstruction to f32, then its sum with the centre.
+    let centred_norm = positions
+        .chunks_exact(3)
+        .map(|q| (0..3).map(|j| (q[j] as f64 - centre[j]).powi(2)).sum::<f64>())
+        .sum::<f64>()
+        .sqrt();
+    (gain * ex + (pos_norm + centred_norm + 2.0 * gain * ex) * 2.0f64.powi(-23) + 1e-30) * (1.0 + 1e-9)
 }
 
 /// How far the measured error may exceed the bound the chosen ranks and steps promise
@@ -660,7 +755,7 @@ impl FrameEncoder for HosvdEncoder {
         Ok(out)
     }
 
-    /// [`AnimationCodec::error_bound`] from the packets' own bounds (the same arithmetic), so
+    /// [`AnimationCodec::error_bound`](codec_core::AnimationCodec::error_bound) from the packets' own bounds (the same arithmetic), so
     /// the stream driver's self-check needs no second analysis.
     fn declared_bound(&self) -> Option<ErrorBound> {
         let frob = self.stats.iter().map(|s| s.error_bound.powi(2)).sum::<f64>().sqrt();

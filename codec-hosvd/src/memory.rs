@@ -55,7 +55,7 @@ pub(crate) fn block_for_budget(vertices: usize, frames: usize, budget: u64) -> R
 /// Work of decoding one packet of `frames` frames of `k` vertices with ranks `v` and `f`
 /// (`Limits::max_work`, counted before the work starts): the coded values of `U1`, `U3` and
 /// the core (arithmetic-coded with `toolkit`, else inflated byte planes), the frame loadings
-/// ([`tensor::reconstruct`]: `F·3·v·f + 9·v·f`), the last step's `F·K·3·v` multiply-adds
+/// ([`crate::tensor::reconstruct`]: `F·3·v·f + 9·v·f`), the last step's `F·K·3·v` multiply-adds
 /// (all but a sliver of the arithmetic) and the output coordinates.
 pub fn decode_work(k: usize, frames: usize, v: usize, f: usize, toolkit: bool) -> u64 {
     use codec_core::limits::{WORK_PER_CODED_VALUE, WORK_PER_COORDINATE, WORK_PER_PLANE_BYTE};

@@ -36,8 +36,9 @@ codec_core::declare_params! {
         /// With `rigid`: fit an affine map (true, the paper's §2.3) or only a rotation +
         /// translation (false; orthogonal Procrustes). Default false: on the four dev animations
         /// at `ss` 0.97 and 0.9 the rotation gave the smaller stream in 7 of 8 cases and the
-        /// lower KG in 7 of 8 (README, "Parameters"), a rotation keeps every edge length (an affine map stretches them: STED), and it
-        /// does not amplify the decomposition error (the affine maps' gains reach 2.6, README).
+        /// lower KG in 7 of 8 (README, "Parameters"), a rotation keeps every edge length (an
+        /// affine map stretches them: STED), and it does not amplify the decomposition error
+        /// (the affine maps' gains reach 2.6, README).
         pub affine: bool = false => boolean(
             "with rigid: least-squares affine map (true, the paper) or rotation + translation only (false)"
         ),

@@ -245,8 +245,6 @@ fn reconstruct_vertices(
     }
 }
 
-/// The two dimensions of the data matrix of a cluster of `n` vertices over `d` frames in
-
 impl FrameDecoder for PcaAoiDecoder {
     fn decode_packet(&mut self, packet: &Packet) -> Result<Vec<f32>> {
         let d = packet.frame_count as usize;

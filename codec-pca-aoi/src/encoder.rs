@@ -164,7 +164,7 @@ impl PcaAoiEncoder {
 }
 
 impl FrameEncoder for PcaAoiEncoder {
-    /// [`AnimationCodec::error_bound`] of the frames pushed, accumulated as they arrive.
+    /// [`AnimationCodec::error_bound`](codec_core::AnimationCodec::error_bound) of the frames pushed, accumulated as they arrive.
     fn declared_bound(&self) -> Option<ErrorBound> {
         Some(self.bound.bound(&self.params))
     }

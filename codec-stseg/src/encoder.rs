@@ -30,7 +30,7 @@ pub fn fixed_block_segmentation(vertex_count: usize, frame_count: usize, block: 
 
 /// Codes `animation` with the PCA stage of `stseg` (§4.4) over a given segmentation (for
 /// example [`fixed_block_segmentation`]) and returns the packets, in the `stseg` stream
-/// format, and the decoded frames. [`Stseg`]'s encoder is this with [`segment_animation`].
+/// format, and the decoded frames. [`Stseg`](crate::Stseg)'s encoder is this with [`segment_animation`](crate::segment_animation).
 pub fn encode_with_segmentation(
     animation: &Animation,
     params: &StsegParams,
