@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Per-series summary of `animcodec sweep --json` output (issue 15, stseg): bpvf needed at
+"""Per-series summary of `animcodec sweep --json` output (stseg): bpvf needed at
 KG <= 2 / 0.5 / 0.1 and STED <= 0.1 / 0.05 / 0.02 by rdsummary.py's log-log interpolation
 (`bpvf_at`), per series (so `--series stseg:coding=paper` is its own row), plus the check
 "SERIES beats quant-delta at every KG from 2 to 0.1" on a 25-point log grid.

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Table-1 analogue of Luo et al. 2020 for `stseg` (issue 13): the paper's settings on samba and
+# Table-1 analogue of Luo et al. 2020 for `stseg`: the paper's settings on samba and
 # horse-gallop under each reading of ω (§4.4 / Eq. 8), the chosen defaults, and timings with 1
 # and 2 threads, with the paper's coding (`coding=paper`, stream version 2's packets). Run from the
 # workspace root: `bash codec-stseg/table1.sh`.

@@ -13,7 +13,7 @@
 //! 3. HOOI at equal ranks (unquantized error and quantized stream);
 //! 4. temporal blocks.
 //!
-//! With `--speed` as the first argument only the speed check of issue 15 runs: per animation
+//! With `--speed` as the first argument only the speed check runs: per animation
 //! and `ss`, encode and decode times of the paper coding and the toolkit coding (stream version
 //! 2's default) and a memcpy of the decoded frames, all in one run, as ratios:
 //! `target/release/examples/hosvd_bench --speed ../shared/data samba`.
@@ -193,7 +193,7 @@ fn best_of(reps: usize, mut f: impl FnMut()) -> f64 {
         .fold(f64::INFINITY, f64::min)
 }
 
-/// Issue 15's speed check: decode speed as a share of memcpy speed of the decoded output, and
+/// The speed check: decode speed as a share of memcpy speed of the decoded output, and
 /// the toolkit coding's encode time relative to the paper coding's, measured in one run.
 fn speed(a: &Animation, name: &str) {
     use codec_hosvd::Coding;

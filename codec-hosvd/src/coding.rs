@@ -1,4 +1,4 @@
-//! Stream version 2's coding of the Tucker operator with `codec_core::toolkit` (issue 15).
+//! Stream version 2's coding of the Tucker operator with `codec_core::toolkit`.
 //!
 //! Components: every mode-1 factor column `U1[:, i]` (a field over the vertices), every mode-3
 //! column `U3[:, l]` (a signal over the frames) and every core slice `C[i, :, :]`. Each is
@@ -26,7 +26,7 @@
 //! regresses on the unquantized leading columns (the decoded ones depend on steps not yet
 //! chosen); the final coding and the decoder on the decoded ones, before smoothing.
 //!
-//! Stream version 5 (issue 26): the same layout, with the *guarded* regression
+//! Stream version 5: the same layout, with the *guarded* regression
 //! ([`Fit::guarded`]: an absolute ridge from the leads' steps, predictions clamped to the
 //! neighbourhood's range). Version 4's unguarded fit could diverge on decoded leads that are
 //! flat up to rounding across a small rigid part (`../shared/probe-round3/hosvd-divergence/`:
@@ -855,7 +855,7 @@ pub fn decode(
         )?;
         core[i * 3 * f..(i + 1) * 3 * f].copy_from_slice(r);
     }
-    // Issue 41: every coded word was read (a header claiming fewer values than were coded is
+    // Every coded word was read (a header claiming fewer values than were coded is
     // an error, as is one claiming more: the decoder then runs past its data).
     dec.finish()?;
     Ok((u1, u3, core))

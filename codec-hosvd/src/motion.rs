@@ -23,7 +23,7 @@
 //! noise cap: that error is one affine map per frame, which moves every edge of a
 //! neighbourhood alike and so is invisible to STED (relative edge-length changes), while at
 //! the low rates those configurations serve the 12 numbers per frame at `2^-12` are a large
-//! part of the stream (issue 26, seventh session: chicken-crossing at `f = 1`, 400 frames,
+//! part of the stream (measured on chicken-crossing at `f = 1`, 400 frames,
 //! rigid: 0.0877 bits per vertex per frame at `2^-12`, 0.0756 at `2^-8`, STED 0.089 both).
 
 use codec_core::toolkit::adaptive::{magnitude_bucket, AdaptiveDecoder, AdaptiveEncoder, MAX_MAGNITUDE};

@@ -4,7 +4,7 @@
 //! Why: a target search or a sweep encodes one animation at many `ss` values of one
 //! configuration, and the normalised tensor — hence its full-rank HO-SVD, most of an encode's
 //! time — is the same at every one of them (the motion removal does not depend on `ss`).
-//! Issue 26, seventh session: on samba an encode spends about 1.5 of its 2.2 s there, and
+//! Measured: on samba an encode spends about 1.5 of its 2.2 s there, and
 //! `--target sted=0.05` measured 10 such points (9.4–9.9× one encode, over the ≤ 8× asked).
 //!
 //! The cached spectrum is the one [`Spectrum::new`] computes (a deterministic function of the

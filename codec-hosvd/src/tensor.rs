@@ -167,7 +167,7 @@ pub fn remove_affine_motion_with(
 }
 
 /// [`remove_affine_motion_with`] of the positions `p − centre` (subtracted in f64, exactly):
-/// stream version 6 centres every packet before the decomposition (issue 41), so the
+/// stream version 6 centres every packet before the decomposition, so the
 /// transforms, the centroids and the normalised tensor are those of the centred positions.
 /// A zero `centre` gives the same bits as the uncentred function.
 pub fn remove_affine_motion_centred(
@@ -508,7 +508,7 @@ pub struct Model {
 /// thread count: every output coordinate is one fixed-order f64 sum (see [`reconstruct_reference`],
 /// the plain loops this reproduces bit for bit).
 ///
-/// Speed (issue 15 item 4): the last step, `X[t][k][j] = Σ_i U1[k][i]·D[t][j][i]`, is
+/// Speed: the last step, `X[t][k][j] = Σ_i U1[k][i]·D[t][j][i]`, is
 /// `F·K·3·v` multiply-adds and all of the decoder's arithmetic. It runs on blocks of
 /// [`LANES`] vertices whose `U1` rows are repacked lane-interleaved (a block is `v·LANES`
 /// contiguous values, L1-resident while every frame of a thread's range is reconstructed),

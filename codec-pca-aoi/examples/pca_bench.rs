@@ -13,7 +13,7 @@
 //! KG computed here in f64, the dictionary-estimation time summed over blocks, and the
 //! speed-up over svd measured in the same run. Times are the median of REPEATS runs.
 //!
-//! `speed`: issue 15's speed check on one animation (default samba), all in one run: per
+//! `speed`: the speed check on one animation (default samba), all in one run: per
 //! subspace size `K`, the paper coding (`k = K`) and the toolkit coding (`max_k = K`, `kg`
 //! 0.05 so that the RD rule keeps nearly every component) — bpvf, KG, encode time (best of 2),
 //! decode time of all packets (best of 3) and a memcpy of the decoded frames (best of 5), as

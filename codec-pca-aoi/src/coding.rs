@@ -1,5 +1,5 @@
 //! Stream version 2's coding of one cluster's dictionary and features with
-//! `codec_core::toolkit` (issue 15); the paper's uniform bit depths + zstd stay in `lib.rs`.
+//! `codec_core::toolkit`; the paper's uniform bit depths + zstd are in `paper.rs`.
 //!
 //! A block (of one cluster) is `X̂ = Ê F̂` (Eq. 4–5). Its components are the `k` dictionary
 //! columns `E[:, j]` and the `k` feature rows `F[i, :]`. Each is a vector either over the
@@ -178,7 +178,7 @@ const GRID: usize = (OCTAVES_COARSER + OCTAVES_FINER) * PER_OCTAVE + 1;
 
 /// One component's RD points over "dropped" (index 0) and the step grid (indices `1..=GRID`,
 /// coarse to fine), evaluated lazily: the equal-slope search visits only the grid points near
-/// each component's choice (issue 15 item 4, encode speed; before, every point was evaluated).
+/// each component's choice (encode speed: evaluating every point cost more than the rest of the coding).
 struct StepSearch<'c, 'g> {
     comp: &'c Component<'g>,
     floor: f64,
@@ -473,7 +473,7 @@ pub fn decode(
             f_hat[(i, feat_layout.natural(p))] = r;
         }
     }
-    // Issue 41: every coded word was read (a header claiming fewer vertices than were coded is
+    // Every coded word was read (a header claiming fewer vertices than were coded is
     // an error, as is one claiming more: the decoder then runs past its data).
     dec.finish()?;
     Ok((e_hat, f_hat))

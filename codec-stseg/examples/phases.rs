@@ -1,4 +1,4 @@
-//! Boundaries of `synth:phases` at every size (issue 13 point 3):
+//! Boundaries of `synth:phases` at every size:
 //! `target/release/examples/phases [key=value]...` prints the true phase changes, the
 //! segmentation's boundaries and segment lengths for Small, Medium and Large.
 

@@ -1,4 +1,4 @@
-//! Issue 15's speed check for `stseg`, all in one run: per ω, encode and decode times of the
+//! The speed check for `stseg`, all in one run: per ω, encode and decode times of the
 //! paper coding (`coding=paper`) and the toolkit coding (stream version 3's default) at equal
 //! settings, and a memcpy of the decoded frames as the in-run baseline (best of 3 timings each).
 //!

@@ -1,4 +1,4 @@
-//! Stream version 3's toolkit coding of a segment (issue 15): the PCA of every group (§4.4,
+//! Stream version 3's toolkit coding of a segment: the PCA of every group (§4.4,
 //! Eq. 5: `X ≈ mean + A·B`) coded with `codec_core::toolkit` instead of the paper's uniform
 //! bit depths + zstd (which stays available, `coding=paper`).
 //!
@@ -34,10 +34,10 @@ use faer::Mat;
 use rayon::prelude::*;
 
 use crate::linalg::{mul, sym_eig_desc};
+use crate::params::{Centering, StsegParams, MAX_SEGMENT_FRAMES};
+use crate::pca::{centred_block, group_pca_energy, mean_layout, reconstruct_group};
 use crate::segment::{MeshGraph, Segment};
-use crate::{
-    centred_block, group_pca_energy, mean_layout, reconstruct_group, Centering, StsegParams, MAX_SEGMENT_FRAMES, NAME,
-};
+use crate::NAME;
 
 const CLASS_LABEL: usize = 0;
 const CLASS_MEAN: usize = 1;
@@ -560,7 +560,7 @@ fn decode_component(
     Ok(out)
 }
 
-/// Work of one group's reconstruction ([`crate::reconstruct_group`]: `frames·3·n·k`
+/// Work of one group's reconstruction ([`crate::pca::reconstruct_group`]: `frames·3·n·k`
 /// multiply-adds) and its `frames·3·n` output coordinates (`Limits::max_work`).
 pub(crate) fn reconstruction_work(frames: usize, n: usize, k: usize) -> u64 {
     let coords = Limits::product(&[frames as u64, 3, n as u64]);
@@ -621,7 +621,7 @@ pub(crate) fn decode_segment(
     // Labels along the mesh order.
     let mut labels = vec![0u8; v];
     if group_count > 1 {
-        // Issue 41: every decoded value is charged before decoding (`--max-work`).
+        // Every decoded value is charged before decoding (`--max-work`).
         *limits = limits.spend(NAME, "labels", (v as u64).saturating_mul(WORK_PER_CODED_VALUE))?;
         let full = graphs.full(limits)?;
         let order = full.order();
@@ -699,7 +699,7 @@ pub(crate) fn decode_segment(
             .unzip();
         reconstruct_group(centering, own, &mean, &a, &b, frames, n3, &mut out);
     }
-    // Issue 41: every coded word was read (a header claiming fewer vertices than were coded is
+    // Every coded word was read (a header claiming fewer vertices than were coded is
     // an error, as is one claiming more: the decoder then runs past its data).
     dec.finish()?;
     Ok(out)

@@ -8,7 +8,7 @@ use faer::Mat;
 use rayon::prelude::*;
 
 use crate::linalg::{double_center, gram, pcs_for_persistence, sym_eig_desc, sym_eigvals_desc};
-use crate::{Centering, Detector, StsegParams};
+use crate::params::{Centering, Detector, StsegParams};
 
 /// Most principal components a vertex group keeps while grouping rigid clusters (Alg. 1).
 /// The paper does not say; a small cap keeps Eq. 4 a subspace fit rather than a copy.
