@@ -226,3 +226,61 @@ fn blender_draco_exports_play_like_the_plain_exports() {
         }
     }
 }
+
+/// three.js plays `file`'s first animation (its `DRACOLoader` with the Draco decoder three ships,
+/// under Node.js: `cli/tests/gltf/play.mjs`) at `fps` from `t0` for `frames` frames.
+fn three_play(tools: &Path, file: &Path, t0: f64, fps: f32, frames: usize, out: &Path) -> Vec<f32> {
+    let o = Command::new("node")
+        .arg(tools.join("play.mjs"))
+        .arg(file)
+        .arg(out)
+        .args(["--animation", "0", "--t0", &t0.to_string(), "--fps", &fps.to_string()])
+        .args(["--frames", &frames.to_string()])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "three.js failed on {}: {}", file.display(), String::from_utf8_lossy(&o.stderr));
+    std::fs::read(out).unwrap().chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect()
+}
+
+#[test]
+fn three_js_plays_draco_files_at_our_positions() {
+    let tools = match common::node_packages(&["three"]) {
+        Ok(t) => t,
+        Err(why) => return skip("three_js_plays_draco_files_at_our_positions", &why),
+    };
+    let dir = Scratch::new("draco-three");
+    let mut files = Vec::new();
+    match fixtures(&dir) {
+        Ok(_) => files.extend(["draco_0.glb", "draco_7.glb", "draco_10.glb"].map(|f| PathBuf::from(dir.path(f)))),
+        Err(why) => return skip("three_js_plays_draco_files_at_our_positions", &why),
+    }
+    // A Blender-written file too, when bpy is there (three.js keeps Draco's vertex order, as we do).
+    if let (Ok(()), Some(src)) =
+        (python_with("bpy", "pip install bpy==5.0.1"), shared_data("robot-expressive/RobotExpressive.glb"))
+    {
+        let (plain, draco) = (dir.path("robot.glb"), dir.path("robot_draco.glb"));
+        run_script("blender_export.py", &[src.to_str().unwrap(), &plain, &draco, "Wave"], "EXPORT_RESULT ");
+        files.push(PathBuf::from(draco));
+    }
+    for file in files {
+        let ours = read(&file, None, None);
+        let t0 = animcodec::formats::gltf::list_animations(&file).unwrap()[0].start;
+        let theirs =
+            three_play(&tools, &file, t0, ours.frame_rate(), ours.frame_count(), Path::new(&dir.path("three.f32")));
+        assert_eq!(
+            ours.positions().len(),
+            theirs.len(),
+            "{}: vertex or frame count differs from three.js",
+            file.display()
+        );
+        let worst = ours.positions().iter().zip(&theirs).map(|(a, b)| (a - b).abs() as f64).fold(0.0, f64::max)
+            / ours.bounding_box_diagonal();
+        eprintln!(
+            "{}: {} vertices × {} frames, three.js within {worst:.2e} of the diagonal",
+            file.display(),
+            ours.vertex_count(),
+            ours.frame_count()
+        );
+        assert!(worst < 1e-5, "{}: three.js plays {worst:e} of the diagonal away", file.display());
+    }
+}

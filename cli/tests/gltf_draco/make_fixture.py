@@ -1,10 +1,10 @@
 # Builds glTF fixtures with KHR_draco_mesh_compression for cli/tests/gltf_draco.rs, encoded and
 # decoded by Google's Draco library through DracoPy (`pip install DracoPy`).
 #
-#   python make_fixture.py OUT_DIR
+#   python make_fixture.py OUT_DIR [NX NY]
 #
 # For each Draco compression level 0 (sequential), 7 and 10 (EdgeBreaker), with 14-bit
-# positions: a bent 24 × 16 grid, skinned to two joints (JOINTS_0 / WEIGHTS_0 as Draco generic
+# positions: a bent NX × NY grid (default 24 × 16; small ones seed the read_gltf fuzz corpus), skinned to two joints (JOINTS_0 / WEIGHTS_0 as Draco generic
 # attributes with unique ids 5 and 6, so the extension's attribute map is not the identity)
 # with one uncompressed morph target and an animation (joint rotation + morph weight), written
 # twice:
@@ -24,7 +24,7 @@ import DracoPy
 import numpy as np
 
 out = sys.argv[1]
-NX, NY = 24, 16
+NX, NY = (int(sys.argv[2]), int(sys.argv[3])) if len(sys.argv) > 3 else (24, 16)
 xs, ys = np.meshgrid(np.linspace(0.0, 2.0, NX), np.linspace(0.0, 1.0, NY))
 grid = np.stack([xs.ravel(), ys.ravel(), 0.1 * np.sin(3.0 * xs.ravel())], axis=1).astype(np.float32)
 faces = []
