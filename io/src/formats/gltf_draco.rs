@@ -295,3 +295,45 @@ fn decode_error(file: &str, at: &str, e: &draco_core::DracoError) -> Error {
         _ => bad(file, "extensions", format!("{at}: the Draco data does not decode ({})", printable(&e.to_string()))),
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::json;
+
+    fn doc(ext: Value) -> Value {
+        json!({"meshes": [{"primitives": [{"attributes": {}, "extensions": {EXTENSION: ext}}]}]})
+    }
+
+    #[test]
+    fn the_extension_object_is_checked() {
+        let ok = extension("f.glb", &doc(json!({"bufferView": 1, "attributes": {"POSITION": 7}})), 0, 0, 2).unwrap();
+        let ok = ok.expect("present");
+        assert_eq!((ok.view, ok.id("POSITION"), ok.id("NORMAL")), (1, Some(7), None));
+        assert!(extension("f.glb", &json!({"meshes": [{"primitives": [{}]}]}), 0, 0, 2).unwrap().is_none());
+        for (bad, needle) in [
+            (json!({"bufferView": 2, "attributes": {}}), "refers to bufferView 2, but there are 2"),
+            (json!({"attributes": {}}), "no bufferView"),
+            (json!({"bufferView": 0}), "no attributes"),
+            (json!({"bufferView": 0, "attributes": {"POSITION": -1}}), "not a 32-bit index"),
+            (json!({"bufferView": 0, "attributes": {"POSITION": 4294967296u64}}), "not a 32-bit index"),
+        ] {
+            let e = extension("f.glb", &doc(bad), 0, 0, 2).err().expect("refused").to_string();
+            assert!(e.contains(needle) && e.contains("f.glb"), "{e}");
+        }
+        assert_eq!(views(&doc(json!({"bufferView": 3, "attributes": {}}))), vec![3]);
+        assert!(covers(&doc(json!({"bufferView": 0, "attributes": {"JOINTS_0": 2}})), 0, 0, "JOINTS_0"));
+        assert!(!covers(&doc(json!({"bufferView": 0, "attributes": {"JOINTS_0": 2}})), 0, 0, "WEIGHTS_0"));
+    }
+
+    #[test]
+    fn integer_components_follow_the_gltf_normalized_rule() {
+        assert_eq!(convert(DracoType::Uint8, &[255], true), Some(1.0));
+        assert_eq!(convert(DracoType::Uint8, &[7], false), Some(7.0));
+        assert_eq!(convert(DracoType::Int8, &[0x80], true), Some(-1.0));
+        assert_eq!(convert(DracoType::Uint16, &65535u16.to_le_bytes(), true), Some(1.0));
+        assert_eq!(convert(DracoType::Int16, &(-32767i16).to_le_bytes(), true), Some(-1.0));
+        assert_eq!(convert(DracoType::Float32, &0.25f32.to_le_bytes(), true), Some(0.25));
+        assert_eq!(convert(DracoType::Int64, &[0; 8], false), None);
+    }
+}
