@@ -448,6 +448,14 @@ pub struct EvalArgs {
     #[arg(long, value_name = "NAME|INDEX")]
     pub animation: Option<String>,
 
+    /// Match the candidate's vertices to the reference's by trajectory (nearest over all
+    /// frames) before comparing: for a candidate that reorders, welds or splits vertices
+    /// (gltfpack, `animcodec export`, Draco-compressed glTF). The reference's triangles are used
+    /// for both; an ambiguous match, or a candidate vertex that follows no reference vertex, is
+    /// an error.
+    #[arg(long)]
+    pub match_vertices: bool,
+
     /// Which metrics, and STED's options.
     #[command(flatten)]
     pub metrics: MetricArgs,

@@ -17,6 +17,7 @@ pub mod bpvf;
 pub mod common;
 pub mod displacement;
 pub mod hausdorff;
+pub mod matching;
 pub mod parts;
 pub mod report;
 pub mod sted;
@@ -28,6 +29,7 @@ pub use hausdorff::{
     hausdorff, isolated_vertex_count, point_triangle_distance, vertex_to_surface_distances, HausdorffMode,
     HausdorffStats,
 };
+pub use matching::{match_vertices, VertexMatch};
 pub use parts::{
     connected_parts, part_errors, visible_parts, worst_part, PartError, Parts, NO_PART, PART_SPREAD_FLOOR,
 };

@@ -55,25 +55,43 @@ pub fn run(args: &EvalArgs, limits: Limits) -> CmdResult {
     let read = ReadOptions { topology: args.topology.clone(), frame_rate: None, animation: args.animation.clone() };
     let reference = load_any(&args.reference, &read, limits)?;
     // --animation chooses the reference's animation; a glTF candidate plays its first.
-    let candidate = load_any(&args.candidate, &ReadOptions { animation: None, ..read }, limits)?;
+    let mut candidate = load_any(&args.candidate, &ReadOptions { animation: None, ..read }, limits)?;
+    let mut matched = None;
+    if args.match_vertices {
+        let context = || format!("matching the vertices of {} to {}", args.candidate, args.reference);
+        let m = metrics::match_vertices(&reference, &candidate).context(context)?;
+        candidate = m.apply(&reference, &candidate).context(context)?;
+        matched = Some(m);
+    }
     if let Err(e) = metrics::check_compatible(&reference, &candidate) {
         let gltf = std::path::Path::new(&args.candidate)
             .extension()
             .is_some_and(|x| x.eq_ignore_ascii_case("glb") || x.eq_ignore_ascii_case("gltf"));
         // `export` welds and reorders vertices by default (as gltfpack does): say so rather
         // than leave a bare topology mismatch.
-        let hint = if gltf {
+        let hint = if gltf && !args.match_vertices {
             "; `animcodec export` welds vertices with identical trajectories and reorders them for \
              compression, so its files match the input vertex by vertex only when written with \
-             --keep-vertices (export itself reports KG and STED as played back, on the input's vertices)"
+             --keep-vertices, or compared with --match-vertices (export itself reports KG and STED as played \
+             back, on the input's vertices)"
         } else {
             ""
         };
         return Err(format!("comparing {} with {}: {e}{hint}", args.reference, args.candidate).into());
     }
     let start = Instant::now();
-    let report = metrics::evaluate(&reference, &candidate, &options)
+    let mut report = metrics::evaluate(&reference, &candidate, &options)
         .context(|| format!("comparing {} with {}", args.reference, args.candidate))?;
+    if let Some(m) = &matched {
+        report.notes.push(format!(
+            "vertices matched by trajectory (--match-vertices): worst RMS distance {:.6e} ({:.3e} of the diagonal), \
+             {} candidate vertices shared by several reference vertices, {} unused; the reference's triangles are used",
+            m.worst_distance,
+            m.worst_distance / report.bbox_diagonal.max(f64::MIN_POSITIVE),
+            m.shared,
+            m.unused
+        ));
+    }
     let seconds = start.elapsed().as_secs_f64();
     if args.json {
         let mut value = report_json(&report);
@@ -81,6 +99,14 @@ pub fn run(args: &EvalArgs, limits: Limits) -> CmdResult {
             map.insert("reference".into(), args.reference.clone().into());
             map.insert("candidate".into(), args.candidate.clone().into());
             map.insert("eval_seconds".into(), seconds.into());
+            if let Some(m) = &matched {
+                map.insert(
+                    "vertex_match".into(),
+                    serde_json::json!({
+                        "worst_distance": m.worst_distance, "shared": m.shared, "unused": m.unused,
+                    }),
+                );
+            }
         }
         return emit_json(&value);
     }

@@ -16,6 +16,11 @@ import { readFileSync, writeFileSync } from 'node:fs';
 import { AnimationMixer, LoopOnce, Vector3 } from 'three';
 import { GLTFLoader } from 'three/examples/jsm/loaders/GLTFLoader.js';
 import { MeshoptDecoder } from 'three/examples/jsm/libs/meshopt_decoder.module.js';
+import { DRACOLoader } from 'three/examples/jsm/loaders/DRACOLoader.js';
+import { resolveObjectURL } from 'node:buffer';
+import { Worker as ThreadWorker } from 'node:worker_threads';
+import { fileURLToPath } from 'node:url';
+import { dirname, join } from 'node:path';
 
 // three's FileLoader (used for a .gltf's data: URI buffer) reports progress with the DOM's
 // ProgressEvent, which Node.js lacks.
@@ -23,6 +28,38 @@ globalThis.ProgressEvent ??= class ProgressEvent extends Event {
   constructor(type, init = {}) {
     super(type);
     Object.assign(this, init);
+  }
+};
+
+// KHR_draco_mesh_compression: three's DRACOLoader with the Draco decoder three ships
+// (examples/jsm/libs/draco, Google's WebAssembly build). The loader runs the decoder in a Web
+// Worker made from a blob: URL and fetches the decoder files; Node.js has neither Web Workers
+// nor file fetches, so the decoder files are read from disk and the worker runs in a
+// worker_threads thread with the DOM worker globals (self, onmessage, postMessage) it expects.
+const dracoDir = join(dirname(fileURLToPath(import.meta.url)), 'node_modules/three/examples/jsm/libs/draco');
+DRACOLoader.prototype._loadLibrary = function (url, responseType) {
+  const data = readFileSync(join(dracoDir, url.split('/').pop()));
+  return Promise.resolve(responseType === 'text' ? data.toString('utf8') : data.buffer.slice(data.byteOffset, data.byteOffset + data.byteLength));
+};
+globalThis.Worker ??= class Worker {
+  constructor(url) {
+    this.onmessage = null;
+    this.pending = resolveObjectURL(url).text().then((body) => {
+      const prelude = `const { parentPort } = require('node:worker_threads');
+        globalThis.self = globalThis;
+        globalThis.postMessage = (message, transfer) => parentPort.postMessage(message, transfer);
+        parentPort.on('message', (data) => globalThis.onmessage({ data }));\n`;
+      this.thread = new ThreadWorker(prelude + body, { eval: true });
+      this.thread.on('message', (data) => this.onmessage && this.onmessage({ data }));
+      this.thread.on('error', (e) => { throw e; });
+      return this.thread;
+    });
+  }
+  postMessage(message, transfer) {
+    this.pending.then((thread) => thread.postMessage(message, transfer));
+  }
+  terminate() {
+    this.pending.then((thread) => thread.terminate());
   }
 };
 
@@ -35,6 +72,8 @@ const buffer = data.buffer.slice(data.byteOffset, data.byteOffset + data.byteLen
 await MeshoptDecoder.ready;
 const loader = new GLTFLoader();
 loader.setMeshoptDecoder(MeshoptDecoder);
+const dracoLoader = new DRACOLoader().setDecoderPath('draco/');
+loader.setDRACOLoader(dracoLoader);
 const gltf = await new Promise((resolve, reject) => loader.parse(buffer, '', resolve, reject));
 
 const scene = gltf.scene;
@@ -91,4 +130,5 @@ for (let k = 0; k < frames; k++) {
   }
 }
 writeFileSync(out, Buffer.from(positions.buffer));
+dracoLoader.dispose();
 console.log(JSON.stringify({ vertices, frames, meshes: meshes.length }));

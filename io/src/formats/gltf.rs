@@ -8,8 +8,10 @@
 //!   else every root node), visited depth first from the scene's root nodes in order, a node's
 //!   own mesh before its children. Each such mesh instance contributes all its primitives'
 //!   vertices in primitive order, each in its `POSITION` accessor's order (a mesh used by two
-//!   nodes appears twice). Triangles are re-indexed accordingly. Only `TRIANGLES` primitives are
-//!   accepted; a primitive without indices is a plain triangle list.
+//!   nodes appears twice); a Draco-compressed primitive's in its decoded point order, which
+//!   may differ from the mesh before compression ([`super::gltf_draco`]). Triangles are
+//!   re-indexed accordingly. Only `TRIANGLES` primitives are accepted; a primitive without
+//!   indices is a plain triangle list.
 //! - **Space**: world space of the scene (the node hierarchy's transforms applied). A skinned
 //!   mesh follows the spec (§3.7.3 "Skins"): Σⱼ wⱼ · world(jointⱼ) · inverseBindⱼ · p, the
 //!   skinned node's own transform ignored; weights from every `JOINTS_n`/`WEIGHTS_n` set (4 per
@@ -38,10 +40,11 @@
 //! - **Only geometry.** Materials, textures, images and samplers are dropped from the JSON
 //!   before the `gltf` crate sees it, so texture formats and their extensions never matter.
 //!   `asset.version` must be 2.x. A required extension is accepted when it is implemented here
-//!   (`KHR_mesh_quantization`, `EXT_meshopt_compression` with every mode and filter), or when it
-//!   only describes appearance ([`APPEARANCE_PREFIXES`]: materials, textures, lights,
-//!   metadata); any other (Draco, GPU instancing, animation pointers, unknown names) is refused
-//!   by name, since it may change the geometry.
+//!   (`KHR_mesh_quantization`, `EXT_meshopt_compression` with every mode and filter,
+//!   `KHR_draco_mesh_compression`: see [`super::gltf_draco`], whose decoded vertex order is
+//!   kept), or when it only describes appearance ([`APPEARANCE_PREFIXES`]: materials,
+//!   textures, lights, metadata); any other (GPU instancing, animation pointers, unknown names)
+//!   is refused by name, since it may change the geometry.
 //! - **Buffers** are loaded here, not by `gltf::import_buffers` (whose loader follows any
 //!   path and panics on a malformed percent-encoded URI), and only those an accessor used for
 //!   geometry (positions, morph targets, joints and weights, indices, inverse bind matrices,
@@ -72,6 +75,7 @@ use serde_json::Value;
 
 use super::gltf_buffers::{bad, Budget, BufferData, KHR_MESH_QUANTIZATION};
 pub use super::gltf_buffers::{printable, set_default_memory_budget, DEFAULT_MEMORY_BUDGET};
+use super::gltf_draco;
 use super::gltf_meshopt;
 use super::gltf_scene::{self, Selection};
 use super::{check_frame_rate, name, read_file};
@@ -149,7 +153,7 @@ pub fn list_animations(path: &Path) -> Result<Vec<AnimationInfo>> {
 }
 
 /// Extensions read here rather than by the `gltf` crate.
-const SUPPORTED_EXTENSIONS: [&str; 2] = [KHR_MESH_QUANTIZATION, gltf_meshopt::EXTENSION];
+const SUPPORTED_EXTENSIONS: [&str; 3] = [KHR_MESH_QUANTIZATION, gltf_meshopt::EXTENSION, gltf_draco::EXTENSION];
 
 /// Prefixes of the extension families that describe appearance or metadata only (materials,
 /// textures and their formats, lights, XMP): never a reason to refuse a file for its geometry,
@@ -180,6 +184,8 @@ fn guarded<T>(file: &str, parse: impl FnOnce() -> Result<T>) -> Result<T> {
 /// mesh primitive uses for `POSITION`, `JOINTS_n`, `WEIGHTS_n`, its indices or a morph target's
 /// `POSITION`, a skin's inverse bind matrices, or an animation sampler (sparse index and value
 /// views included), their buffers, and for a meshopt-compressed view its compressed source.
+/// For a `KHR_draco_mesh_compression` primitive: its Draco view instead of the accessors the
+/// extension covers (and of its indices).
 fn geometry_views(root: &::gltf::json::Root, raw: &Value) -> (Vec<bool>, Vec<bool>) {
     use ::gltf::json::mesh::Semantic;
     use ::gltf::json::validation::Checked;
@@ -189,13 +195,24 @@ fn geometry_views(root: &::gltf::json::Root, raw: &Value) -> (Vec<bool>, Vec<boo
             *x = true;
         }
     };
-    for primitive in root.meshes.iter().flat_map(|m| &m.primitives) {
+    let primitives = root
+        .meshes
+        .iter()
+        .enumerate()
+        .flat_map(|(m, mesh)| mesh.primitives.iter().enumerate().map(move |(p, x)| (m, p, x)));
+    for (m, p, primitive) in primitives {
+        // A Draco primitive's covered attributes and triangles come from its Draco data.
+        let draco = |name: &str| gltf_draco::covers(raw, m, p, name);
         for (semantic, accessor) in &primitive.attributes {
-            if matches!(semantic, Checked::Valid(Semantic::Positions | Semantic::Joints(_) | Semantic::Weights(_))) {
+            if matches!(semantic, Checked::Valid(Semantic::Positions | Semantic::Joints(_) | Semantic::Weights(_)))
+                && !draco(&semantic.to_string())
+            {
                 mark(accessor.value());
             }
         }
-        primitive.indices.iter().for_each(|a| mark(a.value()));
+        if raw.pointer(&format!("/meshes/{m}/primitives/{p}/extensions/{}", gltf_draco::EXTENSION)).is_none() {
+            primitive.indices.iter().for_each(|a| mark(a.value()));
+        }
         for target in primitive.targets.iter().flatten() {
             target.positions.iter().for_each(|a| mark(a.value()));
         }
@@ -212,6 +229,11 @@ fn geometry_views(root: &::gltf::json::Root, raw: &Value) -> (Vec<bool>, Vec<boo
             if let Some(x) = views.get_mut(v.value()) {
                 *x = true;
             }
+        }
+    }
+    for v in gltf_draco::views(raw) {
+        if let Some(x) = views.get_mut(v) {
+            *x = true;
         }
     }
     let mut buffers = vec![false; root.buffers.len()];
@@ -462,8 +484,50 @@ fn parse_document(bytes: &[u8], file: &str, budget: &mut Budget) -> Result<(::gl
     let root: ::gltf::json::Root =
         serde_json::from_value(geometry_only(&raw)).map_err(|e| bad(file, "gltf", e.to_string()))?;
     check_indices(file, &root)?;
-    let document = ::gltf::Document::from_json(root).map_err(|e| bad(file, "gltf", e.to_string()))?;
+    let document = validate(file, root, &raw)?;
     Ok((document, blob, raw))
+}
+
+/// The `gltf` crate's validation of the document, except for one rule the Draco extension
+/// lifts: an accessor that a `KHR_draco_mesh_compression` primitive fills from its Draco data
+/// (an attribute the extension names, or the primitive's indices) has no `bufferView` (the
+/// extension's spec: "must not define the bufferView and sparse properties"), which the crate
+/// reports as missing data.
+fn validate(file: &str, root: ::gltf::json::Root, raw: &Value) -> Result<::gltf::Document> {
+    use ::gltf::json::validation::{Error as Invalid, Validate};
+    let mut draco_filled = vec![false; root.accessors.len()];
+    for (m, mesh) in root.meshes.iter().enumerate() {
+        for (p, primitive) in mesh.primitives.iter().enumerate() {
+            if raw.pointer(&format!("/meshes/{m}/primitives/{p}/extensions/{}", gltf_draco::EXTENSION)).is_none() {
+                continue;
+            }
+            let covered = primitive
+                .attributes
+                .iter()
+                .filter(|(semantic, _)| gltf_draco::covers(raw, m, p, &semantic.to_string()))
+                .map(|(_, a)| a.value());
+            for a in covered.chain(primitive.indices.map(|a| a.value())) {
+                if let Some(x) = draco_filled.get_mut(a) {
+                    *x = true;
+                }
+            }
+        }
+    }
+    let lifted: Vec<String> = (0..root.accessors.len())
+        .filter(|&a| draco_filled[a] && root.accessors[a].buffer_view.is_none())
+        .map(|a| format!("accessors[{a}].bufferView"))
+        .collect();
+    let mut errors = Vec::new();
+    root.validate(&root, ::gltf::json::Path::new, &mut |path, error| {
+        let path = path();
+        if !(matches!(error, Invalid::Missing) && lifted.contains(&path.to_string())) {
+            errors.push((path, error));
+        }
+    });
+    if !errors.is_empty() {
+        return Err(bad(file, "gltf", ::gltf::Error::Validation(errors).to_string()));
+    }
+    Ok(::gltf::Document::from_json_without_validation(root))
 }
 
 /// Checks that every index into the document's arrays that this reader or the `gltf` crate

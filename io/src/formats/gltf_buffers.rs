@@ -2,8 +2,8 @@
 //! [`Budget`], the bytes of the buffers ([`BufferData`]), accessor checks made before the `gltf`
 //! crate reads an accessor ([`check_accessor`], [`collect_exact`]) and the error helper
 //! [`bad`]. The document reader (`gltf.rs`), the scene player (`gltf_scene.rs`) and the
-//! meshopt decoder (`gltf_meshopt.rs`) import from here; nothing here imports them, so the
-//! modules form no circle.
+//! meshopt and Draco decoders (`gltf_meshopt.rs`, `gltf_draco.rs`) import from here; nothing
+//! here imports them, so the modules form no circle.
 
 use std::sync::atomic::{AtomicU64, Ordering};
 
@@ -39,8 +39,14 @@ impl Budget {
         }
     }
 
-    /// Counts `bytes` more (for `what`), or fails naming the total and the budget.
-    pub(super) fn take(&mut self, what: &str, bytes: u64) -> Result<()> {
+    /// Bytes the read may still hold.
+    pub(super) fn remaining(&self) -> u64 {
+        self.limit.saturating_sub(self.held)
+    }
+
+    /// Fails as [`Budget::take`] would, without counting `bytes`: for what is held only
+    /// briefly, or counted later once its final size is known.
+    pub(super) fn check(&self, what: &str, bytes: u64) -> Result<()> {
         let held = self.held.saturating_add(bytes);
         if held > self.limit {
             return Err(Error::LimitExceeded {
@@ -50,7 +56,13 @@ impl Budget {
                 limit: self.limit,
             });
         }
-        self.held = held;
+        Ok(())
+    }
+
+    /// Counts `bytes` more (for `what`), or fails naming the total and the budget.
+    pub(super) fn take(&mut self, what: &str, bytes: u64) -> Result<()> {
+        self.check(what, bytes)?;
+        self.held = self.held.saturating_add(bytes);
         Ok(())
     }
 }

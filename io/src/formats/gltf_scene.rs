@@ -11,6 +11,7 @@ use codec_core::{Animation, Error, Result};
 
 use super::gltf_anim::{self, Mat4, Track, IDENTITY};
 use super::gltf_buffers::{bad, check_accessor, collect_exact, printable, Budget, BufferData, KHR_MESH_QUANTIZATION};
+use super::gltf_draco;
 use super::{in_file, FRAME_RATE_RANGE};
 
 /// Frame rate when neither the caller, the file's `extras` nor a regular key grid gives one.
@@ -117,10 +118,52 @@ const MAX_MORPH_TARGETS: usize = 4096;
 /// Most `JOINTS_n`/`WEIGHTS_n` sets a primitive may have (4 influences each).
 const MAX_JOINT_SETS: usize = 8;
 
+/// Checks an accessor whose data a `KHR_draco_mesh_compression` primitive holds instead:
+/// dimensions, component type and a count equal to the decoded one (`count`); its bufferView,
+/// if any, is not read.
+fn check_declared(
+    file: &str,
+    field: &'static str,
+    accessor: &::gltf::Accessor,
+    dims: Dimensions,
+    types: &[DataType],
+    count: usize,
+) -> Result<()> {
+    let what = format!("accessor {}", accessor.index());
+    if accessor.dimensions() != dims {
+        return Err(bad(file, field, format!("{what} is {:?}, expected {dims:?}", accessor.dimensions())));
+    }
+    if !types.contains(&accessor.data_type()) {
+        return Err(bad(
+            file,
+            field,
+            format!("{what} has component type {:?}, expected {types:?}", accessor.data_type()),
+        ));
+    }
+    if accessor.count() != count {
+        return Err(bad(
+            file,
+            field,
+            format!("{what} declares {} items but the Draco data decodes to {count}", accessor.count()),
+        ));
+    }
+    Ok(())
+}
+
 /// Loads a mesh: every primitive, in order (primitive `k`'s vertices follow those of `0..k`).
 /// `quantization`: the file uses `KHR_mesh_quantization` (8/16-bit positions and displacements
-/// allowed; without it the core spec allows only `f32`).
-fn load_mesh(file: &str, mesh: &::gltf::Mesh, buffers: &[BufferData], quantization: bool) -> Result<MeshData> {
+/// allowed; without it the core spec allows only `f32`). `json` is the file's raw JSON (the
+/// primitives' `KHR_draco_mesh_compression` objects); a Draco primitive is decoded under what is
+/// left of `budget`.
+fn load_mesh(
+    file: &str,
+    mesh: &::gltf::Mesh,
+    document: &::gltf::Document,
+    buffers: &[BufferData],
+    json: &serde_json::Value,
+    quantization: bool,
+    budget: &Budget,
+) -> Result<MeshData> {
     let limits = super::reader_limits();
     let m = mesh.index();
     let first = mesh.primitives().next();
@@ -190,7 +233,35 @@ fn load_mesh(file: &str, mesh: &::gltf::Mesh, buffers: &[BufferData], quantizati
                 limits.max_alloc_bytes,
             ));
         }
-        let n = check_accessor(file, "POSITION", &positions, Dimensions::Vec3, quantized, buffers)?;
+        // A Draco primitive: its triangles and the attributes its extension names come from the
+        // decoded Draco mesh, the declared accessors give only counts and types.
+        let draco = match gltf_draco::extension(file, json, m, p, document.views().len())? {
+            Some(ext) => {
+                let decoded = gltf_draco::decode(file, m, p, &ext, document, buffers, budget)?;
+                Some((ext, decoded))
+            }
+            None => None,
+        };
+        let from_draco = |name: &str| draco.as_ref().and_then(|(ext, d)| ext.id(name).map(|id| (d, id)));
+        let n = match from_draco("POSITION") {
+            Some((decoded, _)) => {
+                check_declared(file, "POSITION", &positions, Dimensions::Vec3, quantized, decoded.points())?;
+                decoded.points()
+            }
+            None => check_accessor(file, "POSITION", &positions, Dimensions::Vec3, quantized, buffers)?,
+        };
+        if let Some((_, decoded)) = &draco {
+            if decoded.points() != n {
+                return Err(bad(
+                    file,
+                    "POSITION",
+                    format!("mesh {m} primitive {p}: {n} positions for {} decoded Draco points", decoded.points()),
+                ));
+            }
+            // What the copies below hold, counted before they are made.
+            let held = (n as u64).saturating_mul(bytes_per_vertex as u64);
+            budget.check("the decoded Draco primitive", held.saturating_add(4 * decoded.triangles.len() as u64))?;
+        }
         if primitive.morph_targets().len() != target_count {
             return Err(bad(
                 file,
@@ -220,21 +291,21 @@ fn load_mesh(file: &str, mesh: &::gltf::Mesh, buffers: &[BufferData], quantizati
                 format!("mesh {m} primitive {p} has {} JOINTS sets, primitive 0 has {sets}", sets_of(&primitive)),
             ));
         }
+        const JOINT_TYPES: [DataType; 2] = [DataType::U8, DataType::U16];
+        const WEIGHT_TYPES: [DataType; 3] = [DataType::F32, DataType::U8, DataType::U16];
         for s in 0..sets as u32 {
             let joints = primitive.get(&Semantic::Joints(s)).expect("counted above");
-            let count =
-                check_accessor(file, "JOINTS", &joints, Dimensions::Vec4, &[DataType::U8, DataType::U16], buffers)?;
+            let count = match from_draco(&format!("JOINTS_{s}")) {
+                Some(_) => check_declared(file, "JOINTS", &joints, Dimensions::Vec4, &JOINT_TYPES, n).map(|_| n)?,
+                None => check_accessor(file, "JOINTS", &joints, Dimensions::Vec4, &JOINT_TYPES, buffers)?,
+            };
             let weights = primitive.get(&Semantic::Weights(s)).ok_or_else(|| {
                 bad(file, "WEIGHTS", format!("mesh {m} primitive {p} has JOINTS_{s} but no WEIGHTS_{s}"))
             })?;
-            let wcount = check_accessor(
-                file,
-                "WEIGHTS",
-                &weights,
-                Dimensions::Vec4,
-                &[DataType::F32, DataType::U8, DataType::U16],
-                buffers,
-            )?;
+            let wcount = match from_draco(&format!("WEIGHTS_{s}")) {
+                Some(_) => check_declared(file, "WEIGHTS", &weights, Dimensions::Vec4, &WEIGHT_TYPES, n).map(|_| n)?,
+                None => check_accessor(file, "WEIGHTS", &weights, Dimensions::Vec4, &WEIGHT_TYPES, buffers)?,
+            };
             if count != n || wcount != n {
                 return Err(bad(
                     file,
@@ -243,19 +314,25 @@ fn load_mesh(file: &str, mesh: &::gltf::Mesh, buffers: &[BufferData], quantizati
                 ));
             }
         }
-        let indices = match primitive.indices() {
-            Some(acc) => Some(check_accessor(
-                file,
-                "indices",
-                &acc,
-                Dimensions::Scalar,
-                &[DataType::U8, DataType::U16, DataType::U32],
-                buffers,
-            )?),
-            None => None,
+        let index_types = [DataType::U8, DataType::U16, DataType::U32];
+        let indices = match (primitive.indices(), &draco) {
+            (Some(acc), Some((_, decoded))) => {
+                check_declared(file, "indices", &acc, Dimensions::Scalar, &index_types, decoded.triangles.len())?;
+                None
+            }
+            (Some(acc), None) => {
+                Some(check_accessor(file, "indices", &acc, Dimensions::Scalar, &index_types, buffers)?)
+            }
+            (None, _) => None,
         };
         let reader = primitive.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]));
-        data.base.extend(read_vec3(file, "POSITION", &positions, buffers)?);
+        match from_draco("POSITION") {
+            Some((decoded, id)) => {
+                let values = decoded.values(file, "POSITION", id, 3, positions.normalized())?;
+                data.base.extend(values.iter().map(|&x| x as f32));
+            }
+            None => data.base.extend(read_vec3(file, "POSITION", &positions, buffers)?),
+        }
         for (t, target) in primitive.morph_targets().enumerate() {
             match target.positions() {
                 Some(acc) => data.targets[t].extend(read_vec3(file, "targets.POSITION", &acc, buffers)?),
@@ -267,8 +344,28 @@ fn load_mesh(file: &str, mesh: &::gltf::Mesh, buffers: &[BufferData], quantizati
             let mut joints = vec![0u16; n * 4 * sets];
             let mut weights = vec![0f32; n * 4 * sets];
             for s in 0..sets {
-                let js = collect_exact(file, "JOINTS", reader.read_joints(s as u32).map(|j| j.into_u16()), n)?;
-                let ws = collect_exact(file, "WEIGHTS", reader.read_weights(s as u32).map(|w| w.into_f32()), n)?;
+                let js: Vec<[u16; 4]> = match from_draco(&format!("JOINTS_{s}")) {
+                    Some((decoded, id)) => {
+                        let values = decoded.values(file, "JOINTS", id, 4, false)?;
+                        if let Some(j) = values.iter().find(|j| !(j.fract() == 0.0 && (0.0..=65535.0).contains(*j))) {
+                            return Err(bad(
+                                file,
+                                "JOINTS",
+                                format!("mesh {m} primitive {p}: a Draco JOINTS_{s} value is {j}, not a joint index"),
+                            ));
+                        }
+                        values.chunks_exact(4).map(|c| [c[0] as u16, c[1] as u16, c[2] as u16, c[3] as u16]).collect()
+                    }
+                    None => collect_exact(file, "JOINTS", reader.read_joints(s as u32).map(|j| j.into_u16()), n)?,
+                };
+                let ws: Vec<[f32; 4]> = match from_draco(&format!("WEIGHTS_{s}")) {
+                    Some((decoded, id)) => {
+                        let normalized = primitive.get(&Semantic::Weights(s as u32)).is_some_and(|a| a.normalized());
+                        let values = decoded.values(file, "WEIGHTS", id, 4, normalized)?;
+                        values.chunks_exact(4).map(|c| [c[0] as f32, c[1] as f32, c[2] as f32, c[3] as f32]).collect()
+                    }
+                    None => collect_exact(file, "WEIGHTS", reader.read_weights(s as u32).map(|w| w.into_f32()), n)?,
+                };
                 for v in 0..n {
                     let at = v * 4 * sets + 4 * s;
                     joints[at..at + 4].copy_from_slice(&js[v]);
@@ -287,9 +384,10 @@ fn load_mesh(file: &str, mesh: &::gltf::Mesh, buffers: &[BufferData], quantizati
             data.joints.extend(joints);
             data.weights.extend(weights);
         }
-        let flat: Vec<u32> = match indices {
-            Some(count) => collect_exact(file, "indices", reader.read_indices().map(|i| i.into_u32()), count)?,
-            None => (0..n as u32).collect(),
+        let flat: Vec<u32> = match (indices, draco) {
+            (_, Some((_, decoded))) => decoded.triangles,
+            (Some(count), None) => collect_exact(file, "indices", reader.read_indices().map(|i| i.into_u32()), count)?,
+            (None, None) => (0..n as u32).collect(),
         };
         if flat.len() % 3 != 0 {
             return Err(bad(
@@ -735,7 +833,7 @@ pub(super) fn bake(
         let mesh = nodes[n].mesh().expect("a mesh node");
         let m = mesh.index();
         if meshes[m].is_none() {
-            let data = load_mesh(file, &mesh, buffers, quantization)?;
+            let data = load_mesh(file, &mesh, document, buffers, json, quantization, budget)?;
             let held = 4 * (data.base.len() + data.targets.iter().map(Vec::len).sum::<usize>() + data.weights.len())
                 + 2 * data.joints.len()
                 + 12 * data.triangles.len();

@@ -17,6 +17,7 @@
 pub mod gltf;
 mod gltf_anim;
 mod gltf_buffers;
+mod gltf_draco;
 mod gltf_meshopt;
 pub mod gltf_out;
 mod gltf_out_rd;
