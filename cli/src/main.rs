@@ -626,7 +626,8 @@ pub struct DecodeArgs {
 /// Arguments of `animcodec info`.
 #[derive(Debug, Args)]
 pub struct InfoArgs {
-    /// Input `.anim` container (or a `.gltf`/`.glb` file: its animations are listed).
+    /// Input `.anim` container (or a `.gltf`/`.glb` file: its animations are listed; an `.abc`
+    /// file: its mesh objects are listed).
     #[arg(value_name = "IN.anim")]
     pub input: PathBuf,
 
