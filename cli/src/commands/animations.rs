@@ -73,7 +73,8 @@ fn run_abc(path: &Path, as_json: bool) -> CmdResult {
             .collect();
         return emit_json(&json!({"file": path.display().to_string(), "meshes": rows}));
     }
-    let mut text = format!("{}: {} mesh object(s) (--object PATH reads one; default: all, merged)\n", path.display(), list.len());
+    let mut text =
+        format!("{}: {} mesh object(s) (--object PATH reads one; default: all, merged)\n", path.display(), list.len());
     for m in &list {
         text.push_str(&format!(
             "  {}  {}  {} vertices, {} faces ({} triangles), {} frames, {:.4}–{:.4} s\n",

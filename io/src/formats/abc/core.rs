@@ -293,6 +293,7 @@ impl<'a> Archive<'a> {
     /// The object whose group is `group`: its child headers. `path` names it in errors.
     pub(super) fn object(&self, group: Group, path: &str, meter: &mut Meter) -> Result<Object> {
         meter.count_object(path)?;
+        meter.visit_group(group.offset, path)?;
         let mut children = Vec::new();
         if group.len == 0 {
             return Ok(Object { group, children });
@@ -363,12 +364,19 @@ impl<'a> Archive<'a> {
     }
 
     /// Sub-property `index` of `parent`, a compound property.
-    pub(super) fn sub_compound(&self, parent: &Compound, index: u64, what: &str, meter: &mut Meter) -> Result<Compound> {
+    pub(super) fn sub_compound(
+        &self,
+        parent: &Compound,
+        index: u64,
+        what: &str,
+        meter: &mut Meter,
+    ) -> Result<Compound> {
         let g = self.og.child_group(parent.group, index, what)?;
         self.compound(g, what, meter)
     }
 
     fn compound(&self, group: Group, what: &str, meter: &mut Meter) -> Result<Compound> {
+        meter.visit_group(group.offset, what)?;
         let mut props = Vec::new();
         if group.len == 0 {
             return Ok(Compound { group, props });
@@ -433,10 +441,7 @@ impl<'a> Archive<'a> {
                     return Err(err("a property has extent 0".into()));
                 }
                 if h.last_changed > h.count || (h.first_changed > h.last_changed && h.last_changed != 0) {
-                    return Err(err(format!(
-                        "samples {}..{} changed of {}",
-                        h.first_changed, h.last_changed, h.count
-                    )));
+                    return Err(err(format!("samples {}..{} changed of {}", h.first_changed, h.last_changed, h.count)));
                 }
             }
             let len = c.hinted(hint).ok_or_else(cut)? as usize;
@@ -481,7 +486,9 @@ impl<'a> Archive<'a> {
             return Ok((at, data));
         }
         if data.len() < KEY_LEN {
-            return Err(self.og.bad("samples", format!("{what}: sample {i} is {} bytes, shorter than its key", data.len())));
+            return Err(self
+                .og
+                .bad("samples", format!("{what}: sample {i} is {} bytes, shorter than its key", data.len())));
         }
         let payload = &data[KEY_LEN..];
         let unit = h.pod.size() * usize::from(h.extent);
@@ -565,7 +572,10 @@ mod tests {
         assert_eq!(uniform.time(0), Some(0.5));
         assert_eq!(uniform.time(48), Some(0.5 + 48.0 / 24.0));
         let cyclic = ts(1.0, &[0.0, 0.25]);
-        assert_eq!((cyclic.time(0), cyclic.time(1), cyclic.time(2), cyclic.time(5)), (Some(0.0), Some(0.25), Some(1.0), Some(2.25)));
+        assert_eq!(
+            (cyclic.time(0), cyclic.time(1), cyclic.time(2), cyclic.time(5)),
+            (Some(0.0), Some(0.25), Some(1.0), Some(2.25))
+        );
         let acyclic = ts(ACYCLIC_TIME_PER_CYCLE, &[0.0, 0.1, 0.7]);
         assert!(acyclic.is_acyclic());
         assert_eq!((acyclic.time(2), acyclic.time(3)), (Some(0.7), None));

@@ -315,7 +315,9 @@ fn topology(ar: &Archive, m: &MeshRef, meter: &mut Meter) -> Result<Topo> {
     let mut fan = 0u64;
     for (f, c) in i32s(counts).enumerate() {
         if c < 3 {
-            return Err(ar.og.bad(".faceCounts", format!("{}: face {f} has {c} corners (at least 3 are needed)", m.path)));
+            return Err(ar
+                .og
+                .bad(".faceCounts", format!("{}: face {f} has {c} corners (at least 3 are needed)", m.path)));
         }
         corners_total += c as u64;
         fan += c as u64 - 2;
@@ -323,7 +325,11 @@ fn topology(ar: &Archive, m: &MeshRef, meter: &mut Meter) -> Result<Topo> {
     if corners_total != (indices.len() / 4) as u64 {
         return Err(ar.og.bad(
             ".faceCounts",
-            format!("{}: the faces have {corners_total} corners but `.faceIndices` holds {}", m.path, indices.len() / 4),
+            format!(
+                "{}: the faces have {corners_total} corners but `.faceIndices` holds {}",
+                m.path,
+                indices.len() / 4
+            ),
         ));
     }
     if fan > limits.max_triangles as u64 {
@@ -342,10 +348,9 @@ fn topology(ar: &Archive, m: &MeshRef, meter: &mut Meter) -> Result<Topo> {
         corners.clear();
         for i in i32s(&indices[at * 4..(at + c as usize) * 4]) {
             if i < 0 || i as usize >= vertices {
-                return Err(ar.og.bad(
-                    ".faceIndices",
-                    format!("{}: index {i} is out of range ({vertices} points)", m.path),
-                ));
+                return Err(ar
+                    .og
+                    .bad(".faceIndices", format!("{}: index {i} is out of range ({vertices} points)", m.path)));
             }
             corners.push(i as u32);
         }
@@ -538,7 +543,12 @@ pub(super) fn list(ar: &Archive, meter: &mut Meter) -> Result<Vec<AbcMesh>> {
 }
 
 /// Reads the selected meshes (all when `object` is `None`) as one animation.
-pub(super) fn assemble(ar: &Archive, object: Option<&str>, frame_rate: Option<f32>, meter: &mut Meter) -> Result<Animation> {
+pub(super) fn assemble(
+    ar: &Archive,
+    object: Option<&str>,
+    frame_rate: Option<f32>,
+    meter: &mut Meter,
+) -> Result<Animation> {
     let file = ar.og.file();
     let scene = traverse(ar, meter)?;
     if scene.meshes.is_empty() {

@@ -212,10 +212,7 @@ mod tests {
         );
         assert_eq!(hex(murmur3_x64_128(&[1])), "16fe7483905cce7a85670e43e4678877");
         let f = |v: &[f32]| v.iter().flat_map(|x| x.to_le_bytes()).collect::<Vec<u8>>();
-        assert_eq!(
-            hex(murmur3_x64_128(&f(&[0., 0., 0., 1., 0., 0., 0., 1., 0.]))),
-            "740a45f98aeef44cba0a3ca6c0b13225"
-        );
+        assert_eq!(hex(murmur3_x64_128(&f(&[0., 0., 0., 1., 0., 0., 0., 1., 0.]))), "740a45f98aeef44cba0a3ca6c0b13225");
         let i: Vec<u8> = [0i32, 2, 1].iter().flat_map(|x| x.to_le_bytes()).collect();
         assert_eq!(hex(murmur3_x64_128(&i)), "53b44f80451e429a888b5e47a24e1c38");
         assert_eq!(hex(murmur3_x64_128(&3i32.to_le_bytes())), "3ba1d27b7fde4848a86e865c6c402dfa");

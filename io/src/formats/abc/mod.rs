@@ -27,8 +27,8 @@
 //! the archive's metadata, laid out as the reference library lays out the same content (keys
 //! are MurmurHash3, object trailers SpookyHash V2; see [`hash`]).
 
-pub mod geom;
 mod core;
+pub mod geom;
 mod hash;
 mod ogawa;
 mod write;
@@ -72,6 +72,9 @@ pub(super) struct Meter {
     work_limit: u64,
     objects: u64,
     properties: u64,
+    /// Object and compound-property groups read so far: each is read once (the reference
+    /// writer never shares one), so no shape of the file makes the headers be parsed twice.
+    groups: std::collections::HashSet<u64>,
 }
 
 impl Meter {
@@ -83,6 +86,7 @@ impl Meter {
             work_limit: PROCESS_WORK_BUDGET.load(Ordering::Relaxed),
             objects: 0,
             properties: 0,
+            groups: std::collections::HashSet::new(),
         }
     }
 
@@ -116,6 +120,23 @@ impl Meter {
             });
         }
         self.work("objects", 64)
+    }
+
+    /// Notes that the object or compound group at `offset` is read (for `what`); a group read
+    /// before is shared by two parents, which only a crafted file does.
+    fn visit_group(&mut self, offset: u64, what: &str) -> Result<()> {
+        if offset != 0 && !self.groups.insert(offset) {
+            return Err(Error::malformed(
+                self.file.clone(),
+                "groups",
+                format!(
+                    "{}: the group at byte {offset} belongs to two objects or properties (files the Alembic \
+                     library writes never share one)",
+                    super::gltf_buffers::printable(what)
+                ),
+            ));
+        }
+        self.take("group table", 32)
     }
 
     fn count_property(&mut self, what: &str) -> Result<()> {

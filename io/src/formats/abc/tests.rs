@@ -26,7 +26,10 @@ fn a_reference_archive_reads_with_its_frames_rate_and_winding() {
     let meshes = parse_meshes(REFERENCE, "tri.abc").unwrap();
     assert_eq!(meshes.len(), 1);
     let m = &meshes[0];
-    assert_eq!((m.path.as_str(), m.schema, m.vertices, m.faces, m.triangles, m.samples), ("/animcodec/mesh", "PolyMesh", 3, 1, 1, 3));
+    assert_eq!(
+        (m.path.as_str(), m.schema, m.vertices, m.faces, m.triangles, m.samples),
+        ("/animcodec/mesh", "PolyMesh", 3, 1, 1, 3)
+    );
     assert!((m.end - 2.0 / 24.0).abs() < 1e-12);
     // Selection by path (and by an ancestor); an unknown path lists the meshes.
     assert!(parse_abc(REFERENCE, "t", Some("/animcodec/mesh"), None, None).is_ok());
@@ -198,4 +201,37 @@ fn a_blender_scene_reads_as_blender_plays_it() {
     let s = parse_abc(bytes, "scene.abc", Some("/Cube/Sphere"), None, None).unwrap();
     assert_eq!((s.frame_count(), s.vertex_count()), (12, 34));
     assert_eq!(s.frame(11), &a.frame(11)[8 * 3..]);
+}
+
+/// Objects shared between parents (a DAG of groups, every level listing the level below
+/// twice: 2^40 paths through 40 levels) are refused after a bounded number of visits, quickly.
+#[test]
+fn shared_object_groups_do_not_amplify_the_work() {
+    use ogawa::{Child, OgawaWriter};
+    let mut w = OgawaWriter::new();
+    let version = w.data(&[&0i32.to_le_bytes()]);
+    let library = w.data(&[&10812i32.to_le_bytes()]);
+    let mut headers = Vec::new();
+    for name in [b"a", b"b"] {
+        headers.extend_from_slice(&1u32.to_le_bytes());
+        headers.extend_from_slice(name);
+        headers.push(0);
+    }
+    headers.extend_from_slice(&[0u8; 32]);
+    let mut level = w.group(&[Child::Group(0)]);
+    for _ in 0..40 {
+        let h = w.data(&[&headers]);
+        level = w.group(&[Child::Group(0), level, level, h]);
+    }
+    let md = w.data(&[b""]);
+    let mut ts = Vec::new();
+    ts.extend_from_slice(&1u32.to_le_bytes());
+    ts.extend_from_slice(&1f64.to_le_bytes());
+    ts.extend_from_slice(&1u32.to_le_bytes());
+    ts.extend_from_slice(&0f64.to_le_bytes());
+    let ts = w.data(&[&ts]);
+    let imd = w.data(&[b""]);
+    let root = w.group(&[version, library, level, md, ts, imd]);
+    let bytes = w.finish(root);
+    assert_fails(&bytes, &["belongs to two objects"]);
 }

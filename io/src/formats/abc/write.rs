@@ -22,7 +22,8 @@ const LIBRARY_VERSION: i32 = 10812;
 const MD_BOX: &str = "interpretation=box";
 const MD_POINTS: &str = "geoScope=vtx;interpretation=point";
 const MD_GEOM: &str = "schema=AbcGeom_PolyMesh_v1;schemaBaseType=AbcGeom_GeomBase_v1";
-const MD_MESH: &str = "schema=AbcGeom_PolyMesh_v1;schemaBaseType=AbcGeom_GeomBase_v1;schemaObjTitle=AbcGeom_PolyMesh_v1:.geom";
+const MD_MESH: &str =
+    "schema=AbcGeom_PolyMesh_v1;schemaBaseType=AbcGeom_GeomBase_v1;schemaObjTitle=AbcGeom_PolyMesh_v1:.geom";
 const MD_XFORM_SCHEMA: &str = "schema=AbcGeom_Xform_v3";
 const MD_XFORM: &str = "schema=AbcGeom_Xform_v3;schemaObjTitle=AbcGeom_Xform_v3:.xform";
 
@@ -298,7 +299,14 @@ fn header_hash_bytes(name: &str, md: &str, prop: Option<&Prop>) -> Vec<u8> {
 
 /// A compound's group and hash from its sub-properties' groups and hashes (`CpwImpl`'s
 /// destructor): the headers block is written after the children.
-fn finish_compound(w: &mut Writer, groups: &[Child], headers: &[u8], hashes: &[[u64; 2]], name: &str, md: &str) -> (Child, [u64; 2]) {
+fn finish_compound(
+    w: &mut Writer,
+    groups: &[Child],
+    headers: &[u8],
+    hashes: &[[u64; 2]],
+    name: &str,
+    md: &str,
+) -> (Child, [u64; 2]) {
     let h = w.og.data(&[headers]);
     let mut children = groups.to_vec();
     children.push(h);
@@ -362,7 +370,8 @@ pub fn encode_abc(animation: &Animation) -> Result<Vec<u8>> {
     let mut counts = Prop::new(".faceCounts", "", PropKind::Array, Pod::I32, 1, sampling);
     let tris = animation.triangles();
     // Alembic winds faces clockwise.
-    let index_bytes: Vec<u8> = tris.iter().flat_map(|t| [t[0], t[2], t[1]]).flat_map(|i| (i as i32).to_le_bytes()).collect();
+    let index_bytes: Vec<u8> =
+        tris.iter().flat_map(|t| [t[0], t[2], t[1]]).flat_map(|i| (i as i32).to_le_bytes()).collect();
     let count_bytes: Vec<u8> = tris.iter().flat_map(|_| 3i32.to_le_bytes()).collect();
     let v = animation.vertex_count() as u64;
     for t in 0..frames {
@@ -379,10 +388,11 @@ pub fn encode_abc(animation: &Animation) -> Result<Vec<u8>> {
         let bbox: Vec<u8> = lo.iter().chain(&hi).flat_map(|&x| f64::from(x).to_le_bytes()).collect();
         bounds.set(&mut w, &bbox, 1);
     }
-    let max_samples = [p.recorded_samples(), bounds.recorded_samples(), indices.recorded_samples(), counts.recorded_samples()]
-        .into_iter()
-        .max()
-        .unwrap_or(0);
+    let max_samples =
+        [p.recorded_samples(), bounds.recorded_samples(), indices.recorded_samples(), counts.recorded_samples()]
+            .into_iter()
+            .max()
+            .unwrap_or(0);
 
     // Groups close in the reverse order of their creation, then the headers of `.geom`.
     let (counts_g, counts_h) = counts.finish(&mut w);
@@ -393,8 +403,14 @@ pub fn encode_abc(animation: &Animation) -> Result<Vec<u8>> {
     for prop in [&bounds, &p, &indices, &counts] {
         prop.header(&mut w, &mut headers);
     }
-    let (geom_g, geom_h) =
-        finish_compound(&mut w, &[bounds_g, p_g, indices_g, counts_g], &headers, &[bounds_h, p_h, indices_h, counts_h], ".geom", MD_GEOM);
+    let (geom_g, geom_h) = finish_compound(
+        &mut w,
+        &[bounds_g, p_g, indices_g, counts_g],
+        &headers,
+        &[bounds_h, p_h, indices_h, counts_h],
+        ".geom",
+        MD_GEOM,
+    );
 
     // The mesh object: its header block (no children), its top compound, its group.
     let (block, own) = object_block(&mut w, &[], &[geom_h]);
