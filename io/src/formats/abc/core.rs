@@ -518,7 +518,8 @@ fn read_time_samplings(og: &Ogawa, block: &[u8], meter: &mut Meter) -> Result<Ve
         meter.take("time samplings", bytes as u64 + 32)?;
         let times: Vec<f64> = c.take(bytes).unwrap_or_default().chunks_exact(8).map(f64_le).collect();
         let ts = TimeSampling { time_per_cycle: tpc, times, max_samples };
-        if !ts.is_acyclic() && !(tpc.is_finite() && tpc > 0.0) {
+        let valid_cycle = tpc.is_finite() && tpc > 0.0;
+        if !(ts.is_acyclic() || valid_cycle) {
             return Err(bad(format!("time sampling {k} has {tpc} seconds per cycle")));
         }
         if ts.times.iter().any(|t| !t.is_finite()) || ts.times.windows(2).any(|w| w[1] < w[0]) {
