@@ -16,7 +16,7 @@
 //! recognised and refused.
 //!
 //! The input is untrusted: every offset, count and length is checked against the file (see
-//! [`ogawa`]), what the read keeps is counted against the memory budget (`--max-memory`) and
+//! `ogawa.rs`), what the read keeps is counted against the memory budget (`--max-memory`) and
 //! the bytes it parses against a work budget (`--max-work`) before it is done, objects nest at
 //! most [`MAX_DEPTH`] deep, a group that contains itself is refused, names and metadata are
 //! bounded and must be UTF-8, and stored data shared between samples is compared once.
@@ -25,7 +25,7 @@
 //! the positions of every frame as `P`, the triangles (wound clockwise) as a constant topology,
 //! uniform time sampling at the frame rate, per-frame `.selfBnds`, and `FramesPerTimeUnit` in
 //! the archive's metadata, laid out as the reference library lays out the same content (keys
-//! are MurmurHash3, object trailers SpookyHash V2; see [`hash`]).
+//! are MurmurHash3, object trailers SpookyHash V2; see `hash.rs`).
 
 mod core;
 pub mod geom;
