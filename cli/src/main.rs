@@ -20,7 +20,8 @@ use codec_core::synth::SynthSize;
 ///
 /// Inputs are read by file extension: a `.pc2` or `.mdd` point cache (triangles from the OBJ
 /// with the same stem, or `--topology`), a `.gltf`/`.glb` morph-target animation, a `.usda`
-/// USD text layer (time-sampled mesh points), or a directory / pattern of OBJ files. `synth:NAME[:SIZE]` names a built-in synthetic animation
+/// USD text layer (time-sampled mesh points), an `.abc` Alembic archive (PolyMesh/SubD objects,
+/// transforms baked in; `--object` picks one), or a directory / pattern of OBJ files. `synth:NAME[:SIZE]` names a built-in synthetic animation
 /// (see `animcodec synth --help`).
 #[derive(Debug, Parser)]
 #[command(name = "animcodec", version, propagate_version = true, max_term_width = 110)]
@@ -81,14 +82,16 @@ enum Command {
     /// every glTF engine plays, and report its error as played back.
     Export(ExportArgs),
     /// List the animations of a glTF/GLB file (index, name, channels, key times and rate):
-    /// what `--animation NAME|INDEX` chooses from. `info FILE.glb` prints the same.
+    /// what `--animation NAME|INDEX` chooses from; or the mesh objects of an Alembic `.abc`
+    /// file (path, points, faces, samples): what `--object PATH` chooses from. `info FILE`
+    /// prints the same.
     ListAnimations(ListAnimationsArgs),
 }
 
 /// Arguments of `animcodec list-animations`.
 #[derive(Debug, Args)]
 pub struct ListAnimationsArgs {
-    /// A `.gltf` or `.glb` file.
+    /// A `.gltf`, `.glb` or `.abc` file.
     #[arg(value_name = "FILE.glb")]
     pub input: PathBuf,
 
@@ -165,6 +168,12 @@ pub struct ExportArgs {
     #[arg(long, value_name = "NAME|INDEX")]
     pub animation: Option<String>,
 
+    /// Alembic input: the mesh object to read, by full path (`/root/char/body`), or an object
+    /// whose meshes are read (default: every mesh, merged; `animcodec list-animations FILE.abc`
+    /// lists them).
+    #[arg(long, value_name = "PATH")]
+    pub object: Option<String>,
+
     /// Frame rate of the input when it stores none (keys are written at frame / fps seconds).
     #[arg(long, value_name = "F", value_parser = commands::parse_fps, allow_negative_numbers = true)]
     pub fps: Option<f32>,
@@ -220,6 +229,12 @@ pub struct ViewArgs {
     /// list-animations FILE` lists them). Applies to the reference; a glTF candidate plays its first.
     #[arg(long, value_name = "NAME|INDEX")]
     pub animation: Option<String>,
+
+    /// Alembic input: the mesh object to read, by full path (`/root/char/body`), or an object
+    /// whose meshes are read (default: every mesh, merged; `animcodec list-animations FILE.abc`
+    /// lists them). Applies to the reference.
+    #[arg(long, value_name = "PATH")]
+    pub object: Option<String>,
 
     /// STED options (header values and `--heat sted`).
     #[command(flatten)]
@@ -277,6 +292,12 @@ pub struct InspectArgs {
     /// list-animations FILE` lists them).
     #[arg(long, value_name = "NAME|INDEX")]
     pub animation: Option<String>,
+
+    /// Alembic input: the mesh object to read, by full path (`/root/char/body`), or an object
+    /// whose meshes are read (default: every mesh, merged; `animcodec list-animations FILE.abc`
+    /// lists them).
+    #[arg(long, value_name = "PATH")]
+    pub object: Option<String>,
 }
 
 /// Arguments of `animcodec list`.
@@ -328,6 +349,12 @@ pub struct EncodeArgs {
     /// list-animations FILE` lists them).
     #[arg(long, value_name = "NAME|INDEX")]
     pub animation: Option<String>,
+
+    /// Alembic input: the mesh object to read, by full path (`/root/char/body`), or an object
+    /// whose meshes are read (default: every mesh, merged; `animcodec list-animations FILE.abc`
+    /// lists them).
+    #[arg(long, value_name = "PATH")]
+    pub object: Option<String>,
 
     /// Frame rate to use when the input stores none (or to override a synthetic one).
     #[arg(long, value_name = "F", value_parser = commands::parse_fps, allow_negative_numbers = true)]
@@ -456,6 +483,12 @@ pub struct EvalArgs {
     #[arg(long)]
     pub match_vertices: bool,
 
+    /// Alembic input: the mesh object to read, by full path (`/root/char/body`), or an object
+    /// whose meshes are read (default: every mesh, merged; `animcodec list-animations FILE.abc`
+    /// lists them). Applies to the reference.
+    #[arg(long, value_name = "PATH")]
+    pub object: Option<String>,
+
     /// Which metrics, and STED's options.
     #[command(flatten)]
     pub metrics: MetricArgs,
@@ -544,6 +577,12 @@ pub struct SweepArgs {
     #[arg(long, value_name = "NAME|INDEX")]
     pub animation: Option<String>,
 
+    /// Alembic input: the mesh object to read, by full path (`/root/char/body`), or an object
+    /// whose meshes are read (default: every mesh, merged; `animcodec list-animations FILE.abc`
+    /// lists them).
+    #[arg(long, value_name = "PATH")]
+    pub object: Option<String>,
+
     /// Write an HTML report: the interactive rate-distortion plot (hover a point for its
     /// parameters, bytes and every metric), the table, and a viewer per `--view-points` point.
     #[arg(long, value_name = "F.html")]
@@ -571,7 +610,8 @@ pub struct DecodeArgs {
     pub input: PathBuf,
 
     /// Output animation: .pc2, .mdd, .glb/.gltf, .usda/.usd (a USD text layer: one Mesh with
-    /// time-sampled points, timeCodesPerSecond = the frame rate), or an OBJ sequence: a directory (`DIR/frame_0000.obj`, …),
+    /// time-sampled points, timeCodesPerSecond = the frame rate), .abc (Alembic: one PolyMesh
+    /// under an Xform, uniform time sampling at the frame rate), or an OBJ sequence: a directory (`DIR/frame_0000.obj`, …),
     /// a path ending in .obj with `{}` (frame number, 4+ digits) or `###` (frame number padded
     /// to the run) in the file name, or a plain `NAME.obj` (`NAME_0000.obj`, …). A sequence owns
     /// only the files of its own name pattern: exactly its prefix (`frame_`, the text before
@@ -604,7 +644,8 @@ pub struct DecodeArgs {
 /// Arguments of `animcodec info`.
 #[derive(Debug, Args)]
 pub struct InfoArgs {
-    /// Input `.anim` container (or a `.gltf`/`.glb` file: its animations are listed).
+    /// Input `.anim` container (or a `.gltf`/`.glb` file: its animations are listed; an `.abc`
+    /// file: its mesh objects are listed).
     #[arg(value_name = "IN.anim")]
     pub input: PathBuf,
 
@@ -722,6 +763,10 @@ fn run(cli: Cli) -> commands::CmdResult {
     if let Some(bytes) = cli.global.max_memory {
         // The glTF reader's total budget (its default is 1 GiB).
         animcodec::formats::gltf::set_default_memory_budget(bytes);
+    }
+    if let Some(ops) = cli.global.max_work {
+        // The Alembic reader's parsing work.
+        animcodec::formats::abc::set_default_work_budget(ops);
     }
     match cli.command {
         Command::List(a) => commands::list::run(&a),

@@ -365,7 +365,7 @@ fn load_input(
             .map_err(|e| format!("{input}: {}", message(&e)))?;
         return Ok(decoder.decode_all().map_err(|e| format!("{input}: {}", message(&e)))?);
     }
-    Ok(formats::read_animation(path, &ReadOptions { topology, frame_rate: fps, animation })?)
+    Ok(formats::read_animation(path, &ReadOptions { topology, frame_rate: fps, animation, object: None })?)
 }
 
 /// Sweep jobs on one worker reload the same few inputs over and over: the last ones loaded
@@ -1079,7 +1079,7 @@ fn cache_header<'py>(
     topology: Option<PathBuf>,
     fps: Option<f32>,
 ) -> PyResult<Bound<'py, PyTuple>> {
-    let options = ReadOptions { topology, frame_rate: fps, animation: None };
+    let options = ReadOptions { topology, frame_rate: fps, animation: None, object: None };
     let reader = py.detach(|| formats::stream::CacheReader::open(&path, &options)).map_err(to_py)?;
     let faces: Vec<u32> = reader.topology().triangles().iter().flatten().copied().collect();
     let t = reader.topology().triangle_count();
@@ -1102,7 +1102,7 @@ fn encode_block_file<'py>(
 ) -> PyResult<Bound<'py, PyList>> {
     let codec = registry().by_name(codec).map_err(to_py)?;
     let params = params_from(codec, Some(params))?;
-    let options = ReadOptions { topology, frame_rate: fps, animation: None };
+    let options = ReadOptions { topology, frame_rate: fps, animation: None, object: None };
     let packets = py
         .detach(|| -> Result<_, BoxError> {
             let mut reader = formats::stream::CacheReader::open(&path, &options)?;

@@ -14,7 +14,8 @@
 //!   further one a packet of `1 + kind / 2` frames (keyframe if `kind` is odd). They are
 //!   written into a valid container (right FourCC and version, the [`fuzz_topology`], frame
 //!   count = the packets' sum, every checksum right), so the codec's own parser sees them.
-//! - `read_pc2`, `read_mdd`, `read_obj`, `read_gltf`, `read_usd`: the file readers on any bytes.
+//! - `read_pc2`, `read_mdd`, `read_obj`, `read_gltf`, `read_usd`, `read_abc`: the file readers on
+//!   any bytes.
 
 use std::io::Cursor;
 use std::path::{Path, PathBuf};
@@ -30,7 +31,7 @@ pub fn targets() -> Vec<String> {
     for codec in animcodec::registry().iter() {
         t.push(format!("codec_{}", codec.name().replace('-', "_")));
     }
-    t.extend(["read_pc2", "read_mdd", "read_obj", "read_gltf", "read_usd"].map(String::from));
+    t.extend(["read_pc2", "read_mdd", "read_obj", "read_gltf", "read_usd", "read_abc"].map(String::from));
     t
 }
 
@@ -43,6 +44,7 @@ pub fn run(target: &str, data: &[u8]) {
         "read_obj" => read_obj(data),
         "read_gltf" => read_gltf(data),
         "read_usd" => read_usd(data),
+        "read_abc" => read_abc(data),
         t => match t.strip_prefix("codec_") {
             Some(codec) => codec_stream(&codec.replace('_', "-"), data),
             None => panic!("unknown fuzz target '{t}'"),
@@ -252,6 +254,20 @@ pub fn read_usd(data: &[u8]) {
     });
 }
 
+/// Target `read_abc` (an Alembic archive; HDF5 ones are refused by their magic). As for
+/// `read_usd`, the read's own memory budget is a quarter of the target's.
+pub fn read_abc(data: &[u8]) {
+    let budget = reader_budget(data.len());
+    within("read_abc", budget, || {
+        if let Ok(a) = animcodec::formats::abc::parse_abc(data, "fuzz.abc", None, None, Some(budget / 4)) {
+            assert!(a.positions().iter().all(|x| x.is_finite()));
+            let n = a.vertex_count() as u32;
+            assert!(a.triangles().iter().flatten().all(|&i| i < n), "triangle index out of range");
+        }
+        let _ = animcodec::formats::abc::parse_meshes(data, "fuzz.abc");
+    });
+}
+
 /// `fuzz/corpus`: one folder per target (cargo-fuzz's layout), committed.
 pub fn corpus_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("..").join("fuzz").join("corpus")
@@ -313,6 +329,7 @@ fn decodes(target: &str, data: &[u8]) -> bool {
         "read_obj" => animcodec::formats::obj::parse_obj(data, "seed.obj").is_ok(),
         "read_gltf" => animcodec::formats::gltf::parse_gltf(data, None, "seed.glb", synth::FRAME_RATE).is_ok(),
         "read_usd" => animcodec::formats::usd::parse_usda(data, "seed.usda", None, None).is_ok(),
+        "read_abc" => animcodec::formats::abc::parse_abc(data, "seed.abc", None, None, None).is_ok(),
         t => t
             .strip_prefix("codec_")
             .and_then(|c| codec_container(&c.replace('_', "-"), data))
@@ -436,6 +453,7 @@ pub fn seeds() -> Vec<(String, String, Vec<u8>)> {
                 .expect("obj");
         out.push(("read_obj".into(), name.into(), text.into_bytes()));
         out.push(("read_usd".into(), name.into(), animcodec::formats::usd::encode_usda(&anim).expect("usda")));
+        out.push(("read_abc".into(), name.into(), animcodec::formats::abc::encode_abc(&anim).expect("abc")));
     }
     // What usd-core writes (two meshes, polygons, a left-handed one, a class and an inactive
     // prim, metadata and dictionaries the reader must skip).

@@ -1,15 +1,19 @@
-//! `animcodec list-animations` (and `info` on a glTF file): the animations of a glTF/GLB file,
-//! what `--animation` chooses from.
+//! `animcodec list-animations` (and `info` on a glTF or Alembic file): the animations of a
+//! glTF/GLB file, what `--animation` chooses from, or the mesh objects of an Alembic archive,
+//! what `--object` chooses from.
 
 use std::path::Path;
 
-use animcodec::formats::gltf;
+use animcodec::formats::{abc, gltf};
 use serde_json::json;
 
 use super::{emit, emit_json, CmdResult, WithContext};
 
-/// Lists the animations of `path`, as text or JSON.
+/// Lists the animations of `path` (the meshes of an `.abc`), as text or JSON.
 pub fn run(path: &Path, as_json: bool) -> CmdResult {
+    if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("abc")) {
+        return run_abc(path, as_json);
+    }
     let list = gltf::list_animations(path).in_file(&path.display().to_string())?;
     if as_json {
         let rows: Vec<_> = list
@@ -43,6 +47,45 @@ pub fn run(path: &Path, as_json: bool) -> CmdResult {
             a.end - a.start,
             rate,
             a.properties.join(", ")
+        ));
+    }
+    emit(&text)
+}
+
+/// Lists the mesh objects of an Alembic archive: path, schema, points, faces, samples, times.
+fn run_abc(path: &Path, as_json: bool) -> CmdResult {
+    let list = abc::list_meshes(path).in_file(&path.display().to_string())?;
+    if as_json {
+        let rows: Vec<_> = list
+            .iter()
+            .map(|m| {
+                json!({
+                    "path": m.path,
+                    "schema": m.schema,
+                    "vertices": m.vertices,
+                    "faces": m.faces,
+                    "triangles": m.triangles,
+                    "frames": m.samples,
+                    "start": m.start,
+                    "end": m.end,
+                })
+            })
+            .collect();
+        return emit_json(&json!({"file": path.display().to_string(), "meshes": rows}));
+    }
+    let mut text =
+        format!("{}: {} mesh object(s) (--object PATH reads one; default: all, merged)\n", path.display(), list.len());
+    for m in &list {
+        text.push_str(&format!(
+            "  {}  {}  {} vertices, {} faces ({} triangles), {} frames, {:.4}–{:.4} s\n",
+            gltf::printable(&m.path),
+            m.schema,
+            m.vertices,
+            m.faces,
+            m.triangles,
+            m.samples,
+            m.start,
+            m.end
         ));
     }
     emit(&text)

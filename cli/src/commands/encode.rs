@@ -110,6 +110,7 @@ pub fn run(args: &EncodeArgs, limits: Limits) -> CmdResult {
                 topology: args.topology.clone(),
                 frame_rate: args.fps,
                 animation: args.animation.clone(),
+                object: args.object.clone(),
             };
             // A PC2/MDD cache or an OBJ sequence is read frame by frame as the encoder takes it
             // (issue 30), unless --eval needs the whole input in memory to measure it.
@@ -427,6 +428,7 @@ fn run_target(args: &EncodeArgs, target: Target, by_default: bool, limits: Limit
                 topology: args.topology.clone(),
                 frame_rate: args.fps,
                 animation: args.animation.clone(),
+                object: args.object.clone(),
             };
             load_animation(&args.input, &options)?
         }

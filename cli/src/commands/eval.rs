@@ -52,7 +52,12 @@ pub fn eval_options(args: &MetricArgs) -> CmdResult<EvalOptions> {
 /// Runs `eval`.
 pub fn run(args: &EvalArgs, limits: Limits) -> CmdResult {
     let options = eval_options(&args.metrics)?;
-    let read = ReadOptions { topology: args.topology.clone(), frame_rate: None, animation: args.animation.clone() };
+    let read = ReadOptions {
+        topology: args.topology.clone(),
+        frame_rate: None,
+        animation: args.animation.clone(),
+        object: args.object.clone(),
+    };
     let reference = load_any(&args.reference, &read, limits)?;
     // --animation chooses the reference's animation; a glTF candidate plays its first.
     let mut candidate = load_any(&args.candidate, &ReadOptions { animation: None, ..read }, limits)?;

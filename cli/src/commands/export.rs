@@ -32,7 +32,12 @@ pub fn run(args: &ExportArgs, limits: Limits) -> CmdResult {
     }
     policy.check(&args.output)?;
     let eval = EvalOptions { sted: sted_params(&args.sted)?, compute_hausdorff: false, ..EvalOptions::default() };
-    let read = ReadOptions { topology: args.topology.clone(), frame_rate: args.fps, animation: args.animation.clone() };
+    let read = ReadOptions {
+        topology: args.topology.clone(),
+        frame_rate: args.fps,
+        animation: args.animation.clone(),
+        object: args.object.clone(),
+    };
     let stages = crate::progress::Stages::new("export", 4, args.json);
     stages.stage(format!("reading {}", shown(&args.input)));
     let animation = load_any(&args.input, &read, limits)?;

@@ -17,7 +17,7 @@ const SHOWN_PACKETS: usize = 32;
 /// Runs `info`.
 pub fn run(args: &InfoArgs, limits: Limits) -> CmdResult {
     let ext = args.input.extension().map(|e| e.to_string_lossy().to_ascii_lowercase());
-    if matches!(ext.as_deref(), Some("gltf" | "glb")) {
+    if matches!(ext.as_deref(), Some("gltf" | "glb" | "abc")) {
         return super::animations::run(&args.input, args.json);
     }
     let mut src = open(&args.input)?;

@@ -64,7 +64,12 @@ pub fn run(args: &InspectArgs) -> CmdResult {
     let outputs: Vec<&Path> = [json_file, args.mesh.as_deref()].into_iter().flatten().collect();
     policy.check_all(&outputs)?;
 
-    let options = ReadOptions { topology: args.topology.clone(), frame_rate: None, animation: args.animation.clone() };
+    let options = ReadOptions {
+        topology: args.topology.clone(),
+        frame_rate: None,
+        animation: args.animation.clone(),
+        object: args.object.clone(),
+    };
     let animation = load_animation(&args.input, &options)?;
     // The files the read opened (a .gltf's buffers, …) are inputs too: refused before the work.
     policy.check_all(&outputs)?;

@@ -45,7 +45,12 @@ pub fn run(args: &SweepArgs, limits: Limits) -> CmdResult {
     // Checked before the (long) sweep: a typo should not cost it.
     let view_points = args.view_points.iter().map(|t| parse_view_point(t, &series)).collect::<CmdResult<Vec<_>>>()?;
     let eval = eval_options(&args.metrics)?;
-    let read = ReadOptions { topology: args.topology.clone(), frame_rate: None, animation: args.animation.clone() };
+    let read = ReadOptions {
+        topology: args.topology.clone(),
+        frame_rate: None,
+        animation: args.animation.clone(),
+        object: args.object.clone(),
+    };
     let animation = load_any(input, &read, limits)?;
     // The files the read opened (a .gltf's buffers, …) are inputs too: refused before the work.
     policy.check_all(&outputs)?;

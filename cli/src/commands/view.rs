@@ -39,7 +39,12 @@ pub fn run(args: &ViewArgs, limits: Limits) -> CmdResult {
     }
     policy.check(&args.output)?;
     let registry = animcodec::registry();
-    let read = ReadOptions { topology: args.topology.clone(), frame_rate: None, animation: args.animation.clone() };
+    let read = ReadOptions {
+        topology: args.topology.clone(),
+        frame_rate: None,
+        animation: args.animation.clone(),
+        object: args.object.clone(),
+    };
     // Stages: the reference, each candidate, the measurements, the page.
     let stages = crate::progress::Stages::new("view", 3 + args.candidates.len() as u64, false);
     stages.stage(format!("reading {}", shown(&args.reference)));

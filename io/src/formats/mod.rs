@@ -7,13 +7,15 @@
 //! | PC2 | `*.pc2` | [`ReadOptions::topology`], else `STEM.obj` beside the cache | [`ReadOptions::frame_rate`], else 30 (PC2 stores none) |
 //! | MDD | `*.mdd` | as for PC2 | [`ReadOptions::frame_rate`], else derived from the stored times when sane, else 30 |
 //! | glTF / GLB | `*.gltf`, `*.glb` (the scene played back: every mesh, node animation, skins, morph targets; [`gltf`]) | the meshes' indices | sampling rate: [`ReadOptions::frame_rate`], else the file's own (animcodec's extras, the key grid), else 30 |
+//! | Alembic | `*.abc` (Ogawa; every PolyMesh and SubD object, or those at/under [`ReadOptions::object`], Xform ancestors baked in; [`abc`]; HDF5 archives are refused) | `.faceCounts`/`.faceIndices`, fanned, clockwise turned counter-clockwise | [`ReadOptions::frame_rate`], else one over the sample step (seconds) |
 //! | USD text layer | `*.usda`, `*.usd` (every `Mesh` prim, time-sampled `points`; [`usd`]; `.usdc`/`.usdz` are refused with the conversion to use) | `faceVertexCounts`/`faceVertexIndices`, fanned | [`ReadOptions::frame_rate`], else `timeCodesPerSecond` / the time-code step |
 //!
-//! Outputs: `.usda`/`.usd` (a text layer, [`usd::encode_usda`]), `.pc2`, `.mdd` (each with `STEM.obj` holding frame 0 and the faces written beside
+//! Outputs: `.usda`/`.usd` (a text layer, [`usd::encode_usda`]), `.abc` (Alembic, one PolyMesh, [`abc::encode_abc`]), `.pc2`, `.mdd` (each with `STEM.obj` holding frame 0 and the faces written beside
 //! it, so the cache can be read back on its own) and OBJ sequences (see [`obj::write_obj_sequence`]).
 //! All readers keep the file's own vertex order, check every size against the file length before
 //! allocating, and name the file (and frame / vertex / line) in every error.
 
+pub mod abc;
 pub mod gltf;
 mod gltf_anim;
 mod gltf_buffers;
@@ -41,11 +43,11 @@ pub const DEFAULT_FRAME_RATE: f32 = 30.0;
 
 /// Input formats, for messages: what [`read_animation`] accepts.
 pub const SUPPORTED_INPUTS: &str =
-    "a directory of .obj files, an .obj file-name pattern with * or ?, .obj, .pc2, .mdd, .gltf, .glb, .usda, .usd";
+    "a directory of .obj files, an .obj file-name pattern with * or ?, .obj, .pc2, .mdd, .gltf, .glb, .usda, .usd, .abc (Alembic)";
 
 /// Output formats, for messages: what [`write_animation`] accepts.
 pub const SUPPORTED_OUTPUTS: &str =
-    ".pc2, .mdd, .glb, .gltf (morph targets + weights animation), .usda / .usd (USD text layer, time-sampled points), .obj (an OBJ sequence stem_0000.obj, …) or a \
+    ".pc2, .mdd, .glb, .gltf (morph targets + weights animation), .usda / .usd (USD text layer, time-sampled points), .abc (Alembic, one PolyMesh), .obj (an OBJ sequence stem_0000.obj, …) or a \
      directory (frame_0000.obj, …)";
 
 /// Options for [`read_animation`].
@@ -63,6 +65,9 @@ pub struct ReadOptions {
     /// glTF: the animation to play, by name or index (default: the first). Ignored for other
     /// inputs.
     pub animation: Option<String>,
+    /// Alembic: the mesh object to read by its full path (`/root/char/body`), or an object whose
+    /// meshes are read (default: every mesh, merged). Ignored for other inputs.
+    pub object: Option<String>,
 }
 
 impl ReadOptions {
@@ -90,7 +95,7 @@ pub fn check_frame_rate(fps: f32) -> Result<f32> {
 }
 
 /// Reads an animation, choosing the format from the path: a directory or glob of OBJ files,
-/// `.obj`, `.pc2`, `.mdd`, `.gltf` / `.glb`, `.usda` / `.usd` (extensions are case-insensitive).
+/// `.obj`, `.pc2`, `.mdd`, `.gltf` / `.glb`, `.usda` / `.usd`, `.abc` (extensions are case-insensitive).
 pub fn read_animation(path: &Path, options: &ReadOptions) -> Result<Animation> {
     let frame_rate = options.checked_frame_rate()?;
     let fps = frame_rate.unwrap_or(DEFAULT_FRAME_RATE);
@@ -115,6 +120,7 @@ pub fn read_animation(path: &Path, options: &ReadOptions) -> Result<Animation> {
             gltf::read_gltf(path, &selection)
         }
         Some(ext) if usd::is_usd_extension(ext) => usd::read_usd(path, frame_rate),
+        Some("abc") => abc::read_abc(path, options.object.as_deref(), frame_rate),
         _ => Err(Error::Unsupported {
             context: "formats".into(),
             detail: format!("cannot read {}: unknown format; supported inputs: {SUPPORTED_INPUTS}", path.display()),
@@ -162,6 +168,11 @@ pub fn write_animation_with(path: &Path, animation: &Animation, options: &WriteO
         Some("usda" | "usd") => {
             let bytes = usd::encode_usda(animation)?;
             usd::check_reads_back(path, &bytes, animation)?;
+            (bytes, false)
+        }
+        Some("abc") => {
+            let bytes = abc::encode_abc(animation)?;
+            abc::check_reads_back(path, &bytes, animation)?;
             (bytes, false)
         }
         Some(ext @ ("usdc" | "usdz")) => {

@@ -129,9 +129,7 @@ pub fn parse_obj(bytes: &[u8], file: &str) -> Result<ObjMesh> {
                         format!("line {line_no}: a face needs at least 3 vertices, found {}", corners.len()),
                     ));
                 }
-                for k in 1..corners.len() - 1 {
-                    triangles.push([corners[0], corners[k], corners[k + 1]]);
-                }
+                push_fan(&corners, &mut triangles);
                 if triangles.len() > limits.max_triangles {
                     return Err(Error::LimitExceeded {
                         context: file.to_owned().into(),
@@ -161,6 +159,14 @@ pub fn parse_obj(bytes: &[u8], file: &str) -> Result<ObjMesh> {
         return Err(Error::malformed(file.to_owned(), "v", "the file has no vertices"));
     }
     Ok(ObjMesh { positions, triangles })
+}
+
+/// Triangulates a polygon (at least 3 corners) as a fan around its first corner, keeping its
+/// winding: `[c0, ck, ck+1]` for each k. Every reader of polygons fans them this way.
+pub(crate) fn push_fan(corners: &[u32], triangles: &mut Vec<[u32; 3]>) {
+    for k in 1..corners.len().saturating_sub(1) {
+        triangles.push([corners[0], corners[k], corners[k + 1]]);
+    }
 }
 
 /// Reads OBJ files as the frames of one animation, in the order given. Every file must have the
