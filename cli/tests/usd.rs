@@ -1,9 +1,13 @@
 //! animcodec's USD reader and writer against Pixar's own library, `usd-core` (PyPI), run by
-//! `cli/tests/usd/usd_check.py`: layers usd-core writes (usda and usdc, two meshes with mixed
-//! polygons and a left-handed one, or a time-code step of 2) read back exactly, and layers we
-//! write (in-process and through `decode -o X.usda`) open in usd-core with the same points,
-//! bit for bit, at every time sample, a correct extent, and no error, failed check or warning
-//! from its compliance checker (`UsdUtils.ComplianceChecker`, what `usdchecker` runs).
+//! `cli/tests/usd/usd_check.py`: layers usd-core writes (usda, usdc, a `.usd` holding a crate
+//! file and a usdz package; two meshes with mixed polygons and a left-handed one, a time-code
+//! step of 2, meshes sampled at every frame, every other frame or not at all, topology arrays
+//! large enough that usd-core integer-codes them) read back exactly, and layers we write
+//! (in-process and through `decode -o X.usda` / `-o X.usdc`) open in usd-core with the same
+//! points, bit for bit, at every time sample, a correct extent, the layer's metadata, and no
+//! error, failed check or warning from its compliance checker (`UsdUtils.ComplianceChecker` or
+//! the `UsdValidation` validators, what `usdchecker` runs). Damaged and hostile crate files and
+//! packages fail with a clear error, quickly.
 //! Without `python3 -c 'import pxr'` (`pip install usd-core`) the tests skip through
 //! `codec_core::testing::skip` (a failure under `ANIMCODEC_REQUIRE_ALL=1`, as in CI).
 
@@ -56,23 +60,14 @@ fn layers_usd_core_writes_read_back_exactly() {
     }
     let dir = Scratch::new("usd-core-writes");
     let cases: Vec<String> = serde_json::from_str(python(&["write", &dir.path("")]).trim()).unwrap();
-    assert_eq!(cases.len(), 3);
+    assert_eq!(cases.len(), 6);
     for case in &cases {
         let meta: Value =
             serde_json::from_str(&std::fs::read_to_string(dir.path(&format!("{case}.json"))).unwrap()).unwrap();
         let expected = f32s(Path::new(&dir.path(&format!("{case}.f32"))));
-        let layer = if case.ends_with("usdc") {
-            // Crate files are refused with the conversion to use; usd-core's own export to text
-            // must then read back exactly.
-            let usdc = dir.path(&format!("{case}.usdc"));
-            let e = read_animation(Path::new(&usdc), &ReadOptions::default()).unwrap_err().to_string();
-            assert!(e.contains("usdcat") && e.contains("usdc"), "{e}");
-            let usda = dir.path(&format!("{case}-exported.usda"));
-            python(&["export", &usdc, &usda]);
-            usda
-        } else {
-            dir.path(&format!("{case}.usda"))
-        };
+        // The case name ends with its file's extension (`.usd` holds a crate file).
+        let ext = case.rsplit('-').next().unwrap();
+        let layer = dir.path(&format!("{case}.{ext}"));
         let a = read_animation(Path::new(&layer), &ReadOptions::default()).unwrap_or_else(|e| panic!("{case}: {e}"));
         assert_eq!(a.vertex_count() as u64, meta["vertices"].as_u64().unwrap(), "{case}");
         assert_eq!(a.frame_count() as u64, meta["frames"].as_u64().unwrap(), "{case}");
@@ -108,6 +103,13 @@ fn check_in_usd_core(layer: &str, expected: &Animation, dir: &Scratch, tag: &str
     assert_eq!(r["coordinates_differing"], 0, "{tag}: usd-core reads other points than we wrote");
     assert_eq!(r["time_codes_per_second"].as_f64().unwrap() as f32, expected.frame_rate(), "{tag}");
     assert_eq!(r["frames_per_second"].as_f64().unwrap() as f32, expected.frame_rate(), "{tag}");
+    assert_eq!(r["start_time_code"], 0.0, "{tag}");
+    assert_eq!(r["end_time_code"].as_f64().unwrap(), (expected.frame_count() - 1) as f64, "{tag}");
+    assert_eq!(r["up_axis"], "Y", "{tag}");
+    assert_eq!(r["meters_per_unit"], 1.0, "{tag}");
+    assert_eq!(r["default_prim"], "/animcodec", "{tag}");
+    let format = if layer.ends_with(".usdc") { "usdc" } else { "usda" };
+    assert_eq!(r["format"], format, "{tag}: usd-core reads the layer as another format");
     let tris: Vec<[u32; 3]> = serde_json::from_value(r["triangles"].clone()).unwrap();
     assert_eq!(tris.as_slice(), expected.triangles(), "{tag}");
     eprintln!(
@@ -138,9 +140,11 @@ fn layers_we_write_open_in_usd_core_and_pass_its_compliance_checker() {
         .collect();
     let tris: Vec<[u32; 3]> = (0..7).map(|v| [v, v + 1, v + 2]).collect();
     let awkward = Animation::from_parts(9, tris, positions, 29.97).unwrap();
-    let layer = dir.path("awkward.usda");
-    write_animation(Path::new(&layer), &awkward).unwrap();
-    check_in_usd_core(&layer, &awkward, &dir, "awkward");
+    for ext in ["usda", "usdc"] {
+        let layer = dir.path(&format!("awkward.{ext}"));
+        write_animation(Path::new(&layer), &awkward).unwrap();
+        check_in_usd_core(&layer, &awkward, &dir, &format!("awkward-{ext}"));
+    }
 
     // Through the binary: a synthetic animation encoded, then `decode -o X.usda`.
     let flag = synth::by_name("flag", SynthSize::Small).unwrap();
@@ -156,6 +160,13 @@ fn layers_we_write_open_in_usd_core_and_pass_its_compliance_checker() {
     check_in_usd_core(&usda, &decoded, &dir, "flag");
     // What we wrote reads back through our own reader as the decode, exactly.
     let ours = read_animation(Path::new(&usda), &ReadOptions::default()).unwrap();
+    assert!(same_bits(ours.positions(), decoded.positions()));
+    assert_eq!(ours.triangles(), decoded.triangles());
+    // And as a crate file, through the binary.
+    let usdc = dir.path("flag.usdc");
+    ok(&["decode", &anim, "-o", &usdc]);
+    check_in_usd_core(&usdc, &decoded, &dir, "flag-usdc");
+    let ours = read_animation(Path::new(&usdc), &ReadOptions::default()).unwrap();
     assert!(same_bits(ours.positions(), decoded.positions()));
     assert_eq!(ours.triangles(), decoded.triangles());
 }

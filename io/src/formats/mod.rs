@@ -26,6 +26,9 @@ pub mod obj;
 pub mod pc2;
 pub mod stream;
 pub mod usd;
+mod usd_layer;
+pub mod usdc;
+mod usdz;
 
 use std::cmp::Ordering;
 use std::io::Write as _;
@@ -163,12 +166,17 @@ pub fn write_animation_with(path: &Path, animation: &Animation, options: &WriteO
             usd::check_reads_back(path, &bytes, animation)?;
             (bytes, false)
         }
-        Some(ext @ ("usdc" | "usdz")) => {
+        Some("usdc") => {
+            let bytes = usdc::encode_usdc(animation)?;
+            usd::check_reads_back(path, &bytes, animation)?;
+            (bytes, false)
+        }
+        Some("usdz") => {
             return Err(Error::Unsupported {
                 context: "formats".into(),
                 detail: format!(
-                    "cannot write {}: .{ext} (binary USD) is not written; write .usda (a text layer) and convert it \
-                     with `usdcat X.usda -o X.{ext}` if needed",
+                    "cannot write {}: .usdz packages are read, not written; write .usdc (binary USD) and package it \
+                     with usd-core (`UsdUtils.CreateNewUsdzPackage`) if needed",
                     path.display()
                 ),
             })

@@ -1,0 +1,364 @@
+//! The layer model both USD readers fill — the text parser ([`super::usd`]) and the crate
+//! reader ([`super::usdc`]) — and the one assembly of its `Mesh` prims into an [`Animation`].
+//!
+//! A [`Layer`] holds the prims of the played-back scene only (`def` prims under `def`s, none
+//! inactive), in the order `UsdStage::Traverse` visits them (depth first, authored order),
+//! each with its parent, its type name and the attributes a vertex cache needs (the mesh's
+//! `points`, `faceVertexCounts`, `faceVertexIndices`, `orientation`, and `xformOpOrder` /
+//! `xformOp:*` of every prim), each with its default value and time samples; and the layer's
+//! metadata (time codes, up axis, units).
+
+use codec_core::{Animation, Error, Result};
+
+use super::gltf_buffers::Budget;
+use super::{check_finite_in, in_file, reader_limits};
+
+/// USD's default `timeCodesPerSecond` (and `framesPerSecond`) when the layer authors none.
+pub const USD_DEFAULT_TIME_CODES_PER_SECOND: f64 = 24.0;
+
+/// An attribute value as far as the readers need it. Tuples are flattened: `arity` is the
+/// tuple size (1 for scalars), and an array of k tuples holds k × arity values. Quaternions
+/// are held as (real, i, j, k), as USDA writes them.
+#[derive(Debug, Clone, PartialEq)]
+pub(super) enum Value {
+    /// `float`/`half` values and tuples (points, `float3`, `quatf`, …).
+    Floats { arity: usize, values: Vec<f32> },
+    /// `double` values, tuples and matrices (`double3`, `matrix4d` with arity 16, …).
+    Doubles { arity: usize, values: Vec<f64> },
+    /// Integers of any width.
+    Ints(Vec<i64>),
+    /// A token, string or asset path.
+    Token(String),
+    /// A token array.
+    Tokens(Vec<String>),
+    /// A value of a type not needed here.
+    Other,
+}
+
+/// One attribute: its default (`None`: none, or blocked) and its time samples, sorted by time
+/// (`None`: a blocked sample).
+#[derive(Debug, Default)]
+pub(super) struct Attribute {
+    pub name: String,
+    pub default: Option<Value>,
+    pub samples: Vec<(f64, Option<Value>)>,
+}
+
+/// One prim of the played-back scene.
+#[derive(Debug, Default)]
+pub(super) struct Prim {
+    /// Its own name (the path is the names of its ancestors and its own).
+    pub name: String,
+    /// Index of its parent in [`Layer::prims`] (always an earlier one); `None` under the root.
+    pub parent: Option<usize>,
+    pub type_name: String,
+    pub attributes: Vec<Attribute>,
+}
+
+impl Prim {
+    pub fn attribute(&self, name: &str) -> Option<&Attribute> {
+        self.attributes.iter().find(|a| a.name == name)
+    }
+}
+
+/// Layer metadata a vertex cache carries.
+#[derive(Debug, Default, Clone)]
+pub(super) struct Metadata {
+    pub time_codes_per_second: Option<f64>,
+    pub frames_per_second: Option<f64>,
+    pub up_axis: Option<String>,
+    pub meters_per_unit: Option<f64>,
+}
+
+/// The prims and metadata of one layer.
+#[derive(Debug, Default)]
+pub(super) struct Layer {
+    pub metadata: Metadata,
+    pub prims: Vec<Prim>,
+}
+
+/// Attributes a reader keeps (every other one is dropped as it is read).
+pub(super) fn is_kept_attribute(name: &str) -> bool {
+    matches!(name, "points" | "faceVertexCounts" | "faceVertexIndices" | "orientation" | "xformOpOrder")
+        || name.starts_with("xformOp:")
+}
+
+impl Layer {
+    /// The path of prim `i` (`/a/b`).
+    pub fn path(&self, i: usize) -> String {
+        let mut names = Vec::new();
+        let mut at = Some(i);
+        while let Some(p) = at {
+            names.push(self.prims[p].name.as_str());
+            at = self.prims[p].parent;
+        }
+        names.iter().rev().fold(String::new(), |mut s, n| {
+            s.push('/');
+            s.push_str(n);
+            s
+        })
+    }
+}
+
+pub(super) fn unsupported(file: &str, detail: impl Into<String>) -> Error {
+    Error::Unsupported { context: file.to_owned().into(), detail: detail.into() }
+}
+
+/// A prim path for a message: printable, and at most 200 characters (the middle elided), since
+/// a path may be megabytes long.
+pub(super) fn shown(path: &str) -> String {
+    const KEEP: usize = 100;
+    let chars = path.chars().count();
+    if chars <= 2 * KEEP {
+        return super::gltf::printable(path);
+    }
+    let head: String = path.chars().take(KEEP).collect();
+    let tail: String = path.chars().skip(chars - KEEP).collect();
+    format!("{}…({} characters)…{}", super::gltf::printable(&head), chars - 2 * KEEP, super::gltf::printable(&tail))
+}
+
+// ---------------------------------------------------------------------------------------------
+// From the layer to an animation.
+
+/// One mesh's topology and point samples, converted.
+struct MeshData {
+    vertices: usize,
+    triangles: Vec<[u32; 3]>,
+    /// Sorted by time: (time code, points); empty when only the default value exists.
+    samples: Vec<(f64, Vec<f32>)>,
+    default: Option<Vec<f32>>,
+}
+
+/// The vertex cache of every `Mesh` prim of `layer`, one after another (see
+/// [`super::usd`]'s module documentation for the rules).
+pub(super) fn assemble(file: &str, layer: Layer, frame_rate: Option<f32>, budget: &mut Budget) -> Result<Animation> {
+    let mut meshes = Vec::new();
+    for (i, prim) in layer.prims.iter().enumerate() {
+        if prim.type_name != "Mesh" {
+            continue;
+        }
+        let path = layer.path(i);
+        budget.take("prim paths", path.len() as u64)?;
+        let mut at = Some(i);
+        while let Some(p) = at {
+            if has_transforms(&layer.prims[p]) {
+                return Err(unsupported(
+                    file,
+                    format!(
+                        "the mesh {} is under authored transforms (xformOpOrder): they are not applied here; \
+                         bake them into the points first",
+                        shown(&path)
+                    ),
+                ));
+            }
+            at = layer.prims[p].parent;
+        }
+        meshes.push(mesh_data(file, &path, prim, budget)?);
+    }
+    if meshes.is_empty() {
+        return Err(Error::malformed(file.to_owned(), "meshes", "the layer defines no Mesh prim"));
+    }
+    // The frame times: every sample time of every mesh.
+    let mut times: Vec<f64> = meshes.iter().flat_map(|m| m.samples.iter().map(|s| s.0)).collect();
+    times.sort_by(f64::total_cmp);
+    times.dedup();
+    let step = match times.len() {
+        0 | 1 => 1.0,
+        _ => (times[times.len() - 1] - times[0]) / (times.len() - 1) as f64,
+    };
+    for w in times.windows(2) {
+        if ((w[1] - w[0]) - step).abs() > step * 1e-6 {
+            return Err(unsupported(
+                file,
+                format!(
+                    "the time samples are not evenly spaced (codes {} and {} against a mean step of {step}): a \
+                     vertex cache has one frame rate; resample the points first",
+                    w[0], w[1]
+                ),
+            ));
+        }
+    }
+    if times.is_empty() {
+        times.push(0.0);
+    }
+    let vertices: usize = meshes.iter().map(|m| m.vertices).sum();
+    let limits = reader_limits();
+    if vertices as u64 > limits.max_vertices as u64 {
+        return Err(Error::LimitExceeded {
+            context: file.to_owned().into(),
+            field: "vertex_count".into(),
+            value: vertices as u64,
+            limit: limits.max_vertices as u64,
+        });
+    }
+    if times.len() as u64 > limits.max_frames as u64 {
+        return Err(Error::LimitExceeded {
+            context: file.to_owned().into(),
+            field: "frame_count".into(),
+            value: times.len() as u64,
+            limit: limits.max_frames as u64,
+        });
+    }
+    let floats = (vertices as u64).saturating_mul(3).saturating_mul(times.len() as u64);
+    limits.check_alloc("formats", "positions", floats.saturating_mul(4))?;
+    budget.take("positions", floats.saturating_mul(4))?;
+    let mut positions = Vec::with_capacity(floats as usize);
+    for &t in &times {
+        for m in &meshes {
+            push_points_at(m, t, &mut positions);
+        }
+    }
+    let mut triangles = Vec::with_capacity(meshes.iter().map(|m| m.triangles.len()).sum());
+    let mut offset = 0u32;
+    for m in &meshes {
+        triangles.extend(m.triangles.iter().map(|t| t.map(|i| i + offset)));
+        offset += m.vertices as u32;
+    }
+    check_finite_in(file, &positions, vertices)?;
+    let meta = &layer.metadata;
+    let tcps = meta.time_codes_per_second.or(meta.frames_per_second).unwrap_or(USD_DEFAULT_TIME_CODES_PER_SECOND);
+    let fps = match frame_rate {
+        Some(f) => f,
+        None => {
+            let fps = (tcps / step) as f32;
+            super::check_frame_rate(fps).map_err(|e| in_file(file, e))?
+        }
+    };
+    Animation::from_parts(vertices, triangles, positions, fps).map_err(|e| in_file(file, e))
+}
+
+/// Whether a prim authors transforms: a non-empty `xformOpOrder`.
+fn has_transforms(prim: &Prim) -> bool {
+    prim.attribute("xformOpOrder").is_some_and(|a| {
+        matches!(&a.default, Some(Value::Tokens(t)) if !t.is_empty())
+            || a.samples.iter().any(|(_, v)| matches!(v, Some(Value::Tokens(t)) if !t.is_empty()))
+    })
+}
+
+/// Points of `mesh` at time code `t`, as `UsdAttribute::Get(t)` gives them: the sample at
+/// `t`, else linear interpolation between the samples around it, held outside them; the
+/// default value when the mesh has no samples.
+fn push_points_at(mesh: &MeshData, t: f64, out: &mut Vec<f32>) {
+    let s = &mesh.samples;
+    if s.is_empty() {
+        out.extend_from_slice(mesh.default.as_deref().unwrap_or(&[]));
+        return;
+    }
+    let after = s.partition_point(|x| x.0 < t);
+    if after < s.len() && s[after].0 == t {
+        out.extend_from_slice(&s[after].1);
+    } else if after == 0 {
+        out.extend_from_slice(&s[0].1);
+    } else if after == s.len() {
+        out.extend_from_slice(&s[s.len() - 1].1);
+    } else {
+        let (t0, a) = (&s[after - 1].0, &s[after - 1].1);
+        let (t1, b) = (&s[after].0, &s[after].1);
+        let alpha = (t - t0) / (t1 - t0);
+        out.extend(a.iter().zip(b).map(|(&x, &y)| (x as f64 + (y as f64 - x as f64) * alpha) as f32));
+    }
+}
+
+fn mesh_data(file: &str, path: &str, prim: &Prim, budget: &mut Budget) -> Result<MeshData> {
+    let at = |what: &str| format!("{} {what}", shown(path));
+    let bad = |field: String, detail: String| Error::malformed(file.to_owned(), field, detail);
+    let floats = |value: &Value, field: &str, budget: &mut Budget| -> Result<Vec<f32>> {
+        match value {
+            Value::Floats { values, .. } if values.is_empty() => Ok(Vec::new()),
+            Value::Doubles { values, .. } if values.is_empty() => Ok(Vec::new()),
+            Value::Ints(values) if values.is_empty() => Ok(Vec::new()),
+            Value::Floats { arity: 3, values } => {
+                budget.take("points", values.len() as u64 * 4)?;
+                Ok(values.clone())
+            }
+            Value::Doubles { arity: 3, values } => {
+                budget.take("points", values.len() as u64 * 4)?;
+                Ok(values.iter().map(|&v| v as f32).collect())
+            }
+            _ => Err(bad(at(field), "is not a list of 3-component points".into())),
+        }
+    };
+    // A topology attribute: its default, or its one time sample (a changing topology is refused).
+    let topology = |name: &str| -> Result<Vec<u32>> {
+        let attr = prim.attribute(name).ok_or_else(|| bad(at(name), "is missing".into()))?;
+        if attr.samples.len() > 1 {
+            return Err(unsupported(
+                file,
+                format!("{}.{name} is time-sampled: a changing topology is not a vertex cache", shown(path)),
+            ));
+        }
+        let value = attr.samples.first().map(|s| s.1.as_ref()).unwrap_or(attr.default.as_ref());
+        match value {
+            Some(Value::Ints(v)) => v
+                .iter()
+                .map(|&i| u32::try_from(i).ok())
+                .collect::<Option<Vec<u32>>>()
+                .ok_or_else(|| bad(at(name), "holds a value that is not a non-negative integer".into())),
+            Some(Value::Floats { values, .. }) if values.is_empty() => Ok(Vec::new()),
+            Some(_) => Err(bad(at(name), "is not a list of integers".into())),
+            None => Err(bad(at(name), "is missing".into())),
+        }
+    };
+    let points = prim.attribute("points");
+    let default = points.and_then(|a| a.default.as_ref()).map(|v| floats(v, "points", budget)).transpose()?;
+    let mut samples = Vec::with_capacity(points.map_or(0, |a| a.samples.len()));
+    for (time, value) in points.map_or(&[][..], |a| &a.samples[..]) {
+        // A blocked sample has no points: USD reports no value there; the frame is filled
+        // from the samples around it, as for a time the mesh does not sample.
+        if let Some(v) = value {
+            samples.push((*time, floats(v, "points.timeSamples", budget)?));
+        }
+    }
+    let first = samples.first().map(|s| &s.1).or(default.as_ref());
+    let Some(first) = first else {
+        return Err(bad(at("points"), "has no value (neither a default nor a time sample)".into()));
+    };
+    let vertices = first.len() / 3;
+    if vertices == 0 {
+        return Err(bad(at("points"), "is empty".into()));
+    }
+    for (time, s) in &samples {
+        if s.len() != first.len() {
+            return Err(unsupported(
+                file,
+                format!(
+                    "{} has {} points at time code {time} but {vertices} at the first sample: a changing point count \
+                     is not a vertex cache",
+                    at("points"),
+                    s.len() / 3
+                ),
+            ));
+        }
+    }
+    let counts = topology("faceVertexCounts")?;
+    let indices = topology("faceVertexIndices")?;
+    let left_handed =
+        prim.attribute("orientation").is_some_and(|a| matches!(&a.default, Some(Value::Token(t)) if t == "leftHanded"));
+    let corners: u64 = counts.iter().map(|&c| c as u64).sum();
+    if corners != indices.len() as u64 {
+        return Err(bad(
+            at("faceVertexCounts"),
+            format!("sums to {corners} corners but faceVertexIndices holds {}", indices.len()),
+        ));
+    }
+    if let Some(&i) = indices.iter().find(|&&i| i as usize >= vertices) {
+        return Err(bad(at("faceVertexIndices"), format!("index {i} is out of range ({vertices} points)")));
+    }
+    let fan: u64 = counts.iter().map(|&c| (c as u64).saturating_sub(2)).sum();
+    budget.take("triangles", fan * 12)?;
+    let mut triangles = Vec::with_capacity(fan as usize);
+    let mut at_corner = 0usize;
+    for (face, &n) in counts.iter().enumerate() {
+        let n = n as usize;
+        if n < 3 {
+            return Err(bad(at("faceVertexCounts"), format!("face {face} has {n} corners (at least 3 are needed)")));
+        }
+        let f = &indices[at_corner..at_corner + n];
+        for k in 1..n - 1 {
+            let tri = if left_handed { [f[0], f[k + 1], f[k]] } else { [f[0], f[k], f[k + 1]] };
+            triangles.push(tri);
+        }
+        at_corner += n;
+    }
+    Ok(MeshData { vertices, triangles, samples, default })
+}
