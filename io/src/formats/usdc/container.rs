@@ -401,56 +401,7 @@ fn read_paths(k: &mut Crate, mut c: Cursor, budget: &mut Budget) -> Result<()> {
     let tokens = compressed_ints(&mut c, encoded, 4, budget, "path element tokens").map_err(&e)?;
     let jumps = compressed_ints(&mut c, encoded, 4, budget, "path jumps").map_err(&e)?;
     budget.take("paths", count.saturating_mul(16).saturating_add(encoded))?;
-    let n = encoded as usize;
-    let mut nodes: Vec<Option<PathNode>> = vec![None; count as usize];
-    let mut visited = vec![false; n];
-    let token_count = k.token_spans.len() as u64;
-    // (item, parent path index): items still to walk, each the start of a sibling run.
-    let mut stack: Vec<(usize, Option<u32>)> = Vec::new();
-    if n > 0 {
-        stack.push((0, None));
-    }
-    while let Some((mut item, mut parent)) = stack.pop() {
-        loop {
-            if item >= n {
-                return Err(e(format!("a jump leads to item {item}, past the {n} encoded paths")));
-            }
-            if std::mem::replace(&mut visited[item], true) {
-                return Err(e(format!("item {item} is reached twice (the jumps form a cycle)")));
-            }
-            let index = path_indexes[item];
-            let slot = &mut nodes[index as usize];
-            if slot.is_some() {
-                return Err(e(format!("path index {index} is encoded twice")));
-            }
-            let token = (tokens[item] as i32).unsigned_abs();
-            if parent.is_some() && token as u64 >= token_count {
-                return Err(e(format!("element token {token} is past the {token_count} tokens")));
-            }
-            *slot = Some(PathNode { parent, token, is_property: parent.is_some() && (tokens[item] as i32) < 0 });
-            let jump = jumps[item] as i32;
-            let (child, sibling) = (jump > 0 || jump == -1, jump >= 0);
-            if jump < -2 {
-                return Err(e(format!("item {item} has jump {jump} (−2 to n expected)")));
-            }
-            if sibling && parent.is_none() {
-                return Err(e("the root path has a sibling".into()));
-            }
-            if child && sibling {
-                let to = item
-                    .checked_add(jump as usize)
-                    .filter(|&t| t < n)
-                    .ok_or_else(|| e(format!("item {item} jumps {jump} items, past the {n} encoded paths")))?;
-                stack.push((to, parent));
-            }
-            if child {
-                parent = Some(index);
-            } else if !sibling {
-                break;
-            }
-            item += 1;
-        }
-    }
+    let nodes = path_tree(&path_indexes, &tokens, &jumps, count as usize, k.token_spans.len() as u64).map_err(&e)?;
     k.paths = nodes;
     Ok(())
 }
@@ -477,4 +428,113 @@ fn read_specs(k: &mut Crate, mut c: Cursor, budget: &mut Budget) -> Result<()> {
     }
     k.specs = specs;
     Ok(())
+}
+
+/// The path tree of the encoded items (`path_indexes[i]` < `count`, element tokens, jumps; see
+/// the module documentation), by path index. Walked with an explicit stack of sibling runs,
+/// each item visited at most once.
+fn path_tree(
+    path_indexes: &[u32],
+    tokens: &[i64],
+    jumps: &[i64],
+    count: usize,
+    token_count: u64,
+) -> std::result::Result<Vec<Option<PathNode>>, String> {
+    let n = path_indexes.len().min(tokens.len()).min(jumps.len());
+    let mut nodes: Vec<Option<PathNode>> = vec![None; count];
+    let mut visited = vec![false; n];
+    // (item, parent path index): sibling runs still to walk.
+    let mut stack: Vec<(usize, Option<u32>)> = Vec::new();
+    if n > 0 {
+        stack.push((0, None));
+    }
+    while let Some((mut item, mut parent)) = stack.pop() {
+        loop {
+            if item >= n {
+                return Err(format!("a jump leads to item {item}, past the {n} encoded paths"));
+            }
+            if std::mem::replace(&mut visited[item], true) {
+                return Err(format!("item {item} is reached twice (the jumps form a cycle)"));
+            }
+            let index = path_indexes[item];
+            let slot = nodes.get_mut(index as usize).ok_or_else(|| format!("path index {index} is out of range"))?;
+            if slot.is_some() {
+                return Err(format!("path index {index} is encoded twice"));
+            }
+            let token = (tokens[item] as i32).unsigned_abs();
+            if parent.is_some() && token as u64 >= token_count {
+                return Err(format!("element token {token} is past the {token_count} tokens"));
+            }
+            *slot = Some(PathNode { parent, token, is_property: parent.is_some() && (tokens[item] as i32) < 0 });
+            let jump = jumps[item] as i32;
+            if jump < -2 {
+                return Err(format!("item {item} has jump {jump} (-2 or more expected)"));
+            }
+            let (child, sibling) = (jump > 0 || jump == -1, jump >= 0);
+            if sibling && parent.is_none() {
+                return Err("the root path has a sibling".into());
+            }
+            if child && sibling {
+                let to = item
+                    .checked_add(jump as usize)
+                    .filter(|&t| t < n)
+                    .ok_or_else(|| format!("item {item} jumps {jump} items, past the {n} encoded paths"))?;
+                stack.push((to, parent));
+            }
+            if child {
+                parent = Some(index);
+            } else if !sibling {
+                break;
+            }
+            item += 1;
+        }
+    }
+    Ok(nodes)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn tree(jumps: &[i64]) -> std::result::Result<Vec<Option<PathNode>>, String> {
+        let n = jumps.len();
+        let indexes: Vec<u32> = (0..n as u32).collect();
+        // Items 2 and 3 name properties.
+        let tokens: Vec<i64> = (0..n as i64).map(|i| if i == 2 || i == 3 { -i } else { i }).collect();
+        path_tree(&indexes, &tokens, jumps, n, n as u64)
+    }
+
+    /// `/`, `/a`, `/a.x`, `/a.y`, `/b`: root child-only, `/a` child and sibling 3 on, `.x`
+    /// sibling-only, `.y` and `/b` leaves.
+    #[test]
+    fn jumps_build_the_tree() {
+        let nodes = tree(&[-1, 3, 0, -2, -2]).unwrap();
+        let parents: Vec<Option<u32>> = nodes.iter().map(|n| n.unwrap().parent).collect();
+        assert_eq!(parents, vec![None, Some(0), Some(1), Some(1), Some(0)]);
+        assert!(nodes[2].unwrap().is_property && nodes[3].unwrap().is_property && !nodes[4].unwrap().is_property);
+    }
+
+    #[test]
+    fn bad_jumps_and_cycles_are_errors() {
+        let cases: &[(&[i64], &str)] = &[
+            (&[-1, 1, -2], "reached twice"), // the child run and the sibling run meet
+            (&[-1, 0, 0], "past the"),       // a sibling-only run off the end
+            (&[-1, 9, -2], "past the"),      // a jump off the end
+            (&[-1, -3], "jump -3"),          // not a jump
+            (&[0, -2], "root path has a sibling"),
+            (&[-1, -1, -1], "past the"), // a child off the end
+        ];
+        for (jumps, needle) in cases {
+            let e = tree(jumps).unwrap_err();
+            assert!(e.contains(needle), "{jumps:?}: {e}");
+        }
+        // Two items naming one path, a path index or token out of range.
+        assert!(path_tree(&[0, 0], &[0, 1], &[-1, -2], 2, 2).unwrap_err().contains("twice"));
+        assert!(path_tree(&[0, 5], &[0, 1], &[-1, -2], 2, 2).unwrap_err().contains("out of range"));
+        assert!(path_tree(&[0, 1], &[0, 7], &[-1, -2], 2, 2).unwrap_err().contains("past the 2 tokens"));
+        // A long chain is walked without recursion.
+        let mut jumps = vec![-1i64; 100_000];
+        jumps[99_999] = -2;
+        assert!(tree(&jumps).is_ok());
+    }
 }

@@ -75,4 +75,81 @@ mod tests {
             }
         }
     }
+
+    /// (start, size) of a section, from the table of contents.
+    fn section(bytes: &[u8], name: &str) -> (usize, usize) {
+        let toc = u64::from_le_bytes(bytes[16..24].try_into().unwrap()) as usize;
+        let n = u64::from_le_bytes(bytes[toc..toc + 8].try_into().unwrap()) as usize;
+        (0..n)
+            .map(|i| toc + 8 + 32 * i)
+            .find(|&e| bytes[e..e + 16].split(|&b| b == 0).next() == Some(name.as_bytes()))
+            .map(|e| {
+                let word = |at: usize| u64::from_le_bytes(bytes[at..at + 8].try_into().unwrap()) as usize;
+                (word(e + 16), word(e + 24))
+            })
+            .unwrap()
+    }
+
+    /// The offsets of the first `points` sample (its array) and of the `points` time samples.
+    fn points_offsets(bytes: &[u8]) -> (usize, usize) {
+        let mut budget = Budget::new("t", None);
+        let k = container::read_crate(bytes, "t", &mut budget).unwrap();
+        for spec in &k.specs {
+            if !k.path_text(spec.path).unwrap().ends_with(".points") {
+                continue;
+            }
+            for (t, rep) in k.field_set(spec.field_set) {
+                if k.token(t, "t").unwrap() == "timeSamples" {
+                    let samples =
+                        values::Values { krate: &k }.time_samples(values::Rep(rep), "t", &mut budget).unwrap();
+                    return (samples[0].1.payload() as usize, values::Rep(rep).payload() as usize);
+                }
+            }
+        }
+        unreachable!("no points samples")
+    }
+
+    fn put(bytes: &[u8], at: usize, value: u64) -> Vec<u8> {
+        let mut b = bytes.to_vec();
+        b[at..at + 8].copy_from_slice(&value.to_le_bytes());
+        b
+    }
+
+    /// Lies about sizes, counts and offsets: a clear error naming what is wrong, fast, within
+    /// a small budget (nothing is allocated from a lying size).
+    #[test]
+    fn hostile_sizes_and_offsets_are_refused() {
+        let bytes = encode_usdc(&test_animation(5, 3, 24.0)).unwrap();
+        let (points, samples) = points_offsets(&bytes);
+        let (tokens, _) = section(&bytes, "TOKENS");
+        let (fields, _) = section(&bytes, "FIELDS");
+        let toc = u64::from_le_bytes(bytes[16..24].try_into().unwrap()) as usize;
+        let cases: Vec<(Vec<u8>, &str)> = vec![
+            // A 2^31-element points array; a 2^31-sample time series.
+            (put(&bytes, points, 1 << 31), "past the end of the file"),
+            (put(&bytes, samples + 24, 1 << 31), "past the end of the file"),
+            // The table of contents and a section past the end of the file.
+            (put(&bytes, 16, bytes.len() as u64 + 100), "table of contents"),
+            (put(&bytes, toc + 8 + 16, bytes.len() as u64 - 4), "runs past the end"),
+            (put(&bytes, toc + 8 + 24, 1 << 62), "runs past the end"),
+            (put(&bytes, toc, 1 << 40), "sections"),
+            // Compressed and decoded sizes that lie.
+            (put(&bytes, tokens + 16, 1 << 40), "TOKENS"),
+            (put(&bytes, tokens + 8, 1 << 36), "total memory"),
+            (put(&bytes, tokens, 1 << 36), "TOKENS"),
+            (put(&bytes, fields, 1 << 40), "total memory"),
+            // A jump out of the file.
+            (put(&bytes, samples, 1 << 40), "leaves the file"),
+        ];
+        for (i, (file, needle)) in cases.iter().enumerate() {
+            let t = std::time::Instant::now();
+            let e = parse_usd(file, "hostile.usdc", None, Some(64 << 20)).unwrap_err().to_string();
+            assert!(e.contains(needle) && e.contains("hostile.usdc"), "case {i}: {e}");
+            assert!(t.elapsed().as_secs_f64() < 1.0, "case {i} took {:?}", t.elapsed());
+        }
+        // Crate versions outside 0.4–0.11 are refused by name.
+        let mut old = bytes.clone();
+        old[9] = 3;
+        assert!(parse_usd(&old, "v.usdc", None, None).unwrap_err().to_string().contains("0.3.0"));
+    }
 }
