@@ -170,3 +170,93 @@ fn layers_we_write_open_in_usd_core_and_pass_its_compliance_checker() {
     assert!(same_bits(ours.positions(), decoded.positions()));
     assert_eq!(ours.triangles(), decoded.triangles());
 }
+
+/// Damaged and hostile crate files and packages, through the binary: one clear `error:` line
+/// naming the file and what is wrong, quickly, with no panic (no usd-core needed).
+#[test]
+fn hostile_crate_files_and_packages_fail_cleanly() {
+    let dir = Scratch::new("usdc-hostile");
+    let anim = synth::by_name("flag", SynthSize::Small).unwrap();
+    let good = dir.path("good.usdc");
+    write_animation(Path::new(&good), &anim).unwrap();
+    let bytes = std::fs::read(&good).unwrap();
+    // A `.usd` holding crate content reads as the crate file it is.
+    let as_usd = dir.path("crate.usd");
+    std::fs::write(&as_usd, &bytes).unwrap();
+    let back = read_animation(Path::new(&as_usd), &ReadOptions::default()).unwrap();
+    assert!(same_bits(back.positions(), anim.positions()));
+    let toc = u64::from_le_bytes(bytes[16..24].try_into().unwrap()) as usize;
+    let mut cases: Vec<(&str, Vec<u8>, &str)> = vec![
+        ("truncated.usdc", bytes[..bytes.len() / 2].to_vec(), "table of contents"),
+        ("no-toc.usdc", bytes[..toc + 20].to_vec(), "table of contents"),
+    ];
+    let mut section_past = bytes.clone();
+    section_past[toc + 8 + 16..toc + 8 + 24].copy_from_slice(&(bytes.len() as u64).to_le_bytes());
+    cases.push(("section-past.usdc", section_past, "runs past the end"));
+    // A usdz whose entry states more bytes than the archive holds, in both its headers.
+    let mut z = usdz(&bytes);
+    let directory = u32::from_le_bytes(z[z.len() - 6..z.len() - 2].try_into().unwrap()) as usize;
+    for at in [18, 22, directory + 20, directory + 24] {
+        z[at..at + 4].copy_from_slice(&(1u32 << 31).to_le_bytes());
+    }
+    cases.push(("size-lie.usdz", z, "past the end of its data"));
+    let mut deflated = usdz(&bytes);
+    deflated[8] = 8;
+    cases.push(("deflated.usdz", deflated, "compressed"));
+    for (name, data, needle) in cases {
+        let path = dir.path(name);
+        std::fs::write(&path, data).unwrap();
+        let out = dir.path(&format!("{name}.anim"));
+        let t = std::time::Instant::now();
+        common::fails(&["encode", &path, "-c", "quant-delta", "-o", &out], &[name, needle]);
+        assert!(t.elapsed().as_secs_f64() < 1.0, "{name}: {:?}", t.elapsed());
+    }
+    // The package of the good file reads.
+    let good_z = dir.path("good.usdz");
+    std::fs::write(&good_z, usdz(&bytes)).unwrap();
+    let back = read_animation(Path::new(&good_z), &ReadOptions::default()).unwrap();
+    assert!(same_bits(back.positions(), anim.positions()));
+}
+
+/// A one-entry usdz package (a stored zip) holding `layer` as `root.usdc`.
+fn usdz(layer: &[u8]) -> Vec<u8> {
+    let crc = crc32(layer);
+    let name = b"root.usdc";
+    let mut z = Vec::new();
+    let fixed = |z: &mut Vec<u8>| {
+        z.extend_from_slice(&[20, 0, 0, 0, 0, 0, 0, 0, 0, 0]);
+        z.extend_from_slice(&crc.to_le_bytes());
+        z.extend_from_slice(&(layer.len() as u32).to_le_bytes());
+        z.extend_from_slice(&(layer.len() as u32).to_le_bytes());
+        z.extend_from_slice(&(name.len() as u16).to_le_bytes());
+    };
+    z.extend_from_slice(&0x0403_4b50u32.to_le_bytes());
+    fixed(&mut z);
+    z.extend_from_slice(&0u16.to_le_bytes());
+    z.extend_from_slice(name);
+    z.extend_from_slice(layer);
+    let directory = z.len();
+    z.extend_from_slice(&0x0201_4b50u32.to_le_bytes());
+    z.extend_from_slice(&20u16.to_le_bytes());
+    fixed(&mut z);
+    z.extend_from_slice(&[0; 16]);
+    z.extend_from_slice(name);
+    let size = z.len() - directory;
+    z.extend_from_slice(&0x0605_4b50u32.to_le_bytes());
+    z.extend_from_slice(&[0, 0, 0, 0, 1, 0, 1, 0]);
+    z.extend_from_slice(&(size as u32).to_le_bytes());
+    z.extend_from_slice(&(directory as u32).to_le_bytes());
+    z.extend_from_slice(&0u16.to_le_bytes());
+    z
+}
+
+fn crc32(data: &[u8]) -> u32 {
+    let mut crc = !0u32;
+    for &b in data {
+        crc ^= b as u32;
+        for _ in 0..8 {
+            crc = if crc & 1 != 0 { 0xEDB8_8320 ^ (crc >> 1) } else { crc >> 1 };
+        }
+    }
+    !crc
+}

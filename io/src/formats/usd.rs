@@ -1,6 +1,10 @@
-//! USD in and out, text layers (`.usda`): time-sampled `UsdGeomMesh` prims.
+//! USD in and out: time-sampled `UsdGeomMesh` prims of text layers (`.usda`), crate files
+//! (`.usdc`, [`super::usdc`]) and usdz packages (read only; their root layer). A `.usd` file
+//! may hold either a text layer or a crate file: the reader goes by the first bytes (`#usda`,
+//! `PXR-USDC`, a zip's `PK`), never by the extension.
 //!
-//! **Read** ([`parse_usda`]): every `def Mesh` of the layer (depth-first, in authored order, as
+//! **Read** ([`parse_usd`]): both the text parser here and the crate reader fill one layer
+//! model (`usd_layer`), and one assembly makes the animation. Every `def Mesh` of the layer (depth-first, in authored order, as
 //! `UsdStage::Traverse` visits them; prims under `class`/`over` specs and `active = false` prims
 //! are not part of the played-back scene and are skipped) becomes part of one vertex cache, its
 //! vertices after those of the meshes before it. From each mesh: `points` (the default value
@@ -17,17 +21,17 @@
 //!
 //! What is refused by name rather than read wrongly: composition arcs (`subLayers`,
 //! `references`, `payload`, `inherits`, `specializes`, variant sets: flatten the stage first,
-//! `usdcat --flatten`), authored transforms (`xformOpOrder`) on a mesh or its ancestors, a
-//! time-sampled topology, points whose count changes over time, value clips. Binary crate files
-//! (`.usdc`) and packages (`.usdz`) are recognised and refused with the conversion to use
-//! (`usdcat in.usdc -o out.usda`): see `docs/notes/issue-29-usd.md` for why.
+//! [`FLATTEN_ADVICE`](super::usd_layer::FLATTEN_ADVICE)), authored transforms (`xformOpOrder`)
+//! on a mesh or its ancestors, a time-sampled topology, points whose count changes over time,
+//! value clips, spline-valued points.
 //!
 //! The input is untrusted: nesting is bounded ([`MAX_DEPTH`]), every array is counted against
 //! the read's memory budget before it is kept, the cache's size is checked against
 //! [`reader_limits`](super::reader_limits) and the budget before it is allocated, and every
 //! coordinate must be finite.
 //!
-//! **Write** ([`encode_usda`]): one `Mesh` prim `/animcodec/mesh` under an `Xform`, triangles as
+//! **Write** ([`encode_usda`]; [`super::usdc::encode_usdc`] writes the same scene as a crate
+//! file): one `Mesh` prim `/animcodec/mesh` under an `Xform`, triangles as
 //! `faceVertexCounts` of 3, `points.timeSamples` at time codes 0, 1, … with
 //! `timeCodesPerSecond` = `framesPerSecond` = the animation's frame rate, per-frame `extent`,
 //! `upAxis = "Y"`, `metersPerUnit = 1` and `defaultPrim`, so Pixar's compliance checker passes
@@ -41,7 +45,9 @@ use codec_core::{Animation, Error, Result};
 
 use super::gltf_buffers::Budget;
 pub use super::usd_layer::USD_DEFAULT_TIME_CODES_PER_SECOND;
-use super::usd_layer::{assemble, is_kept_attribute, shown, unsupported, Attribute, Layer, Prim, Value};
+use super::usd_layer::{
+    assemble, is_kept_attribute, shown, unsupported, Attribute, Layer, Prim, Value, FLATTEN_ADVICE,
+};
 use super::{name, read_file};
 
 /// Deepest nesting of prims, lists, tuples and metadata the reader follows: far above real
@@ -388,7 +394,7 @@ impl<'a> Parser<'a, '_> {
                             self.lexer.file,
                             format!(
                                 "`{key}` at line {}: composition is not resolved here; flatten the stage first \
-                                 (`usdcat --flatten IN -o OUT.usda`)",
+                                 ({FLATTEN_ADVICE})",
                                 self.lexer.line()
                             ),
                         ));
@@ -488,7 +494,7 @@ impl<'a> Parser<'a, '_> {
                         self.lexer.file,
                         format!(
                             "a variant set in {} at line {}: variants are not resolved here; flatten the stage \
-                             first (`usdcat --flatten IN -o OUT.usda`)",
+                             first ({FLATTEN_ADVICE})",
                             shown(path),
                             self.lexer.line()
                         ),

@@ -13,6 +13,11 @@ use codec_core::{Animation, Error, Result};
 use super::gltf_buffers::Budget;
 use super::{check_finite_in, in_file, reader_limits};
 
+/// How to flatten a composed stage into one layer, with what `pip install usd-core` installs
+/// (its wheel has the `pxr` module, not the `usdcat` tool).
+pub(super) const FLATTEN_ADVICE: &str =
+    "with usd-core: python3 -c \"from pxr import Usd; Usd.Stage.Open('IN.usd').Export('OUT.usda')\"";
+
 /// USD's default `timeCodesPerSecond` (and `framesPerSecond`) when the layer authors none.
 pub const USD_DEFAULT_TIME_CODES_PER_SECOND: f64 = 24.0;
 

@@ -11,7 +11,7 @@ use codec_core::Result;
 
 use super::super::gltf_buffers::Budget;
 use super::super::usd::MAX_DEPTH;
-use super::super::usd_layer::{is_kept_attribute, shown, unsupported, Attribute, Layer, Prim, Value};
+use super::super::usd_layer::{is_kept_attribute, shown, unsupported, Attribute, Layer, Prim, Value, FLATTEN_ADVICE};
 use super::container::{Crate, SPEC_ATTRIBUTE, SPEC_PRIM, SPEC_PSEUDO_ROOT};
 use super::values::{ty, Rep, Values};
 
@@ -204,8 +204,7 @@ fn composition(file: &str, field: &str, path: &str) -> codec_core::Error {
     unsupported(
         file,
         format!(
-            "`{field}` on {}: composition is not resolved here; flatten the stage first (usd-core: \
-             `Usd.Stage.Open(IN).Export(OUT)` or `usdcat --flatten IN -o OUT`)",
+            "`{field}` on {}: composition is not resolved here; flatten the stage first ({FLATTEN_ADVICE})",
             shown(path)
         ),
     )
