@@ -96,6 +96,15 @@ def write_cases(out):
         cases.append(name)
     from pxr import UsdUtils
 
+    # 4. Transforms: nested Xforms and a mesh with every kind of xformOp (translate, scale,
+    #    rotateX/Y/Z and the six rotate orders, orient, transform, !invert!,
+    #    !resetXformStack!), half/float/double precision, some time-sampled at a subset of
+    #    the frames. Expected points: UsdGeom.XformCache's local-to-world matrix applied to the
+    #    points at every frame.
+    for ext in ("usda", "usdc"):
+        name = f"case-xforms-{ext}"
+        write_xforms(out, name, f"{out}/{name}.{ext}")
+        cases.append(name)
     name = "case-mixed-usdz"
     if not UsdUtils.CreateNewUsdzPackage(Sdf.AssetPath(f"{out}/case-mixed-usdc.usdc"), f"{out}/{name}.usdz"):
         raise SystemExit("usd-core could not write the usdz package")
@@ -104,6 +113,60 @@ def write_cases(out):
             dst.write(src.read())
     cases.append(name)
     print(json.dumps(cases))
+
+
+def write_xforms(out, name, path):
+    stage = Usd.Stage.CreateNew(path)
+    stage.SetTimeCodesPerSecond(24)
+    stage.SetStartTimeCode(0)
+    stage.SetEndTimeCode(5)
+    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.z)
+    UsdGeom.SetStageMetersPerUnit(stage, 0.01)
+    root = UsdGeom.Xform.Define(stage, "/root")
+    stage.SetDefaultPrim(root.GetPrim())
+    t = root.AddTranslateOp(UsdGeom.XformOp.PrecisionDouble)
+    for f in (0, 2, 4):
+        t.Set(Gf.Vec3d(1.5 * f, -2.0, 0.25 * f * f), Usd.TimeCode(f))
+    root.AddRotateXYZOp(UsdGeom.XformOp.PrecisionFloat).Set(Gf.Vec3f(10, 20, 30))
+    root.AddScaleOp(UsdGeom.XformOp.PrecisionHalf).Set(Gf.Vec3h(2, 0.5, 1.5))
+    child = UsdGeom.Xform.Define(stage, "/root/child")
+    o = child.AddOrientOp(UsdGeom.XformOp.PrecisionFloat)
+    o.Set(Gf.Quatf(1, 0, 0, 0), Usd.TimeCode(0))
+    o.Set(Gf.Quatf(0.5, 0.5, 0.5, 0.5), Usd.TimeCode(5))
+    pivot = child.AddTranslateOp(UsdGeom.XformOp.PrecisionFloat, "pivot")
+    pivot.Set(Gf.Vec3f(0.5, 0.25, -1))
+    child.AddRotateZYXOp(UsdGeom.XformOp.PrecisionDouble).Set(Gf.Vec3d(-40, 15, 70))
+    child.AddTranslateOp(UsdGeom.XformOp.PrecisionFloat, "pivot", isInverseOp=True)
+    m = UsdGeom.Mesh.Define(stage, "/root/child/mesh")
+    m.AddTransformOp().Set(Gf.Matrix4d(1, 0.2, 0, 0, 0, 1, 0, 0, 0.1, 0, 1, 0, 3, 4, 5, 1))
+    m.AddRotateXOp(UsdGeom.XformOp.PrecisionFloat).Set(33)
+    m.AddRotateYOp().Set(-12.5)
+    m.AddRotateZOp(UsdGeom.XformOp.PrecisionHalf).Set(45)
+    for op, v in ((m.AddRotateXZYOp(), (1, 2, 3)), (m.AddRotateYXZOp(), (4, 5, 6)), (m.AddRotateYZXOp(), (7, 8, 9)), (m.AddRotateZXYOp(), (10, 11, 12))):
+        op.Set(Gf.Vec3f(*v))
+    reset = UsdGeom.Mesh.Define(stage, "/root/child/reset")
+    reset.SetResetXformStack(True)
+    reset.AddTranslateOp().Set(Gf.Vec3d(100, 0, 0))
+    meshes = []
+    for mesh, nv in ((m, 6), (reset, 3)):
+        counts = [3] * (nv - 2)
+        idx = [i for k in range(nv - 2) for i in (0, k + 1, k + 2)]
+        mesh.CreateFaceVertexCountsAttr().Set(Vt.IntArray(counts))
+        mesh.CreateFaceVertexIndicesAttr().Set(Vt.IntArray(idx))
+        for f in range(6):
+            pts = [Gf.Vec3f(awkward(31 * f + 3 * v) % 7, v * 0.5 - f, (v * f) % 3) for v in range(nv)]
+            mesh.GetPointsAttr().Set(Vt.Vec3fArray(pts), Usd.TimeCode(f))
+        meshes.append((mesh, nv, counts, idx))
+    stage.GetRootLayer().Save()
+    positions = []
+    for f in range(6):
+        cache = UsdGeom.XformCache(Usd.TimeCode(f))
+        for mesh, _, _, _ in meshes:
+            world = cache.GetLocalToWorldTransform(mesh.GetPrim())
+            for p in mesh.GetPointsAttr().Get(Usd.TimeCode(f)):
+                q = world.Transform(Gf.Vec3d(p[0], p[1], p[2]))
+                positions += [q[0], q[1], q[2]]
+    write_expected(out, name, meshes, positions, 24.0, 6, transformed=True)
 
 
 def write_mixed(out, name, path):
@@ -160,14 +223,15 @@ def write_samples(out, name, stage, meshes, frames, fps, offset, t0=0, step=1):
     write_expected(out, name, meshes, positions, fps, frames)
 
 
-def write_expected(out, name, meshes, positions, fps, frames):
+def write_expected(out, name, meshes, positions, fps, frames, transformed=False):
     tris, offset_v = [], 0
     for mesh, nv, counts, idx in meshes:
         left = mesh.GetOrientationAttr().Get() == UsdGeom.Tokens.leftHanded
         tris += [[i + offset_v for i in t] for t in fan(counts, idx, left)]
         offset_v += nv
     with open(f"{out}/{name}.json", "w") as fh:
-        json.dump({"fps": fps, "frames": frames, "vertices": offset_v, "triangles": tris}, fh)
+        meta = {"fps": fps, "frames": frames, "vertices": offset_v, "triangles": tris, "transformed": transformed}
+        json.dump(meta, fh)
     with open(f"{out}/{name}.f32", "wb") as fh:
         fh.write(struct.pack(f"<{len(positions)}f", *positions))
 

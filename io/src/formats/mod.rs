@@ -27,6 +27,7 @@ pub mod pc2;
 pub mod stream;
 pub mod usd;
 mod usd_layer;
+mod usd_xform;
 pub mod usdc;
 mod usdz;
 

@@ -994,7 +994,7 @@ def Scope "world" (
             ("hello", "#usda"),
             ("#usda 1.0\n(\n subLayers = [@a.usda@]\n)\n", "subLayers"),
             ("#usda 1.0\ndef Xform \"a\" (references = @b.usda@) {}\n", "references"),
-            ("#usda 1.0\ndef Xform \"a\" { double3 xformOp:translate = (1, 2, 3)\n uniform token[] xformOpOrder = [\"xformOp:translate\"]\n def Mesh \"m\" { point3f[] points = [(0,0,0),(1,0,0),(0,1,0)]\n int[] faceVertexCounts = [3]\n int[] faceVertexIndices = [0,1,2] } }\n", "xformOpOrder"),
+            ("#usda 1.0\ndef Xform \"a\" { double3 xformOp:translat = (1, 2, 3)\n uniform token[] xformOpOrder = [\"xformOp:translate\"]\n def Mesh \"m\" { point3f[] points = [(0,0,0),(1,0,0),(0,1,0)]\n int[] faceVertexCounts = [3]\n int[] faceVertexIndices = [0,1,2] } }\n", "/a xformOpOrder"),
             ("#usda 1.0\ndef Xform \"a\" {}\n", "no Mesh"),
             ("#usda 1.0\ndef Mesh \"m\" { point3f[] points = [(0,0,0),(1,0,0),(0,1,0)]\n int[] faceVertexCounts = [3]\n int[] faceVertexIndices = [0,1,3] }\n", "out of range"),
             ("#usda 1.0\ndef Mesh \"m\" { point3f[] points = [(0,0,0),(1,0,0)]\n int[] faceVertexCounts = [2]\n int[] faceVertexIndices = [0,1] }\n", "at least 3"),
@@ -1013,6 +1013,33 @@ def Scope "world" (
         assert!(parse(&deep).unwrap_err().to_string().contains("nested"));
         let deep = format!("#usda 1.0\n{}", "def \"a\" {".repeat(100_000));
         assert!(parse(&deep).unwrap_err().to_string().contains("nested"));
+    }
+
+    /// Transforms of the mesh and its ancestors are applied, sampled ones at every frame; a
+    /// `Scope` (not xformable) transforms nothing; `!resetXformStack!` drops the parents'.
+    #[test]
+    fn xform_ops_of_the_mesh_and_its_ancestors_are_applied() {
+        let layer = |reset: &str| {
+            format!(
+                "#usda 1.0\ndef Xform \"a\" {{ double3 xformOp:translate.timeSamples = {{ 0: (1, 2, 3), 2: (3, 2, 3) }}\n \
+                 uniform token[] xformOpOrder = [\"xformOp:translate\"]\n def Scope \"s\" {{ float3 xformOp:scale = (9, 9, 9)\n \
+                 uniform token[] xformOpOrder = [\"xformOp:scale\"]\n def Mesh \"m\" {{ float xformOp:rotateZ = 90\n \
+                 uniform token[] xformOpOrder = [{reset}\"xformOp:rotateZ\"]\n point3f[] points.timeSamples = {{ 0: [(1,0,0),(0,1,0),(0,0,1)], \
+                 1: [(1,0,0),(0,1,0),(0,0,1)] }}\n \
+                 int[] faceVertexCounts = [3]\n int[] faceVertexIndices = [0,1,2] }} }} }}\n"
+            )
+        };
+        let a = parse(&layer("")).unwrap();
+        assert_eq!(a.frame_count(), 3);
+        // Frame 1 (time 1): rotated 90° about Z, then translated by the interpolated (2, 2, 3).
+        let f = a.frame(1);
+        let want = [2., 3., 3., 1., 2., 3., 2., 2., 4.];
+        assert!(f.iter().zip(want).all(|(x, y)| (x - y).abs() < 1e-6), "{f:?}");
+        let a = parse(&layer("\"!resetXformStack!\", ")).unwrap();
+        assert_eq!(a.frame_count(), 2);
+        let f = a.frame(0);
+        let want = [0., 1., 0., -1., 0., 0., 0., 0., 1.];
+        assert!(f.iter().zip(want).all(|(x, y)| (x - y).abs() < 1e-6), "{f:?}");
     }
 
     /// Issue 41 (misc): the nesting error counts levels, not prims; it says so, with both.

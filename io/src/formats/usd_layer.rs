@@ -11,7 +11,7 @@
 use codec_core::{Animation, Error, Result};
 
 use super::gltf_buffers::Budget;
-use super::{check_finite_in, in_file, reader_limits};
+use super::{check_finite_in, in_file, reader_limits, usd_xform};
 
 /// How to flatten a composed stage into one layer, with what `pip install usd-core` installs
 /// (its wheel has the `pxr` module, not the `usdcat` tool).
@@ -132,6 +132,10 @@ struct MeshData {
     /// Sorted by time: (time code, points); empty when only the default value exists.
     samples: Vec<(f64, Vec<f32>)>,
     default: Option<Vec<f32>>,
+    /// Prims (indexes in the layer) whose transforms apply, the mesh's own first.
+    transforms: Vec<usize>,
+    /// Time codes at which those transforms are sampled.
+    transform_times: Vec<f64>,
 }
 
 /// The vertex cache of every `Mesh` prim of `layer`, one after another (see
@@ -144,27 +148,30 @@ pub(super) fn assemble(file: &str, layer: Layer, frame_rate: Option<f32>, budget
         }
         let path = layer.path(i);
         budget.take("prim paths", path.len() as u64)?;
+        let mut mesh = mesh_data(file, &path, prim, budget)?;
+        // The prims whose transforms place the mesh: itself and its ancestors, up to one that
+        // resets the transform stack.
         let mut at = Some(i);
         while let Some(p) = at {
-            if has_transforms(&layer.prims[p]) {
-                return Err(unsupported(
-                    file,
-                    format!(
-                        "the mesh {} is under authored transforms (xformOpOrder): they are not applied here; \
-                         bake them into the points first",
-                        shown(&path)
-                    ),
-                ));
+            let local = usd_xform::local_transform(&layer.prims[p], 0.0)
+                .map_err(|e| Error::malformed(file.to_owned(), format!("{} xformOpOrder", shown(&layer.path(p))), e))?;
+            if let Some((_, reset)) = local {
+                mesh.transforms.push(p);
+                usd_xform::sample_times(&layer.prims[p], &mut mesh.transform_times);
+                if reset {
+                    break;
+                }
             }
             at = layer.prims[p].parent;
         }
-        meshes.push(mesh_data(file, &path, prim, budget)?);
+        meshes.push(mesh);
     }
     if meshes.is_empty() {
         return Err(Error::malformed(file.to_owned(), "meshes", "the layer defines no Mesh prim"));
     }
     // The frame times: every sample time of every mesh.
-    let mut times: Vec<f64> = meshes.iter().flat_map(|m| m.samples.iter().map(|s| s.0)).collect();
+    let mut times: Vec<f64> =
+        meshes.iter().flat_map(|m| m.samples.iter().map(|s| s.0).chain(m.transform_times.iter().copied())).collect();
     times.sort_by(f64::total_cmp);
     times.dedup();
     let step = match times.len() {
@@ -210,7 +217,21 @@ pub(super) fn assemble(file: &str, layer: Layer, frame_rate: Option<f32>, budget
     let mut positions = Vec::with_capacity(floats as usize);
     for &t in &times {
         for m in &meshes {
+            let start = positions.len();
             push_points_at(m, t, &mut positions);
+            if !m.transforms.is_empty() {
+                // world = local(mesh) · local(parent) · … (row vectors).
+                let mut world = usd_xform::IDENTITY;
+                for &p in &m.transforms {
+                    let local = usd_xform::local_transform(&layer.prims[p], t).map_err(|e| {
+                        Error::malformed(file.to_owned(), format!("{} xformOpOrder", shown(&layer.path(p))), e)
+                    })?;
+                    if let Some((local, _)) = local {
+                        world = usd_xform::multiply(&world, &local);
+                    }
+                }
+                usd_xform::transform_points(&world, &mut positions[start..]);
+            }
         }
     }
     let mut triangles = Vec::with_capacity(meshes.iter().map(|m| m.triangles.len()).sum());
@@ -230,14 +251,6 @@ pub(super) fn assemble(file: &str, layer: Layer, frame_rate: Option<f32>, budget
         }
     };
     Animation::from_parts(vertices, triangles, positions, fps).map_err(|e| in_file(file, e))
-}
-
-/// Whether a prim authors transforms: a non-empty `xformOpOrder`.
-fn has_transforms(prim: &Prim) -> bool {
-    prim.attribute("xformOpOrder").is_some_and(|a| {
-        matches!(&a.default, Some(Value::Tokens(t)) if !t.is_empty())
-            || a.samples.iter().any(|(_, v)| matches!(v, Some(Value::Tokens(t)) if !t.is_empty()))
-    })
 }
 
 /// Points of `mesh` at time code `t`, as `UsdAttribute::Get(t)` gives them: the sample at
@@ -365,5 +378,5 @@ fn mesh_data(file: &str, path: &str, prim: &Prim, budget: &mut Budget) -> Result
         }
         at_corner += n;
     }
-    Ok(MeshData { vertices, triangles, samples, default })
+    Ok(MeshData { vertices, triangles, samples, default, transforms: Vec::new(), transform_times: Vec::new() })
 }
