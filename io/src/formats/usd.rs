@@ -21,7 +21,7 @@
 //!
 //! What is refused by name rather than read wrongly: composition arcs (`subLayers`,
 //! `references`, `payload`, `inherits`, `specializes`, variant sets: flatten the stage first,
-//! [`FLATTEN_ADVICE`](super::usd_layer::FLATTEN_ADVICE)), authored transforms (`xformOpOrder`)
+//! with usd-core's `Usd.Stage.Open(IN).Export(OUT)`), authored transforms (`xformOpOrder`)
 //! on a mesh or its ancestors, a time-sampled topology, points whose count changes over time,
 //! value clips, spline-valued points.
 //!

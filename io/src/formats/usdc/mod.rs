@@ -2,9 +2,9 @@
 //! focused reader of what a vertex cache uses, and a writer.
 //!
 //! The format, as `pxr/usd/usd/crateFile.cpp` defines it: a header, values, six structural
-//! sections and a table of contents ([`container`]); LZ4-wrapped, integer-coded sections
-//! ([`compression`]); value representations and the values they point to ([`values`]). The
-//! reader builds the shared layer model ([`layer`]), from which the text reader's assembly
+//! sections and a table of contents (`container`); LZ4-wrapped, integer-coded sections
+//! (`compression`); value representations and the values they point to (`values`). The
+//! reader builds the shared layer model (`layer`), from which the text reader's assembly
 //! makes the animation; values are decoded only for the fields it uses, and types it does not
 //! need are skipped.
 //!

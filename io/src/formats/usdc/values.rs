@@ -310,7 +310,7 @@ impl Values<'_, '_> {
         let compressed = rep.is_compressed() && n >= MIN_COMPRESSED && arity == 1;
         if compressed && kind == 0 && minor >= 5 {
             budget.take("arrays", held)?;
-            let ints = compressed_ints(&mut c, n, component.max(4).min(8), budget, "integer array").map_err(e)?;
+            let ints = compressed_ints(&mut c, n, component.clamp(4, 8), budget, "integer array").map_err(e)?;
             let ints =
                 if signed || component == 8 { ints } else { ints.into_iter().map(|v| v as u32 as i64).collect() };
             return Ok(Value::Ints(ints));
@@ -403,11 +403,11 @@ impl Values<'_, '_> {
         if times.len() as u64 != n {
             return Err(e(format!("{} sample times but {n} sample values", times.len())));
         }
-        if let Some(w) = times.windows(2).find(|w| !(w[0] < w[1])) {
-            return Err(e(format!("sample times {} and {} are not increasing", w[0], w[1])));
-        }
         if let Some(t) = times.iter().find(|t| !t.is_finite()) {
             return Err(e(format!("sample time {t} is not finite")));
+        }
+        if let Some(w) = times.windows(2).find(|w| w[0] >= w[1]) {
+            return Err(e(format!("sample times {} and {} are not increasing", w[0], w[1])));
         }
         budget.take("time samples", n.saturating_mul(16))?;
         Ok(times
