@@ -19,11 +19,14 @@
 //! layer's `timeCodesPerSecond` (else `framesPerSecond`, else USD's 24) divided by the time-code
 //! step, unless [`ReadOptions::frame_rate`](super::ReadOptions::frame_rate) overrides it.
 //!
+//! The `xformOp`s of each mesh and of its ancestors (`xformOpOrder`, `usd_xform`) are applied
+//! to its points at every frame; ops sampled at other times than the points add those frames.
+//!
 //! What is refused by name rather than read wrongly: composition arcs (`subLayers`,
 //! `references`, `payload`, `inherits`, `specializes`, variant sets: flatten the stage first,
-//! with usd-core's `Usd.Stage.Open(IN).Export(OUT)`), authored transforms (`xformOpOrder`)
-//! on a mesh or its ancestors, a time-sampled topology, points whose count changes over time,
-//! value clips, spline-valued points.
+//! with usd-core's `Usd.Stage.Open(IN).Export(OUT)`), meshes deformed by UsdSkel (joint
+//! indices or blend shapes), a time-sampled topology, points whose count changes over time,
+//! value clips, spline-valued points and ops.
 //!
 //! The input is untrusted: nesting is bounded ([`MAX_DEPTH`]), every array is counted against
 //! the read's memory budget before it is kept, the cache's size is checked against
@@ -996,6 +999,7 @@ def Scope "world" (
             ("#usda 1.0\ndef Xform \"a\" (references = @b.usda@) {}\n", "references"),
             ("#usda 1.0\ndef Xform \"a\" { double3 xformOp:translat = (1, 2, 3)\n uniform token[] xformOpOrder = [\"xformOp:translate\"]\n def Mesh \"m\" { point3f[] points = [(0,0,0),(1,0,0),(0,1,0)]\n int[] faceVertexCounts = [3]\n int[] faceVertexIndices = [0,1,2] } }\n", "/a xformOpOrder"),
             ("#usda 1.0\ndef Xform \"a\" {}\n", "no Mesh"),
+            ("#usda 1.0\ndef Mesh \"m\" { point3f[] points = [(0,0,0),(1,0,0),(0,1,0)]\n int[] faceVertexCounts = [3]\n int[] faceVertexIndices = [0,1,2]\n int[] primvars:skel:jointIndices = [0, 0, 0] (elementSize = 1 interpolation = \"vertex\") }\n", "UsdSkel"),
             ("#usda 1.0\ndef Mesh \"m\" { point3f[] points = [(0,0,0),(1,0,0),(0,1,0)]\n int[] faceVertexCounts = [3]\n int[] faceVertexIndices = [0,1,3] }\n", "out of range"),
             ("#usda 1.0\ndef Mesh \"m\" { point3f[] points = [(0,0,0),(1,0,0)]\n int[] faceVertexCounts = [2]\n int[] faceVertexIndices = [0,1] }\n", "at least 3"),
             ("#usda 1.0\ndef Mesh \"m\" { point3f[] points.timeSamples = { 0: [(0,0,0)], 1: [(0,0,0),(1,1,1)] }\n int[] faceVertexCounts = []\n int[] faceVertexIndices = [] }\n", "changing point count"),

@@ -86,7 +86,12 @@ pub(super) struct Layer {
 pub(super) fn is_kept_attribute(name: &str) -> bool {
     matches!(name, "points" | "faceVertexCounts" | "faceVertexIndices" | "orientation" | "xformOpOrder")
         || name.starts_with("xformOp:")
+        || SKEL_ATTRIBUTES.contains(&name)
 }
+
+/// Mesh attributes that bind it to a `UsdSkel` skeleton or blend shapes: its points are then
+/// the rest pose, not what plays, and such a mesh is refused rather than read still.
+const SKEL_ATTRIBUTES: &[&str] = &["primvars:skel:jointIndices", "skel:blendShapes"];
 
 impl Layer {
     /// The path of prim `i` (`/a/b`).
@@ -148,6 +153,17 @@ pub(super) fn assemble(file: &str, layer: Layer, frame_rate: Option<f32>, budget
         }
         let path = layer.path(i);
         budget.take("prim paths", path.len() as u64)?;
+        if let Some(skel) = SKEL_ATTRIBUTES.iter().find(|a| prim.attribute(a).is_some()) {
+            return Err(unsupported(
+                file,
+                format!(
+                    "the mesh {} is deformed by UsdSkel (`{skel}`): skinning and blend shapes are not evaluated \
+                     here; bake the deformation into the points first (Blender's USD export: without armatures \
+                     and shape keys as skeletons and blend shapes)",
+                    shown(&path)
+                ),
+            ));
+        }
         let mut mesh = mesh_data(file, &path, prim, budget)?;
         // The prims whose transforms place the mesh: itself and its ancestors, up to one that
         // resets the transform stack.
