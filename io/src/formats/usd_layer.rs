@@ -230,23 +230,39 @@ pub(super) fn assemble(file: &str, layer: Layer, frame_rate: Option<f32>, budget
     let floats = (vertices as u64).saturating_mul(3).saturating_mul(times.len() as u64);
     limits.check_alloc("formats", "positions", floats.saturating_mul(4))?;
     budget.take("positions", floats.saturating_mul(4))?;
+    // The world transform of every transformed prim at every frame, each computed once (a
+    // prim's world is its local transform times the world of the next transformed prim up its
+    // chain: world = local(mesh) · local(parent) · …, row vectors).
+    let mut worlds: std::collections::HashMap<usize, Vec<usd_xform::Matrix>> = std::collections::HashMap::new();
+    for m in &meshes {
+        for (k, &p) in m.transforms.iter().enumerate().rev() {
+            if worlds.contains_key(&p) {
+                continue;
+            }
+            budget.take("transforms", (times.len() as u64).saturating_mul(128))?;
+            let above = m.transforms.get(k + 1).and_then(|q| worlds.get(q));
+            let mut per_frame = Vec::with_capacity(times.len());
+            for (f, &t) in times.iter().enumerate() {
+                let local = usd_xform::local_transform(&layer.prims[p], t)
+                    .map_err(|e| {
+                        Error::malformed(file.to_owned(), format!("{} xformOpOrder", shown(&layer.path(p))), e)
+                    })?
+                    .map_or(usd_xform::IDENTITY, |l| l.0);
+                per_frame.push(match above {
+                    Some(w) => usd_xform::multiply(&local, &w[f]),
+                    None => local,
+                });
+            }
+            worlds.insert(p, per_frame);
+        }
+    }
     let mut positions = Vec::with_capacity(floats as usize);
-    for &t in &times {
+    for (f, &t) in times.iter().enumerate() {
         for m in &meshes {
             let start = positions.len();
             push_points_at(m, t, &mut positions);
-            if !m.transforms.is_empty() {
-                // world = local(mesh) · local(parent) · … (row vectors).
-                let mut world = usd_xform::IDENTITY;
-                for &p in &m.transforms {
-                    let local = usd_xform::local_transform(&layer.prims[p], t).map_err(|e| {
-                        Error::malformed(file.to_owned(), format!("{} xformOpOrder", shown(&layer.path(p))), e)
-                    })?;
-                    if let Some((local, _)) = local {
-                        world = usd_xform::multiply(&world, &local);
-                    }
-                }
-                usd_xform::transform_points(&world, &mut positions[start..]);
+            if let Some(world) = m.transforms.first().and_then(|p| worlds.get(p)) {
+                usd_xform::transform_points(&world[f], &mut positions[start..]);
             }
         }
     }

@@ -109,26 +109,52 @@ fn slerp(a: &[f64], b: &[f64], alpha: f64) -> Vec<f64> {
     a.iter().zip(&b).map(|(x, y)| wa * x + wb * y).collect()
 }
 
-/// The attribute's value at time code `t` as numbers, as `UsdAttribute::Get(t)` gives it.
+/// The numbers of an op value of at most 16 components (longer ones are not an op's value and
+/// are never copied).
+fn small_numbers(value: &Value) -> Option<Vec<f64>> {
+    let len = match value {
+        Value::Floats { values, .. } => values.len(),
+        Value::Doubles { values, .. } => values.len(),
+        Value::Ints(v) => v.len(),
+        _ => return None,
+    };
+    if len > 16 {
+        return None;
+    }
+    numbers(value)
+}
+
+/// The attribute's value at time code `t` as numbers, as `UsdAttribute::Get(t)` gives it
+/// (blocked samples are skipped, as for points). The samples are sorted by time: a binary
+/// search finds the two around `t`.
 fn numbers_at(attr: &Attribute, t: f64, is_quaternion: bool) -> Option<Vec<f64>> {
-    let samples: Vec<(f64, Vec<f64>)> =
-        attr.samples.iter().filter_map(|(time, v)| Some((*time, numbers(v.as_ref()?)?))).collect();
-    if samples.is_empty() {
-        return numbers(attr.default.as_ref()?);
+    let s = &attr.samples;
+    if !s.iter().any(|x| x.1.is_some()) {
+        return small_numbers(attr.default.as_ref()?);
     }
-    let after = samples.partition_point(|s| s.0 < t);
-    if after < samples.len() && samples[after].0 == t || after == 0 {
-        return Some(samples[after].1.clone());
+    let after = s.partition_point(|x| x.0 < t);
+    if let Some((time, Some(v))) = s.get(after) {
+        if *time == t {
+            return small_numbers(v);
+        }
     }
-    if after == samples.len() {
-        return Some(samples[after - 1].1.clone());
-    }
-    let ((t0, a), (t1, b)) = (&samples[after - 1], &samples[after]);
+    let before = s[..after].iter().rev().find_map(|(time, v)| Some((*time, v.as_ref()?)));
+    let next = s[after..].iter().find_map(|(time, v)| Some((*time, v.as_ref()?)));
+    let ((t0, a), (t1, b)) = match (before, next) {
+        (Some(a), Some(b)) => (a, b),
+        (Some((_, v)), None) | (None, Some((_, v))) => return small_numbers(v),
+        (None, None) => return None,
+    };
+    let (a, b) = (small_numbers(a)?, small_numbers(b)?);
     if a.len() != b.len() {
-        return Some(a.clone());
+        return Some(a);
     }
     let alpha = (t - t0) / (t1 - t0);
-    Some(if is_quaternion { slerp(a, b, alpha) } else { a.iter().zip(b).map(|(x, y)| x + (y - x) * alpha).collect() })
+    Some(if is_quaternion {
+        slerp(&a, &b, alpha)
+    } else {
+        a.iter().zip(&b).map(|(x, y)| x + (y - x) * alpha).collect()
+    })
 }
 
 /// Types that are not `UsdGeomXformable`: their `xformOp`s, if any, transform nothing.
@@ -237,7 +263,7 @@ pub(super) fn local_transform(prim: &Prim, t: f64) -> Result<Option<(Matrix, boo
 pub(super) fn sample_times(prim: &Prim, out: &mut Vec<f64>) {
     for a in &prim.attributes {
         if a.name.starts_with("xformOp") {
-            out.extend(a.samples.iter().map(|s| s.0));
+            out.extend(a.samples.iter().filter(|s| s.1.is_some()).map(|s| s.0));
         }
     }
 }

@@ -108,8 +108,9 @@ pub struct Crate<'a> {
     pub bytes: &'a [u8],
     /// Major, minor, patch.
     pub version: [u8; 3],
-    token_bytes: Vec<u8>,
-    /// (start, end) of each token in `token_bytes`.
+    /// Every token, NUL-terminated, as UTF-8.
+    token_text: String,
+    /// (start, end) of each token in `token_text` (each end at a NUL).
     token_spans: Vec<(u32, u32)>,
     /// Token index of each string.
     strings: Vec<u32>,
@@ -132,8 +133,8 @@ impl<'a> Crate<'a> {
             .token_spans
             .get(i as usize)
             .ok_or_else(|| self.err(what, format!("token index {i} is past the {} tokens", self.token_spans.len())))?;
-        std::str::from_utf8(&self.token_bytes[a as usize..b as usize])
-            .map_err(|_| self.err(what, format!("token {i} is not UTF-8")))
+        // Spans start and end at NULs (or the start), always character boundaries.
+        self.token_text.get(a as usize..b as usize).ok_or_else(|| self.err(what, format!("token {i} is not UTF-8")))
     }
 
     /// String `i` (a string index refers to a token).
@@ -247,7 +248,7 @@ pub fn read_crate<'a>(bytes: &'a [u8], file: &'a str, budget: &mut Budget) -> Re
         file,
         bytes,
         version,
-        token_bytes: Vec::new(),
+        token_text: String::new(),
         token_spans: Vec::new(),
         strings: Vec::new(),
         fields: Vec::new(),
@@ -320,6 +321,20 @@ fn read_tokens(k: &mut Crate, mut c: Cursor, budget: &mut Budget) -> Result<()> 
     if u32::try_from(raw).is_err() {
         return Err(e(format!("{raw} bytes of tokens (at most 4 GiB are read)")));
     }
+    // Checked once here (a token may be named by many fields): an invalid sequence becomes
+    // U+FFFD, which keeps every NUL where it is but may lengthen the buffer.
+    let text = match String::from_utf8(bytes) {
+        Ok(text) => text,
+        Err(e) => {
+            let text = String::from_utf8_lossy(e.as_bytes()).into_owned();
+            budget.take("tokens", text.len() as u64)?;
+            text
+        }
+    };
+    let bytes = text.as_bytes();
+    if u32::try_from(bytes.len()).is_err() {
+        return Err(e(format!("{} bytes of tokens (at most 4 GiB are read)", bytes.len())));
+    }
     let mut spans = Vec::with_capacity(count as usize);
     let mut at = 0usize;
     while spans.len() < count as usize {
@@ -330,7 +345,7 @@ fn read_tokens(k: &mut Crate, mut c: Cursor, budget: &mut Budget) -> Result<()> 
         spans.push((at as u32, (at + len) as u32));
         at += len + 1;
     }
-    k.token_bytes = bytes;
+    k.token_text = text;
     k.token_spans = spans;
     Ok(())
 }

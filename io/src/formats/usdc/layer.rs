@@ -226,7 +226,13 @@ fn attribute(
         match field {
             "default" if rep.ty() != ty::VALUE_BLOCK => attr.default = Some(values.value(rep, name, budget)?),
             "timeSamples" => {
-                for (time, value) in values.time_samples(rep, &format!("{} timeSamples", k.path_text(path)?), budget)? {
+                let samples = values.time_samples(rep, &format!("{name} timeSamples"), budget);
+                let samples = match samples {
+                    Ok(s) => s,
+                    // The path is spelled out only for the message.
+                    Err(e) => return Err(named(e, &k.path_text(path)?)),
+                };
+                for (time, value) in samples {
                     let value =
                         if value.ty() == ty::VALUE_BLOCK { None } else { Some(values.value(value, name, budget)?) };
                     attr.samples.push((time, value));
@@ -239,4 +245,14 @@ fn attribute(
         }
     }
     Ok(attr)
+}
+
+/// `e` with the (shortened) path of what it is about in front.
+fn named(e: codec_core::Error, path: &str) -> codec_core::Error {
+    match e {
+        codec_core::Error::Malformed { context, field, detail } => {
+            codec_core::Error::Malformed { context, field: format!("{} {field}", shown(path)).into(), detail }
+        }
+        other => other,
+    }
 }
