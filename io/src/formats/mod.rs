@@ -26,6 +26,7 @@ pub mod obj;
 pub mod pc2;
 pub mod stream;
 pub mod usd;
+mod usd_assemble;
 mod usd_layer;
 mod usd_xform;
 pub mod usdc;

@@ -4,7 +4,7 @@
 //! `PXR-USDC`, a zip's `PK`), never by the extension.
 //!
 //! **Read** ([`parse_usd`]): both the text parser here and the crate reader fill one layer
-//! model (`usd_layer`), and one assembly makes the animation. Every `def Mesh` of the layer (depth-first, in authored order, as
+//! model (`usd_layer`), and one assembly (`usd_assemble`) makes the animation. Every `def Mesh` of the layer (depth-first, in authored order, as
 //! `UsdStage::Traverse` visits them; prims under `class`/`over` specs and `active = false` prims
 //! are not part of the played-back scene and are skipped) becomes part of one vertex cache, its
 //! vertices after those of the meshes before it. From each mesh: `points` (the default value
@@ -47,15 +47,12 @@ use std::path::Path;
 use codec_core::{Animation, Error, Result};
 
 use super::gltf_buffers::Budget;
+use super::usd_assemble::assemble;
 pub use super::usd_layer::USD_DEFAULT_TIME_CODES_PER_SECOND;
-use super::usd_layer::{
-    assemble, is_kept_attribute, shown, unsupported, Attribute, Layer, Prim, Value, FLATTEN_ADVICE,
-};
+use super::usd_layer::{is_kept_attribute, shown, unsupported, Attribute, Layer, Prim, Value, FLATTEN_ADVICE};
 use super::{name, read_file};
 
-/// Deepest nesting of prims, lists, tuples and metadata the reader follows: far above real
-/// scenes (character rigs nest prims 10–20 deep), far below what would exhaust the stack.
-pub const MAX_DEPTH: usize = 256;
+pub use super::usd_layer::MAX_DEPTH;
 
 /// The USDA header every text layer starts with.
 const USDA_MAGIC: &[u8] = b"#usda ";

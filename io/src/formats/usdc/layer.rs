@@ -10,8 +10,9 @@ use std::collections::HashMap;
 use codec_core::Result;
 
 use super::super::gltf_buffers::Budget;
-use super::super::usd::MAX_DEPTH;
-use super::super::usd_layer::{is_kept_attribute, shown, unsupported, Attribute, Layer, Prim, Value, FLATTEN_ADVICE};
+use super::super::usd_layer::{
+    is_kept_attribute, shown, unsupported, Attribute, Layer, Prim, Value, FLATTEN_ADVICE, MAX_DEPTH,
+};
 use super::container::{Crate, SPEC_ATTRIBUTE, SPEC_PRIM, SPEC_PSEUDO_ROOT};
 use super::values::{ty, Rep, Values};
 
