@@ -19,9 +19,9 @@ use codec_core::synth::SynthSize;
 /// and measure them.
 ///
 /// Inputs are read by file extension: a `.pc2` or `.mdd` point cache (triangles from the OBJ
-/// with the same stem, or `--topology`), a `.gltf`/`.glb` morph-target animation, a `.usda`
-/// USD text layer (time-sampled mesh points), an `.abc` Alembic archive (PolyMesh/SubD objects,
-/// transforms baked in; `--object` picks one), or a directory / pattern of OBJ files. `synth:NAME[:SIZE]` names a built-in synthetic animation
+/// with the same stem, or `--topology`), a `.gltf`/`.glb` morph-target animation, a USD layer
+/// (`.usda`, `.usdc`, `.usd`, `.usdz`: time-sampled mesh points), an `.abc` Alembic archive
+/// (PolyMesh/SubD objects, transforms baked in; `--object` picks one), or a directory / pattern of OBJ files. `synth:NAME[:SIZE]` names a built-in synthetic animation
 /// (see `animcodec synth --help`).
 #[derive(Debug, Parser)]
 #[command(name = "animcodec", version, propagate_version = true, max_term_width = 110)]
@@ -610,8 +610,8 @@ pub struct DecodeArgs {
     pub input: PathBuf,
 
     /// Output animation: .pc2, .mdd, .glb/.gltf, .usda/.usd (a USD text layer: one Mesh with
-    /// time-sampled points, timeCodesPerSecond = the frame rate), .abc (Alembic: one PolyMesh
-    /// under an Xform, uniform time sampling at the frame rate), or an OBJ sequence: a directory (`DIR/frame_0000.obj`, …),
+    /// time-sampled points, timeCodesPerSecond = the frame rate), .usdc (the same as binary USD),
+    /// .abc (Alembic: one PolyMesh under an Xform, uniform time sampling at the frame rate), or an OBJ sequence: a directory (`DIR/frame_0000.obj`, …),
     /// a path ending in .obj with `{}` (frame number, 4+ digits) or `###` (frame number padded
     /// to the run) in the file name, or a plain `NAME.obj` (`NAME_0000.obj`, …). A sequence owns
     /// only the files of its own name pattern: exactly its prefix (`frame_`, the text before

@@ -14,8 +14,10 @@
 //!   further one a packet of `1 + kind / 2` frames (keyframe if `kind` is odd). They are
 //!   written into a valid container (right FourCC and version, the [`fuzz_topology`], frame
 //!   count = the packets' sum, every checksum right), so the codec's own parser sees them.
-//! - `read_pc2`, `read_mdd`, `read_obj`, `read_gltf`, `read_usd`, `read_abc`: the file readers on
-//!   any bytes.
+//! - `read_pc2`, `read_mdd`, `read_obj`, `read_gltf`, `read_usd`, `read_usdc`, `read_abc`: the file
+//!   readers on any bytes (`read_usd` from text layers, `read_usdc` from crate files and usdz
+//!   packages; both call the one USD entry point, which tells the three apart by their first
+//!   bytes).
 
 use std::io::Cursor;
 use std::path::{Path, PathBuf};
@@ -31,7 +33,7 @@ pub fn targets() -> Vec<String> {
     for codec in animcodec::registry().iter() {
         t.push(format!("codec_{}", codec.name().replace('-', "_")));
     }
-    t.extend(["read_pc2", "read_mdd", "read_obj", "read_gltf", "read_usd", "read_abc"].map(String::from));
+    t.extend(["read_pc2", "read_mdd", "read_obj", "read_gltf", "read_usd", "read_usdc", "read_abc"].map(String::from));
     t
 }
 
@@ -45,6 +47,7 @@ pub fn run(target: &str, data: &[u8]) {
         "read_gltf" => read_gltf(data),
         "read_usd" => read_usd(data),
         "read_abc" => read_abc(data),
+        "read_usdc" => read_usdc(data),
         t => match t.strip_prefix("codec_") {
             Some(codec) => codec_stream(&codec.replace('_', "-"), data),
             None => panic!("unknown fuzz target '{t}'"),
@@ -239,14 +242,25 @@ pub fn read_gltf(data: &[u8]) {
     });
 }
 
-/// Target `read_usd` (a USD text layer; crate files and packages are refused by their magic).
+/// Target `read_usd` (seeded with USD text layers; crate files and packages are read too).
 /// The read's own memory budget is a quarter of the target's, so a layer whose cache would be
 /// far larger than the file (a long animated mesh beside a large static one) is refused
 /// before anything is allocated.
 pub fn read_usd(data: &[u8]) {
+    read_usd_layer("read_usd", data);
+}
+
+/// Target `read_usdc`: the same reader, seeded with crate files (ours and usd-core's) and
+/// usdz packages. A crate file's time samples may share one array, so a small file can stand
+/// for a large cache: the read's budget refuses it before it is allocated.
+pub fn read_usdc(data: &[u8]) {
+    read_usd_layer("read_usdc", data);
+}
+
+fn read_usd_layer(target: &str, data: &[u8]) {
     let budget = reader_budget(data.len());
-    within("read_usd", budget, || {
-        if let Ok(a) = animcodec::formats::usd::parse_usda(data, "fuzz.usda", None, Some(budget / 4)) {
+    within(target, budget, || {
+        if let Ok(a) = animcodec::formats::usd::parse_usd(data, "fuzz.usd", None, Some(budget / 4)) {
             assert!(a.positions().iter().all(|x| x.is_finite()));
             let n = a.vertex_count() as u32;
             assert!(a.triangles().iter().flatten().all(|&i| i < n), "triangle index out of range");
@@ -328,7 +342,7 @@ fn decodes(target: &str, data: &[u8]) -> bool {
         "read_mdd" => animcodec::formats::mdd::parse_mdd(data, "seed.mdd").is_ok(),
         "read_obj" => animcodec::formats::obj::parse_obj(data, "seed.obj").is_ok(),
         "read_gltf" => animcodec::formats::gltf::parse_gltf(data, None, "seed.glb", synth::FRAME_RATE).is_ok(),
-        "read_usd" => animcodec::formats::usd::parse_usda(data, "seed.usda", None, None).is_ok(),
+        "read_usd" | "read_usdc" => animcodec::formats::usd::parse_usd(data, "seed.usd", None, None).is_ok(),
         "read_abc" => animcodec::formats::abc::parse_abc(data, "seed.abc", None, None, None).is_ok(),
         t => t
             .strip_prefix("codec_")
@@ -454,6 +468,7 @@ pub fn seeds() -> Vec<(String, String, Vec<u8>)> {
         out.push(("read_obj".into(), name.into(), text.into_bytes()));
         out.push(("read_usd".into(), name.into(), animcodec::formats::usd::encode_usda(&anim).expect("usda")));
         out.push(("read_abc".into(), name.into(), animcodec::formats::abc::encode_abc(&anim).expect("abc")));
+        out.push(("read_usdc".into(), name.into(), animcodec::formats::usdc::encode_usdc(&anim).expect("usdc")));
     }
     // What usd-core writes (two meshes, polygons, a left-handed one, a class and an inactive
     // prim, metadata and dictionaries the reader must skip).

@@ -8,9 +8,9 @@
 //! | MDD | `*.mdd` | as for PC2 | [`ReadOptions::frame_rate`], else derived from the stored times when sane, else 30 |
 //! | glTF / GLB | `*.gltf`, `*.glb` (the scene played back: every mesh, node animation, skins, morph targets; [`gltf`]) | the meshes' indices | sampling rate: [`ReadOptions::frame_rate`], else the file's own (animcodec's extras, the key grid), else 30 |
 //! | Alembic | `*.abc` (Ogawa; every PolyMesh and SubD object, or those at/under [`ReadOptions::object`], Xform ancestors baked in; [`abc`]; HDF5 archives are refused) | `.faceCounts`/`.faceIndices`, fanned, clockwise turned counter-clockwise | [`ReadOptions::frame_rate`], else one over the sample step (seconds) |
-//! | USD text layer | `*.usda`, `*.usd` (every `Mesh` prim, time-sampled `points`; [`usd`]; `.usdc`/`.usdz` are refused with the conversion to use) | `faceVertexCounts`/`faceVertexIndices`, fanned | [`ReadOptions::frame_rate`], else `timeCodesPerSecond` / the time-code step |
+//! | USD | `*.usda`, `*.usdc`, `*.usd`, `*.usdz` (text layer, crate file or package, told apart by the first bytes; every `Mesh` prim, time-sampled `points`; [`usd`], [`usdc`]) | `faceVertexCounts`/`faceVertexIndices`, fanned | [`ReadOptions::frame_rate`], else `timeCodesPerSecond` / the time-code step |
 //!
-//! Outputs: `.usda`/`.usd` (a text layer, [`usd::encode_usda`]), `.abc` (Alembic, one PolyMesh, [`abc::encode_abc`]), `.pc2`, `.mdd` (each with `STEM.obj` holding frame 0 and the faces written beside
+//! Outputs: `.usda`/`.usd` (a text layer, [`usd::encode_usda`]), `.usdc` (a crate file, [`usdc::encode_usdc`]), `.abc` (Alembic, one PolyMesh, [`abc::encode_abc`]), `.pc2`, `.mdd` (each with `STEM.obj` holding frame 0 and the faces written beside
 //! it, so the cache can be read back on its own) and OBJ sequences (see [`obj::write_obj_sequence`]).
 //! All readers keep the file's own vertex order, check every size against the file length before
 //! allocating, and name the file (and frame / vertex / line) in every error.
@@ -29,6 +29,11 @@ pub mod obj;
 pub mod pc2;
 pub mod stream;
 pub mod usd;
+mod usd_assemble;
+mod usd_layer;
+mod usd_xform;
+pub mod usdc;
+mod usdz;
 
 use std::cmp::Ordering;
 use std::io::Write as _;
@@ -43,11 +48,11 @@ pub const DEFAULT_FRAME_RATE: f32 = 30.0;
 
 /// Input formats, for messages: what [`read_animation`] accepts.
 pub const SUPPORTED_INPUTS: &str =
-    "a directory of .obj files, an .obj file-name pattern with * or ?, .obj, .pc2, .mdd, .gltf, .glb, .usda, .usd, .abc (Alembic)";
+    "a directory of .obj files, an .obj file-name pattern with * or ?, .obj, .pc2, .mdd, .gltf, .glb, .usda, .usdc, .usd, .usdz, .abc (Alembic)";
 
 /// Output formats, for messages: what [`write_animation`] accepts.
 pub const SUPPORTED_OUTPUTS: &str =
-    ".pc2, .mdd, .glb, .gltf (morph targets + weights animation), .usda / .usd (USD text layer, time-sampled points), .abc (Alembic, one PolyMesh), .obj (an OBJ sequence stem_0000.obj, …) or a \
+    ".pc2, .mdd, .glb, .gltf (morph targets + weights animation), .usda / .usd (USD text layer, time-sampled points), .usdc (binary USD), .abc (Alembic, one PolyMesh), .obj (an OBJ sequence stem_0000.obj, …) or a \
      directory (frame_0000.obj, …)";
 
 /// Options for [`read_animation`].
@@ -95,7 +100,9 @@ pub fn check_frame_rate(fps: f32) -> Result<f32> {
 }
 
 /// Reads an animation, choosing the format from the path: a directory or glob of OBJ files,
-/// `.obj`, `.pc2`, `.mdd`, `.gltf` / `.glb`, `.usda` / `.usd`, `.abc` (extensions are case-insensitive).
+/// `.obj`, `.pc2`, `.mdd`, `.gltf` / `.glb`, `.usda` / `.usdc` / `.usd` / `.usdz`, `.abc` (extensions
+/// are case-insensitive; a USD file's content decides whether it is a text layer, a crate file
+/// or a package).
 pub fn read_animation(path: &Path, options: &ReadOptions) -> Result<Animation> {
     let frame_rate = options.checked_frame_rate()?;
     let fps = frame_rate.unwrap_or(DEFAULT_FRAME_RATE);
@@ -175,12 +182,17 @@ pub fn write_animation_with(path: &Path, animation: &Animation, options: &WriteO
             abc::check_reads_back(path, &bytes, animation)?;
             (bytes, false)
         }
-        Some(ext @ ("usdc" | "usdz")) => {
+        Some("usdc") => {
+            let bytes = usdc::encode_usdc(animation)?;
+            usd::check_reads_back(path, &bytes, animation)?;
+            (bytes, false)
+        }
+        Some("usdz") => {
             return Err(Error::Unsupported {
                 context: "formats".into(),
                 detail: format!(
-                    "cannot write {}: .{ext} (binary USD) is not written; write .usda (a text layer) and convert it \
-                     with `usdcat X.usda -o X.{ext}` if needed",
+                    "cannot write {}: .usdz packages are read, not written; write .usdc (binary USD) and package it \
+                     with usd-core (`UsdUtils.CreateNewUsdzPackage`) if needed",
                     path.display()
                 ),
             })

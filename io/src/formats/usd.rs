@@ -1,6 +1,10 @@
-//! USD in and out, text layers (`.usda`): time-sampled `UsdGeomMesh` prims.
+//! USD in and out: time-sampled `UsdGeomMesh` prims of text layers (`.usda`), crate files
+//! (`.usdc`, [`super::usdc`]) and usdz packages (read only; their root layer). A `.usd` file
+//! may hold either a text layer or a crate file: the reader goes by the first bytes (`#usda`,
+//! `PXR-USDC`, a zip's `PK`), never by the extension.
 //!
-//! **Read** ([`parse_usda`]): every `def Mesh` of the layer (depth-first, in authored order, as
+//! **Read** ([`parse_usd`]): both the text parser here and the crate reader fill one layer
+//! model (`usd_layer`), and one assembly (`usd_assemble`) makes the animation. Every `def Mesh` of the layer (depth-first, in authored order, as
 //! `UsdStage::Traverse` visits them; prims under `class`/`over` specs and `active = false` prims
 //! are not part of the played-back scene and are skipped) becomes part of one vertex cache, its
 //! vertices after those of the meshes before it. From each mesh: `points` (the default value
@@ -15,19 +19,22 @@
 //! layer's `timeCodesPerSecond` (else `framesPerSecond`, else USD's 24) divided by the time-code
 //! step, unless [`ReadOptions::frame_rate`](super::ReadOptions::frame_rate) overrides it.
 //!
+//! The `xformOp`s of each mesh and of its ancestors (`xformOpOrder`, `usd_xform`) are applied
+//! to its points at every frame; ops sampled at other times than the points add those frames.
+//!
 //! What is refused by name rather than read wrongly: composition arcs (`subLayers`,
 //! `references`, `payload`, `inherits`, `specializes`, variant sets: flatten the stage first,
-//! `usdcat --flatten`), authored transforms (`xformOpOrder`) on a mesh or its ancestors, a
-//! time-sampled topology, points whose count changes over time, value clips. Binary crate files
-//! (`.usdc`) and packages (`.usdz`) are recognised and refused with the conversion to use
-//! (`usdcat in.usdc -o out.usda`): see `docs/notes/issue-29-usd.md` for why.
+//! with usd-core's `Usd.Stage.Open(IN).Export(OUT)`), meshes deformed by UsdSkel (joint
+//! indices or blend shapes), a time-sampled topology, points whose count changes over time,
+//! value clips, spline-valued points and ops.
 //!
 //! The input is untrusted: nesting is bounded ([`MAX_DEPTH`]), every array is counted against
 //! the read's memory budget before it is kept, the cache's size is checked against
 //! [`reader_limits`](super::reader_limits) and the budget before it is allocated, and every
 //! coordinate must be finite.
 //!
-//! **Write** ([`encode_usda`]): one `Mesh` prim `/animcodec/mesh` under an `Xform`, triangles as
+//! **Write** ([`encode_usda`]; [`super::usdc::encode_usdc`] writes the same scene as a crate
+//! file): one `Mesh` prim `/animcodec/mesh` under an `Xform`, triangles as
 //! `faceVertexCounts` of 3, `points.timeSamples` at time codes 0, 1, … with
 //! `timeCodesPerSecond` = `framesPerSecond` = the animation's frame rate, per-frame `extent`,
 //! `upAxis = "Y"`, `metersPerUnit = 1` and `defaultPrim`, so Pixar's compliance checker passes
@@ -40,64 +47,73 @@ use std::path::Path;
 use codec_core::{Animation, Error, Result};
 
 use super::gltf_buffers::Budget;
-use super::{check_finite_in, in_file, name, read_file, reader_limits};
+use super::usd_assemble::assemble;
+pub use super::usd_layer::USD_DEFAULT_TIME_CODES_PER_SECOND;
+use super::usd_layer::{is_kept_attribute, shown, unsupported, Attribute, Layer, Prim, Value, FLATTEN_ADVICE};
+use super::{name, read_file};
 
-/// Deepest nesting of prims, lists, tuples and metadata the reader follows: far above real
-/// scenes (character rigs nest prims 10–20 deep), far below what would exhaust the stack.
-pub const MAX_DEPTH: usize = 256;
-
-/// USD's default `timeCodesPerSecond` (and `framesPerSecond`) when the layer authors none.
-pub const USD_DEFAULT_TIME_CODES_PER_SECOND: f64 = 24.0;
+pub use super::usd_layer::MAX_DEPTH;
 
 /// The USDA header every text layer starts with.
 const USDA_MAGIC: &[u8] = b"#usda ";
 /// The first bytes of a binary crate file.
-const USDC_MAGIC: &[u8] = b"PXR-USDC";
+pub(super) const USDC_MAGIC: &[u8] = b"PXR-USDC";
 /// The first bytes of a zip archive (a `.usdz` package).
 const ZIP_MAGIC: &[u8] = b"PK\x03\x04";
 
-/// Reads a `.usda` / `.usd` file (see the module documentation); `frame_rate` overrides the
-/// layer's rate.
+/// Reads a USD file — a text layer, a crate file or a `.usdz` package, told apart by their
+/// first bytes, whatever the extension (see the module documentation); `frame_rate` overrides
+/// the layer's rate.
 pub fn read_usd(path: &Path, frame_rate: Option<f32>) -> Result<Animation> {
     let bytes = read_file(path)?;
     let budget = Budget::new(&name(path), None);
     parse_usd_with(&bytes, &name(path), frame_rate, budget)
 }
 
-/// Parses a USD text layer held in memory. `file` names the source in errors; `frame_rate`
-/// overrides the layer's; `memory_budget` bounds what the read holds beyond the input (default:
-/// the process's read budget, 1 GiB unless `--max-memory` set it).
-pub fn parse_usda(bytes: &[u8], file: &str, frame_rate: Option<f32>, memory_budget: Option<u64>) -> Result<Animation> {
+/// Parses a USD layer held in memory: a text layer (`#usda`), a crate file (`PXR-USDC`) or a
+/// `.usdz` package (a zip). `file` names the source in errors; `frame_rate` overrides the
+/// layer's; `memory_budget` bounds what the read holds beyond the input (default: the
+/// process's read budget, 1 GiB unless `--max-memory` set it).
+pub fn parse_usd(bytes: &[u8], file: &str, frame_rate: Option<f32>, memory_budget: Option<u64>) -> Result<Animation> {
     parse_usd_with(bytes, file, frame_rate, Budget::new(file, memory_budget))
 }
 
+/// Parses a USD layer held in memory; the same as [`parse_usd`] (text layers, crate files and
+/// packages are all read), kept under its first name.
+pub fn parse_usda(bytes: &[u8], file: &str, frame_rate: Option<f32>, memory_budget: Option<u64>) -> Result<Animation> {
+    parse_usd(bytes, file, frame_rate, memory_budget)
+}
+
 fn parse_usd_with(bytes: &[u8], file: &str, frame_rate: Option<f32>, mut budget: Budget) -> Result<Animation> {
-    if bytes.starts_with(USDC_MAGIC) {
-        return Err(unsupported(
-            file,
-            "a binary USD crate file (usdc): only text layers are read; convert it with \
-             `usdcat IN.usdc -o OUT.usda` (usd-core on PyPI)",
-        ));
-    }
-    if bytes.starts_with(ZIP_MAGIC) {
-        return Err(unsupported(
-            file,
-            "a USDZ package: only text layers are read; extract and convert it with \
-             `usdcat --flatten IN.usdz -o OUT.usda` (usd-core on PyPI)",
-        ));
-    }
-    if !bytes.starts_with(USDA_MAGIC) {
-        return Err(Error::malformed(file.to_owned(), "header", "not a USD text layer (no `#usda` header)"));
-    }
-    let text = std::str::from_utf8(bytes)
-        .map_err(|e| Error::malformed(file.to_owned(), "text", format!("not UTF-8 (byte {})", e.valid_up_to())))?;
-    let mut parser = Parser { lexer: Lexer { text, pos: 0, file }, peeked: None, budget: &mut budget, prim_depth: 0 };
-    let layer = parser.layer()?;
+    let layer = read_layer(bytes, file, &mut budget, true)?;
     assemble(file, layer, frame_rate, &mut budget)
 }
 
-fn unsupported(file: &str, detail: impl Into<String>) -> Error {
-    Error::Unsupported { context: file.to_owned().into(), detail: detail.into() }
+/// The layer model of a text layer, a crate file or (when `package` allows it) a package's
+/// root layer.
+fn read_layer(bytes: &[u8], file: &str, budget: &mut Budget, package: bool) -> Result<Layer> {
+    if bytes.starts_with(USDC_MAGIC) {
+        return super::usdc::read_layer(bytes, file, budget);
+    }
+    if bytes.starts_with(ZIP_MAGIC) {
+        if !package {
+            return Err(unsupported(file, "a USDZ package inside a package (its root layer must be usda or usdc)"));
+        }
+        let (root, root_name) = super::usdz::root_layer(bytes, file)?;
+        let inner = format!("{file}[{}]", super::gltf::printable(&root_name));
+        return read_layer(root, &inner, budget, false);
+    }
+    if !bytes.starts_with(USDA_MAGIC) {
+        return Err(Error::malformed(
+            file.to_owned(),
+            "header",
+            "not a USD layer (no `#usda` header, no `PXR-USDC` crate header, not a usdz package)",
+        ));
+    }
+    let text = std::str::from_utf8(bytes)
+        .map_err(|e| Error::malformed(file.to_owned(), "text", format!("not UTF-8 (byte {})", e.valid_up_to())))?;
+    let mut parser = Parser { lexer: Lexer { text, pos: 0, file }, peeked: None, budget, prim_depth: 0 };
+    parser.layer()
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -244,14 +260,13 @@ impl<'a> Lexer<'a> {
         Err(self.error("unterminated string"))
     }
 }
-
 // ---------------------------------------------------------------------------------------------
 // Parser: a layer's prims and the few attributes a vertex cache needs; everything else is
 // parsed (so a syntax error is an error) and dropped.
 
 /// A value as far as this reader needs it.
 #[derive(Debug, Clone, PartialEq)]
-enum Value<'a> {
+enum TextValue<'a> {
     /// A number, identifier or string.
     Atom(Tok<'a>),
     /// `[a, b, …]` of atoms or of tuples, flattened: `arity` is the tuple size (0: atoms).
@@ -261,24 +276,7 @@ enum Value<'a> {
 }
 
 /// Time samples of one attribute: time code (as written) → value (`None` = a blocked sample).
-type Samples<'a> = Vec<(f64, Option<Value<'a>>)>;
-
-#[derive(Default)]
-struct MeshSpec<'a> {
-    path: String,
-    points: Option<Value<'a>>,
-    point_samples: Samples<'a>,
-    counts: Option<Value<'a>>,
-    indices: Option<Value<'a>>,
-    left_handed: bool,
-}
-
-#[derive(Default)]
-struct Layer<'a> {
-    time_codes_per_second: Option<f64>,
-    frames_per_second: Option<f64>,
-    meshes: Vec<MeshSpec<'a>>,
-}
+type Samples<'a> = Vec<(f64, Option<TextValue<'a>>)>;
 
 struct Parser<'a, 'b> {
     lexer: Lexer<'a>,
@@ -334,7 +332,7 @@ impl<'a> Parser<'a, '_> {
         Ok(())
     }
 
-    fn layer(&mut self) -> Result<Layer<'a>> {
+    fn layer(&mut self) -> Result<Layer> {
         // The header line: `#usda 1.0`.
         let header_end = self.lexer.text.find('\n').unwrap_or(self.lexer.text.len());
         let version = self.lexer.text[USDA_MAGIC.len()..header_end].trim();
@@ -344,14 +342,21 @@ impl<'a> Parser<'a, '_> {
         self.lexer.pos = header_end;
         let mut layer = Layer::default();
         if self.eat(b'(')? {
+            let meta = &mut layer.metadata;
             self.metadata(1, &mut |key, value| {
-                let number = |v: &Value| match v {
-                    Value::Atom(Tok::Number(n)) => n.parse::<f64>().ok(),
+                let number = |v: &TextValue| match v {
+                    TextValue::Atom(Tok::Number(n)) => n.parse::<f64>().ok(),
                     _ => None,
                 };
                 match key {
-                    "timeCodesPerSecond" => layer.time_codes_per_second = number(value),
-                    "framesPerSecond" => layer.frames_per_second = number(value),
+                    "timeCodesPerSecond" => meta.time_codes_per_second = number(value),
+                    "framesPerSecond" => meta.frames_per_second = number(value),
+                    "metersPerUnit" => meta.meters_per_unit = number(value),
+                    "upAxis" => {
+                        if let TextValue::Atom(Tok::Str(s)) = value {
+                            meta.up_axis = Some((*s).to_owned());
+                        }
+                    }
                     _ => {}
                 }
                 Ok(())
@@ -361,7 +366,7 @@ impl<'a> Parser<'a, '_> {
         loop {
             match self.peek()? {
                 Tok::Eof => break,
-                _ => self.prim(1, &mut path, true, false, &mut layer.meshes)?,
+                _ => self.prim(1, &mut path, Some(None), &mut layer)?,
             }
         }
         Ok(layer)
@@ -369,7 +374,7 @@ impl<'a> Parser<'a, '_> {
 
     /// `key = value` entries (with an optional list-op keyword, or a lone doc string) up to the
     /// closing `)`; the opening `(` is consumed. Composition arcs are refused.
-    fn metadata(&mut self, depth: usize, on_entry: &mut dyn FnMut(&str, &Value<'a>) -> Result<()>) -> Result<()> {
+    fn metadata(&mut self, depth: usize, on_entry: &mut dyn FnMut(&str, &TextValue<'a>) -> Result<()>) -> Result<()> {
         self.depth_check(depth)?;
         loop {
             match self.bump()? {
@@ -389,7 +394,7 @@ impl<'a> Parser<'a, '_> {
                             self.lexer.file,
                             format!(
                                 "`{key}` at line {}: composition is not resolved here; flatten the stage first \
-                                 (`usdcat --flatten IN -o OUT.usda`)",
+                                 ({FLATTEN_ADVICE})",
                                 self.lexer.line()
                             ),
                         ));
@@ -413,15 +418,15 @@ impl<'a> Parser<'a, '_> {
     }
 
     /// One prim spec (`def|over|class [Type] "name" [(metadata)] { … }`), with its children.
-    /// `live`: the prim is part of the played-back scene (a `def` under `def`s only, active).
-    /// `transformed`: an ancestor authors transforms.
+    /// `parent`: `Some(index of the parent in layer.prims, None at the root)` while the prim's
+    /// parent is part of the played-back scene (a `def` under `def`s only, active); such a
+    /// prim, when itself live, is added to `layer.prims` before its children.
     fn prim(
         &mut self,
         depth: usize,
         path: &mut String,
-        live: bool,
-        transformed: bool,
-        meshes: &mut Vec<MeshSpec<'a>>,
+        parent: Option<Option<usize>>,
+        layer: &mut Layer,
     ) -> Result<()> {
         self.depth_check(depth)?;
         self.prim_depth += 1;
@@ -447,7 +452,8 @@ impl<'a> Parser<'a, '_> {
         let mut active = true;
         if self.eat(b'(')? {
             self.metadata(depth + 1, &mut |key, value| {
-                if key == "active" && matches!(value, Value::Atom(Tok::Ident("false")) | Value::Atom(Tok::Number("0")))
+                if key == "active"
+                    && matches!(value, TextValue::Atom(Tok::Ident("false")) | TextValue::Atom(Tok::Number("0")))
                 {
                     active = false;
                 }
@@ -457,13 +463,21 @@ impl<'a> Parser<'a, '_> {
         let parent_len = path.len();
         path.push('/');
         path.push_str(prim_name);
-        let live = live && active && specifier == "def";
-        // The path is cloned only for a mesh that is kept (counted below): a clone per prim
-        // held down the whole nesting cost the sum of every prefix (issue 41: 250 nested prims
-        // with 80 000-character names, a 20 MB layer, held 2.5 GB).
-        let mut mesh = MeshSpec::default();
-        let mut transforms = false;
-        let mut children: Vec<MeshSpec<'a>> = Vec::new();
+        // Only a kept prim's own name is held (a full path per prim cost the sum of every
+        // prefix on deeply nested long names), counted against the budget.
+        let index = match parent {
+            Some(parent) if active && specifier == "def" => {
+                self.budget.take("prim paths", (prim_name.len() + std::mem::size_of::<Prim>()) as u64)?;
+                layer.prims.push(Prim {
+                    name: prim_name.to_owned(),
+                    parent,
+                    type_name: type_name.unwrap_or_default().to_owned(),
+                    attributes: Vec::new(),
+                });
+                Some(layer.prims.len() - 1)
+            }
+            _ => None,
+        };
         self.expect(b'{')?;
         loop {
             match self.peek()? {
@@ -474,15 +488,13 @@ impl<'a> Parser<'a, '_> {
                 Tok::Punct(b';') => {
                     self.bump()?;
                 }
-                Tok::Ident("def" | "over" | "class") => {
-                    self.prim(depth + 1, path, live, transformed || transforms, &mut children)?
-                }
+                Tok::Ident("def" | "over" | "class") => self.prim(depth + 1, path, index.map(Some), layer)?,
                 Tok::Ident("variantSet") => {
                     return Err(unsupported(
                         self.lexer.file,
                         format!(
                             "a variant set in {} at line {}: variants are not resolved here; flatten the stage \
-                             first (`usdcat --flatten IN -o OUT.usda`)",
+                             first ({FLATTEN_ADVICE})",
                             shown(path),
                             self.lexer.line()
                         ),
@@ -496,38 +508,23 @@ impl<'a> Parser<'a, '_> {
                     self.value(depth + 1)?;
                 }
                 Tok::Eof => return Err(self.lexer.error(format!("`{}` is not closed", shown(path)))),
-                _ => self.property(depth + 1, path, &mut mesh, &mut transforms)?,
+                _ => {
+                    let attribute = self.property(depth + 1, path)?;
+                    if let (Some(i), Some(attribute)) = (index, attribute) {
+                        merge_attribute(&mut layer.prims[i].attributes, attribute);
+                    }
+                }
             }
-        }
-        let is_mesh = live && type_name == Some("Mesh");
-        if is_mesh {
-            self.budget.take("prim paths", path.len() as u64)?;
-            mesh.path = path.clone();
         }
         path.truncate(parent_len);
         self.prim_depth -= 1;
-        if is_mesh && (transformed || transforms) {
-            return Err(unsupported(
-                self.lexer.file,
-                format!(
-                    "the mesh {} is under authored transforms (xformOpOrder): they are not applied here; \
-                     bake them into the points first",
-                    shown(&mesh.path)
-                ),
-            ));
-        }
-        if is_mesh {
-            meshes.push(mesh);
-        }
-        if live {
-            meshes.append(&mut children);
-        }
         Ok(())
     }
 
     /// One property: `[custom] [uniform|varying|config] Type[[]] name[.timeSamples|.connect|
-    /// .spline] [= value] [(metadata)]`, or `rel name [= targets]`.
-    fn property(&mut self, depth: usize, path: &str, mesh: &mut MeshSpec<'a>, transforms: &mut bool) -> Result<()> {
+    /// .spline] [= value] [(metadata)]`, or `rel name [= targets]`. Returns the attribute when
+    /// it is one the layer keeps ([`is_kept_attribute`]), its values converted.
+    fn property(&mut self, depth: usize, path: &str) -> Result<Option<Attribute>> {
         let mut tok = self.bump()?;
         while matches!(
             tok,
@@ -536,9 +533,9 @@ impl<'a> Parser<'a, '_> {
             tok = self.bump()?;
         }
         let is_rel = tok == Tok::Ident("rel");
-        if !matches!(tok, Tok::Ident(_)) {
+        let Tok::Ident(type_name) = tok else {
             return Err(self.lexer.error(format!("expected a property, found {}", describe(tok))));
-        }
+        };
         if !is_rel {
             self.eat_brackets()?;
         }
@@ -550,31 +547,18 @@ impl<'a> Parser<'a, '_> {
             Some((p, s @ ("timeSamples" | "connect" | "spline" | "default"))) => (p, s),
             _ => (full_name, ""),
         };
+        let kept = !is_rel && is_kept_attribute(prop);
+        let mut attribute = None;
         if self.eat(b'=')? {
             if suffix == "timeSamples" {
                 let samples = self.time_samples(depth + 1)?;
-                match prop {
-                    "points" => mesh.point_samples = samples,
-                    "faceVertexCounts" | "faceVertexIndices" => {
-                        if samples.len() > 1 {
-                            return Err(unsupported(
-                                self.lexer.file,
-                                format!(
-                                    "{}.{prop} is time-sampled: a changing topology is not a vertex cache",
-                                    shown(path)
-                                ),
-                            ));
-                        }
-                        if let Some((_, v)) = samples.into_iter().next() {
-                            if prop == "faceVertexCounts" {
-                                mesh.counts = v;
-                            } else {
-                                mesh.indices = v;
-                            }
-                        }
+                if kept {
+                    let mut converted = Vec::with_capacity(samples.len());
+                    for (time, value) in samples {
+                        let value = value.map(|v| self.converted(type_name, v, path, prop)).transpose()?;
+                        converted.push((time, value));
                     }
-                    p if p.starts_with("xformOp") => *transforms = true,
-                    _ => {}
+                    attribute = Some(Attribute { name: prop.to_owned(), default: None, samples: converted });
                 }
             } else if suffix == "spline" {
                 self.skip_braces(depth + 1)?;
@@ -584,27 +568,65 @@ impl<'a> Parser<'a, '_> {
             } else {
                 let value = self.value(depth + 1)?;
                 // `= None`: a blocked default, no value.
-                let blocked = value == Value::Atom(Tok::Ident("None"));
-                if (suffix.is_empty() || suffix == "default") && !blocked {
-                    match prop {
-                        "points" => mesh.points = Some(value),
-                        "faceVertexCounts" => mesh.counts = Some(value),
-                        "faceVertexIndices" => mesh.indices = Some(value),
-                        "orientation" => mesh.left_handed = value == Value::Atom(Tok::Str("leftHanded")),
-                        "xformOpOrder" => {
-                            if matches!(&value, Value::Array { items, .. } if !items.is_empty()) {
-                                *transforms = true;
-                            }
-                        }
-                        _ => {}
-                    }
+                let blocked = value == TextValue::Atom(Tok::Ident("None"));
+                if (suffix.is_empty() || suffix == "default") && kept {
+                    let default = if blocked { None } else { Some(self.converted(type_name, value, path, prop)?) };
+                    attribute = Some(Attribute { name: prop.to_owned(), default, samples: Vec::new() });
                 }
             }
         }
         if self.eat(b'(')? {
             self.metadata(depth + 1, &mut |_, _| Ok(()))?;
         }
-        Ok(())
+        Ok(attribute)
+    }
+
+    /// A text value of an attribute declared as `type_name`, in the layer model: tokens and
+    /// strings as text, integer types as integers, `double`/`…d` types as doubles, the other
+    /// numeric types as floats (parsed straight to `f32`, so a coordinate reads back exactly).
+    fn converted(&mut self, type_name: &str, value: TextValue<'a>, path: &str, prop: &str) -> Result<Value> {
+        let file = self.lexer.file;
+        let bad =
+            |detail: &str| Error::malformed(file.to_owned(), format!("{} {prop}", shown(path)), detail.to_owned());
+        let (items, arity, scalar) = match value {
+            TextValue::Atom(t) => (vec![t], 1, true),
+            TextValue::Array { items, arity } => (items, arity.max(1), false),
+            TextValue::Other => return Ok(Value::Other),
+        };
+        if matches!(type_name, "token" | "string" | "asset") {
+            let mut texts = Vec::with_capacity(items.len());
+            for t in &items {
+                match t {
+                    Tok::Str(s) | Tok::Ident(s) | Tok::Other(s) => texts.push((*s).to_owned()),
+                    _ => return Err(bad("holds a value that is not a token")),
+                }
+            }
+            self.budget.take("tokens", texts.iter().map(|t| t.len() as u64 + 24).sum())?;
+            return Ok(if scalar { Value::Token(texts.pop().unwrap_or_default()) } else { Value::Tokens(texts) });
+        }
+        let number = |t: &Tok<'a>| match t {
+            Tok::Number(n) | Tok::Ident(n) => Some(*n),
+            _ => None,
+        };
+        if matches!(type_name, "int" | "uint" | "int64" | "uint64" | "uchar" | "int2" | "int3" | "int4") {
+            self.budget.take("integers", items.len() as u64 * 8)?;
+            let ints = items.iter().map(|t| number(t).and_then(|n| n.parse::<i64>().ok())).collect::<Option<_>>();
+            return Ok(Value::Ints(ints.ok_or_else(|| bad("holds a value that is not an integer"))?));
+        }
+        if type_name == "timecode" || type_name.starts_with("double") || type_name.ends_with('d') {
+            self.budget.take("numbers", items.len() as u64 * 8)?;
+            let values = items.iter().map(|t| number(t).and_then(|n| n.parse::<f64>().ok())).collect::<Option<_>>();
+            return Ok(Value::Doubles {
+                arity,
+                values: values.ok_or_else(|| bad("holds a value that is not a number"))?,
+            });
+        }
+        if type_name.starts_with("bool") || type_name.starts_with("matrix") || type_name == "opaque" {
+            return Ok(Value::Other);
+        }
+        self.budget.take("numbers", items.len() as u64 * 4)?;
+        let values = items.iter().map(|t| number(t).and_then(|n| n.parse::<f32>().ok())).collect::<Option<_>>();
+        Ok(Value::Floats { arity, values: values.ok_or_else(|| bad("holds a value that is not a number"))? })
     }
 
     /// `{ time: value, … }` (the `{` not yet consumed).
@@ -630,7 +652,7 @@ impl<'a> Parser<'a, '_> {
                         }
                         _ => Some(self.value(depth + 1)?),
                     };
-                    self.budget.take("time samples", std::mem::size_of::<(f64, Option<Value>)>() as u64)?;
+                    self.budget.take("time samples", std::mem::size_of::<(f64, Option<TextValue>)>() as u64)?;
                     samples.push((time, value));
                 }
                 other => return Err(self.lexer.error(format!("expected a time code, found {}", describe(other)))),
@@ -645,26 +667,30 @@ impl<'a> Parser<'a, '_> {
     }
 
     /// A value: an atom, a list (of atoms or tuples: kept), a tuple, a dictionary (dropped).
-    fn value(&mut self, depth: usize) -> Result<Value<'a>> {
+    fn value(&mut self, depth: usize) -> Result<TextValue<'a>> {
         self.depth_check(depth)?;
         match self.bump()? {
             Tok::Punct(b'[') => self.list(depth + 1),
             Tok::Punct(b'(') => {
-                self.tuple(depth + 1, &mut Vec::new())?;
-                Ok(Value::Other)
+                // A tuple (`double3 xformOp:translate = (1, 2, 3)`, a matrix of row tuples):
+                // its atoms, flattened.
+                let mut items = Vec::new();
+                self.tuple(depth + 1, &mut items)?;
+                self.budget.take("tuple", (items.len() * std::mem::size_of::<Tok>()) as u64)?;
+                Ok(TextValue::Array { arity: items.len(), items })
             }
             Tok::Punct(b'{') => {
                 self.peeked = Some(Tok::Punct(b'{'));
                 self.skip_braces(depth)?;
-                Ok(Value::Other)
+                Ok(TextValue::Other)
             }
-            t @ (Tok::Number(_) | Tok::Ident(_) | Tok::Str(_) | Tok::Other(_)) => Ok(Value::Atom(t)),
+            t @ (Tok::Number(_) | Tok::Ident(_) | Tok::Str(_) | Tok::Other(_)) => Ok(TextValue::Atom(t)),
             other => Err(self.lexer.error(format!("expected a value, found {}", describe(other)))),
         }
     }
 
     /// The items of `[ … ]` (the `[` consumed).
-    fn list(&mut self, depth: usize) -> Result<Value<'a>> {
+    fn list(&mut self, depth: usize) -> Result<TextValue<'a>> {
         self.depth_check(depth)?;
         let mut items = Vec::new();
         let mut arity: Option<usize> = None;
@@ -699,9 +725,9 @@ impl<'a> Parser<'a, '_> {
             }
         }
         if !uniform {
-            return Ok(Value::Other);
+            return Ok(TextValue::Other);
         }
-        Ok(Value::Array { items, arity: arity.unwrap_or(0) })
+        Ok(TextValue::Array { items, arity: arity.unwrap_or(0) })
     }
 
     /// The atoms of `( … )` (the `(` consumed) appended to `out`; nested tuples are flattened.
@@ -737,6 +763,16 @@ impl<'a> Parser<'a, '_> {
     }
 }
 
+/// Adds `attribute` to a prim's attributes; a second declaration of the same attribute (a
+/// default beside `.timeSamples`) fills in what it authors.
+fn merge_attribute(attributes: &mut Vec<Attribute>, attribute: Attribute) {
+    match attributes.iter_mut().find(|a| a.name == attribute.name) {
+        Some(a) if attribute.samples.is_empty() => a.default = attribute.default,
+        Some(a) => a.samples = attribute.samples,
+        None => attributes.push(attribute),
+    }
+}
+
 fn describe(tok: Tok) -> String {
     match tok {
         Tok::Punct(p) => format!("`{}`", p as char),
@@ -747,227 +783,6 @@ fn describe(tok: Tok) -> String {
         Tok::Other(_) => "a path or asset".into(),
         Tok::Eof => "the end of the file".into(),
     }
-}
-
-// ---------------------------------------------------------------------------------------------
-// From the parsed layer to an animation.
-
-/// One mesh's topology and point samples, converted.
-struct MeshData {
-    vertices: usize,
-    triangles: Vec<[u32; 3]>,
-    /// Sorted by time: (time code, points); empty when only the default value exists.
-    samples: Vec<(f64, Vec<f32>)>,
-    default: Option<Vec<f32>>,
-}
-
-fn assemble(file: &str, layer: Layer, frame_rate: Option<f32>, budget: &mut Budget) -> Result<Animation> {
-    if layer.meshes.is_empty() {
-        return Err(Error::malformed(file.to_owned(), "meshes", "the layer defines no Mesh prim"));
-    }
-    let mut meshes = Vec::with_capacity(layer.meshes.len());
-    for spec in &layer.meshes {
-        meshes.push(mesh_data(file, spec, budget)?);
-    }
-    // The frame times: every sample time of every mesh.
-    let mut times: Vec<f64> = meshes.iter().flat_map(|m| m.samples.iter().map(|s| s.0)).collect();
-    times.sort_by(f64::total_cmp);
-    times.dedup();
-    let step = match times.len() {
-        0 | 1 => 1.0,
-        _ => (times[times.len() - 1] - times[0]) / (times.len() - 1) as f64,
-    };
-    for w in times.windows(2) {
-        if ((w[1] - w[0]) - step).abs() > step * 1e-6 {
-            return Err(unsupported(
-                file,
-                format!(
-                    "the time samples are not evenly spaced (codes {} and {} against a mean step of {step}): a \
-                     vertex cache has one frame rate; resample the points first",
-                    w[0], w[1]
-                ),
-            ));
-        }
-    }
-    if times.is_empty() {
-        times.push(0.0);
-    }
-    let vertices: usize = meshes.iter().map(|m| m.vertices).sum();
-    let limits = reader_limits();
-    if vertices as u64 > limits.max_vertices as u64 {
-        return Err(Error::LimitExceeded {
-            context: file.to_owned().into(),
-            field: "vertex_count".into(),
-            value: vertices as u64,
-            limit: limits.max_vertices as u64,
-        });
-    }
-    if times.len() as u64 > limits.max_frames as u64 {
-        return Err(Error::LimitExceeded {
-            context: file.to_owned().into(),
-            field: "frame_count".into(),
-            value: times.len() as u64,
-            limit: limits.max_frames as u64,
-        });
-    }
-    let floats = (vertices as u64).saturating_mul(3).saturating_mul(times.len() as u64);
-    limits.check_alloc("formats", "positions", floats.saturating_mul(4))?;
-    budget.take("positions", floats.saturating_mul(4))?;
-    let mut positions = Vec::with_capacity(floats as usize);
-    for &t in &times {
-        for m in &meshes {
-            push_points_at(m, t, &mut positions);
-        }
-    }
-    let mut triangles = Vec::with_capacity(meshes.iter().map(|m| m.triangles.len()).sum());
-    let mut offset = 0u32;
-    for m in &meshes {
-        triangles.extend(m.triangles.iter().map(|t| t.map(|i| i + offset)));
-        offset += m.vertices as u32;
-    }
-    check_finite_in(file, &positions, vertices)?;
-    let tcps = layer.time_codes_per_second.or(layer.frames_per_second).unwrap_or(USD_DEFAULT_TIME_CODES_PER_SECOND);
-    let fps = match frame_rate {
-        Some(f) => f,
-        None => {
-            let fps = (tcps / step) as f32;
-            super::check_frame_rate(fps).map_err(|e| in_file(file, e))?
-        }
-    };
-    Animation::from_parts(vertices, triangles, positions, fps).map_err(|e| in_file(file, e))
-}
-
-/// Points of `mesh` at time code `t`, as `UsdAttribute::Get(t)` gives them: the sample at
-/// `t`, else linear interpolation between the samples around it, held outside them; the
-/// default value when the mesh has no samples.
-fn push_points_at(mesh: &MeshData, t: f64, out: &mut Vec<f32>) {
-    let s = &mesh.samples;
-    if s.is_empty() {
-        out.extend_from_slice(mesh.default.as_deref().unwrap_or(&[]));
-        return;
-    }
-    let after = s.partition_point(|x| x.0 < t);
-    if after < s.len() && s[after].0 == t {
-        out.extend_from_slice(&s[after].1);
-    } else if after == 0 {
-        out.extend_from_slice(&s[0].1);
-    } else if after == s.len() {
-        out.extend_from_slice(&s[s.len() - 1].1);
-    } else {
-        let (t0, a) = (&s[after - 1].0, &s[after - 1].1);
-        let (t1, b) = (&s[after].0, &s[after].1);
-        let alpha = (t - t0) / (t1 - t0);
-        out.extend(a.iter().zip(b).map(|(&x, &y)| (x as f64 + (y as f64 - x as f64) * alpha) as f32));
-    }
-}
-
-/// A prim path for a message: printable, and at most 200 characters (the middle elided), since
-/// a path may be megabytes long.
-fn shown(path: &str) -> String {
-    const KEEP: usize = 100;
-    let chars = path.chars().count();
-    if chars <= 2 * KEEP {
-        return super::gltf::printable(path);
-    }
-    let head: String = path.chars().take(KEEP).collect();
-    let tail: String = path.chars().skip(chars - KEEP).collect();
-    format!("{}…({} characters)…{}", super::gltf::printable(&head), chars - 2 * KEEP, super::gltf::printable(&tail))
-}
-
-fn mesh_data(file: &str, spec: &MeshSpec, budget: &mut Budget) -> Result<MeshData> {
-    let at = |what: &str| format!("{} {what}", shown(&spec.path));
-    let bad = |field: String, detail: String| Error::malformed(file.to_owned(), field, detail);
-    let floats = |value: &Value, field: &str, budget: &mut Budget| -> Result<Vec<f32>> {
-        match value {
-            Value::Array { items, arity: 3 } => {
-                budget.take("points", items.len() as u64 * 4)?;
-                items
-                    .iter()
-                    .map(|t| match t {
-                        Tok::Number(n) => n.parse::<f32>().ok(),
-                        Tok::Ident(i) => i.parse::<f32>().ok(),
-                        _ => None,
-                    })
-                    .collect::<Option<Vec<f32>>>()
-                    .ok_or_else(|| bad(at(field), "holds a value that is not a number".into()))
-            }
-            Value::Array { items, .. } if items.is_empty() => Ok(Vec::new()),
-            _ => Err(bad(at(field), "is not a list of 3-component points".into())),
-        }
-    };
-    let ints = |value: Option<&Value>, field: &str| -> Result<Vec<u32>> {
-        match value {
-            Some(Value::Array { items, arity: 0 }) => items
-                .iter()
-                .map(|t| match t {
-                    Tok::Number(n) => n.parse::<u32>().ok(),
-                    _ => None,
-                })
-                .collect::<Option<Vec<u32>>>()
-                .ok_or_else(|| bad(at(field), "holds a value that is not a non-negative integer".into())),
-            Some(_) => Err(bad(at(field), "is not a list of integers".into())),
-            None => Err(bad(at(field), "is missing".into())),
-        }
-    };
-    let default = spec.points.as_ref().map(|v| floats(v, "points", budget)).transpose()?;
-    let mut samples = Vec::with_capacity(spec.point_samples.len());
-    for (time, value) in &spec.point_samples {
-        // A blocked sample (`None`) has no points: USD reports no value there; the frame is
-        // filled from the samples around it, as for a time the mesh does not sample.
-        if let Some(v) = value {
-            samples.push((*time, floats(v, "points.timeSamples", budget)?));
-        }
-    }
-    let first = samples.first().map(|s| &s.1).or(default.as_ref());
-    let Some(first) = first else {
-        return Err(bad(at("points"), "has no value (neither a default nor a time sample)".into()));
-    };
-    let vertices = first.len() / 3;
-    if vertices == 0 {
-        return Err(bad(at("points"), "is empty".into()));
-    }
-    for (time, s) in &samples {
-        if s.len() != first.len() {
-            return Err(unsupported(
-                file,
-                format!(
-                    "{} has {} points at time code {time} but {vertices} at the first sample: a changing point count \
-                     is not a vertex cache",
-                    at("points"),
-                    s.len() / 3
-                ),
-            ));
-        }
-    }
-    let counts = ints(spec.counts.as_ref(), "faceVertexCounts")?;
-    let indices = ints(spec.indices.as_ref(), "faceVertexIndices")?;
-    let corners: u64 = counts.iter().map(|&c| c as u64).sum();
-    if corners != indices.len() as u64 {
-        return Err(bad(
-            at("faceVertexCounts"),
-            format!("sums to {corners} corners but faceVertexIndices holds {}", indices.len()),
-        ));
-    }
-    if let Some(&i) = indices.iter().find(|&&i| i as usize >= vertices) {
-        return Err(bad(at("faceVertexIndices"), format!("index {i} is out of range ({vertices} points)")));
-    }
-    let fan: u64 = counts.iter().map(|&c| (c as u64).saturating_sub(2)).sum();
-    budget.take("triangles", fan * 12)?;
-    let mut triangles = Vec::with_capacity(fan as usize);
-    let mut at_corner = 0usize;
-    for (face, &n) in counts.iter().enumerate() {
-        let n = n as usize;
-        if n < 3 {
-            return Err(bad(at("faceVertexCounts"), format!("face {face} has {n} corners (at least 3 are needed)")));
-        }
-        let f = &indices[at_corner..at_corner + n];
-        for k in 1..n - 1 {
-            let tri = if spec.left_handed { [f[0], f[k + 1], f[k]] } else { [f[0], f[k], f[k + 1]] };
-            triangles.push(tri);
-        }
-        at_corner += n;
-    }
-    Ok(MeshData { vertices, triangles, samples, default })
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -1174,13 +989,14 @@ def Scope "world" (
     #[test]
     fn unsupported_and_malformed_layers_are_named() {
         let cases: &[(&str, &str)] = &[
-            ("PXR-USDC\0\0\0\0", "usdcat"),
-            ("PK\x03\x04rest", "USDZ"),
+            ("PXR-USDC\0\0\0\0", "88-byte header"),
+            ("PK\x03\x04rest", "end-of-central-directory"),
             ("hello", "#usda"),
             ("#usda 1.0\n(\n subLayers = [@a.usda@]\n)\n", "subLayers"),
             ("#usda 1.0\ndef Xform \"a\" (references = @b.usda@) {}\n", "references"),
-            ("#usda 1.0\ndef Xform \"a\" { double3 xformOp:translate = (1, 2, 3)\n uniform token[] xformOpOrder = [\"xformOp:translate\"]\n def Mesh \"m\" { point3f[] points = [(0,0,0),(1,0,0),(0,1,0)]\n int[] faceVertexCounts = [3]\n int[] faceVertexIndices = [0,1,2] } }\n", "xformOpOrder"),
+            ("#usda 1.0\ndef Xform \"a\" { double3 xformOp:translat = (1, 2, 3)\n uniform token[] xformOpOrder = [\"xformOp:translate\"]\n def Mesh \"m\" { point3f[] points = [(0,0,0),(1,0,0),(0,1,0)]\n int[] faceVertexCounts = [3]\n int[] faceVertexIndices = [0,1,2] } }\n", "/a xformOpOrder"),
             ("#usda 1.0\ndef Xform \"a\" {}\n", "no Mesh"),
+            ("#usda 1.0\ndef Mesh \"m\" { point3f[] points = [(0,0,0),(1,0,0),(0,1,0)]\n int[] faceVertexCounts = [3]\n int[] faceVertexIndices = [0,1,2]\n int[] primvars:skel:jointIndices = [0, 0, 0] (elementSize = 1 interpolation = \"vertex\") }\n", "UsdSkel"),
             ("#usda 1.0\ndef Mesh \"m\" { point3f[] points = [(0,0,0),(1,0,0),(0,1,0)]\n int[] faceVertexCounts = [3]\n int[] faceVertexIndices = [0,1,3] }\n", "out of range"),
             ("#usda 1.0\ndef Mesh \"m\" { point3f[] points = [(0,0,0),(1,0,0)]\n int[] faceVertexCounts = [2]\n int[] faceVertexIndices = [0,1] }\n", "at least 3"),
             ("#usda 1.0\ndef Mesh \"m\" { point3f[] points.timeSamples = { 0: [(0,0,0)], 1: [(0,0,0),(1,1,1)] }\n int[] faceVertexCounts = []\n int[] faceVertexIndices = [] }\n", "changing point count"),
@@ -1198,6 +1014,33 @@ def Scope "world" (
         assert!(parse(&deep).unwrap_err().to_string().contains("nested"));
         let deep = format!("#usda 1.0\n{}", "def \"a\" {".repeat(100_000));
         assert!(parse(&deep).unwrap_err().to_string().contains("nested"));
+    }
+
+    /// Transforms of the mesh and its ancestors are applied, sampled ones at every frame; a
+    /// `Scope` (not xformable) transforms nothing; `!resetXformStack!` drops the parents'.
+    #[test]
+    fn xform_ops_of_the_mesh_and_its_ancestors_are_applied() {
+        let layer = |reset: &str| {
+            format!(
+                "#usda 1.0\ndef Xform \"a\" {{ double3 xformOp:translate.timeSamples = {{ 0: (1, 2, 3), 2: (3, 2, 3) }}\n \
+                 uniform token[] xformOpOrder = [\"xformOp:translate\"]\n def Scope \"s\" {{ float3 xformOp:scale = (9, 9, 9)\n \
+                 uniform token[] xformOpOrder = [\"xformOp:scale\"]\n def Mesh \"m\" {{ float xformOp:rotateZ = 90\n \
+                 uniform token[] xformOpOrder = [{reset}\"xformOp:rotateZ\"]\n point3f[] points.timeSamples = {{ 0: [(1,0,0),(0,1,0),(0,0,1)], \
+                 1: [(1,0,0),(0,1,0),(0,0,1)] }}\n \
+                 int[] faceVertexCounts = [3]\n int[] faceVertexIndices = [0,1,2] }} }} }}\n"
+            )
+        };
+        let a = parse(&layer("")).unwrap();
+        assert_eq!(a.frame_count(), 3);
+        // Frame 1 (time 1): rotated 90° about Z, then translated by the interpolated (2, 2, 3).
+        let f = a.frame(1);
+        let want = [2., 3., 3., 1., 2., 3., 2., 2., 4.];
+        assert!(f.iter().zip(want).all(|(x, y)| (x - y).abs() < 1e-6), "{f:?}");
+        let a = parse(&layer("\"!resetXformStack!\", ")).unwrap();
+        assert_eq!(a.frame_count(), 2);
+        let f = a.frame(0);
+        let want = [0., 1., 0., -1., 0., 0., 0., 0., 1.];
+        assert!(f.iter().zip(want).all(|(x, y)| (x - y).abs() < 1e-6), "{f:?}");
     }
 
     /// Issue 41 (misc): the nesting error counts levels, not prims; it says so, with both.
