@@ -9,7 +9,7 @@
 //!   own mesh before its children. Each such mesh instance contributes all its primitives'
 //!   vertices in primitive order, each in its `POSITION` accessor's order (a mesh used by two
 //!   nodes appears twice); a Draco-compressed primitive's in its decoded point order, which
-//!   may differ from the mesh before compression ([`super::gltf_draco`]). Triangles are
+//!   may differ from the mesh before compression (`gltf_draco.rs`). Triangles are
 //!   re-indexed accordingly. Only `TRIANGLES` primitives are accepted; a primitive without
 //!   indices is a plain triangle list.
 //! - **Space**: world space of the scene (the node hierarchy's transforms applied). A skinned
@@ -41,7 +41,7 @@
 //!   before the `gltf` crate sees it, so texture formats and their extensions never matter.
 //!   `asset.version` must be 2.x. A required extension is accepted when it is implemented here
 //!   (`KHR_mesh_quantization`, `EXT_meshopt_compression` with every mode and filter,
-//!   `KHR_draco_mesh_compression`: see [`super::gltf_draco`], whose decoded vertex order is
+//!   `KHR_draco_mesh_compression`: see `gltf_draco.rs`, whose decoded vertex order is
 //!   kept), or when it only describes appearance ([`APPEARANCE_PREFIXES`]: materials,
 //!   textures, lights, metadata); any other (GPU instancing, animation pointers, unknown names)
 //!   is refused by name, since it may change the geometry.
