@@ -31,21 +31,6 @@ fn script() -> PathBuf {
     PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/blender/evaluate.py"))
 }
 
-/// `Ok` when `python3` imports Blender 5 (`bpy`), else why not.
-fn blender() -> Result<(), String> {
-    let probe = "import bpy; print(bpy.app.version_string)";
-    match Command::new("python3").args(["-c", probe]).output() {
-        Ok(o) if o.status.success() && String::from_utf8_lossy(&o.stdout).trim_start().starts_with("5.") => Ok(()),
-        Ok(o) if o.status.success() => {
-            Err(format!("bpy {} is not Blender 5 (pip install bpy==5.0.1)", String::from_utf8_lossy(&o.stdout).trim()))
-        }
-        Ok(o) => {
-            Err(format!("bpy not installed (pip install bpy==5.0.1): {}", String::from_utf8_lossy(&o.stderr).trim()))
-        }
-        Err(e) => Err(format!("python3 not found: {e}")),
-    }
-}
-
 /// Runs evaluate.py; returns its report and the evaluated positions (frames × vertices × 3),
 /// or what Blender printed when the script failed.
 fn try_evaluate(
@@ -103,7 +88,7 @@ fn inputs(dir: &Scratch) -> Vec<(String, String)> {
 
 #[test]
 fn blender_mesh_cache_plays_our_decoded_pc2() {
-    if let Err(why) = blender() {
+    if let Err(why) = common::blender5() {
         return skip("blender_mesh_cache_plays_our_decoded_pc2", &why);
     }
     let dir = Scratch::new("blender-pc2");
@@ -128,7 +113,7 @@ fn blender_mesh_cache_plays_our_decoded_pc2() {
 
 #[test]
 fn blender_gltf_importer_plays_our_exported_glb() {
-    if let Err(why) = blender() {
+    if let Err(why) = common::blender5() {
         return skip("blender_gltf_importer_plays_our_exported_glb", &why);
     }
     let dir = Scratch::new("blender-glb");

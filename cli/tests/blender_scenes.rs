@@ -26,18 +26,6 @@ fn script() -> PathBuf {
     PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/blender/scenes.py"))
 }
 
-/// `Ok` when `python3` imports Blender 5 (`bpy`), else why not.
-fn blender() -> Result<(), String> {
-    let probe = "import bpy; print(bpy.app.version_string)";
-    match Command::new("python3").args(["-c", probe]).output() {
-        Ok(o) if o.status.success() && String::from_utf8_lossy(&o.stdout).trim_start().starts_with("5.") => Ok(()),
-        Ok(o) => {
-            Err(format!("bpy 5 not importable (pip install bpy==5.0.1): {}", String::from_utf8_lossy(&o.stderr).trim()))
-        }
-        Err(e) => Err(format!("python3 not found: {e}")),
-    }
-}
-
 /// Blender's evaluated positions of a scene, as an animation without triangles.
 fn blender_positions(dir: &Path, scene: &Value) -> Animation {
     let name = scene["name"].as_str().unwrap();
@@ -58,7 +46,7 @@ fn converted(a: &Animation, axes: fn([f32; 3]) -> [f32; 3]) -> Animation {
 #[test]
 fn animcodec_reads_what_blender_exports() {
     let test = "animcodec_reads_what_blender_exports";
-    if let Err(why) = blender() {
+    if let Err(why) = common::blender5() {
         return skip(test, &why);
     }
     let robot = match shared_data("robot-expressive/RobotExpressive.glb") {

@@ -173,6 +173,18 @@ fn assert_beats(row: &Row) {
     );
 }
 
+/// The bar short clips meet: KG ≤ gltfpack's and fewer bytes than gltfpack's.
+fn assert_smaller(row: &Row) {
+    assert!(row.ours_kg <= row.gltfpack_kg, "{}: our KG {} > gltfpack's {}", row.name, row.ours_kg, row.gltfpack_kg);
+    assert!(
+        row.ours_bytes < row.gltfpack_bytes,
+        "{}: {} bytes ≥ gltfpack's {}",
+        row.name,
+        row.ours_bytes,
+        row.gltfpack_bytes
+    );
+}
+
 /// The synthetic comparison (always runs with the tools): a waving flag.
 #[test]
 fn our_glb_beats_gltfpack_on_a_synthetic_animation() {
@@ -221,20 +233,7 @@ fn our_glb_beats_gltfpack_on_the_real_animations() {
     println!("| animation | frames × vertices | gltfpack -cc bytes | its KG | ours bytes | our KG | ratio | targets |");
     let rows: Vec<Row> = inputs.iter().map(|(name, a)| compare(&tools, &s, name, a)).collect();
     for row in &rows {
-        assert!(
-            row.ours_kg <= row.gltfpack_kg,
-            "{}: our KG {} > gltfpack's {}",
-            row.name,
-            row.ours_kg,
-            row.gltfpack_kg
-        );
-        assert!(
-            row.ours_bytes < row.gltfpack_bytes,
-            "{}: {} bytes ≥ gltfpack's {}",
-            row.name,
-            row.ours_bytes,
-            row.gltfpack_bytes
-        );
+        assert_beats(row);
     }
 }
 
@@ -294,19 +293,6 @@ fn our_glb_beats_gltfpack_on_short_clips() {
     println!("| animation | frames × vertices | gltfpack -cc bytes | its KG | ours bytes | our KG | ratio | targets |");
     let rows: Vec<Row> = inputs.iter().map(|(name, a)| compare(&tools, &s, name, a)).collect();
     for row in &rows {
-        assert!(
-            row.ours_kg <= row.gltfpack_kg,
-            "{}: our KG {} > gltfpack's {}",
-            row.name,
-            row.ours_kg,
-            row.gltfpack_kg
-        );
-        assert!(
-            row.ours_bytes < row.gltfpack_bytes,
-            "{}: {} bytes ≥ gltfpack's {}",
-            row.name,
-            row.ours_bytes,
-            row.gltfpack_bytes
-        );
+        assert_smaller(row);
     }
 }

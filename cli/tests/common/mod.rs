@@ -158,3 +158,19 @@ pub fn join_glb(json: &serde_json::Value, bin: &[u8]) -> Vec<u8> {
     out.extend(&bin);
     out
 }
+
+/// `Ok` when `python3` imports Blender 5 as the `bpy` module (`pip install bpy==5.0.1`), else
+/// why not: the condition of the Blender client tests.
+pub fn blender5() -> Result<(), String> {
+    let probe = "import bpy; print(bpy.app.version_string)";
+    match Command::new("python3").args(["-c", probe]).output() {
+        Ok(o) if o.status.success() && String::from_utf8_lossy(&o.stdout).trim_start().starts_with("5.") => Ok(()),
+        Ok(o) if o.status.success() => {
+            Err(format!("bpy {} is not Blender 5 (pip install bpy==5.0.1)", String::from_utf8_lossy(&o.stdout).trim()))
+        }
+        Ok(o) => {
+            Err(format!("bpy not installed (pip install bpy==5.0.1): {}", String::from_utf8_lossy(&o.stderr).trim()))
+        }
+        Err(e) => Err(format!("python3 not found: {e}")),
+    }
+}
