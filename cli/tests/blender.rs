@@ -2,7 +2,9 @@
 //! install bpy==5.0.1`, headless, no display) runs `cli/tests/blender/evaluate.py` on
 //!
 //! - our decoded PC2 (`decode -o X.pc2 --topology-obj`), played by the Mesh Cache modifier on a
-//!   mesh built from the topology OBJ, and
+//!   mesh built from the topology OBJ,
+//! - our decoded Alembic and binary USD (`decode -o X.abc`, `-o X.usdc`), imported with
+//!   Blender's Alembic and USD importers, and
 //! - our exported GLB in every form Blender can import (`--compression quantized`: 16-bit
 //!   positions, and `none`: f32), both layouts, imported with Blender's glTF importer (shape
 //!   keys); the default form (`meshopt`) is refused by Blender 5.0's importer, which the test
@@ -108,6 +110,34 @@ fn blender_mesh_cache_plays_our_decoded_pc2() {
         eprintln!("blender pc2 {name}: max |Blender − ours| = {w:.3e} × diagonal over frames {frames:?}");
         // The Mesh Cache modifier copies the cache's float32 coordinates at whole frames: equal.
         assert!(w <= 1e-7, "{name}: Blender's Mesh Cache differs from our decode by {w:e} × diagonal");
+    }
+}
+
+/// Blender's Alembic and USD importers play our `.abc` and `.usdc` at the decoded positions.
+#[test]
+fn blender_imports_our_alembic_and_usd() {
+    if let Err(why) = common::blender5() {
+        return skip("blender_imports_our_alembic_and_usd", &why);
+    }
+    let dir = Scratch::new("blender-abc-usd");
+    for (name, input) in inputs(&dir) {
+        let anim = dir.path(&format!("{name}.anim"));
+        ok(&["encode", &input, "-c", "quant-delta", "-p", "bits=16", "-o", &anim]);
+        for (ext, mode) in [("abc", "abc"), ("usdc", "usd")] {
+            let file = dir.path(&format!("{name}.{ext}"));
+            ok(&["decode", &anim, "-o", &file]);
+            let ours = read_animation(Path::new(&file), &ReadOptions::default()).unwrap();
+            let last = ours.frame_count() - 1;
+            let frames = [0, 1, last / 3, last / 2, last];
+            let out = dir.path(&format!("{name}-{ext}.f32"));
+            let (report, theirs) = evaluate(mode, &file, "", ours.frame_rate(), &frames, &out);
+            assert_eq!(report["objects"], 1, "{report}");
+            let w = worst(&ours, &frames, &theirs);
+            eprintln!("blender {ext} {name}: max |Blender − ours| = {w:.3e} × diagonal over frames {frames:?}");
+            // The importers copy the float32 points (and turn the axes): equal up to the
+            // rounding of a matrix product with the axis change.
+            assert!(w <= 1e-6, "{name}.{ext}: Blender plays it {w:e} × diagonal from our decode");
+        }
     }
 }
 

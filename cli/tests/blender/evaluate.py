@@ -5,7 +5,8 @@ cli/tests/blender.rs:
 
 MODE pc2: a mesh is built from OBJ's vertices and faces (in file order, no importer axis
 conversion) and given a Mesh Cache modifier reading the PC2 FILE (Blender's native axes, frame
-start 0). MODE glb: FILE is imported with Blender's glTF importer (shape keys, node animation;
+start 0). MODE abc / usd: FILE (our .abc / .usdc) is imported with Blender's Alembic / USD
+importer. MODE glb: FILE is imported with Blender's glTF importer (shape keys, node animation;
 its Y-up to Z-up conversion is undone below). For each FRAME (a scene frame, at FPS), the
 depsgraph-evaluated mesh's world-space vertex positions are appended to OUT as little-endian
 float32, in our axes (glTF's Y up for glb). Prints one JSON line: what was evaluated.
@@ -66,6 +67,14 @@ elif mode == "glb":
             report_sliders.append([kb.slider_min, kb.slider_max])
     # The importer turns glTF's Y up into Blender's Z up: (x, y, z) -> (x, -z, y).
     convert = lambda v: (v[0], v[2], -v[1])
+elif mode in ("abc", "usd"):
+    # Blender's Alembic and USD importers turn the file's Y up into Z up, as the glTF one does.
+    if mode == "abc":
+        bpy.ops.wm.alembic_import(filepath=path)
+    else:
+        bpy.ops.wm.usd_import(filepath=path)
+    objects = [o for o in scene.objects if o.type == "MESH"]
+    convert = lambda v: (v[0], v[2], -v[1])
 else:
     raise SystemExit(f"unknown mode {mode}")
 
@@ -86,7 +95,7 @@ with open(out, "wb") as fh:
                 report["vertices"].append(len(m.vertices))
             fh.write(struct.pack(f"<{len(coords)}f", *coords))
             ev.to_mesh_clear()
-    if mode != "pc2":
+    if mode == "glb":
         report["sliders"] = report_sliders
         report["shape_keys"] = [len(o.data.shape_keys.key_blocks) if o.data.shape_keys else 0 for o in objects]
         acts = [a for a in bpy.data.actions]
