@@ -141,18 +141,7 @@ fn archives_we_write_open_in_alembic3d_bit_exact() {
     }
     let dir = Scratch::new("abc-we-write");
     // In-process, on values with awkward binary expansions (negative zero, 1e30, tiny normals).
-    let positions: Vec<f32> = (0..6 * 9 * 3)
-        .map(|i| match i % 6 {
-            0 => -0.0,
-            1 => (i as f32 * 0.1).sin() * 1e-3,
-            2 => 1.0 / 3.0 + i as f32,
-            3 => -(i as f32).sqrt() * 12345.678,
-            4 => 1e30 / (i as f32 + 1.0),
-            _ => f32::MIN_POSITIVE * (i + 1) as f32,
-        })
-        .collect();
-    let tris: Vec<[u32; 3]> = (0..7).map(|v| [v, v + 1, v + 2]).collect();
-    let awkward = Animation::from_parts(9, tris, positions, 29.97).unwrap();
+    let awkward = common::awkward_animation();
     let abc = dir.path("awkward.abc");
     write_animation(Path::new(&abc), &awkward).unwrap();
     check_in_alembic3d(&abc, &awkward, &dir, "awkward");

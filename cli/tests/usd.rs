@@ -152,18 +152,7 @@ fn layers_we_write_open_in_usd_core_and_pass_its_compliance_checker() {
     }
     let dir = Scratch::new("usd-we-write");
     // In-process, on values with awkward decimal expansions (negative zero, 1e30, tiny normals).
-    let positions: Vec<f32> = (0..6 * 9 * 3)
-        .map(|i| match i % 6 {
-            0 => -0.0,
-            1 => (i as f32 * 0.1).sin() * 1e-3,
-            2 => 1.0 / 3.0 + i as f32,
-            3 => -(i as f32).sqrt() * 12345.678,
-            4 => 1e30 / (i as f32 + 1.0),
-            _ => f32::MIN_POSITIVE * (i + 1) as f32,
-        })
-        .collect();
-    let tris: Vec<[u32; 3]> = (0..7).map(|v| [v, v + 1, v + 2]).collect();
-    let awkward = Animation::from_parts(9, tris, positions, 29.97).unwrap();
+    let awkward = common::awkward_animation();
     for ext in ["usda", "usdc"] {
         let layer = dir.path(&format!("awkward.{ext}"));
         write_animation(Path::new(&layer), &awkward).unwrap();

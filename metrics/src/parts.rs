@@ -77,6 +77,12 @@ impl Parts {
 /// Connected components of `triangles` over `vertex_count` vertices (union–find, `O(V + T)`).
 /// Indices out of range are ignored (the animation checks them on construction).
 pub fn connected_parts(vertex_count: usize, triangles: &[[u32; 3]]) -> Parts {
+    joined_parts(vertex_count, triangles.iter())
+}
+
+/// [`connected_parts`] of `triangles`, an iterator (so seams can join it without a copy of the
+/// triangle list).
+fn joined_parts<'a>(vertex_count: usize, triangles: impl Iterator<Item = &'a [u32; 3]>) -> Parts {
     let mut parent: Vec<u32> = (0..vertex_count as u32).collect();
     let mut used = vec![false; vertex_count];
     fn find(parent: &mut [u32], mut x: u32) -> u32 {
@@ -168,7 +174,7 @@ pub fn visible_parts(animation: &Animation) -> Parts {
             }
         }
     }
-    connected_parts(n, &[triangles, seams.as_slice()].concat())
+    joined_parts(n, triangles.iter().chain(&seams))
 }
 
 /// A 64-bit finalizer (SplitMix64's): every input bit changes about half the output bits.

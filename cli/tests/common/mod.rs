@@ -174,3 +174,20 @@ pub fn blender5() -> Result<(), String> {
         Err(e) => Err(format!("python3 not found: {e}")),
     }
 }
+
+/// 9 vertices × 6 frames at 29.97 fps whose coordinates have awkward binary and decimal
+/// expansions (negative zero, 1e30, subnormal-adjacent values): what a writer must carry exactly.
+pub fn awkward_animation() -> Animation {
+    let positions: Vec<f32> = (0..6 * 9 * 3)
+        .map(|i| match i % 6 {
+            0 => -0.0,
+            1 => (i as f32 * 0.1).sin() * 1e-3,
+            2 => 1.0 / 3.0 + i as f32,
+            3 => -(i as f32).sqrt() * 12345.678,
+            4 => 1e30 / (i as f32 + 1.0),
+            _ => f32::MIN_POSITIVE * (i + 1) as f32,
+        })
+        .collect();
+    let tris: Vec<[u32; 3]> = (0..7).map(|v| [v, v + 1, v + 2]).collect();
+    Animation::from_parts(9, tris, positions, 29.97).unwrap()
+}

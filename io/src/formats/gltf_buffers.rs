@@ -80,17 +80,14 @@ pub(super) fn bad(file: &str, field: &'static str, detail: impl Into<String>) ->
     Error::malformed(file.to_owned(), field, detail)
 }
 
-/// Checks an accessor before handing it to the `gltf` reader: dimensions, component type,
-/// non-zero counts (the reader computes `count - 1`), the vertex limit, and its byte layout
-/// ([`check_layout`]). Returns the count.
-pub(super) fn check_accessor(
+/// Checks an accessor's dimensions and component type against what `field` allows.
+pub(super) fn check_accessor_kind(
     file: &str,
     field: &'static str,
     accessor: &Accessor,
     dims: Dimensions,
     types: &[DataType],
-    buffers: &[BufferData],
-) -> Result<usize> {
+) -> Result<()> {
     let what = format!("accessor {}", accessor.index());
     if accessor.dimensions() != dims {
         return Err(bad(file, field, format!("{what} is {:?}, expected {dims:?}", accessor.dimensions())));
@@ -102,6 +99,22 @@ pub(super) fn check_accessor(
             format!("{what} has component type {:?}, expected {types:?}", accessor.data_type()),
         ));
     }
+    Ok(())
+}
+
+/// Checks an accessor before handing it to the `gltf` reader: dimensions, component type,
+/// non-zero counts (the reader computes `count - 1`), the vertex limit, and its byte layout
+/// ([`check_layout`]). Returns the count.
+pub(super) fn check_accessor(
+    file: &str,
+    field: &'static str,
+    accessor: &Accessor,
+    dims: Dimensions,
+    types: &[DataType],
+    buffers: &[BufferData],
+) -> Result<usize> {
+    check_accessor_kind(file, field, accessor, dims, types)?;
+    let what = format!("accessor {}", accessor.index());
     if accessor.count() == 0 {
         return Err(bad(file, field, format!("{what} is empty")));
     }

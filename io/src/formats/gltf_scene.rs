@@ -10,7 +10,9 @@ use ::gltf::Semantic;
 use codec_core::{Animation, Error, Result};
 
 use super::gltf_anim::{self, Mat4, Track, IDENTITY};
-use super::gltf_buffers::{bad, check_accessor, collect_exact, printable, Budget, BufferData, KHR_MESH_QUANTIZATION};
+use super::gltf_buffers::{
+    bad, check_accessor, check_accessor_kind, collect_exact, printable, Budget, BufferData, KHR_MESH_QUANTIZATION,
+};
 use super::gltf_draco;
 use super::{in_file, FRAME_RATE_RANGE};
 
@@ -129,17 +131,8 @@ fn check_declared(
     types: &[DataType],
     count: usize,
 ) -> Result<()> {
+    check_accessor_kind(file, field, accessor, dims, types)?;
     let what = format!("accessor {}", accessor.index());
-    if accessor.dimensions() != dims {
-        return Err(bad(file, field, format!("{what} is {:?}, expected {dims:?}", accessor.dimensions())));
-    }
-    if !types.contains(&accessor.data_type()) {
-        return Err(bad(
-            file,
-            field,
-            format!("{what} has component type {:?}, expected {types:?}", accessor.data_type()),
-        ));
-    }
     if accessor.count() != count {
         return Err(bad(
             file,
