@@ -17,6 +17,7 @@ pub mod error;
 pub mod limits;
 pub mod linalg;
 pub mod memory;
+pub mod metadata;
 pub mod params;
 pub mod quant;
 pub mod quant_delta;
@@ -28,6 +29,7 @@ pub mod toolkit;
 pub mod traversal;
 
 pub use animation::{Animation, Topology};
+pub use metadata::{SceneMetadata, UpAxis};
 pub use codec::{
     AnimationCodec, EncodedPacket, EncoderSetup, ErrorBound, FourCc, FrameDecoder, FrameEncoder, Packet, StreamInfo,
 };
