@@ -17,8 +17,8 @@ use crate::bytes::{ByteReader, ByteWriter};
 use crate::codec::{FourCc, Packet, StreamInfo};
 use crate::entropy;
 use crate::error::{Error, Result};
-use crate::metadata::SceneMetadata;
 pub use crate::limits::{Limits, DEFAULT_MAX_MEMORY, DEFAULT_MAX_WORK};
+use crate::metadata::SceneMetadata;
 
 /// File magic: `ANIMCDC` then 0x1A (stops `type` on DOS, catches text-mode mangling).
 pub const MAGIC: [u8; 8] = *b"ANIMCDC\x1a";
@@ -826,7 +826,13 @@ mod tests {
             time_codes_per_second: Some(48.0),
             start_time_code: Some(101.0),
         };
-        let info = StreamInfo { fourcc: FourCc(*b"TEST"), codec_version: 3, topology: topo.clone(), frame_count: 6, frame_rate: 25.0 };
+        let info = StreamInfo {
+            fourcc: FourCc(*b"TEST"),
+            codec_version: 3,
+            topology: topo.clone(),
+            frame_count: 6,
+            frame_rate: 25.0,
+        };
         let mut w = ContainerWriter::with_metadata(Vec::new(), &info, b"cfg", &metadata).unwrap();
         for p in &packets {
             w.write_packet(p).unwrap();

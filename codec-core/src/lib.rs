@@ -29,12 +29,12 @@ pub mod toolkit;
 pub mod traversal;
 
 pub use animation::{Animation, Topology};
-pub use metadata::{SceneMetadata, UpAxis};
 pub use codec::{
     AnimationCodec, EncodedPacket, EncoderSetup, ErrorBound, FourCc, FrameDecoder, FrameEncoder, Packet, StreamInfo,
 };
 pub use error::{Error, Result};
 pub use limits::Limits;
+pub use metadata::{SceneMetadata, UpAxis};
 pub use params::{
     DeclaredParams, DistortionKind, ParamChoice, ParamKind, ParamSet, ParamSpec, ParamValue, RateLadder, SearchAxis,
     SearchSpace,

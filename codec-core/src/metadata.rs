@@ -131,7 +131,11 @@ impl SceneMetadata {
     /// Parses a metadata block ([`SceneMetadata::to_block`]'s layout); unknown tags are skipped.
     pub fn from_block(block: &[u8]) -> Result<Self> {
         if block.len() > MAX_METADATA_BYTES {
-            return Err(Error::malformed(CTX, "length", format!("{} bytes (at most {MAX_METADATA_BYTES})", block.len())));
+            return Err(Error::malformed(
+                CTX,
+                "length",
+                format!("{} bytes (at most {MAX_METADATA_BYTES})", block.len()),
+            ));
         }
         let mut r = ByteReader::new(block, CTX);
         let mut meta = SceneMetadata::default();

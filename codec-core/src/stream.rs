@@ -10,9 +10,9 @@ use crate::codec::{
 use crate::container::{self, ContainerReader, ContainerWriter, Header, IndexEntry, Section};
 use crate::error::{Error, Result};
 use crate::limits::Limits;
+use crate::metadata::SceneMetadata;
 use crate::params::ParamSet;
 use crate::registry::CodecRegistry;
-use crate::metadata::SceneMetadata;
 
 /// Encodes frames as they arrive into a container written to `W`.
 ///
