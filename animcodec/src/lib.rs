@@ -40,13 +40,13 @@ pub fn registry() -> CodecRegistry {
     CodecRegistry::new(vec![
         // baseline, codec-core
         Box::new(QuantDelta),
-        // issue #4, Lalos et al. 2017
+        // block PCA with adaptive orthogonal iterations: Lalos et al. 2017, The Visual Computer
         Box::new(codec_pca_aoi::PcaAoi),
-        // issue #5, Romaszewski, Gawron, Opozda
+        // HO-SVD / Tucker: Romaszewski, Gawron & Opozda, Compression of animated 3D models using HO-SVD
         Box::new(codec_hosvd::Hosvd),
-        // issue #6, spectral deformation-gradient compression
+        // spectral deformation-gradient compression: Spectral animation compression, J. Comput. Sci. Technol.
         Box::new(codec_sac::Sac),
-        // issue #7, Luo et al. 2020
+        // spatio-temporal segmentation + PCA: Luo et al. 2020, ACM TOMM
         Box::new(codec_stseg::Stseg),
         // cargo xtask new-codec inserts above this line
     ])

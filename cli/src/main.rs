@@ -731,7 +731,7 @@ pub struct DemoArgs {
 fn main() -> ExitCode {
     signals::install_cleanup();
     // Every file a reader opens (a .gltf's buffers, a cache's OBJ, …) is an input no output
-    // may replace, even with --force (issue 41).
+    // may replace, even with --force: overwriting it would lose the user's data.
     animcodec::output::protect_files_read();
     // No panic text ever reaches the terminal: the library turns the panics it can meet (inside
     // the gltf crate) into errors, which are reported below; any other panic is a bug, reported

@@ -1,9 +1,9 @@
 //! Interrupts never leave a partial file: on SIGINT, SIGTERM or SIGHUP the pending temporary
 //! outputs are deleted before the process exits (`animcodec::output::delete_pending_and_exit_with`),
-//! and a write beyond `ulimit -f` is an ordinary error (SIGXFSZ no longer kills the process).
-//! The message says what the command had changed when the signal landed (issue 41: after an OBJ
-//! sequence's commit it said "no output file was changed" although the folder had been
-//! replaced). This lives in the binary: a library (or the Python package, inside an interpreter
+//! and a write beyond `ulimit -f` is an ordinary error (SIGXFSZ has a handler, so the write
+//! fails with EFBIG instead of the signal killing the process). The message says what the
+//! command had changed when the signal landed: after an OBJ sequence's commit the folder has
+//! been replaced, so "no output file was changed" would be false. This lives in the binary: a library (or the Python package, inside an interpreter
 //! that has its own handlers) must not take over a process's signals.
 
 use animcodec::output::Changes;

@@ -41,7 +41,7 @@ pub enum EvalError {
     },
 
     /// A stream decoded to non-finite coordinates: garbage whatever its metrics say, never a
-    /// measured point (issue 26).
+    /// measured point.
     #[error("{codec}: the stream decodes to non-finite coordinates")]
     NonFiniteDecode {
         /// The codec that wrote the stream.

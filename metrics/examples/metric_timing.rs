@@ -128,7 +128,7 @@ fn main() -> Res<()> {
         ("displacement_stats (mse/rmse/max)", t_disp),
         ("per_vertex_displacement", t_pv),
         ("sted (the author's tool's definition)", t_sted),
-        ("baseline: STED as defined before issue 12", t_legacy),
+        ("baseline: the earlier STED definition (legacy_sted)", t_legacy),
         ("sted_with_fields", t_stedf),
         ("hausdorff (all frames, both directions)", t_h),
         ("evaluate (everything)", t_eval),

@@ -98,9 +98,9 @@ pub fn vertex_to_surface_distances(from: &[f32], to: &[f32], triangles: &[[u32; 
 }
 
 /// The triangle list to search: the mesh's triangles plus one degenerate triangle `[v, v, v]`
-/// per vertex in no triangle, so an isolated vertex is measured as the point it is (issue 41:
-/// without it, an isolated vertex of one frame was compared with the other frame's *surface*
-/// alone, and an animation measured against itself reported 40 % of its bounding box). For a
+/// per vertex in no triangle, so an isolated vertex is measured as the point it is (without
+/// it, an isolated vertex of one frame is compared with the other frame's *surface* alone, and
+/// an animation measured against itself reports 40 % of its bounding box). For a
 /// point cloud (no triangles at all) every vertex is such a point.
 pub(crate) fn surface_triangles(triangles: &[[u32; 3]], n: usize) -> (Vec<[u32; 3]>, HausdorffMode) {
     let mut used = vec![false; n];
@@ -548,9 +548,9 @@ mod tests {
         assert_eq!(hausdorff(&r, &s).unwrap().max, 0.0);
     }
 
-    /// Issue 41 (hausdorff-isolated): vertices in no triangle are points. An animation against
+    /// Vertices in no triangle are points (probe hausdorff-isolated). An animation against
     /// itself is at distance 0, and an isolated point moved by 0.25 far from the surface is at
-    /// 0.25 (it was compared with the other frame's surface alone: 40 % of the box).
+    /// 0.25 (compared with the other frame's surface alone it would be at 40 % of the box).
     #[test]
     fn isolated_vertices_are_points() {
         // A triangle near the origin and two free points at x = 10 and x = 20.

@@ -10,7 +10,7 @@
 //! * [`sted()`] — Váša & Skala's spatio-temporal edge difference with [`StedParams`],
 //! * [`per_vertex_displacement`], [`sted_with_fields`] — per-vertex fields for heatmaps,
 //! * [`bpvf()`] / [`geometry_bpvf`] — bits per vertex per frame from byte counts,
-//! * [`part_errors`] — the KG error of every connected part against its own spread (issue 41),
+//! * [`part_errors`] — the KG error of every connected part against its own spread,
 //! * [`evaluate`] — everything at once as a serializable [`MetricReport`].
 
 pub mod bpvf;

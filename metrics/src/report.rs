@@ -22,7 +22,7 @@ pub struct EvalOptions {
 
 impl MetricReport {
     /// The KG a quality bound applies to: the larger of the whole animation's and the worst
-    /// part's (issue 41: a large static part must not hide a destroyed small one). `None` when
+    /// part's (a large static part must not hide a destroyed small one). `None` when
     /// the global KG is undefined.
     pub fn kg_bound(&self) -> Option<f64> {
         let part = self.worst_part.as_ref().and_then(|w| w.kg);

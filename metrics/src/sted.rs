@@ -657,7 +657,7 @@ mod tests {
             (StedParams { speed_window: 1001, ..Default::default() }, "speed_window"),
             (StedParams { c: -1.0, ..Default::default() }, "c"),
             (StedParams { c: f64::INFINITY, ..Default::default() }, "c"),
-            // Finite but giving NaN (dt² underflows) or infinity (c² overflows): issue 27.
+            // Finite but giving NaN (dt² underflows) or infinity (c² overflows).
             (StedParams { dt: 1e-300, ..Default::default() }, "dt"),
             (StedParams { c: 1e300, ..Default::default() }, "c"),
         ] {

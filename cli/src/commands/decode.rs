@@ -104,7 +104,7 @@ fn run_conversion(args: &DecodeArgs, options: &WriteOptions) -> CmdResult {
     report.emit(args, &written)
 }
 
-/// `decode` to a `.pc2`/`.mdd` file (issue 30): each packet's frames are written as soon as they
+/// `decode` to a `.pc2`/`.mdd` file: each packet's frames are written as soon as they
 /// are decoded, so memory holds one packet (and the codec decoder's state), never the whole
 /// animation; `limits` are charged the same way ([`StreamDecoder::new_streaming`]). The file is
 /// pending until the last frame is written: a failure leaves nothing.

@@ -113,7 +113,8 @@ pub fn run(args: &EncodeArgs, limits: Limits) -> CmdResult {
                 object: args.object.clone(),
             };
             // A PC2/MDD cache or an OBJ sequence is read frame by frame as the encoder takes it
-            // (issue 30), unless --eval needs the whole input in memory to measure it.
+            // (inputs may be larger than memory), unless --eval needs the whole input in memory
+            // to measure it.
             let path = std::path::Path::new(&args.input);
             if !args.eval && cache_stream::is_streamable(path) {
                 Source::Cache(CacheReader::open(path, &options)?)
@@ -125,7 +126,7 @@ pub fn run(args: &EncodeArgs, limits: Limits) -> CmdResult {
     let topology = source.topology();
     let (frame_count, frame_rate) = source.frames_and_rate(args.fps);
     let read_seconds = read_start.elapsed().as_secs_f64();
-    // Issue 30: a codec with a whole-block analysis chooses its blocks by the budget.
+    // A codec with a whole-block analysis chooses its blocks by the memory budget.
     let params = match args.memory {
         Some(budget) => codec.fit_memory(&params, topology.vertex_count(), frame_count, budget)?,
         None => params,
@@ -138,7 +139,7 @@ pub fn run(args: &EncodeArgs, limits: Limits) -> CmdResult {
     let (mut file, bytes, notes) =
         encode_to_file(codec, &params, &mut source, (&topology, frame_count, frame_rate), file, args.feed as usize)?;
     let encode_seconds = start.elapsed().as_secs_f64();
-    // The encoder's warnings (e.g. a fallback it took to stay within its bound, issue 26) also go
+    // The encoder's warnings (e.g. a fallback it took to stay within its bound) also go
     // to stderr, whatever the output format; `--json` lists them under "notes".
     for n in &notes {
         eprintln!("animcodec: warning: {n}");
@@ -292,13 +293,13 @@ pub(crate) fn parse_streamed_flag(input: &str) -> CmdResult<Option<(usize, usize
 
 /// Bytes a streamed `synth:flag:COLSxROWSxFRAMES` encode holds per vertex of the flag, whatever
 /// its frame count: the mesh (its triangles, and their connectivity coding for the container
-/// header) is held while only the frames are generated one at a time. Measured (issue 41, peak
-/// RSS of `encode synth:flag:CxRx2 -c quant-delta -p bits=8`): 126 MB at 500×500, 420 MB at
+/// header) is held while only the frames are generated one at a time. Measured (peak RSS of
+/// `encode synth:flag:CxRx2 -c quant-delta -p bits=8`): 126 MB at 500×500, 420 MB at
 /// 1000×1000, 3.7 GB at 3000×3000.
 const FLAG_MESH_BYTES_PER_VERTEX: u64 = 420;
 
-/// Refuses a streamed flag whose mesh alone needs more than `--memory` (issue 41: the help said
-/// the input is never held, and `synth:flag:3000x3000x2` took 3.7 GB).
+/// Refuses a streamed flag whose mesh alone needs more than `--memory`: streaming holds the
+/// frames one at a time but the mesh whole (`synth:flag:3000x3000x2` needs 3.7 GB).
 fn check_flag_memory(input: &str, cols: usize, rows: usize, memory: Option<u64>) -> CmdResult {
     let vertices = cols as u64 * rows as u64;
     let need = vertices.saturating_mul(FLAG_MESH_BYTES_PER_VERTEX);
@@ -564,7 +565,7 @@ fn run_target(args: &EncodeArgs, target: Target, by_default: bool, limits: Limit
         bytes = p.bytes,
         rate = p.bpvf,
         n = hit.tried.len(),
-        // Issue 41: a KG bound holds for every part; say which figure it was.
+        // A KG bound holds for every part; say which figure it was.
         parts = match (&p.report.worst_part, target.metric) {
             (Some(w), TargetMetric::Kg) if p.report.parts > 1 => format!(
                 "kg is the larger of the whole animation's ({}) and the worst of its {} parts' (part {}, {} vertices: {})\n",
@@ -602,8 +603,9 @@ fn run_target(args: &EncodeArgs, target: Target, by_default: bool, limits: Limit
     emit(&out)
 }
 
-/// `--eval`'s line on the worst part (issue 41): its KG against its own spread, beside the
-/// global figures; empty for a mesh of one part (its KG is the global one) or without triangles.
+/// `--eval`'s line on the worst part: its KG against its own spread, beside the global figures
+/// (a large static part must not hide a destroyed small one); empty for a mesh of one part (its
+/// KG is the global one) or without triangles.
 pub fn worst_part_line(r: &MetricReport) -> String {
     match &r.worst_part {
         Some(w) if r.parts > 1 => format!(
@@ -626,8 +628,8 @@ const STED_MOTION_NOTE_KG: f64 = 5.0;
 
 /// The note for a STED target met by a stream that does not follow the motion: STED (the
 /// metric author's tool) weighs its temporal part by about 1e-4, so a shape moved rigidly — or
-/// even frame 0 repeated — can meet it (issue 26, seventh session: samba at STED ≤ 0.1 is met
-/// by hosvd's `(v, f) = (3, 1)` model at KG 19).
+/// even frame 0 repeated — can meet it (samba at STED ≤ 0.1 is met by hosvd's
+/// `(v, f) = (3, 1)` model at KG 19).
 fn sted_motion_note(target: Target, point: &harness::Point) -> Option<String> {
     let kg = point.report.kg?;
     (target.metric == TargetMetric::Sted && kg > STED_MOTION_NOTE_KG).then(|| {

@@ -130,7 +130,7 @@ fn text(args: &EvalArgs, r: &MetricReport, seconds: f64) -> String {
     );
     let rows = [
         ("kg (%)", num(r.kg)),
-        // Issue 41: the worst connected part against its own spread, beside the global KG.
+        // The worst connected part against its own spread, beside the global KG.
         ("worst_part_kg (%)", num(r.worst_part_kg())),
         ("sted", num(r.sted)),
         ("sted_spatial", num(r.sted_spatial)),

@@ -1,5 +1,5 @@
 //! `animcodec inspect`: shows the `stseg` spatio-temporal segmentation of an animation
-//! (issue #7): temporal segments and per-vertex group labels as JSON, a human summary, and
+//! (Luo et al. 2020, ACM TOMM): temporal segments and per-vertex group labels as JSON, a human summary, and
 //! the groups as vertex colours in a PLY or OBJ mesh any viewer opens.
 
 use std::fmt::Write as _;

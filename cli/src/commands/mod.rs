@@ -36,7 +36,7 @@ pub fn report_error(e: &(dyn StdError + 'static)) {
 /// A path (or any other name that came from the user or a file) as it is printed: control
 /// characters — terminal escape sequences, newlines, carriage returns, … — written as Rust
 /// escapes (`\u{1b}`, `\n`), so a crafted file name can neither drive the terminal nor fake a
-/// line of output (issue 41). Every path a command prints goes through it.
+/// line of output. Every path a command prints goes through it.
 pub fn shown(name: impl AsRef<std::ffi::OsStr>) -> String {
     let text = name.as_ref().to_string_lossy();
     if !text.chars().any(char::is_control) {
@@ -58,8 +58,8 @@ pub fn terminal_safe(text: &str) -> std::borrow::Cow<'_, str> {
 
 /// Most worker threads `--threads` and `sweep --jobs` accept: 4 × the cores this process may
 /// use, at least 8. More threads than cores make nothing faster (the output never depends on
-/// the count), and thousands of them took minutes to start and hold gigabytes (issue 41:
-/// `--threads 65535`, `sweep --jobs 5000` ran past 60 s on trivial inputs).
+/// the count), and thousands of them take minutes to start and hold gigabytes
+/// (`--threads 65535` and `sweep --jobs 5000` run past 60 s on trivial inputs).
 pub fn max_workers() -> u32 {
     let cores = std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get);
     u32::try_from(cores.saturating_mul(4)).unwrap_or(u32::MAX).max(8)

@@ -228,8 +228,8 @@ fn table(input: &str, animation: &codec_core::Animation, sweep: &Sweep, seconds:
         animation.vertex_count(),
         sweep.points.len()
     );
-    // Issue 41: with several parts, the worst part's KG (against its own spread) beside the
-    // whole animation's.
+    // With several parts, the worst part's KG (against its own spread) beside the whole
+    // animation's: a large static part must not hide a destroyed small one.
     let parts = sweep.points.iter().map(|p| p.report.parts).max().unwrap_or(0);
     let part_column = |v: Option<f64>| if parts > 1 { format!(" {:>11}", num(v)) } else { String::new() };
     if parts > 1 {

@@ -29,7 +29,7 @@ pub fn run(args: &SynthArgs) -> CmdResult {
 }
 
 /// `synth flag:COLSxROWSxFRAMES -o OUT.pc2|.mdd`: the flag written one frame at a time
-/// (issue 30: scale benchmarks need caches larger than memory).
+/// (scale benchmarks need caches larger than memory).
 fn run_streamed_flag(args: &SynthArgs, cols: usize, rows: usize, frames: usize) -> CmdResult {
     if !is_streamable_output(&args.output) {
         return Err(format!(

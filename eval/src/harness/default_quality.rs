@@ -17,7 +17,7 @@ pub const DEFAULT_TARGET: Target = Target { metric: TargetMetric::Kg, value: 0.5
 
 /// How far below [`DEFAULT_TARGET`] a codec's own defaults may land and still be the default
 /// encode's answer: a first encode whose error lies in `[target / band, target]` is kept as it
-/// is. A factor of 3 keeps the default quality within 3× across inputs (issue 26: the largest
+/// is. A factor of 3 keeps the default quality within 3× across inputs (the largest
 /// KG at most 3× the smallest over one character's clips) while most inputs cost one encode.
 pub const DEFAULT_QUALITY_BAND: f64 = 3.0;
 
@@ -136,7 +136,7 @@ pub fn search_default_quality(request: &SearchRequest<'_>, codec: &dyn Animation
         }
     }
     let mut best = tried.iter().filter(|(p, _)| usable(p) && meets(target, p)).min_by_key(|(p, _)| p.bytes).cloned();
-    // Issue 41 (10f): when the codec refused candidates (hosvd on a two-frame static pose
+    // When the codec refused candidates (hosvd on a two-frame static pose
     // refuses its default `ss` and every larger one, and the gallop after a miss only climbs),
     // nothing passed and the refusals may hide steps that work: scan the rest of the ladder
     // (short; a refusal costs no encode).

@@ -215,8 +215,8 @@ mod tests {
     }
 }
 
-/// Issue 41 (small-object-destroyed): the default quality and `kg=` targets hold for every
-/// part, not only for the whole scene a large static part dominates.
+/// The default quality and `kg=` targets hold for every part, not only for the whole scene a
+/// large static part dominates (probe small-object-destroyed).
 #[cfg(test)]
 mod parts_tests {
     use super::*;

@@ -66,13 +66,13 @@ pub fn measure_point(
     let start = Instant::now();
     let decoded = StreamDecoder::new(bytes.as_slice(), registry, limits)?.decode_all()?;
     let decode_seconds = start.elapsed().as_secs_f64();
-    // A stream that decodes to non-finite coordinates is garbage whatever its metrics say
-    // (issue 26): never a measured point, so never chosen by a search.
+    // A stream that decodes to non-finite coordinates is garbage whatever its metrics say:
+    // never a measured point, so never chosen by a search.
     if decoded.positions().iter().any(|x| !x.is_finite()) {
         return Err(EvalError::NonFiniteDecode { codec: codec.name() });
     }
     let mut report = metrics::evaluate(animation, &decoded, eval)?;
-    // The encoder's warnings (a fallback it took to stay within its bound, issue 26) travel with
+    // The encoder's warnings (e.g. a fallback it took to stay within its bound) travel with
     // the point, so a search's answer reports them as a plain encode does.
     report.notes.extend(encoded.notes.into_iter().map(|n| format!("encoder: {n}")));
     let size = bytes.len() as u64;

@@ -55,12 +55,12 @@ pub struct SweepRow {
     pub rmse: f64,
     /// Largest vertex displacement.
     pub max_error: f64,
-    /// Number of parts (connected components of the triangles); absent in rows written
-    /// before issue 41 (read as 0).
+    /// Number of parts (connected components of the triangles); absent in rows written by
+    /// versions without parts (read as 0).
     #[serde(default)]
     pub parts: usize,
-    /// KG of the worst part against its own spread, percent (issue 41; `null` without
-    /// parts).
+    /// KG of the worst part against its own spread, percent (`null` without parts): a large
+    /// static part must not hide a destroyed small one.
     #[serde(default)]
     pub worst_part_kg: Option<f64>,
     /// Encoding time.
@@ -72,7 +72,7 @@ pub struct SweepRow {
 /// Fields of [`SweepRow`] the CSV leaves out: the ladder's parameter is in `params` already.
 const NOT_IN_CSV: &[&str] = &["ladder_param"];
 
-/// Fields a row read back may lack (added after rows were first written: issue 41).
+/// Fields a row read back may lack (rows written by versions without parts have neither).
 const MAY_BE_MISSING: &[&str] = &["parts", "worst_part_kg"];
 
 impl From<&Point> for SweepRow {

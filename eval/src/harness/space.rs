@@ -65,13 +65,13 @@ const ABANDON_MARGIN_OWN: f64 = 1.03;
 /// A passing point that is not 1% smaller than the configuration's smallest passing stream so
 /// far ends its search: the error is a step function of some ladders (hosvd's ranks), and
 /// moving inside one step only shifts the quantization a little (samba at STED ≤ 0.1 spent 5
-/// more points on one rank for 1.4%; sixth session of 2026-11-27).
+/// more points on one rank for 1.4%).
 const PLATEAU: f64 = 0.99;
 
 /// A bracket narrower than this (in ladder positions) is not refined further: the error is a
 /// step function of some ladders (hosvd's ranks), and the stream hardly changes inside it.
 /// Not wider: on horse-gallop at KG ≤ 0.1 a bracket of 0.1 position (hosvd `ss` 0.664 → 0.654)
-/// still spans 7% of stream size (issue 26, fifth session).
+/// still spans 7% of stream size.
 const MIN_WIDTH: f64 = 0.05;
 
 /// The ladder value at `position` and the position that value actually has: a step at an
@@ -382,7 +382,7 @@ fn start_position(ladder: &RateLadder, base: &ParamSet) -> f64 {
 /// secondary axes (minus the parameters in `fixed`, which the user set), each searched along
 /// the primary rate ladder.
 ///
-/// Search (issue 26: few encodes): the first configuration (the one the codec lists first for
+/// Search (as few encodes as possible): the first configuration (the one the codec lists first for
 /// this kind of error) alone, from the base parameters' ladder step (or the codec's
 /// [`AnimationCodec::search_start`] for this kind of error), by secant steps in
 /// log(error) along the ladder taken as a continuous axis (see `SpaceSearcher::search`: the
@@ -445,8 +445,7 @@ pub fn search_space_target(
     // every edge length of that shape, and STED (relative edge-length changes; its temporal
     // part weighs 9·10⁻⁵) scores it like a good stream where the next steps, which add
     // quantized motion, score worse (chicken-crossing, rigid, `edge_noise = 0.012`: `ss`
-    // 0.998 STED 0.089 at 0.076 bits per vertex per frame, 0.99 STED 0.12 at 0.12; issue 26,
-    // seventh session). A search that brackets the target assumes monotone errors and never
+    // 0.998 STED 0.089 at 0.076 bits per vertex per frame, 0.99 STED 0.12 at 0.12). A search that brackets the target assumes monotone errors and never
     // looks there. One encode per configuration, the cheapest of its ladder.
     if target.metric.distortion_kind() == DistortionKind::Shape {
         runs.par_iter_mut().map(|run| searcher.probe_smallest(run)).collect::<Result<Vec<()>>>()?;

@@ -43,8 +43,8 @@ impl TargetMetric {
     /// [`MetricReport::kg_bound`]: the larger of the global and the worst part's KG.
     pub fn value(self, report: &MetricReport) -> Option<f64> {
         match self {
-            // The larger of the whole's and the worst part's (issue 41): a large static part
-            // must not hide a destroyed small one.
+            // The larger of the whole's and the worst part's: a large static part must not
+            // hide a destroyed small one.
             TargetMetric::Kg => report.kg_bound(),
             TargetMetric::Sted => report.sted,
             TargetMetric::Hausdorff => report.hausdorff,
@@ -191,7 +191,7 @@ impl fmt::Display for TargetMiss {
                 b.bpvf
             ),
             // Nothing measured because the codec refused every candidate: the metric is not
-            // undefined, the codec said why (issue 41, 10f).
+            // undefined, the codec said why.
             None if !self.refused.is_empty() => {
                 write!(
                     f,
@@ -207,7 +207,7 @@ impl fmt::Display for TargetMiss {
                 m.name()
             ),
         }?;
-        // Issue 41: say when the bound was the worst part's, not the whole animation's.
+        // Say when the bound was the worst part's, not the whole animation's.
         if let Some(b) = self.best.as_ref().filter(|b| m == TargetMetric::Kg && b.report.parts > 1) {
             if let (Some(w), Some(kg)) = (&b.report.worst_part, b.report.kg) {
                 if w.kg.is_some_and(|p| p > kg) {
@@ -234,12 +234,13 @@ impl std::error::Error for TargetMiss {}
 
 /// A reconstruction whose KG exceeds this (in %) is not a usable animation, whatever its
 /// STED or Hausdorff distance: on samba hosvd at `ss=0.998` decodes to KG 233 % with STED
-/// 0.00023 (a nearly rigid reconstruction STED cannot see; issue 15 session 5 met the same on
-/// chicken-crossing). Such points never meet a target and are left out of the envelopes.
+/// 0.00023 (a nearly rigid reconstruction STED cannot see; chicken-crossing shows the
+/// same). Such points never meet a target and are left out of the envelopes.
 pub const DEGENERATE_KG: f64 = 50.0;
 
 /// Whether `p` is a usable reconstruction (KG, when measured, at most [`DEGENERATE_KG`], for
-/// the whole animation and for its worst part: issue 41).
+/// the whole animation and for its worst part, so a large static part cannot hide a destroyed
+/// small one).
 pub fn usable(p: &Point) -> bool {
     p.report.kg_bound().is_none_or(|kg| kg.is_finite() && kg <= DEGENERATE_KG)
 }

@@ -1,9 +1,9 @@
-//! The STED definition this crate used before it was matched to the author's tool (commit
-//! 14b2640 and earlier), kept only as the timing baseline of `metric_timing` (issue 12 asks
-//! the new STED to stay under 2× the old one's time, measured in the same run). Not a metric
-//! to use: it gave 0.50–1.01× the tool's values. Radius-3 neighbourhoods of the edges with
-//! *both* ends within 3 hops, absolute relative differences, temporal edges with
-//! `dt = 0.3 ×` the bounding-box diagonal and no speed window, `c = 0.5`.
+//! An earlier STED definition that differs from the author's tool's (commit 14b2640), kept
+//! only as the timing baseline of `metric_timing`: `metrics::sted()` must stay under 2× this
+//! one's time, measured in the same run. Not a metric to use: it gives 0.50–1.01× the tool's
+//! values. Radius-3 neighbourhoods of the edges with *both* ends within 3 hops, absolute
+//! relative differences, temporal edges with `dt = 0.3 ×` the bounding-box diagonal and no
+//! speed window, `c = 0.5`.
 
 use codec_core::Animation;
 use rayon::prelude::*;
