@@ -42,9 +42,9 @@ pub fn registry() -> CodecRegistry {
         Box::new(QuantDelta),
         // block PCA with adaptive orthogonal iterations: Lalos et al. 2017, The Visual Computer
         Box::new(codec_pca_aoi::PcaAoi),
-        // HO-SVD / Tucker: Romaszewski, Gawron & Opozda, Compression of animated 3D models using HO-SVD
+        // HO-SVD / Tucker with rigid-motion removal: Romaszewski, Gawron & Opozda
         Box::new(codec_hosvd::Hosvd),
-        // spectral deformation-gradient compression: Spectral animation compression, J. Comput. Sci. Technol.
+        // spectral deformation-gradient compression: Spectral animation compression, JCST
         Box::new(codec_sac::Sac),
         // spatio-temporal segmentation + PCA: Luo et al. 2020, ACM TOMM
         Box::new(codec_stseg::Stseg),

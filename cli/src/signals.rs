@@ -3,8 +3,9 @@
 //! and a write beyond `ulimit -f` is an ordinary error (SIGXFSZ has a handler, so the write
 //! fails with EFBIG instead of the signal killing the process). The message says what the
 //! command had changed when the signal landed: after an OBJ sequence's commit the folder has
-//! been replaced, so "no output file was changed" would be false. This lives in the binary: a library (or the Python package, inside an interpreter
-//! that has its own handlers) must not take over a process's signals.
+//! been replaced, so "no output file was changed" would be false. This lives in the binary: a
+//! library (or the Python package, inside an interpreter that has its own handlers) must not
+//! take over a process's signals.
 
 use animcodec::output::Changes;
 

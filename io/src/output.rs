@@ -18,8 +18,8 @@
 //!   asked for it ([`protect_files_read`], which the binary does first thing): from then on
 //!   [`OutputPolicy::check`] and [`commit_all`] refuse to write any of those files, in any
 //!   spelling (same device and inode: symlinks, `./`, hard links), even with `--force`. A
-//!   command need not know which files its input pulled in (issue 41: `encode horse.gltf -o
-//!   horse.bin -f` replaced the model's own buffer).
+//!   command need not know which files its input pulled in (`encode horse.gltf -o horse.bin -f`
+//!   must not replace the model's own buffer).
 //! - A command with several outputs stages every one ([`OutputPolicy::create`]), validates
 //!   them, and renames them all together ([`commit_all`]): a failure before the renames leaves
 //!   every old file untouched.
@@ -121,7 +121,7 @@ pub fn delete_pending_and_exit(code: i32, message: &str) -> ! {
 /// What this process changed on disk so far through this module: files renamed into place by
 /// [`commit_all`] (each complete), stale files it removed, and devices or pipes written in place.
 /// An interrupt handler's message says this ([`delete_pending_and_exit_with`]): after an OBJ
-/// sequence's commit "no output file was changed" is false (issue 41).
+/// sequence's commit "no output file was changed" is false.
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
 pub struct Changes {
     /// Files renamed into place, complete.
@@ -183,7 +183,7 @@ pub struct OutputPolicy {
     /// existing `STEM.obj` (the command was asked for it by name, as `decode --topology-obj`).
     /// Without it, an existing `STEM.obj` is replaced only when it is the output's own
     /// companion or holds the same mesh: `-f` names the cache, not a file that may belong to
-    /// another cache of the same stem (issue 41).
+    /// another cache of the same stem.
     pub replace_companions: bool,
 }
 

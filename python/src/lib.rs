@@ -261,7 +261,8 @@ fn eval_options(options: Option<&Bound<'_, PyDict>>) -> PyResult<EvalOptions> {
 }
 
 // ---------------------------------------------------------------------------------------------
-// limits and streams (issue 41: `decode('/dev/zero')` read the whole "file" before any check)
+// limits and streams: a path is read through the decoder as it needs the bytes, so the limits
+// hold before reading (`decode('/dev/zero')` is refused at its first bytes)
 
 /// The decoding limits of the command line's `--max-memory` and `--max-work` (`None`: their
 /// defaults, [`codec_core::limits::DEFAULT_MAX_MEMORY`] and `DEFAULT_MAX_WORK`).
@@ -453,8 +454,8 @@ const DEFAULT_REFINE: usize = 4;
 /// A Python `progress` callable, called from the library's worker threads (each call takes
 /// the GIL). The first exception it raises stops the work: the call unwinds out of the library
 /// (a [`CallbackRaised`] payload, which no panic hook prints; every later call unwinds at once),
-/// and [`Callback::run`] raises that exception in the caller (issue 41: it was printed as
-/// "unraisable" and the work went on).
+/// and [`Callback::run`] raises that exception in the caller (instead of Python printing it as
+/// "unraisable" while the work goes on).
 struct Callback {
     callable: Option<Py<PyAny>>,
     raised: Mutex<Option<PyErr>>,
@@ -985,7 +986,7 @@ fn sweep_document<'py>(py: Python<'py>, gathered: GatheredSweep<'py>) -> PyResul
 }
 
 // ---------------------------------------------------------------------------------------------
-// distributed encode (issue 30): independent temporal blocks coded on Dask workers
+// distributed encode: independent temporal blocks coded on Dask workers
 // (`codec_core::blocks`), assembled on the client into the local encode's bytes
 
 /// Packets as Python tuples `(first_frame, frame_count, keyframe, data)`.

@@ -1,6 +1,6 @@
 //! `animcodec inspect`: shows the `stseg` spatio-temporal segmentation of an animation
-//! (Luo et al. 2020, ACM TOMM): temporal segments and per-vertex group labels as JSON, a human summary, and
-//! the groups as vertex colours in a PLY or OBJ mesh any viewer opens.
+//! (Luo et al. 2020, ACM TOMM): temporal segments and per-vertex group labels as JSON, a human
+//! summary, and the groups as vertex colours in a PLY or OBJ mesh any viewer opens.
 
 use std::fmt::Write as _;
 use std::path::Path;

@@ -445,8 +445,9 @@ pub fn search_space_target(
     // every edge length of that shape, and STED (relative edge-length changes; its temporal
     // part weighs 9·10⁻⁵) scores it like a good stream where the next steps, which add
     // quantized motion, score worse (chicken-crossing, rigid, `edge_noise = 0.012`: `ss`
-    // 0.998 STED 0.089 at 0.076 bits per vertex per frame, 0.99 STED 0.12 at 0.12). A search that brackets the target assumes monotone errors and never
-    // looks there. One encode per configuration, the cheapest of its ladder.
+    // 0.998 STED 0.089 at 0.076 bits per vertex per frame, 0.99 STED 0.12 at 0.12). A search
+    // that brackets the target assumes monotone errors and never looks there. One encode per
+    // configuration, the cheapest of its ladder.
     if target.metric.distortion_kind() == DistortionKind::Shape {
         runs.par_iter_mut().map(|run| searcher.probe_smallest(run)).collect::<Result<Vec<()>>>()?;
     }

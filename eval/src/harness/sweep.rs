@@ -278,8 +278,8 @@ pub fn envelope_sweep<'a>(
 /// that is better for one metric reaches the same error at other steps (hosvd's STED
 /// configuration meets STED 0.1 on horse-gallop two `ss` steps above the first one's), so
 /// without this its part of the envelope is a chord across coarse steps (horse-gallop, hosvd,
-/// STED ≤ 0.1: the envelope without this phase gives 0.670 bpvf, `--target` finds 0.594). Depends only on the measured points,
-/// so it is the same at any thread count.
+/// STED ≤ 0.1: the envelope without this phase gives 0.670 bpvf, `--target` finds 0.594).
+/// Depends only on the measured points, so it is the same at any thread count.
 fn envelope_neighbours<'a>(series: &[SweepSeries<'a>], points: &[Point], per_config: usize) -> Vec<SweepSeries<'a>> {
     let within = |v: Option<f64>, (lo, hi): (f64, f64)| v.is_some_and(|v| v >= lo && v <= hi);
     let mut on_envelope = vec![false; points.len()];

@@ -35,8 +35,7 @@
 //!   its first key a channel holds its first value, after its last key its last value.
 //! - Arithmetic in `f64`, positions rounded to `f32` once at the end.
 //!
-//! What is read, and what is refused (issue 27: a reader that reads geometry and stays in its
-//! folder):
+//! What is read, and what is refused (a reader that reads geometry and stays in its folder):
 //! - **Only geometry.** Materials, textures, images and samplers are dropped from the JSON
 //!   before the `gltf` crate sees it, so texture formats and their extensions never matter.
 //!   `asset.version` must be 2.x. A required extension is accepted when it is implemented here
@@ -101,7 +100,7 @@ pub struct GltfSelection {
 }
 
 /// The copies of an animation a command holds beyond the one read, as
-/// [`GltfSelection::working_copies`] counts them: 6, measured on a default encode (issue 41,
+/// [`GltfSelection::working_copies`] counts them: 6, measured on a default encode (probe
 /// gltf-memory: 2 000 instances of Horse.glb, a 276 KB file, baked 305 MB, within the 1 GiB read
 /// budget, and the default quant-delta encode then peaked at 2.04 GB, 6.7 times as much).
 pub const COMMAND_WORKING_COPIES: u64 = 6;
@@ -314,7 +313,7 @@ fn read_uri(
         // Decoded size is at most 3/4 of the text; refuse before decoding a huge string.
         let decoded = (payload.len() / 4 * 3) as u64;
         limits.check_alloc("gltf", "buffers", decoded)?;
-        // byteLength is already counted; a URI may hold more than it declares (issue 41).
+        // byteLength is already counted; a URI may hold more than it declares.
         budget.take("a data: URI's decoded bytes", decoded.saturating_sub(declared as u64))?;
         return base64::engine::general_purpose::STANDARD
             .decode(payload)
@@ -335,7 +334,7 @@ fn read_uri(
         base.ok_or_else(|| fail(format!("external file '{}' but no directory to resolve it in", printable(&path))))?;
     let data =
         read_external(base, &path, declared).map_err(|detail| fail(format!("'{}': {detail}", printable(&path))))?;
-    // An input of the command like the file itself: never an output (issue 41).
+    // An input of the command like the file itself: never an output.
     crate::output::note_read(&base.join(&path), Some(format!("the external buffer '{}' of {file}", printable(&path))));
     Ok(data)
 }
@@ -476,7 +475,7 @@ fn parse_document(bytes: &[u8], file: &str, budget: &mut Budget) -> Result<(::gl
     };
     // The JSON is held parsed twice (the raw value and the document), data: URIs included:
     // counted before parsing, so a huge inline buffer is refused by the budget instead of
-    // being copied (issue 41: a 160 MB data: URI held 632 MB under --max-memory 64M).
+    // being copied (uncounted, a 160 MB data: URI holds 632 MB under --max-memory 64M).
     budget.take("the glTF JSON, parsed (twice)", (json.len() as u64).saturating_mul(2))?;
     let raw: Value = serde_json::from_slice(&json).map_err(|e| bad(file, "gltf", e.to_string()))?;
     check_version(file, &raw)?;
@@ -809,9 +808,9 @@ mod tests {
         assert_eq!(offsets(&a), vec![(0., 0.), (0., 0.), (1., 0.), (1., 0.), (0., 1.)]);
     }
 
-    /// Issue 41 (gltf-memory): a data: URI holding far more than its byteLength was decoded
-    /// whole, and the JSON text holding it parsed twice, with only byteLength counted. Both
-    /// count now, before the parse and before the decoding.
+    /// A data: URI's text (parsed twice with the JSON) and its decoded bytes beyond its
+    /// byteLength both count against the budget, before the parse and before the decoding
+    /// (probe gltf-memory).
     #[test]
     fn a_data_uri_counts_its_text_and_decoded_bytes() {
         let (b, doc) = morph_triangle("LINEAR", None);
@@ -986,7 +985,7 @@ mod tests {
         assert!(e.contains("inf.glb") && e.contains("non-finite") && e.contains("vertex 0"), "{e}");
     }
 
-    /// Issue 16: indices out of range are found before the `gltf` crate follows them (its
+    /// Indices out of range are found before the `gltf` crate follows them (its
     /// validation panics on a `POSITION` accessor out of range, and nothing checks a channel's
     /// target node). The message names the index: the catch_unwind fallback's generic message
     /// would mean a panic was printed.

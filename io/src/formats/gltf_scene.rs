@@ -942,7 +942,8 @@ pub(super) fn bake(
     let positions_bytes = (frames as u64).saturating_mul(vertex_count as u64).saturating_mul(12);
     budget.take("the baked positions (frames × vertices × 12 bytes)", positions_bytes)?;
     if selection.working_copies > 0 {
-        // Issue 41 (gltf-memory): what the command will hold of them, counted now.
+        // What the command will hold of them, counted now: a small file with many instances
+        // must be refused before the command makes its working copies.
         budget.take(
             &format!(
                 "the {} copies of the positions a command works on after the read ({} bytes each)",

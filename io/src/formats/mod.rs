@@ -304,7 +304,7 @@ fn companion_comment_prefix(cache: &Path) -> String {
 /// existing file only when that file is this cache's own companion (animcodec wrote it for this
 /// very cache name) or holds the same mesh (same vertex count and triangles: a reader of any other
 /// cache beside it, which uses only its faces, still reads the same). Any other OBJ there may
-/// be the topology of another cache of the same stem (`a.pc2` beside `a.mdd`, issue 41) or a
+/// be the topology of another cache of the same stem (`a.pc2` beside `a.mdd`) or a
 /// user's model, and is refused by name. The caller has already checked the companion against
 /// the output policy (without `--force` an existing one is refused there).
 fn check_companion_replaced(
@@ -764,7 +764,7 @@ mod tests {
         assert!(read_animation(&p, &bad).is_err());
     }
 
-    /// Issue 41 (misc): `-f` names the cache; the topology OBJ written beside it replaces an
+    /// `-f` names the cache (probe misc); the topology OBJ written beside it replaces an
     /// existing `STEM.obj` only when it is the cache's own (written for this name) or the same
     /// mesh, or when the companion was asked for by name ([`OutputPolicy::replacing_companions`]).
     #[test]

@@ -1,4 +1,4 @@
-//! Streamed reading of PC2 and MDD caches and of OBJ sequences (issue 30): a cache's header is
+//! Streamed reading of PC2 and MDD caches and of OBJ sequences: a cache's header is
 //! read and checked against [`super::reader_limits`] and the file's size before
 //! anything else, an OBJ sequence's files are listed and its frame 0 read for the topology; then
 //! frames are handed out in chunks as they are read, so an animation far larger than memory (a
@@ -212,7 +212,7 @@ impl CacheReader {
 
     /// Moves to frame `frame` (at most the frame count: the next read then returns nothing), so
     /// that [`CacheReader::read_frames`] reads from there: a caller coding one temporal block of
-    /// a cache (issue 30, the Python package's distributed encode) reads only its frames. A
+    /// a cache (the Python package's distributed encode) reads only its frames. A
     /// cache's layout was checked against the file's size when it was opened; an OBJ sequence
     /// reads file `frame` next.
     pub fn seek_frame(&mut self, frame: usize) -> Result<()> {
@@ -287,10 +287,10 @@ impl CacheReader {
     }
 }
 
-/// A PC2 or MDD cache written frame by frame (issue 30: `decode` writes frames as each packet
-/// decodes), through the pending-file mechanism ([`crate::output`]): the cache (and its
-/// `STEM.obj` companion when asked for) is written under a temporary name and renamed into
-/// place by [`CacheWriter::finish`] only when every frame is there, so a failure or an
+/// A PC2 or MDD cache written frame by frame (`decode` writes frames as each packet decodes),
+/// through the pending-file mechanism ([`crate::output`]): the cache (and its `STEM.obj`
+/// companion when asked for) is written under a temporary name and renamed into place by
+/// [`CacheWriter::finish`] only when every frame is there, so a failure or an
 /// interruption loses nothing. The bytes equal [`write_animation_with`](super::write_animation_with)'s
 /// on the same animation and options (tested).
 #[derive(Debug)]
@@ -412,8 +412,8 @@ impl CacheWriter {
                 self.companion_file = Some(f);
             }
         }
-        // One frame of bytes at a time (issue 30: a whole decoded packet converted at once was
-        // another copy of it — 480 MB for a 40-frame packet of 1M vertices).
+        // One frame of bytes at a time: a whole decoded packet converted at once would be
+        // another copy of it (480 MB for a 40-frame packet of 1M vertices).
         for frame in positions.chunks(self.vertex_count.max(1) * 3) {
             self.bytes.clear();
             self.bytes.reserve(frame.len() * 4);
@@ -480,7 +480,7 @@ mod tests {
         }
     }
 
-    /// Issue 30: a block of frames read after a seek equals those frames of the whole read.
+    /// A block of frames read after a seek equals those frames of the whole read.
     #[test]
     fn a_seek_reads_from_that_frame() {
         let dir = TempDir::new("stream-seek");
