@@ -188,7 +188,7 @@ pub fn sweep_jobs(series: &[SweepSeries<'_>], points: Option<usize>) -> Vec<(usi
 }
 
 /// Errors that mark the part of a rate-distortion curve the envelope sweep looks at closely:
-/// KG 0.05–4 % or STED 0.01–0.2 (the targets of the issues and the README tables, with room).
+/// KG 0.05–4 % or STED 0.01–0.2 (the quality targets of the README tables, with room).
 const ENVELOPE_KG: (f64, f64) = (0.05, 4.0);
 const ENVELOPE_STED: (f64, f64) = (0.01, 0.2);
 

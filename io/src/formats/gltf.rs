@@ -1015,7 +1015,7 @@ mod tests {
             ("mesh", Box::new(|d| d["nodes"][0]["mesh"] = json!(3)), "mesh 3"),
             ("child", Box::new(|d| d["nodes"][0]["children"] = json!([0, 77])), "node 77"),
             ("scene", Box::new(|d| d["scene"] = json!(4)), "scene 4"),
-            // Fuzzing finding (read_gltf): an unknown channel path panicked in the gltf crate.
+            // An unknown channel path (found by fuzzing read_gltf) panics in the gltf crate.
             (
                 "path",
                 Box::new(|d| d["animations"][0]["channels"][0]["target"]["path"] = json!("weyghts")),
@@ -1033,8 +1033,8 @@ mod tests {
         }
     }
 
-    /// Fuzzing finding (read_gltf): a GLB header declaring a total length below 12 bytes made
-    /// the `gltf` crate subtract with overflow.
+    /// A GLB header declaring a total length below 12 bytes (found by fuzzing read_gltf) is an
+    /// error, not the `gltf` crate's subtraction with overflow.
     #[test]
     fn glb_lengths_below_the_header_are_errors() {
         for n in [0u32, 11] {
