@@ -28,6 +28,11 @@ pub mod testing;
 pub mod toolkit;
 pub mod traversal;
 
+/// `codec-core/README.md`, so that its Rust examples compile and run as doctests.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+pub struct ReadmeDoctests;
+
 pub use animation::{Animation, Topology};
 pub use codec::{
     AnimationCodec, EncodedPacket, EncoderSetup, ErrorBound, FourCc, FrameDecoder, FrameEncoder, Packet, StreamInfo,
