@@ -8,7 +8,8 @@
 use std::sync::Arc;
 
 use codec_core::bytes::ByteWriter;
-use codec_core::{entropy, EncodedPacket, EncoderSetup, Error, FrameEncoder, Packet, ParamSet, Quantizer, Result};
+use codec_core::toolkit::planes::{planes_needed, to_byte_planes};
+use codec_core::{entropy, EncodedPacket, EncoderSetup, Error, FrameEncoder, Packet, Quantizer, Result};
 use faer::Mat;
 
 use crate::coding::{self, Contexts};
@@ -20,8 +21,7 @@ use crate::state::{
 };
 use crate::{NAME, STREAM_VERSION, UNLIMITED};
 
-pub(crate) fn new_encoder(params: &ParamSet, setup: &EncoderSetup<'_>) -> Result<Box<dyn FrameEncoder>> {
-    let p = SacParams::from_param_set(params)?;
+pub(crate) fn new_encoder(p: SacParams, setup: &EncoderSetup<'_>) -> Result<Box<dyn FrameEncoder>> {
     let shared = Shared::new(
         setup.topology,
         &UNLIMITED,
@@ -46,21 +46,12 @@ pub(crate) fn encode_positions(w: &mut ByteWriter, frame: &[f32], bits: u8, leve
         let axis: Vec<f32> = frame.iter().skip(a).step_by(3).copied().collect();
         qs.push(Quantizer::covering(&axis, bits)?);
     }
-    let planes = (bits as usize).div_ceil(8);
-    let count = frame.len();
-    let mut raw = vec![0u8; count * planes];
-    let mut rec = Vec::with_capacity(count);
-    for (i, &x) in frame.iter().enumerate() {
-        let q = qs[i % 3].quantize(x);
-        rec.push(qs[i % 3].dequantize(q));
-        for p in 0..planes {
-            raw[p * count + i] = (q >> (8 * p)) as u8;
-        }
-    }
+    let codes: Vec<u32> = frame.iter().enumerate().map(|(i, &x)| qs[i % 3].quantize(x)).collect();
+    let rec = codes.iter().enumerate().map(|(i, &q)| qs[i % 3].dequantize(q)).collect();
     for q in &qs {
         q.write(w);
     }
-    w.bytes(&entropy::compress(&raw, level));
+    w.bytes(&entropy::compress(&to_byte_planes(&codes, (bits as usize).div_ceil(8)), level));
     Ok(rec)
 }
 
@@ -80,16 +71,8 @@ fn encode_residual(frame: &[f32], rec: &mut [f32], step: f32, level: i32) -> Opt
         *r = (*r as f64 + q as f64 * step64) as f32;
         codes.push(codec_core::bytes::zigzag_encode(q) as u32);
     }
-    let max = codes.iter().copied().max().unwrap_or(0);
-    let planes = (((32 - max.leading_zeros()) as usize).div_ceil(8)).max(1);
-    let count = codes.len();
-    let mut raw = vec![0u8; count * planes];
-    for (i, &c) in codes.iter().enumerate() {
-        for p in 0..planes {
-            raw[p * count + i] = (c >> (8 * p)) as u8;
-        }
-    }
-    Some((planes as u8, entropy::compress(&raw, level)))
+    let planes = planes_needed(&codes);
+    Some((planes as u8, entropy::compress(&to_byte_planes(&codes, planes), level)))
 }
 
 /// How much finer the spectral step is than the per-vertex step (measured on horse-gallop,
