@@ -167,6 +167,86 @@ const GUARD_REPAIR_FINER: f64 = 16.0;
 /// The residual layer of one P-frame: `((spectral step, spectral block), vertex step, (planes, block))`.
 type ResidualLayer = ((f32, Vec<u8>), f32, (u8, Vec<u8>));
 
+/// The 9 per-triangle fields of the deformation gradients `grads` (§3.7 a)–c)): with `polar`,
+/// the rotation's log map and the stretch's 6 entries minus the identity; otherwise the
+/// gradient minus the identity. `None` when a polar decomposition fails or a value is not
+/// finite.
+fn gradient_fields(grads: &[geometry::M3], polar: bool) -> Option<Vec<Vec<f64>>> {
+    let mut fields = vec![vec![0.0f64; grads.len()]; 9];
+    let mut svd = Svd3::new();
+    for (j, g) in grads.iter().enumerate() {
+        if polar {
+            let (u, p) = svd.polar(g)?;
+            let w = geometry::log_rotation(&u);
+            let vals = [w[0], w[1], w[2], p[0][0] - 1.0, p[1][1] - 1.0, p[2][2] - 1.0, p[0][1], p[0][2], p[1][2]];
+            for (ch, v) in vals.into_iter().enumerate() {
+                fields[ch][j] = v;
+            }
+        } else {
+            for ch in 0..9 {
+                fields[ch][j] = g[ch / 3][ch % 3] - geometry::IDENTITY[ch / 3][ch % 3];
+            }
+        }
+    }
+    fields.iter().all(|f| f.iter().all(|x| x.is_finite())).then_some(fields)
+}
+
+/// §3.5: the coefficients `coeffs`, channel groups of `groups` channels each quantized at
+/// `bits` over the group's amplitude. Returns the codes and amplitudes per group; `None` when
+/// an amplitude is not finite.
+fn quantize_groups(coeffs: &[Vec<f64>], groups: &[usize], bits: u8) -> Option<(Vec<Vec<i64>>, Vec<f32>)> {
+    let mut codes = Vec::new();
+    let mut amps = Vec::new();
+    let mut ch = 0;
+    for &count in groups {
+        let group = &coeffs[ch..ch + count];
+        ch += count;
+        let amax = group.iter().flatten().fold(0.0f64, |a, &c| a.max(c.abs()));
+        let amp = coding::amplitude(amax);
+        if !amp.is_finite() {
+            return None;
+        }
+        let step = coding::step(amp, bits);
+        codes.push(group.iter().flatten().map(|&c| coding::quantize(c, step, bits)).collect::<Vec<_>>());
+        amps.push(amp);
+    }
+    Some((codes, amps))
+}
+
+/// A P-frame's bytes: kind, group amplitudes, per-component shifts, then (`residual` is
+/// `Some` from stream version 2 on) the residual layer or its two zero steps, then the coded
+/// descriptors.
+fn p_frame_bytes(amps: &[f32], shifts: &[[f32; 3]], residual: Option<Option<&ResidualLayer>>, coded: &[u8]) -> Vec<u8> {
+    let mut w = ByteWriter::new();
+    w.u8(KIND_P);
+    for a in amps {
+        w.f32(*a);
+    }
+    for sh in shifts {
+        for &x in sh {
+            w.f32(x);
+        }
+    }
+    match residual {
+        Some(Some(((amp, spectral), step, (planes, block)))) => {
+            w.f32(*amp);
+            if *amp > 0.0 {
+                w.length_prefixed(spectral);
+            }
+            w.f32(*step);
+            w.u8(*planes);
+            w.length_prefixed(block);
+        }
+        Some(None) => {
+            w.f32(0.0);
+            w.f32(0.0);
+        }
+        None => {}
+    }
+    w.bytes(coded);
+    w.into_vec()
+}
+
 impl SacEncoder {
     pub(crate) fn new(params: SacParams, shared: Shared, want_reconstruction: bool) -> Self {
         Self {
@@ -257,43 +337,10 @@ impl SacEncoder {
         let target = to_v3(frame);
         // §3.7 a)–c): gradients from the previous reconstruction, polar decomposition, log map.
         let grads = geometry::deformation_gradients(&s.tris, &gop.prev, &target);
-        let m = s.tris.len();
-        let mut fields = vec![vec![0.0f64; m]; 9];
-        let mut svd = Svd3::new();
-        for (j, g) in grads.iter().enumerate() {
-            if settings.polar {
-                let Some((u, p)) = svd.polar(g) else { return Ok(None) };
-                let w = geometry::log_rotation(&u);
-                let vals = [w[0], w[1], w[2], p[0][0] - 1.0, p[1][1] - 1.0, p[2][2] - 1.0, p[0][1], p[0][2], p[1][2]];
-                for (ch, v) in vals.into_iter().enumerate() {
-                    fields[ch][j] = v;
-                }
-            } else {
-                for ch in 0..9 {
-                    fields[ch][j] = g[ch / 3][ch % 3] - geometry::IDENTITY[ch / 3][ch % 3];
-                }
-            }
-        }
-        if fields.iter().any(|f| f.iter().any(|x| !x.is_finite())) {
-            return Ok(None);
-        }
+        let Some(fields) = gradient_fields(&grads, settings.polar) else { return Ok(None) };
         // §3.4 Eq. 8–9 (least-squares form) and §3.5 quantization.
         let coeffs: Vec<Vec<f64>> = fields.iter().map(|f| harmonics::analyze(analysis, f)).collect();
-        let mut codes = Vec::new();
-        let mut amps = Vec::new();
-        let mut ch = 0;
-        for &count in settings.groups() {
-            let group = &coeffs[ch..ch + count];
-            ch += count;
-            let amax = group.iter().flatten().fold(0.0f64, |a, &c| a.max(c.abs()));
-            let amp = coding::amplitude(amax);
-            if !amp.is_finite() {
-                return Ok(None);
-            }
-            let step = coding::step(amp, settings.bits);
-            codes.push(group.iter().flatten().map(|&c| coding::quantize(c, step, settings.bits)).collect::<Vec<_>>());
-            amps.push(amp);
-        }
+        let Some((codes, amps)) = quantize_groups(&coeffs, settings.groups(), settings.bits) else { return Ok(None) };
         let mut contexts = gop.contexts.clone();
         let coded = coding::encode(&codes, analysis.nrows(), &mut contexts);
         // §3.7 e)–f) through the decoder's own code path.
@@ -354,35 +401,8 @@ impl SacEncoder {
         if !within(rms) {
             return Ok(None);
         }
-        let mut w = ByteWriter::new();
-        w.u8(KIND_P);
-        for a in &amps {
-            w.f32(*a);
-        }
-        for sh in &shifts {
-            for &x in sh {
-                w.f32(x);
-            }
-        }
-        if settings.version >= 2 {
-            match &residual {
-                Some(((amp, spectral), step, (planes, block))) => {
-                    w.f32(*amp);
-                    if *amp > 0.0 {
-                        w.length_prefixed(spectral);
-                    }
-                    w.f32(*step);
-                    w.u8(*planes);
-                    w.length_prefixed(block);
-                }
-                None => {
-                    w.f32(0.0);
-                    w.f32(0.0);
-                }
-            }
-        }
-        w.bytes(&coded);
-        Ok(Some(((w.into_vec(), rec, contexts), repaired)))
+        let residual = (settings.version >= 2).then_some(residual.as_ref());
+        Ok(Some(((p_frame_bytes(&amps, &shifts, residual, &coded), rec, contexts), repaired)))
     }
 
     fn encode_p(&mut self, frame: &[f32]) -> Result<(Vec<u8>, Vec<f32>)> {
