@@ -410,6 +410,23 @@ pub trait DeclaredParams: Sized + Default + Clone + fmt::Debug + PartialEq {
 /// (`HosvdParams::ss`), so rate ladders, search axes and parameter changes name parameters
 /// the compiler checks, never a string.
 ///
+/// ```
+/// use codec_core::{ParamValue, RateLadder};
+/// codec_core::declare_params! {
+///     codec: "demo";
+///     /// Parameters of `demo`.
+///     #[derive(Debug, Clone, Copy, PartialEq)]
+///     pub struct DemoParams {
+///         /// Bits per value.
+///         pub bits: u8 = 12 => int(1, 24, "bits per value"),
+///     }
+/// }
+/// let ladder = RateLadder::over(DemoParams::bits, [4, 8]);
+/// assert_eq!(ladder.param, "bits");
+/// assert_eq!(ladder.steps, [ParamValue::Int(4), ParamValue::Int(8)]);
+/// assert_eq!(DemoParams::bits.to(6), ("bits", ParamValue::Int(6)));
+/// ```
+///
 /// ```compile_fail
 /// codec_core::declare_params! {
 ///     codec: "demo";
