@@ -7,13 +7,15 @@
 //!
 //! | module | crate | what |
 //! |---|---|---|
-//! | [`core`] | `codec-core` | the codec trait, `.anim` container, streams, limits, coding toolkit, synthetic animations |
+//! | [`core`] | `codec-core` | the codec contract, `.anim` container, streams, limits, coding toolkit |
+//! | [`synth`] | `animcodec-synth` | synthetic animations (the `synth:` inputs) |
 //! | [`metrics`] | `metrics` | KG error, STED, Hausdorff, … |
 //! | [`formats`], [`output`] | `animcodec-io` | file formats in and out; safe output files |
 //! | [`harness`], [`plot`], [`describe`], [`params`] | `animcodec-eval` | measured points, sweeps, target search, the rate-distortion plot; codec and stream descriptions; parameters as JSON |
 //!
 //! ```no_run
-//! use animcodec::core::{encode_animation, synth, Limits, StreamDecoder};
+//! use animcodec::core::{encode_animation, Limits, StreamDecoder};
+//! use animcodec::synth;
 //! let registry = animcodec::registry();
 //! let hosvd = registry.by_name("hosvd").unwrap();
 //! let animation = synth::tumbling_body_sized(64, 32, 30);
@@ -24,12 +26,13 @@
 
 pub use animcodec_eval::{describe, harness, params, plot};
 pub use animcodec_io::{formats, output};
+pub use animcodec_synth as synth;
 pub use codec_core as core;
 pub use metrics;
 
 pub mod tables;
 
-use codec_core::{quant_delta::QuantDelta, CodecRegistry};
+use codec_core::CodecRegistry;
 
 /// Every codec, one entry each (a comment saying what it is, then the codec). This list is where
 /// codecs are registered (a new codec crate is also a dependency in this crate's `Cargo.toml` and
@@ -38,8 +41,8 @@ use codec_core::{quant_delta::QuantDelta, CodecRegistry};
 /// sweeps.
 pub fn registry() -> CodecRegistry {
     CodecRegistry::new(vec![
-        // baseline, codec-core
-        Box::new(QuantDelta),
+        // baseline: uniform quantization, temporal delta, zstd
+        Box::new(codec_quant_delta::QuantDelta),
         // block PCA with adaptive orthogonal iterations: Lalos et al. 2017, The Visual Computer
         Box::new(codec_pca_aoi::PcaAoi),
         // HO-SVD / Tucker with rigid-motion removal: Romaszewski, Gawron & Opozda

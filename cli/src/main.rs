@@ -12,8 +12,8 @@ mod viewer;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
+use animcodec::synth::SynthSize;
 use clap::{Args, Parser, Subcommand, ValueEnum};
-use codec_core::synth::SynthSize;
 
 /// Compress 3D mesh animations (fixed connectivity, moving vertices) with research codecs,
 /// and measure them.

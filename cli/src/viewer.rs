@@ -294,7 +294,7 @@ pub fn report_page(title: &str, report: &Value) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use codec_core::synth;
+    use animcodec::synth;
 
     /// Inflates what [`pack`] wrote.
     fn unpack(text: &str) -> Vec<u8> {

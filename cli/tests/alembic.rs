@@ -16,7 +16,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use animcodec::formats::{read_animation, write_animation, ReadOptions};
-use codec_core::synth::{self, SynthSize};
+use animcodec::synth::{self, SynthSize};
 use codec_core::testing::skip;
 use codec_core::Animation;
 use common::{fails, ok, ok_json, Scratch};

@@ -184,7 +184,7 @@ fn synth_encode_info_decode_round_trip_through_pc2() {
     let opts = animcodec::formats::ReadOptions::default();
     let original = animcodec::formats::read_animation(Path::new(&src), &opts).unwrap();
     let decoded = animcodec::formats::read_animation(Path::new(&dst), &opts).unwrap();
-    let expected = codec_core::synth::by_name("flag", codec_core::synth::SynthSize::Small).unwrap();
+    let expected = animcodec::synth::by_name("flag", animcodec::synth::SynthSize::Small).unwrap();
     assert_eq!(original.positions(), expected.positions(), "PC2 stores f32 exactly");
     assert!(codec_core::connectivity::same_triangles(decoded.topology(), original.topology()));
     // The codec's own promise at the parameters used.
@@ -258,7 +258,7 @@ fn encode_prints_the_encoders_warnings() {
 #[test]
 fn demo_runs_quant_delta_on_every_synthetic_animation() {
     let text = ok(&["demo", "--size", "small", "--codecs", "quant-delta"]);
-    for name in codec_core::synth::NAMES {
+    for name in animcodec::synth::NAMES {
         assert!(
             text.lines().any(|l| l.starts_with(name) && l.contains("quant-delta") && l.ends_with("ok")),
             "{name}: {text}"

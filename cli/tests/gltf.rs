@@ -13,7 +13,7 @@ use std::process::Command;
 use animcodec::formats::gltf::{self, GltfSelection};
 use animcodec::formats::gltf_out::{encode_gltf, GltfCompression, GltfLayout, GltfOptions};
 use animcodec::formats::{read_animation, ReadOptions};
-use codec_core::synth::{self, SynthSize};
+use animcodec::synth::{self, SynthSize};
 use codec_core::testing::skip;
 use codec_core::Animation;
 use common::{gltfpack, join_glb, node_packages, shared_data, split_glb, Scratch};

@@ -6,12 +6,12 @@ use animcodec::harness::{
     self, csv_columns, ladder_params, measure_point, search_target, search_target_auto, EvalError, SearchRequest,
     SweepRow, Target, TargetMetric,
 };
-use codec_core::quant_delta::QuantDelta;
-use codec_core::synth;
+use animcodec::synth;
 use codec_core::{
     Animation, AnimationCodec, CodecRegistry, EncodedPacket, EncoderSetup, ErrorBound, FourCc, FrameDecoder,
     FrameEncoder, Limits, Packet, ParamSet, ParamSpec, ParamValue, RateLadder, StreamInfo,
 };
+use codec_quant_delta::QuantDelta;
 use metrics::EvalOptions;
 use serde_json::Value;
 

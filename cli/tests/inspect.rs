@@ -174,7 +174,7 @@ fn bad_inputs_fail_with_clear_messages() {
     fails(&["inspect", INPUT, "-p", "nonsense=1"], &["stseg", "nonsense", "gamma_max"]);
     fails(&["inspect", INPUT, "-p", "groups=99"], &["stseg", "groups"]);
     fails(&["inspect", INPUT, "-p", "gamma_max=8"], &["gamma_max", "gamma_init"]);
-    let frames = codec_core::synth::SynthSize::Small.frames().to_string();
+    let frames = animcodec::synth::SynthSize::Small.frames().to_string();
     let frames_text = format!("{frames} frames");
     fails(&["inspect", INPUT, "--frame", &frames, "--mesh", &dir.path("x.ply")], &["out of range", &frames_text]);
     // A point cache without triangles: no OBJ beside it and no --topology.

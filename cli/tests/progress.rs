@@ -7,7 +7,7 @@ use std::path::Path;
 use std::process::Command;
 
 use animcodec::formats::write_animation;
-use codec_core::synth::{self, SynthSize};
+use animcodec::synth::{self, SynthSize};
 use codec_core::testing::skip;
 use common::{animcodec, stderr, stdout, Scratch};
 

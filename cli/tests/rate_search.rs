@@ -3,12 +3,12 @@
 //! `animcodec encode` without `-p`.
 
 use animcodec::harness::{self, search_space_target, search_target, Target, TargetMetric, DEFAULT_TARGET};
-use codec_core::quant_delta::QuantDelta;
-use codec_core::synth;
+use animcodec::synth;
 use codec_core::{
     Animation, AnimationCodec, CodecRegistry, EncodedPacket, EncoderSetup, ErrorBound, FourCc, FrameDecoder,
     FrameEncoder, Limits, Packet, ParamSet, ParamSpec, ParamValue, RateLadder, SearchAxis, SearchSpace, StreamInfo,
 };
+use codec_quant_delta::QuantDelta;
 use metrics::EvalOptions;
 
 mod common;

@@ -10,8 +10,8 @@
 use std::path::Path;
 
 use animcodec::formats::gltf_out::{encode_gltf, GltfCompression, GltfOptions};
+use animcodec::synth::{self, SynthSize};
 use base64::Engine as _;
-use codec_core::synth::{self, SynthSize};
 use serde_json::Value;
 
 mod common;

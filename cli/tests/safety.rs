@@ -147,7 +147,7 @@ fn decode_writes_the_topology_obj_only_when_asked() {
     assert!(!Path::new(&s.path("e.mdd")).exists(), "nothing is written when one output is refused");
     ok(&["decode", &anim, "-o", &s.path("f.pc2"), "--topology-obj"]);
     let back = animcodec::formats::read_animation(Path::new(&s.path("f.pc2")), &Default::default()).unwrap();
-    assert_eq!(back.frame_count(), codec_core::synth::SynthSize::Small.frames());
+    assert_eq!(back.frame_count(), animcodec::synth::SynthSize::Small.frames());
 }
 
 #[test]
@@ -155,7 +155,7 @@ fn obj_sequence_folders_with_other_frames_need_force_which_removes_stale_frames(
     let s = Scratch::new("stale");
     let anim = s.path("s.anim");
     ok(&["encode", "synth:flag", "-c", "quant-delta", "-o", &anim]);
-    let frames = codec_core::synth::SynthSize::Small.frames();
+    let frames = animcodec::synth::SynthSize::Small.frames();
     let dir = s.0.join("st");
     std::fs::create_dir(&dir).unwrap();
     for t in 0..60 {
@@ -183,7 +183,7 @@ fn frame_number_placeholders_work() {
     let s = Scratch::new("placeholders");
     let anim = s.path("s.anim");
     ok(&["encode", "synth:tumble", "-c", "quant-delta", "-o", &anim]);
-    let frames = codec_core::synth::SynthSize::Small.frames();
+    let frames = animcodec::synth::SynthSize::Small.frames();
     ok(&["decode", &anim, "-o", &s.path("seq/f_{}.obj")]);
     let seq = names(&s.0.join("seq"));
     assert_eq!(seq.len(), frames);
@@ -387,7 +387,7 @@ fn an_obj_sequence_never_touches_files_outside_its_name_pattern() {
     let s = Scratch::new("obj-pattern");
     let anim = s.path("a.anim");
     ok(&["encode", "synth:tumble", "-c", "quant-delta", "-o", &anim]);
-    let frames = codec_core::synth::SynthSize::Small.frames();
+    let frames = animcodec::synth::SynthSize::Small.frames();
     // Another animation (pcow.pc2 + its topology pcow.obj) and unrelated OBJ files.
     ok(&["synth", "flag", "-o", &s.path("pcow.pc2")]);
     let foreign = ["notes.obj", "README.OBJ"];

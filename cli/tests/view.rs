@@ -6,7 +6,8 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use codec_core::{synth, Animation};
+use animcodec::synth;
+use codec_core::Animation;
 use serde_json::Value;
 
 mod common;

@@ -7,7 +7,7 @@ use crate::metadata::SceneMetadata;
 /// constant as `formats::FRAME_RATE_RANGE`): one frame per 1000 s to 10 000 frames per second.
 /// Outside it, key times `frame / fps` stop being representable or distinguishable as `f32`
 /// seconds (at 1e-45 fps frame 1 is at +inf s; at 1e5 fps over a minute the key spacing nears
-/// the f32 rounding step), and no capture or playback device works there. Issue 41 (round 4): a
+/// the f32 rounding step), and no capture or playback device works there. A
 /// stream whose header said 1e30 fps used to decode to a `.usda` that no reader would take
 /// back; the container now refuses such a rate when it is written ([`check_stream_frame_rate`])
 /// and when it is read.
@@ -72,6 +72,26 @@ impl Topology {
     /// Number of triangles.
     pub fn triangle_count(&self) -> usize {
         self.triangles.len()
+    }
+
+    /// A regular grid of `cols × rows` vertices (row-major: vertex `r * cols + c` at column
+    /// `c`, row `r`), two triangles per quad with consistent winding. Fails when the grid has
+    /// fewer than 2 × 2 vertices or more than `u32` indices hold.
+    pub fn grid(cols: usize, rows: usize) -> Result<Self> {
+        let vertex_count = cols.checked_mul(rows).filter(|&n| n <= u32::MAX as usize && cols >= 2 && rows >= 2);
+        let Some(vertex_count) = vertex_count else {
+            return Err(Error::InvalidAnimation(format!("a {cols} × {rows} grid is not a mesh of 32-bit indices")));
+        };
+        let index = |r: usize, c: usize| (r * cols + c) as u32;
+        let mut triangles = Vec::with_capacity(2 * (cols - 1) * (rows - 1));
+        for r in 0..rows - 1 {
+            for c in 0..cols - 1 {
+                let (a, b, d, e) = (index(r, c), index(r, c + 1), index(r + 1, c), index(r + 1, c + 1));
+                triangles.push([a, b, e]);
+                triangles.push([a, e, d]);
+            }
+        }
+        Ok(Self { vertex_count, triangles })
     }
 }
 

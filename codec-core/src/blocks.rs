@@ -1,4 +1,4 @@
-//! Issue 30: one animation encoded by independent temporal blocks — on many machines (the
+//! One animation encoded by independent temporal blocks — on many machines (the
 //! Python package's Dask encode), in any order — and assembled into the very container the
 //! local encode writes, byte for byte.
 //!
@@ -10,7 +10,7 @@
 //! canonical order, total frame count, frame rate), and [`assemble_blocks`] writes the header
 //! (the encoder's configuration) and the packets in frame order, then the index.
 //!
-//! **The self-check runs per block** (issue 26's promise, [`crate::StreamEncoder`]): every
+//! **The self-check runs per block** (as in [`crate::StreamEncoder`]): every
 //! packet is decoded by the codec's own decoder, must be finite, and the block's error must be
 //! within the bound the encoder declares for the frames it was given (that block alone; the
 //! same arithmetic as [`AnimationCodec::error_bound`] on the block). A block that fails never

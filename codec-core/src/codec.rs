@@ -10,9 +10,12 @@
 use std::fmt;
 
 use crate::animation::{Animation, Topology};
+use crate::error::Error;
 use crate::error::Result;
 use crate::limits::Limits;
-use crate::params::{DistortionKind, ParamSet, ParamSpec, ParamValue, RateLadder, SearchSpace};
+use crate::params::{
+    DeclaredParams, DistortionKind, ParamSet, ParamSpec, ParamValue, RateLadder, SearchSpace, Setting,
+};
 
 /// Four-character code identifying a codec inside a stream (never a list index).
 #[derive(Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -154,7 +157,9 @@ pub trait FrameDecoder: Send {
 
 /// A codec: identity, parameters, rate knob, and factories for encoders and decoders.
 ///
-/// Object safe, so one [`CodecRegistry`](crate::CodecRegistry) holds every codec.
+/// Object safe, so one [`CodecRegistry`](crate::CodecRegistry) holds every codec. A codec crate
+/// implements [`TypedCodec`] instead, on its typed parameters, and gets this trait from the
+/// adapter; implementing it directly (a test double wrapping another codec, say) still works.
 pub trait AnimationCodec: Send + Sync {
     /// Stable name used on the command line (`quant-delta`, `pca-aoi`, …).
     fn name(&self) -> &'static str;
@@ -215,7 +220,7 @@ pub trait AnimationCodec: Send + Sync {
     /// The error this codec promises for `animation` at `params`.
     fn error_bound(&self, params: &ParamSet, animation: &Animation) -> Result<ErrorBound>;
 
-    /// Issue 30: `params` adapted so that encoding `vertices × frames` holds at most about
+    /// `params` adapted so that encoding `vertices × frames` holds at most about
     /// `budget` bytes (the user's `encode --memory`). A codec whose analysis holds a whole
     /// block of frames at once (hosvd's `block=0`, the whole sequence) chooses a temporal
     /// block that fits; parameters the user fixed otherwise are kept. The choice depends only
@@ -227,7 +232,7 @@ pub trait AnimationCodec: Send + Sync {
         Ok(params.clone())
     }
 
-    /// Issue 30 (distributed encode): the frames per temporal block when every packet of
+    /// For distributed encoding: the frames per temporal block when every packet of
     /// `params` on an animation of `frame_count` frames is coded from its own block's frames
     /// alone — no state carried from earlier packets into the packet bytes — so that block `i`
     /// encoded on its own (any machine, any order) gives the very packet the whole encode
@@ -236,12 +241,7 @@ pub trait AnimationCodec: Send + Sync {
     /// packets depend on earlier frames or whose analysis spans the whole sequence.
     fn independent_blocks(&self, params: &ParamSet, frame_count: usize) -> Result<usize> {
         let _ = (params, frame_count);
-        Err(crate::error::Error::Unsupported {
-            context: self.name().into(),
-            detail: "its packets are not coded from independent temporal blocks, so it cannot be encoded block by \
-                     block (quant-delta, hosvd and pca-aoi with mode=svd can)"
-                .into(),
-        })
+        Err(no_independent_blocks(self.name()))
     }
 
     /// A streaming encoder.
@@ -250,4 +250,153 @@ pub trait AnimationCodec: Send + Sync {
     /// A decoder for a stream with this codec's FourCC. `config` is the encoder's
     /// [`FrameEncoder::config`], read back from the header and untrusted.
     fn new_decoder(&self, info: &StreamInfo, config: &[u8], limits: &Limits) -> Result<Box<dyn FrameDecoder>>;
+}
+
+/// The refusal of [`AnimationCodec::independent_blocks`] for a codec whose packets depend on
+/// earlier frames.
+fn no_independent_blocks(codec: &'static str) -> Error {
+    Error::Unsupported {
+        context: codec.into(),
+        detail: "its packets are not coded from independent temporal blocks, so it cannot be encoded block by block \
+                 (quant-delta, hosvd and pca-aoi with mode=svd can)"
+            .into(),
+    }
+}
+
+/// A codec written against its typed parameters: what a codec crate implements. One blanket
+/// adapter makes every `TypedCodec` an [`AnimationCodec`], the object-safe form the registry
+/// holds: it converts the generic [`ParamSet`] to [`TypedCodec::Params`] once per call
+/// ([`DeclaredParams::from_set`], with the codec's own checks) and back, so no codec reads a
+/// parameter by its name.
+///
+/// The hooks mirror [`AnimationCodec`]'s under shorter names (so that a type implementing both
+/// through the adapter never has two methods of one name in scope): see each for its contract.
+/// The rate-control hooks ([`ladder`](Self::ladder), [`space`](Self::space),
+/// [`space_for`](Self::space_for), [`start`](Self::start)) get the fields of `base` as read,
+/// without the cross-field checks (the search's own encodes run them), or the defaults when
+/// `base` belongs to another codec.
+pub trait TypedCodec: Send + Sync {
+    /// The codec's parameters, declared with [`declare_params!`](crate::declare_params).
+    type Params: DeclaredParams;
+    /// Stable name used on the command line ([`AnimationCodec::name`]).
+    const NAME: &'static str;
+    /// FourCC written into the stream.
+    const FOURCC: FourCc;
+    /// Version of this codec's bitstream that the encoder writes.
+    const STREAM_VERSION: u16;
+    /// One-line description.
+    const SUMMARY: &'static str;
+
+    /// The rate ladder on top of `base` ([`AnimationCodec::rate_ladder`]).
+    fn ladder(&self, base: &Self::Params) -> RateLadder;
+
+    /// The space a quality-targeted search walks ([`AnimationCodec::search_space`]). Default:
+    /// the ladder alone.
+    fn space(&self, base: &Self::Params) -> SearchSpace {
+        SearchSpace::ladder_only(self.ladder(base))
+    }
+
+    /// The part of the space a search for an error of `kind` walks
+    /// ([`AnimationCodec::search_space_for`]). Default: the whole space.
+    fn space_for(&self, base: &Self::Params, kind: DistortionKind) -> SearchSpace {
+        let _ = kind;
+        self.space(base)
+    }
+
+    /// Where a search for an error of `kind` starts on the ladder
+    /// ([`AnimationCodec::search_start`]). Default: `base`'s own step.
+    fn start(&self, base: &Self::Params, kind: DistortionKind) -> Option<ParamValue> {
+        let _ = (base, kind);
+        None
+    }
+
+    /// Checks beyond the declaration's own (run by [`AnimationCodec::validate`] after the
+    /// parameters were read and their cross-field checks passed). Default: none.
+    fn check(&self, params: &Self::Params) -> Result<()> {
+        let _ = params;
+        Ok(())
+    }
+
+    /// The error promised for `animation` ([`AnimationCodec::error_bound`]).
+    fn bound(&self, params: &Self::Params, animation: &Animation) -> Result<ErrorBound>;
+
+    /// The parameter changes that make an encode of `vertices × frames` fit `budget` bytes
+    /// ([`AnimationCodec::fit_memory`]; build them with [`Param::to`](crate::params::Param::to)).
+    /// Default: none.
+    fn fit(&self, params: &Self::Params, vertices: usize, frames: usize, budget: u64) -> Result<Vec<Setting>> {
+        let _ = (params, vertices, frames, budget);
+        Ok(Vec::new())
+    }
+
+    /// Frames per independently coded temporal block ([`AnimationCodec::independent_blocks`]).
+    /// Default: refused.
+    fn blocks(&self, params: &Self::Params, frame_count: usize) -> Result<usize> {
+        let _ = (params, frame_count);
+        Err(no_independent_blocks(Self::NAME))
+    }
+
+    /// A streaming encoder ([`AnimationCodec::new_encoder`]).
+    fn encoder(&self, params: Self::Params, setup: &EncoderSetup<'_>) -> Result<Box<dyn FrameEncoder>>;
+
+    /// A decoder ([`AnimationCodec::new_decoder`]).
+    fn decoder(&self, info: &StreamInfo, config: &[u8], limits: &Limits) -> Result<Box<dyn FrameDecoder>>;
+}
+
+/// The fields of a rate-control hook's `base`: read without the cross-field checks, the
+/// defaults for a set of another codec.
+fn base_fields<P: DeclaredParams>(base: &ParamSet) -> P {
+    P::read_fields(base).unwrap_or_default()
+}
+
+/// The adapter: every [`TypedCodec`] is an [`AnimationCodec`].
+impl<C: TypedCodec> AnimationCodec for C {
+    fn name(&self) -> &'static str {
+        C::NAME
+    }
+    fn fourcc(&self) -> FourCc {
+        C::FOURCC
+    }
+    fn stream_version(&self) -> u16 {
+        C::STREAM_VERSION
+    }
+    fn summary(&self) -> &'static str {
+        C::SUMMARY
+    }
+    fn param_specs(&self) -> Vec<ParamSpec> {
+        C::Params::param_specs()
+    }
+    fn rate_ladder(&self, base: &ParamSet) -> RateLadder {
+        self.ladder(&base_fields(base))
+    }
+    fn search_space(&self, base: &ParamSet) -> SearchSpace {
+        self.space(&base_fields(base))
+    }
+    fn search_space_for(&self, base: &ParamSet, kind: DistortionKind) -> SearchSpace {
+        self.space_for(&base_fields(base), kind)
+    }
+    fn search_start(&self, base: &ParamSet, kind: DistortionKind) -> Option<ParamValue> {
+        self.start(&base_fields(base), kind)
+    }
+    fn validate(&self, params: &ParamSet) -> Result<()> {
+        self.check(&C::Params::from_set(params)?)
+    }
+    fn error_bound(&self, params: &ParamSet, animation: &Animation) -> Result<ErrorBound> {
+        self.bound(&C::Params::from_set(params)?, animation)
+    }
+    fn fit_memory(&self, params: &ParamSet, vertices: usize, frames: usize, budget: u64) -> Result<ParamSet> {
+        let changes = self.fit(&C::Params::from_set(params)?, vertices, frames, budget)?;
+        if changes.is_empty() {
+            return Ok(params.clone());
+        }
+        SearchSpace::apply(params, &C::Params::param_specs(), &changes)
+    }
+    fn independent_blocks(&self, params: &ParamSet, frame_count: usize) -> Result<usize> {
+        self.blocks(&C::Params::from_set(params)?, frame_count)
+    }
+    fn new_encoder(&self, params: &ParamSet, setup: &EncoderSetup<'_>) -> Result<Box<dyn FrameEncoder>> {
+        self.encoder(C::Params::from_set(params)?, setup)
+    }
+    fn new_decoder(&self, info: &StreamInfo, config: &[u8], limits: &Limits) -> Result<Box<dyn FrameDecoder>> {
+        self.decoder(info, config, limits)
+    }
 }

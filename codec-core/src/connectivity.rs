@@ -438,7 +438,7 @@ mod tests {
     use super::*;
 
     fn grid(n: u32) -> Topology {
-        crate::synth::flag_topology(n as usize, n as usize)
+        crate::Topology::grid(n as usize, n as usize).unwrap()
     }
 
     /// A deterministic shuffle (xorshift) of triangle order and rotation.

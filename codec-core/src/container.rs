@@ -410,7 +410,7 @@ impl<R: Read> ContainerReader<R> {
         if frame_count == 0 {
             return Err(r.malformed("frame_count", "zero frames"));
         }
-        // Issue 41 (round 4): the rates the file readers accept (`io`'s `FRAME_RATE_RANGE`), so
+        // The rates the file readers accept (`io`'s `FRAME_RATE_RANGE`), so
         // a decoded stream always writes a file animcodec reads back.
         if !crate::animation::FRAME_RATE_RANGE.contains(&frame_rate) {
             return Err(r.malformed(

@@ -1,9 +1,11 @@
-//! Core of **animcodec**: the animation data model, the [`AnimationCodec`] trait, the `.anim`
-//! container, quantization and entropy helpers, the registry type, synthetic test
-//! animations, and the baseline codec [`quant_delta`].
+//! Core of **animcodec**: the contract and the toolkit. The animation data model, the codec
+//! contract ([`TypedCodec`] on typed parameters, the object-safe [`AnimationCodec`] the
+//! registry holds), the `.anim` container, limits, quantization and entropy helpers, and the
+//! coding [`toolkit`].
 //!
-//! A codec crate implements [`AnimationCodec`] (plus a [`FrameEncoder`] and a
-//! [`FrameDecoder`]) and is added to the one registry list in the `animcodec` crate.
+//! A codec crate implements [`TypedCodec`] on its parameters (declared with
+//! [`declare_params!`]) plus a [`FrameEncoder`] and a [`FrameDecoder`], and is added to the one
+//! registry list in the `animcodec` crate.
 //! [`encode_animation`] and [`decode_animation`] drive any codec through the container.
 
 pub mod animation;
@@ -20,10 +22,9 @@ pub mod memory;
 pub mod metadata;
 pub mod params;
 pub mod quant;
-pub mod quant_delta;
 pub mod registry;
 pub mod stream;
-pub mod synth;
+#[cfg(feature = "testing")]
 pub mod testing;
 pub mod toolkit;
 pub mod traversal;
@@ -36,13 +37,14 @@ pub struct ReadmeDoctests;
 pub use animation::{Animation, Topology};
 pub use codec::{
     AnimationCodec, EncodedPacket, EncoderSetup, ErrorBound, FourCc, FrameDecoder, FrameEncoder, Packet, StreamInfo,
+    TypedCodec,
 };
 pub use error::{Error, Result};
 pub use limits::Limits;
 pub use metadata::{SceneMetadata, UpAxis};
 pub use params::{
-    DeclaredParams, DistortionKind, ParamChoice, ParamKind, ParamSet, ParamSpec, ParamValue, RateLadder, SearchAxis,
-    SearchSpace,
+    DeclaredParams, DistortionKind, Param, ParamChoice, ParamKind, ParamSet, ParamSpec, ParamValue, RateLadder,
+    SearchAxis, SearchSpace, Setting,
 };
 pub use quant::Quantizer;
 pub use registry::CodecRegistry;

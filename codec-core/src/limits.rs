@@ -35,7 +35,7 @@ pub struct Limits {
 /// Large enough for every real animation the project measures with (a 100 000-vertex,
 /// 300-frame cache decodes to 360 MB), small enough that a crafted stream of a few hundred
 /// bytes claiming 2^24 vertices is refused before its coding-order graph (64 bytes a vertex)
-/// is built: the issue-27 bound of 1 GB for any hostile input. Larger decodes ask for it with
+/// is built: a bound of 1 GB for any hostile input. Larger decodes ask for it with
 /// `--max-memory` (image-rs makes the same trade with a 512 MiB default).
 pub const DEFAULT_MAX_MEMORY: usize = 1 << 30;
 
@@ -47,7 +47,7 @@ pub const DEFAULT_MAX_MEMORY: usize = 1 << 30;
 pub const DEFAULT_MAX_WORK: u64 = 200_000_000_000;
 
 /// Work charged per arithmetic-decoded value ([`crate::toolkit::adaptive`]: a few adaptive
-/// binary decisions, each a division and two model updates), in multiply-adds. Issue 41: every
+/// binary decisions, each a division and two model updates), in multiply-adds. Every
 /// decoder charges its coded values at this rate, with its dense products at one per
 /// multiply-add, before it starts (`--max-work`).
 pub const WORK_PER_CODED_VALUE: u64 = 16;

@@ -1,4 +1,4 @@
-//! Issue 41 (round 4, item 10c): memory models of the encoders that hold no whole block of
+//! Memory models of the encoders that hold no whole block of
 //! frames they could shorten (quant-delta's packets, sac's per-mesh state, stseg's segments),
 //! so that `animcodec encode --memory` refuses up front, naming the least budget that would do,
 //! instead of overrunning it without a word ([`AnimationCodec::fit_memory`]).

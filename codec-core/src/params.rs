@@ -7,9 +7,8 @@
 //!
 //! The struct, its `Default`, its specs and both conversions come from one declaration per
 //! parameter ([`declare_params!`](crate::declare_params)): the name, kind, range, default and
-//! help of a parameter are written once, so the three views cannot disagree (issue 28; before,
-//! each name was spelled three times by hand). Choice parameters are enums implementing
-//! [`ParamChoice`] ([`param_choice!`](crate::param_choice)).
+//! help of a parameter are written once, so the three views cannot disagree. Choice parameters
+//! are enums implementing [`ParamChoice`] ([`param_choice!`](crate::param_choice)).
 
 use std::fmt;
 
@@ -381,7 +380,8 @@ macro_rules! int_param {
 int_param!(u8, u16, u32, u64, usize, i8, i16, i32, i64);
 
 /// A typed parameter struct made by [`declare_params!`](crate::declare_params): the
-/// generic view the conformance check [`crate::testing::check_declared_params`] works on.
+/// generic view the conformance check `codec_core::testing::check_declared_params` (feature
+/// `testing`) works on.
 ///
 /// `read_fields` and `write_fields` are the pure field-by-field conversions; a codec's
 /// `from_param_set` / `to_param_set` add its hand-written cross-field checks (and, for `sac`,
@@ -397,6 +397,123 @@ pub trait DeclaredParams: Sized + Default + Clone + fmt::Debug + PartialEq {
     /// Every declared parameter written into a [`ParamSet`], each checked against its spec
     /// (the first out of range fails, naming codec and field), with no cross-field check.
     fn write_fields(&self) -> Result<ParamSet>;
+    /// [`DeclaredParams::read_fields`] followed by the codec's own checks (`after_read`): the
+    /// parameters an encoder may run with.
+    fn from_set(p: &ParamSet) -> Result<Self>;
+    /// [`DeclaredParams::write_fields`] with the codec's own checks around it
+    /// (`before_write`, `after_write`).
+    fn to_set(&self) -> Result<ParamSet>;
+}
+
+/// One declared parameter of a codec, by name and value type: made by
+/// [`declare_params!`](crate::declare_params) as an associated constant named like the field
+/// (`HosvdParams::ss`), so rate ladders, search axes and parameter changes name parameters
+/// the compiler checks, never a string.
+///
+/// ```
+/// use codec_core::{ParamValue, RateLadder};
+/// codec_core::declare_params! {
+///     codec: "demo";
+///     /// Parameters of `demo`.
+///     #[derive(Debug, Clone, Copy, PartialEq)]
+///     pub struct DemoParams {
+///         /// Bits per value.
+///         pub bits: u8 = 12 => int(1, 24, "bits per value"),
+///     }
+/// }
+/// let ladder = RateLadder::over(DemoParams::bits, [4, 8]);
+/// assert_eq!(ladder.param, "bits");
+/// assert_eq!(ladder.steps, [ParamValue::Int(4), ParamValue::Int(8)]);
+/// assert_eq!(DemoParams::bits.to(6), ("bits", ParamValue::Int(6)));
+/// ```
+///
+/// ```compile_fail
+/// codec_core::declare_params! {
+///     codec: "demo";
+///     /// Parameters of `demo`.
+///     #[derive(Debug, Clone, Copy, PartialEq)]
+///     pub struct DemoParams {
+///         /// Bits per value.
+///         pub bits: u8 = 12 => int(1, 24, "bits per value"),
+///     }
+/// }
+/// // A misspelt parameter does not compile.
+/// let _ = DemoParams::bitz.value(8);
+/// ```
+#[derive(Debug)]
+pub struct Param<T> {
+    name: &'static str,
+    to_value: fn(T) -> ParamValue,
+}
+
+impl<T> Clone for Param<T> {
+    fn clone(&self) -> Self {
+        *self
+    }
+}
+impl<T> Copy for Param<T> {}
+
+impl<T> Param<T> {
+    /// The parameter called `name` whose values `to_value` converts (used by
+    /// [`declare_params!`](crate::declare_params)).
+    #[doc(hidden)]
+    pub const fn new(name: &'static str, to_value: fn(T) -> ParamValue) -> Self {
+        Self { name, to_value }
+    }
+
+    /// The parameter's name (as in `-p name=value`).
+    pub const fn name(self) -> &'static str {
+        self.name
+    }
+
+    /// `v` as a generic parameter value.
+    pub fn value(self, v: T) -> ParamValue {
+        (self.to_value)(v)
+    }
+
+    /// The change "set this parameter to `v`", as rate control and
+    /// [`TypedCodec::fit`](crate::TypedCodec::fit) list them.
+    pub fn to(self, v: T) -> Setting {
+        (self.name, self.value(v))
+    }
+}
+
+/// A change of one parameter: its name and new value (see [`Param::to`]).
+pub type Setting = (&'static str, ParamValue);
+
+/// The value of an integer parameter (for [`Param`]).
+#[doc(hidden)]
+pub fn int_value<T: IntParam>(v: T) -> ParamValue {
+    ParamValue::Int(v.to_i64())
+}
+/// The value of a real parameter (for [`Param`]).
+#[doc(hidden)]
+pub fn float_value(v: f64) -> ParamValue {
+    ParamValue::Float(v)
+}
+/// The value of a boolean parameter (for [`Param`]).
+#[doc(hidden)]
+pub fn bool_value(v: bool) -> ParamValue {
+    ParamValue::Bool(v)
+}
+/// The value of a choice parameter (for [`Param`]).
+#[doc(hidden)]
+pub fn choice_value<T: ParamChoice>(v: T) -> ParamValue {
+    ParamValue::Choice(v.name())
+}
+
+impl RateLadder {
+    /// The ladder walking `param` over `steps` (smallest stream first).
+    pub fn over<T>(param: Param<T>, steps: impl IntoIterator<Item = T>) -> Self {
+        Self { param: param.name(), steps: steps.into_iter().map(|v| param.value(v)).collect() }
+    }
+}
+
+impl SearchAxis {
+    /// The axis giving `param` the `values` (the usual one first).
+    pub fn over<T>(param: Param<T>, values: impl IntoIterator<Item = T>) -> Self {
+        Self { param: param.name(), values: values.into_iter().map(|v| param.value(v)).collect() }
+    }
 }
 
 /// The error of reading a [`ParamSet`] made for another codec.
@@ -593,8 +710,43 @@ macro_rules! declare_params {
                 $($crate::declare_params!(@write set, specs, self, $field, $kind);)*
                 Ok(set)
             }
+
+            fn from_set(p: &$crate::params::ParamSet) -> $crate::Result<Self> {
+                Self::from_param_set(p)
+            }
+
+            fn to_set(&self) -> $crate::Result<$crate::params::ParamSet> {
+                self.to_param_set()
+            }
+        }
+
+        #[allow(non_upper_case_globals)]
+        impl $Name {
+            $($crate::declare_params!(@key $field, $fty, $kind);)*
         }
     };
+
+    (@key $field:ident, $fty:ty, int) => {
+        #[doc = concat!("The `", stringify!($field), "` parameter, for rate ladders, search axes and settings.")]
+        pub const $field: $crate::params::Param<$fty> =
+            $crate::params::Param::new(stringify!($field), $crate::params::int_value::<$fty>);
+    };
+    (@key $field:ident, $fty:ty, float) => {
+        #[doc = concat!("The `", stringify!($field), "` parameter, for rate ladders, search axes and settings.")]
+        pub const $field: $crate::params::Param<$fty> =
+            $crate::params::Param::new(stringify!($field), $crate::params::float_value);
+    };
+    (@key $field:ident, $fty:ty, boolean) => {
+        #[doc = concat!("The `", stringify!($field), "` parameter, for rate ladders, search axes and settings.")]
+        pub const $field: $crate::params::Param<$fty> =
+            $crate::params::Param::new(stringify!($field), $crate::params::bool_value);
+    };
+    (@key $field:ident, $fty:ty, choice) => {
+        #[doc = concat!("The `", stringify!($field), "` parameter, for rate ladders, search axes and settings.")]
+        pub const $field: $crate::params::Param<$fty> =
+            $crate::params::Param::new(stringify!($field), $crate::params::choice_value::<$fty>);
+    };
+    (@key $field:ident, $fty:ty, hidden) => {};
 
     (@spec $d:ident, $field:ident, $fty:ty, int($min:expr, $max:expr, $doc:expr)) => {
         ::core::option::Option::Some($crate::params::ParamSpec::int(

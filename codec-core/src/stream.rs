@@ -16,14 +16,14 @@ use crate::registry::CodecRegistry;
 
 /// Encodes frames as they arrive into a container written to `W`.
 ///
-/// **The encoder checks its own output** (issue 26): every packet is decoded by the codec's own
+/// **The encoder checks its own output**: every packet is decoded by the codec's own
 /// decoder before it is written; the decoded frames must be finite and equal the encoder's
 /// reconstruction when it gave one, and at [`StreamEncoder::finish`] the error against the
 /// input must be within the codec's declared [`ErrorBound`] ([`FrameEncoder::declared_bound`],
 /// else [`AnimationCodec::error_bound`]). Otherwise `finish` fails with an error naming the
 /// codec and the cause, and no index is written (the CLI then leaves no file): a stream that
 /// exceeds its bound never leaves the encoder. Cost: one decode of every packet, and a copy of
-/// the input frames until the packet holding them is checked (issue 30: each packet is compared
+/// the input frames until the packet holding them is checked (each packet is compared
 /// with its input as it is written, the error accumulated and those frames dropped, so memory
 /// is bounded by the encoder's own buffering). Only when the encoder declares no bound of its
 /// own ([`FrameEncoder::declared_bound`] is `None` before the first frame) is the whole input
@@ -460,7 +460,7 @@ impl<R: Read> StreamDecoder<R> {
     }
 
     /// [`StreamDecoder::new`] for a caller that takes packets one by one with
-    /// [`StreamDecoder::next_packet`] and drops each before the next (issue 30: `decode` to a
+    /// [`StreamDecoder::next_packet`] and drops each before the next (`decode` to a
     /// PC2/MDD file writes frames as they are decoded): only one decoded packet at a time is
     /// charged to `limits`, so a stream far larger than the budget decodes within it.
     /// [`StreamDecoder::decode_all`] still checks the whole animation against `limits`.
@@ -491,7 +491,7 @@ impl<R: Read> StreamDecoder<R> {
             "the topology",
             header.info.topology.triangle_count() as u64 * 12,
         )?;
-        // Issue 41: every decode writes each of its coordinates; a header whose frames alone
+        // Every decode writes each of its coordinates; a header whose frames alone
         // exceed the work budget is refused before any codec state is built.
         let info = &header.info;
         let coordinates = Limits::product(&[info.vertex_count() as u64, info.frame_count as u64, 3]);

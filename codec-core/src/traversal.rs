@@ -452,7 +452,7 @@ mod tests {
     use super::*;
 
     fn grid(n: usize) -> Topology {
-        canonical_order(&crate::synth::flag_topology(n, n))
+        canonical_order(&crate::Topology::grid(n, n).unwrap())
     }
 
     fn roundtrip(topo: &Topology) -> usize {

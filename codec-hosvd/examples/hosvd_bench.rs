@@ -25,12 +25,12 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use codec_core::container::ContainerWriter;
-use codec_core::quant_delta::{QuantDelta, QuantDeltaParams};
 use codec_core::{decode_animation, encode_animation_fed, Animation, CodecRegistry, FrameEncoder, Limits, Topology};
 use codec_core::{AnimationCodec, ParamChoice};
 use codec_hosvd::{
     truncated_reconstruction, truncated_reconstruction_with, BlockStats, Hosvd, HosvdEncoder, HosvdParams, Strategy,
 };
+use codec_quant_delta::{QuantDelta, QuantDeltaParams};
 use faer::Mat;
 
 fn read_pc2(path: &Path) -> Result<(usize, usize, Vec<f32>), String> {

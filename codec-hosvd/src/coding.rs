@@ -367,6 +367,32 @@ impl Component<'_> {
     }
 
     /// Bits of `codes` by the adaptive coder's cost model (one class, neighbour buckets).
+    /// Quantizes this column by `reg` into `codes` / `recon`. The search chose the mode on the
+    /// unquantized leads; on the decoded ones the regression may lose to the mesh predictor
+    /// (or, unguarded, diverge): then the column is coded with the mesh predictor instead
+    /// (through `scratch`) and the answer says whether the regression was sound; `None` when
+    /// the regression is kept.
+    fn quantize_regressed(
+        &self,
+        reg: &Regression<'_>,
+        step: f64,
+        codes: &mut Vec<i32>,
+        recon: &mut Vec<f64>,
+        (alt_codes, alt_recon): (&mut Vec<i32>, &mut Vec<f64>),
+    ) -> Option<bool> {
+        reg.quantize(&self.values, step, codes, recon);
+        let sound = closed_loop_holds(&self.values, recon, step, 0.0);
+        if !sound || !self.forced {
+            predict::quantize(self.graph, self.predictor, &self.values, step, self.shaping, alt_codes, alt_recon);
+            if !sound || self.rate(alt_codes) < self.rate(codes) {
+                std::mem::swap(codes, alt_codes);
+                std::mem::swap(recon, alt_recon);
+                return Some(sound);
+            }
+        }
+        None
+    }
+
     fn rate(&self, codes: &[i32]) -> f64 {
         let mut cost = CostModel::new(1);
         for p in 0..codes.len() {
@@ -445,16 +471,221 @@ const PER_OCTAVE: usize = 2;
 const OCTAVES_FINER: usize = 3;
 const OCTAVES_COARSER: usize = 6;
 
+/// The components of the mode-3 factor `U3` (one per column, along `time`) and of the core
+/// (one per `U1` column's slice, along `core_chain`), after the `U1` columns in `comps`.
+fn push_factor_components<'g>(
+    op: &Operator<'_>,
+    rho: &[f64],
+    time: &'g CausalGraph,
+    core_chain: &'g CausalGraph,
+    settings: &Settings,
+    target: f64,
+    comps: &mut Vec<Component<'g>>,
+) {
+    let (frames, f) = (op.frames, op.f);
+    let beta = settings.edge_weight;
+    for l in 0..f {
+        let values: Vec<f64> = (0..frames).map(|t| op.u3[t * f + l]).collect();
+        let reference_step = (4.0 * target / (f * frames) as f64).sqrt() / op.s3[l].max(1e-300);
+        comps.push(Component {
+            group: Group::U3,
+            index: l,
+            graph: time,
+            predictor: settings.time,
+            shaping: 0.0,
+            edge_weight: 0.0,
+            values,
+            gain2: op.s3[l] * op.s3[l] * (1.0 - beta + beta * mixed_ratio(op, rho, l)),
+            reference_step,
+            smoother: None,
+            modes: false,
+            forced: false,
+            regression: None,
+        });
+    }
+    for (i, r) in rho.iter().enumerate() {
+        let values = op.core[i * 3 * f..(i + 1) * 3 * f].to_vec();
+        let reference_step = (4.0 * target / op.core.len() as f64).sqrt();
+        comps.push(Component {
+            group: Group::Core,
+            index: i,
+            graph: core_chain,
+            predictor: Predictor::Zero,
+            shaping: 0.0,
+            edge_weight: 0.0,
+            values,
+            gain2: 1.0 - beta + beta * r,
+            reference_step,
+            smoother: None,
+            modes: false,
+            forced: false,
+            regression: None,
+        });
+    }
+}
+
+/// The reference step of `U1` column `i`: version 1's rule of thumb (the budget `target`
+/// split evenly between U1, U3 and the core, and between a group's entries after the gains).
+fn u1_reference_step(op: &Operator<'_>, target: f64, i: usize) -> f64 {
+    (4.0 * target / (op.v * op.k) as f64).sqrt() / op.s1[i].max(1e-300)
+}
+
+/// The neighbourhoods and the fits of the regression of `U1` column `i ≥ 1` on the first
+/// `min(i, leads)` columns (none when `leads` is 0), here on the unquantized columns.
+fn lead_fits(
+    op: &Operator<'_>,
+    mesh: &CausalGraph,
+    leads: usize,
+    guarded: bool,
+    target: f64,
+) -> (Option<Neighbourhoods>, Vec<Fit>) {
+    let v = op.v;
+    let lead_columns: Vec<Vec<f64>> =
+        (0..leads).map(|i| mesh.order().iter().map(|&x| op.u1[x as usize * v + i]).collect()).collect();
+    let lead_refs: Vec<&[f64]> = lead_columns.iter().map(|c| c.as_slice()).collect();
+    // The guarded fit's ridge needs the leads' steps, not chosen yet: their reference steps
+    // stand in (the decoded leads' noise is of that order).
+    let lead_steps: Vec<f64> = lead_columns
+        .iter()
+        .enumerate()
+        .map(|(i, c)| {
+            let max_abs = c.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+            rdq::stored_step(u1_reference_step(op, target, i), rdq::step_floor(max_abs))
+        })
+        .collect();
+    let hoods = (leads > 0).then(|| Neighbourhoods::new(mesh));
+    let fits: Vec<Fit> = match &hoods {
+        Some(h) => (1..=leads).map(|n| make_fit(h, &lead_refs[..n], &lead_steps[..n], guarded)).collect(),
+        None => Vec::new(),
+    };
+    (hoods, fits)
+}
+
+/// The decoded factors and core as the coder reconstructs them, with their errors.
+struct Decoded {
+    u1: Vec<f64>,
+    u3: Vec<f64>,
+    core: Vec<f64>,
+    du1: Vec<f64>,
+    du3: Vec<f64>,
+    dc2: f64,
+}
+
+impl Decoded {
+    fn new(op: &Operator<'_>) -> Self {
+        Self {
+            u1: vec![0.0; op.k * op.v],
+            u3: vec![0.0; op.frames * op.f],
+            core: vec![0.0; op.core.len()],
+            du1: vec![0.0; op.v],
+            du3: vec![0.0; op.f],
+            dc2: 0.0,
+        }
+    }
+
+    /// Stores component `c`'s reconstruction `recon` (in its graph's order) and its error.
+    fn place(&mut self, c: &Component<'_>, recon: &[f64], v: usize, f: usize) {
+        let err2: f64 = c.values.iter().zip(recon).map(|(x, r)| (x - r) * (x - r)).sum();
+        match c.group {
+            Group::U1 => {
+                for (p, &x) in c.graph.order().iter().enumerate() {
+                    self.u1[x as usize * v + c.index] = recon[p];
+                }
+                self.du1[c.index] = err2.sqrt();
+            }
+            Group::U3 => {
+                for (t, &r) in recon.iter().enumerate() {
+                    self.u3[t * f + c.index] = r;
+                }
+                self.du3[c.index] = err2.sqrt();
+            }
+            Group::Core => {
+                self.core[c.index * 3 * f..(c.index + 1) * 3 * f].copy_from_slice(recon);
+                self.dc2 += err2;
+            }
+        }
+    }
+}
+
+/// The step, smoothing level and column mode of every component, and the estimated bits.
+struct Steps {
+    steps: Vec<f64>,
+    levels: Vec<u8>,
+    modes: Vec<ColumnMode>,
+    estimated_bits: f64,
+}
+
+/// Chooses every component's step: with `rdq`, the equal-slope choice for the total
+/// distortion `target` over a grid of steps around each reference; otherwise the reference.
+fn choose_steps(comps: &[Component<'_>], rdq: bool, target: f64) -> Steps {
+    let (mut codes, mut recon) = (Vec::new(), Vec::new());
+    if !rdq {
+        let steps: Vec<f64> =
+            comps.iter().map(|c| rdq::stored_step(c.reference_step, rdq::step_floor(c.max_abs()))).collect();
+        let evaluated: Vec<Evaluated> = comps
+            .iter()
+            .zip(&steps)
+            .map(|(c, &s)| {
+                if c.smoother.is_some() || c.modes {
+                    c.evaluate(c.best_mode(s), s, &mut codes, &mut recon)
+                } else {
+                    Evaluated { point: RdPoint { rate: 0.0, distortion: 0.0 }, level: 0, mode: ColumnMode::Mesh }
+                }
+            })
+            .collect();
+        return Steps {
+            steps,
+            levels: evaluated.iter().map(|e| e.level).collect(),
+            modes: evaluated.iter().map(|e| e.mode).collect(),
+            estimated_bits: 0.0,
+        };
+    }
+    // Components are independent: their grids are measured in parallel (each task with its
+    // own scratch) and collected in component order, so the choice does not depend on the
+    // thread count. This search is most of the toolkit encoder's time.
+    let measured: Vec<(Vec<f64>, Vec<Evaluated>)> = comps
+        .par_iter()
+        .map(|c| {
+            let (mut codes, mut recon) = (Vec::new(), Vec::new());
+            // Never finer than 2^-28 of the component's range (codes stay far inside 2^30).
+            let floor = rdq::step_floor(c.max_abs());
+            let largest = c.reference_step * 2f64.powi(OCTAVES_COARSER as i32);
+            let mode = c.best_mode(rdq::stored_step(c.reference_step, floor));
+            let mut grid = vec![0.0];
+            let mut evaluated = vec![c.evaluate(mode, 0.0, &mut codes, &mut recon)];
+            for s in rdq::step_grid(largest, (OCTAVES_COARSER + OCTAVES_FINER) * PER_OCTAVE + 1, PER_OCTAVE) {
+                let s = rdq::stored_step(s, floor);
+                let e = c.evaluate(mode, s, &mut codes, &mut recon);
+                grid.push(s);
+                evaluated.push(e);
+                // Finer steps cannot be chosen once this component's distortion is negligible.
+                if e.point.distortion < 1e-4 * target {
+                    break;
+                }
+            }
+            (grid, evaluated)
+        })
+        .collect();
+    let points: Vec<Vec<RdPoint>> = measured.iter().map(|(_, e)| e.iter().map(|e| e.point).collect()).collect();
+    let a = rdq::allocate(&points, target);
+    let chosen: Vec<(f64, Evaluated)> = a.choice.iter().zip(&measured).map(|(&i, (g, e))| (g[i], e[i])).collect();
+    Steps {
+        steps: chosen.iter().map(|c| c.0).collect(),
+        levels: chosen.iter().map(|c| c.1.level).collect(),
+        modes: chosen.iter().map(|c| c.1.mode).collect(),
+        estimated_bits: a.rate,
+    }
+}
+
 /// Quantizes and codes `op` for a total quantization distortion `target` (squared error in
 /// the normalised space).
 pub fn code(op: &Operator<'_>, mesh: &CausalGraph, settings: &Settings, target: f64) -> Coded {
-    let (k, frames, v, f) = (op.k, op.frames, op.v, op.f);
+    let (frames, v, f) = (op.frames, op.v, op.f);
     let time = CausalGraph::chain(frames, settings.time == Predictor::Parallelogram);
     let core_chain = CausalGraph::chain(3 * f, false);
     // Version 1's rule of thumb: the budget split evenly between U1, U3 and the core, and
     // evenly between a group's entries after the gains (uniform noise Δ²/12 per entry).
     let mut comps = Vec::with_capacity(2 * v + f);
-    let beta = settings.edge_weight;
     // Normalised edge energy of each U1 column (1 for white noise, ≪ 1 for smooth fields).
     let smoother = settings.denoise.then(|| Smoother::new(mesh));
     let rho: Vec<f64> = (0..v)
@@ -466,29 +697,11 @@ pub fn code(op: &Operator<'_>, mesh: &CausalGraph, settings: &Settings, target: 
     // Regression (stream version 4): column i ≥ 1 on columns 0..min(i, MAX_REGRESSORS), here
     // unquantized (the decoded ones are only known once the steps are chosen).
     let leads = regression_leads(settings, v);
-    let lead_columns: Vec<Vec<f64>> =
-        (0..leads).map(|i| mesh.order().iter().map(|&x| op.u1[x as usize * v + i]).collect()).collect();
-    let lead_refs: Vec<&[f64]> = lead_columns.iter().map(|c| c.as_slice()).collect();
-    let u1_reference_step = |i: usize| (4.0 * target / (v * k) as f64).sqrt() / op.s1[i].max(1e-300);
-    // The guarded fit's ridge needs the leads' steps, not chosen yet: their reference steps
-    // stand in (the decoded leads' noise is of that order).
-    let lead_steps: Vec<f64> = lead_columns
-        .iter()
-        .enumerate()
-        .map(|(i, c)| {
-            let max_abs = c.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-            rdq::stored_step(u1_reference_step(i), rdq::step_floor(max_abs))
-        })
-        .collect();
-    let hoods = (leads > 0).then(|| Neighbourhoods::new(mesh));
     let guarded = !settings.force_unguarded_regression;
-    let fits: Vec<Fit> = match &hoods {
-        Some(h) => (1..=leads).map(|n| make_fit(h, &lead_refs[..n], &lead_steps[..n], guarded)).collect(),
-        None => Vec::new(),
-    };
+    let (hoods, fits) = lead_fits(op, mesh, leads, guarded, target);
     for i in 0..v {
         let values: Vec<f64> = mesh.order().iter().map(|&x| op.u1[x as usize * v + i]).collect();
-        let reference_step = u1_reference_step(i);
+        let reference_step = u1_reference_step(op, target, i);
         let regression = match &hoods {
             Some(hoods) if i > 0 => {
                 let n = i.min(leads);
@@ -512,107 +725,15 @@ pub fn code(op: &Operator<'_>, mesh: &CausalGraph, settings: &Settings, target: 
             regression,
         });
     }
-    for l in 0..f {
-        let values: Vec<f64> = (0..frames).map(|t| op.u3[t * f + l]).collect();
-        let reference_step = (4.0 * target / (f * frames) as f64).sqrt() / op.s3[l].max(1e-300);
-        comps.push(Component {
-            group: Group::U3,
-            index: l,
-            graph: &time,
-            predictor: settings.time,
-            shaping: 0.0,
-            edge_weight: 0.0,
-            values,
-            gain2: op.s3[l] * op.s3[l] * (1.0 - beta + beta * mixed_ratio(op, &rho, l)),
-            reference_step,
-            smoother: None,
-            modes: false,
-            forced: false,
-            regression: None,
-        });
-    }
-    for (i, r) in rho.iter().enumerate() {
-        let values = op.core[i * 3 * f..(i + 1) * 3 * f].to_vec();
-        let reference_step = (4.0 * target / op.core.len() as f64).sqrt();
-        comps.push(Component {
-            group: Group::Core,
-            index: i,
-            graph: &core_chain,
-            predictor: Predictor::Zero,
-            shaping: 0.0,
-            edge_weight: 0.0,
-            values,
-            gain2: 1.0 - beta + beta * r,
-            reference_step,
-            smoother: None,
-            modes: false,
-            forced: false,
-            regression: None,
-        });
-    }
+    push_factor_components(op, &rho, &time, &core_chain, settings, target, &mut comps);
 
     // Steps: the equal-slope choice over a grid around the reference, or the reference.
     let (mut codes, mut recon) = (Vec::new(), Vec::new());
-    let mut estimated_bits = 0.0;
-    let (steps, levels, modes): (Vec<f64>, Vec<u8>, Vec<ColumnMode>) = if settings.rdq {
-        // Components are independent: their grids are measured in parallel (each task with
-        // its own scratch) and collected in component order, so the choice does not depend on
-        // the thread count. This search is most of the toolkit encoder's time.
-        let measured: Vec<(Vec<f64>, Vec<Evaluated>)> = comps
-            .par_iter()
-            .map(|c| {
-                let (mut codes, mut recon) = (Vec::new(), Vec::new());
-                // Never finer than 2^-28 of the component's range (codes stay far inside 2^30).
-                let floor = rdq::step_floor(c.max_abs());
-                let largest = c.reference_step * 2f64.powi(OCTAVES_COARSER as i32);
-                let mode = c.best_mode(rdq::stored_step(c.reference_step, floor));
-                let mut grid = vec![0.0];
-                let mut evaluated = vec![c.evaluate(mode, 0.0, &mut codes, &mut recon)];
-                for s in rdq::step_grid(largest, (OCTAVES_COARSER + OCTAVES_FINER) * PER_OCTAVE + 1, PER_OCTAVE) {
-                    let s = rdq::stored_step(s, floor);
-                    let e = c.evaluate(mode, s, &mut codes, &mut recon);
-                    grid.push(s);
-                    evaluated.push(e);
-                    // Finer steps cannot be chosen once this component's distortion is negligible.
-                    if e.point.distortion < 1e-4 * target {
-                        break;
-                    }
-                }
-                (grid, evaluated)
-            })
-            .collect();
-        let points: Vec<Vec<RdPoint>> = measured.iter().map(|(_, e)| e.iter().map(|e| e.point).collect()).collect();
-        let a = rdq::allocate(&points, target);
-        estimated_bits = a.rate;
-        let chosen: Vec<(f64, Evaluated)> = a.choice.iter().zip(&measured).map(|(&i, (g, e))| (g[i], e[i])).collect();
-        (
-            chosen.iter().map(|c| c.0).collect(),
-            chosen.iter().map(|c| c.1.level).collect(),
-            chosen.iter().map(|c| c.1.mode).collect(),
-        )
-    } else {
-        let steps: Vec<f64> =
-            comps.iter().map(|c| rdq::stored_step(c.reference_step, rdq::step_floor(c.max_abs()))).collect();
-        let evaluated: Vec<Evaluated> = comps
-            .iter()
-            .zip(&steps)
-            .map(|(c, &s)| {
-                if c.smoother.is_some() || c.modes {
-                    c.evaluate(c.best_mode(s), s, &mut codes, &mut recon)
-                } else {
-                    Evaluated { point: RdPoint { rate: 0.0, distortion: 0.0 }, level: 0, mode: ColumnMode::Mesh }
-                }
-            })
-            .collect();
-        (steps, evaluated.iter().map(|e| e.level).collect(), evaluated.iter().map(|e| e.mode).collect())
-    };
+    let Steps { steps, levels, modes, estimated_bits } = choose_steps(&comps, settings.rdq, target);
 
     // Code every component at its step.
     let mut enc = AdaptiveEncoder::new(GROUPS * CLASSES_PER_GROUP);
-    let mut u1 = vec![0.0; k * v];
-    let mut u3 = vec![0.0; frames * f];
-    let mut core = vec![0.0; op.core.len()];
-    let (mut du1, mut du3, mut dc2) = (vec![0.0; v], vec![0.0; f], 0.0);
+    let mut out = Decoded::new(op);
     // The leading U1 columns as the decoder has them before smoothing: the regressors.
     let mut decoded_leads: Vec<Vec<f64>> = Vec::with_capacity(leads);
     let mut decoded_fit: Option<(usize, Fit)> = None;
@@ -629,27 +750,11 @@ pub fn code(op: &Operator<'_>, mesh: &CausalGraph, settings: &Settings, target: 
                     let lead_steps: Vec<f64> = steps[..n].iter().map(|&s| s as f32 as f64).collect();
                     let fit = current_fit(&mut decoded_fit, n, hoods, &refs, &lead_steps, guarded);
                     let reg = Regression { graph: mesh, fallback: c.predictor, hoods, fit };
-                    reg.quantize(&c.values, step, &mut codes, &mut recon);
-                    // The search chose the mode on the unquantized leads; on the decoded ones
-                    // the regression may lose to the mesh predictor (or, unguarded, diverge).
-                    let sound = closed_loop_holds(&c.values, &recon, step, 0.0);
-                    if !sound || !c.forced {
-                        predict::quantize(
-                            c.graph,
-                            c.predictor,
-                            &c.values,
-                            step,
-                            c.shaping,
-                            &mut alt_codes,
-                            &mut alt_recon,
-                        );
-                        if !sound || c.rate(&alt_codes) < c.rate(&codes) {
-                            std::mem::swap(&mut codes, &mut alt_codes);
-                            std::mem::swap(&mut recon, &mut alt_recon);
-                            modes[ci] = ColumnMode::Mesh;
-                            if !sound {
-                                fallbacks.push(c.index);
-                            }
+                    let scratch = (&mut alt_codes, &mut alt_recon);
+                    if let Some(sound) = c.quantize_regressed(&reg, step, &mut codes, &mut recon, scratch) {
+                        modes[ci] = ColumnMode::Mesh;
+                        if !sound {
+                            fallbacks.push(c.index);
                         }
                     }
                 }
@@ -676,35 +781,17 @@ pub fn code(op: &Operator<'_>, mesh: &CausalGraph, settings: &Settings, target: 
         if step > 0.0 {
             c.apply_smoothing(level, &mut recon);
         }
-        let err2: f64 = c.values.iter().zip(&recon).map(|(x, r)| (x - r) * (x - r)).sum();
-        match c.group {
-            Group::U1 => {
-                for (p, &x) in c.graph.order().iter().enumerate() {
-                    u1[x as usize * v + c.index] = recon[p];
-                }
-                du1[c.index] = err2.sqrt();
-            }
-            Group::U3 => {
-                for (t, &r) in recon.iter().enumerate() {
-                    u3[t * f + c.index] = r;
-                }
-                du3[c.index] = err2.sqrt();
-            }
-            Group::Core => {
-                core[c.index * 3 * f..(c.index + 1) * 3 * f].copy_from_slice(&recon);
-                dc2 += err2;
-            }
-        }
+        out.place(c, &recon, v, f);
     }
     Coded {
         steps: steps.iter().map(|&s| s as f32).collect(),
-        u1,
-        u3,
-        core,
+        u1: out.u1,
+        u3: out.u3,
+        core: out.core,
         bytes: enc.finish(),
-        du1,
-        du3,
-        dc: dc2.sqrt(),
+        du1: out.du1,
+        du3: out.du3,
+        dc: out.dc2.sqrt(),
         estimated_bits,
         smoothing: levels[..v].to_vec(),
         modes: modes[..v].iter().map(|&m| m as u8).collect(),

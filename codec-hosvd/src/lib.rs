@@ -33,8 +33,8 @@ pub mod strategy;
 pub mod tensor;
 
 use codec_core::{
-    Animation, AnimationCodec, DistortionKind, EncoderSetup, ErrorBound, FourCc, FrameDecoder, FrameEncoder, Limits,
-    ParamSet, ParamSpec, ParamValue, RateLadder, Result, SearchAxis, SearchSpace, StreamInfo,
+    Animation, DistortionKind, EncoderSetup, ErrorBound, FourCc, FrameDecoder, FrameEncoder, Limits, ParamValue,
+    RateLadder, Result, SearchAxis, SearchSpace, Setting, StreamInfo, TypedCodec,
 };
 
 pub use encoder::{
@@ -85,23 +85,14 @@ pub struct Hosvd;
 /// FourCC of the stream.
 pub const FOURCC: FourCc = FourCc::new(b"HOSV");
 
-impl AnimationCodec for Hosvd {
-    fn name(&self) -> &'static str {
-        NAME
-    }
-    fn fourcc(&self) -> FourCc {
-        FOURCC
-    }
-    fn stream_version(&self) -> u16 {
-        STREAM_VERSION
-    }
-    fn summary(&self) -> &'static str {
-        "HO-SVD / Tucker (v, 3, f) truncation with rigid-motion removal (Romaszewski et al.)"
-    }
-    fn param_specs(&self) -> Vec<ParamSpec> {
-        HosvdParams::specs()
-    }
-    fn rate_ladder(&self, _base: &ParamSet) -> RateLadder {
+impl TypedCodec for Hosvd {
+    type Params = HosvdParams;
+    const NAME: &'static str = NAME;
+    const FOURCC: FourCc = FOURCC;
+    const STREAM_VERSION: u16 = STREAM_VERSION;
+    const SUMMARY: &'static str = "HO-SVD / Tucker (v, 3, f) truncation with rigid-motion removal (Romaszewski et al.)";
+
+    fn ladder(&self, _base: &HosvdParams) -> RateLadder {
         // Larger space saving = smaller stream: the ladder walks ss downwards. 0.998, 0.96 and
         // 0.94 give very small ranks and a finer walk where STED and KG targets fall. A ladder
         // over (ss, edge_noise) holding both the KG-best and the STED-best series is not
@@ -109,7 +100,7 @@ impl AnimationCodec for Hosvd {
         // a stream grows ~4× (horse-gallop: 1.96 → 8.0 bpvf), and an envelope interpolated
         // across that gap at KG ≤ 0.1 promised 7% fewer bits than any stream measured there.
         let steps = [0.998, 0.995, 0.99, 0.98, 0.97, 0.96, 0.95, 0.94, 0.93, 0.9, 0.85, 0.8, 0.7, 0.6, 0.5];
-        RateLadder { param: "ss", steps: steps.iter().map(|&s| ParamValue::Float(s)).collect() }
+        RateLadder::over(HosvdParams::ss, steps)
     }
     /// The ladder over `ss`, on each combination of the three levers that decide between the
     /// KG-efficient and the STED-efficient streams: the edge (STED-like) distortion in the
@@ -120,103 +111,78 @@ impl AnimationCodec for Hosvd {
     /// needs 4 % fewer bytes on horse-gallop and 12 % fewer on samba than 0.012). The default
     /// configuration comes first. (Fixing `edge_weight = 1` halves the search but costs 17%
     /// at KG ≤ 0.5 on samba.)
-    fn search_space(&self, base: &ParamSet) -> SearchSpace {
-        let toolkit = HosvdParams::of_base(base).is_some_and(|p| p.coding == Coding::Toolkit);
+    fn space(&self, base: &HosvdParams) -> SearchSpace {
         let mut secondary = Vec::new();
-        if toolkit {
-            secondary.push(SearchAxis {
-                param: "edge_weight",
-                values: vec![ParamValue::Float(0.0), ParamValue::Float(1.0)],
-            });
+        if base.coding == Coding::Toolkit {
+            secondary.push(SearchAxis::over(HosvdParams::edge_weight, [0.0, 1.0]));
         }
-        secondary.push(SearchAxis { param: "rigid", values: vec![ParamValue::Bool(true), ParamValue::Bool(false)] });
-        secondary.push(SearchAxis {
-            param: "edge_noise",
-            values: vec![ParamValue::Float(0.0), ParamValue::Float(0.012), ParamValue::Float(0.02)],
-        });
-        SearchSpace { primary: self.rate_ladder(base), secondary }
+        secondary.push(SearchAxis::over(HosvdParams::rigid, [true, false]));
+        secondary.push(SearchAxis::over(HosvdParams::edge_noise, [0.0, 0.012, 0.02]));
+        SearchSpace { primary: self.ladder(base), secondary }
     }
     /// What a target search walks (a `--target` search must cost few encodes). Every measured
     /// target search chose within these halves of the space: KG targets `edge_noise = 0` (14
     /// of 14 RobotExpressive clips at KG ≤ 0.5, samba, horse-gallop), STED targets
     /// `edge_weight = 1` with `edge_noise = 0.012` (samba and horse-gallop at STED ≤ 0.05 and
     /// ≤ 0.1, where the other configurations needed 4–25% more bytes) or 0.02 (better at
-    /// STED ≤ 0.1: see [`Self::search_space`]). `rigid` stays searched: it wins either way
+    /// STED ≤ 0.1: see [`Self::space`]). `rigid` stays searched: it wins either way
     /// depending on the motion. For STED the first configuration is `edge_noise = 0.012,
     /// rigid = false`, the usual winner.
-    fn search_space_for(&self, base: &ParamSet, kind: DistortionKind) -> SearchSpace {
-        let toolkit = HosvdParams::of_base(base).is_some_and(|p| p.coding == Coding::Toolkit);
-        let rigid = |first: bool| SearchAxis {
-            param: "rigid",
-            values: vec![ParamValue::Bool(first), ParamValue::Bool(!first)],
-        };
+    fn space_for(&self, base: &HosvdParams, kind: DistortionKind) -> SearchSpace {
+        let toolkit = base.coding == Coding::Toolkit;
         let mut secondary = Vec::new();
         match kind {
             DistortionKind::Position => {
                 if toolkit {
-                    secondary.push(SearchAxis {
-                        param: "edge_weight",
-                        values: vec![ParamValue::Float(0.0), ParamValue::Float(1.0)],
-                    });
+                    secondary.push(SearchAxis::over(HosvdParams::edge_weight, [0.0, 1.0]));
                 }
-                secondary.push(rigid(true));
+                secondary.push(SearchAxis::over(HosvdParams::rigid, [true, false]));
             }
             DistortionKind::Shape => {
                 if toolkit {
-                    secondary.push(SearchAxis { param: "edge_weight", values: vec![ParamValue::Float(1.0)] });
+                    secondary.push(SearchAxis::over(HosvdParams::edge_weight, [1.0]));
                 }
-                secondary.push(SearchAxis {
-                    param: "edge_noise",
-                    values: vec![ParamValue::Float(0.012), ParamValue::Float(0.02)],
-                });
-                secondary.push(rigid(false));
+                secondary.push(SearchAxis::over(HosvdParams::edge_noise, [0.012, 0.02]));
+                secondary.push(SearchAxis::over(HosvdParams::rigid, [false, true]));
             }
         }
-        SearchSpace { primary: self.rate_ladder(base), secondary }
+        SearchSpace { primary: self.ladder(base), secondary }
     }
     /// STED targets start at `ss = 0.97`: the dev animations meet STED ≤ 0.05–0.1 at `ss`
     /// 0.92–0.99 (samba 0.96–0.99, horse-gallop 0.92–0.96, pcow 0.93–0.98, chicken-crossing
     /// 0.96–0.985), three to five ladder steps above the default 0.9 that KG targets start
     /// from. Saves two to three encodes per STED search on samba.
-    fn search_start(&self, _base: &ParamSet, kind: DistortionKind) -> Option<ParamValue> {
-        (kind == DistortionKind::Shape).then_some(ParamValue::Float(0.97))
-    }
-    fn validate(&self, params: &ParamSet) -> Result<()> {
-        HosvdParams::from_param_set(params).map(|_| ())
+    fn start(&self, _base: &HosvdParams, kind: DistortionKind) -> Option<ParamValue> {
+        (kind == DistortionKind::Shape).then(|| HosvdParams::ss.value(0.97))
     }
     /// Each temporal block is decomposed and coded on its own ([`HosvdEncoder`]: the
     /// block's frames, its length, and whether it is the whole animation); `block=0` is one
     /// block of the whole sequence.
-    fn independent_blocks(&self, params: &ParamSet, frame_count: usize) -> Result<usize> {
-        let p = HosvdParams::from_param_set(params)?;
+    fn blocks(&self, p: &HosvdParams, frame_count: usize) -> Result<usize> {
         Ok(if p.block == 0 { frame_count.max(1) } else { p.block as usize })
     }
     /// With `block=0` (the whole sequence in one decomposition), the frames per block that fit
     /// `budget` by [`block_memory`] (`memory::block_for_budget`); an explicit `block` is kept.
-    fn fit_memory(&self, params: &ParamSet, vertices: usize, frames: usize, budget: u64) -> Result<ParamSet> {
-        let p = HosvdParams::from_param_set(params)?;
+    fn fit(&self, p: &HosvdParams, vertices: usize, frames: usize, budget: u64) -> Result<Vec<Setting>> {
         if p.block != 0 || frames == 0 {
-            return Ok(params.clone());
+            return Ok(Vec::new());
         }
         let Some(block) = memory::block_for_budget(vertices, frames, budget)? else {
-            return Ok(params.clone());
+            return Ok(Vec::new());
         };
-        let mut out = params.clone();
-        out.set(&HosvdParams::specs(), "block", ParamValue::Int(block as i64))?;
-        Ok(out)
+        Ok(vec![HosvdParams::block.to(u32::try_from(block).unwrap_or(u32::MAX))])
     }
     /// Runs the encoder's analysis and returns the bound derived in [`BlockStats::error_bound`]
     /// (truncation error from the core energies plus worst-case quantization terms, mapped
     /// through the stored inverse transforms). Not a measured error: it never looks at the
     /// reconstruction.
-    fn error_bound(&self, params: &ParamSet, animation: &Animation) -> Result<ErrorBound> {
-        encoder::error_bound(&HosvdParams::from_param_set(params)?, animation)
+    fn bound(&self, p: &HosvdParams, animation: &Animation) -> Result<ErrorBound> {
+        encoder::error_bound(p, animation)
     }
-    fn new_encoder(&self, params: &ParamSet, setup: &EncoderSetup<'_>) -> Result<Box<dyn FrameEncoder>> {
-        let p = HosvdParams::from_param_set(params)?;
+    fn encoder(&self, p: HosvdParams, setup: &EncoderSetup<'_>) -> Result<Box<dyn FrameEncoder>> {
         Ok(Box::new(HosvdEncoder::new(p, setup.topology, setup.frame_count, setup.want_reconstruction)))
     }
-    fn new_decoder(&self, info: &StreamInfo, config: &[u8], limits: &Limits) -> Result<Box<dyn FrameDecoder>> {
+    fn decoder(&self, info: &StreamInfo, config: &[u8], limits: &Limits) -> Result<Box<dyn FrameDecoder>> {
         decoder::new_decoder(info, config, limits)
     }
 }
@@ -227,7 +193,7 @@ impl AnimationCodec for Hosvd {
 use {
     codec_core::bytes::ByteWriter,
     codec_core::toolkit::predict::Predictor,
-    codec_core::{Error, Packet},
+    codec_core::{AnimationCodec, Error, Packet, ParamSet},
     decoder::add_centre,
     encoder::{block_centre, check_precision},
     tensor::Tensor,

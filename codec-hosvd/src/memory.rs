@@ -41,7 +41,7 @@ pub(crate) fn block_for_budget(vertices: usize, frames: usize, budget: u64) -> R
             let need = block_memory(vertices, MIN_MEMORY_BLOCK.min(frames));
             Err(Error::parameter(
                 NAME,
-                "block",
+                crate::params::HosvdParams::block.name(),
                 format!(
                     "a memory budget of {budget} bytes does not hold a block of {} frames of {vertices} vertices \
                      (about {need} bytes); give a larger budget",

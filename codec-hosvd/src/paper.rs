@@ -3,6 +3,7 @@
 //! columns, byte planes + zstd.
 
 use codec_core::bytes::{zigzag_decode, zigzag_encode, ByteReader, ByteWriter};
+use codec_core::toolkit::planes::{from_byte_planes, planes_needed, to_byte_planes};
 use codec_core::{entropy, Error, Limits, Quantizer, Result};
 
 use crate::params::HosvdParams;
@@ -37,21 +38,10 @@ fn column_quantizer(values: impl Iterator<Item = f64> + Clone, step: f64) -> Res
     Quantizer::new(lo32, hi32, bits_for(hi32 as f64 - lo32 as f64, step))
 }
 
-fn planes_needed(values: &[u32]) -> u8 {
-    let max = values.iter().copied().max().unwrap_or(0);
-    (((32 - max.leading_zeros()) as u8).div_ceil(8)).max(1)
-}
-
 fn write_codes(w: &mut ByteWriter, values: &[u32], level: i32) {
-    let planes = planes_needed(values) as usize;
-    let mut raw = vec![0u8; values.len() * planes];
-    for p in 0..planes {
-        for (o, v) in raw[p * values.len()..(p + 1) * values.len()].iter_mut().zip(values) {
-            *o = (v >> (8 * p)) as u8;
-        }
-    }
+    let planes = planes_needed(values);
     w.u8(planes as u8);
-    w.length_prefixed(&entropy::compress(&raw, level));
+    w.length_prefixed(&entropy::compress(&to_byte_planes(values, planes), level));
 }
 
 fn read_codes(r: &mut ByteReader<'_>, count: usize, limits: &Limits, field: &'static str) -> Result<Vec<u32>> {
@@ -66,13 +56,7 @@ fn read_codes(r: &mut ByteReader<'_>, count: usize, limits: &Limits, field: &'st
     if raw.len() != len {
         return Err(Error::malformed(NAME, field, format!("{} bytes, expected {len}", raw.len())));
     }
-    let mut out = vec![0u32; count];
-    for p in 0..planes {
-        for (o, b) in out.iter_mut().zip(&raw[p * count..(p + 1) * count]) {
-            *o |= (*b as u32) << (8 * p);
-        }
-    }
-    Ok(out)
+    Ok(from_byte_planes(&raw, count, planes))
 }
 
 /// Column `c` of a row-major `rows × cols` matrix.

@@ -2,9 +2,8 @@
 //! (`ss`, `strategy`, `v`, `f`, `rigid`, `samples`, `depth`; §2.3–2.6) and the coding's, with the
 //! cross-field checks.
 
-use codec_core::params::DeclaredParams;
 use codec_core::toolkit::predict::Predictor;
-use codec_core::{entropy, Error, ParamSet, Result};
+use codec_core::{entropy, Error, Result};
 
 use crate::motion;
 use crate::strategy::Strategy;
@@ -119,7 +118,7 @@ codec_core::declare_params! {
         pub regress: bool = true => boolean(
             "toolkit: per mode-1 factor column the cheapest of mesh predictor, parallelogram, local regression on the leading columns (v4)"
         ),
-        /// Test hook, not a codec parameter (always false from a [`ParamSet`]): regression on every
+        /// Test hook, not a codec parameter (always false from a [`ParamSet`](codec_core::ParamSet)): regression on every
         /// mode-1 column with stream version 4's unguarded fit, to drive the encoder into a
         /// diverging regression and prove its closed-loop check falls back
         /// (`coding::Settings::force_unguarded_regression`).
@@ -149,14 +148,6 @@ impl HosvdParams {
     /// rule (`v` and `f` are given together or not at all); errors name the field and range.
     pub fn validate(&self) -> Result<()> {
         self.to_param_set().map(|_| ())
-    }
-
-    /// The fields of a rate-control hook's `base` (a full parameter set of this codec), read
-    /// once and typed, so a hook decides on fields the compiler checks, never on a parameter's
-    /// name. The cross-field checks are not run: the search's own encodes run them. `None` for
-    /// a set of another codec.
-    pub(crate) fn of_base(base: &ParamSet) -> Option<Self> {
-        <Self as DeclaredParams>::read_fields(base).ok()
     }
 
     fn check_cross(&self) -> Result<()> {

@@ -426,7 +426,7 @@ fn degenerate_inputs_round_trip() {
 /// relative RMS) sat below the real error (1.8e-5) on the `phases` preset.
 #[test]
 fn bound_holds_when_truncation_error_is_tiny_next_to_the_norm() {
-    let anim = codec_core::synth::by_name("phases", codec_core::synth::SynthSize::Small).unwrap();
+    let anim = animcodec_synth::by_name("phases", animcodec_synth::SynthSize::Small).unwrap();
     let b = encode_block(
         anim.positions(),
         anim.vertex_count(),
@@ -662,7 +662,7 @@ fn column_modes_decode_to_the_encoder_reconstruction() {
 /// before stream version 6 centred the packets.)
 #[test]
 fn forced_unguarded_regression_is_caught_and_falls_back() {
-    use codec_core::synth::{skinned_character, CharacterSpec};
+    use animcodec_synth::{skinned_character, CharacterSpec};
     let anim = skinned_character(&CharacterSpec { parts: 25, frames: 24, ..CharacterSpec::spheres_like(7) });
     // The paper's affine motion: the configuration in which this character's unguarded fit
     // was found to diverge.
@@ -708,7 +708,7 @@ fn forced_unguarded_regression_is_caught_and_falls_back() {
 /// regression needs no fallback and the error is the truncation's.
 #[test]
 fn spheres_like_character_needs_no_fallback_by_default() {
-    let anim = codec_core::synth::skinned_character(&codec_core::synth::CharacterSpec::spheres_like(1));
+    let anim = animcodec_synth::skinned_character(&animcodec_synth::CharacterSpec::spheres_like(1));
     let reg = registry();
     let p = Hosvd.default_params();
     let enc = encode_animation_fed(&Hosvd, &p, &anim, true, anim.frame_count()).unwrap();

@@ -28,8 +28,8 @@ mod params;
 mod payload;
 
 use codec_core::{
-    Animation, AnimationCodec, EncoderSetup, Error, ErrorBound, FourCc, FrameDecoder, FrameEncoder, Limits, ParamSet,
-    ParamSpec, ParamValue, RateLadder, Result, SearchAxis, SearchSpace, StreamInfo,
+    Animation, EncoderSetup, Error, ErrorBound, FourCc, FrameDecoder, FrameEncoder, Limits, RateLadder, Result,
+    SearchAxis, SearchSpace, Setting, StreamInfo, TypedCodec,
 };
 
 pub use decoder::PcaAoiDecoder;
@@ -55,83 +55,59 @@ pub(crate) const CODING_TOOLKIT: u8 = 1;
 /// The rate ladder of `qaoi` streams: `eps_high` from large to small residuals (`k` is only
 /// QAOI's starting rank). Every step stays above the default `eps_low`.
 pub fn qaoi_rate_ladder() -> RateLadder {
-    RateLadder {
-        param: "eps_high",
-        steps: [0.2, 0.1, 0.05, 0.03, 0.02, 0.01, 0.007, 0.005, 0.003].into_iter().map(ParamValue::Float).collect(),
-    }
+    RateLadder::over(PcaAoiParams::eps_high, [0.2, 0.1, 0.05, 0.03, 0.02, 0.01, 0.007, 0.005, 0.003])
 }
 
 /// The rate ladder of toolkit-coded streams (stream version 2's default): the target KG, from
 /// coarse to fine; the RD rule picks ranks and steps for each.
 pub fn toolkit_rate_ladder() -> RateLadder {
-    RateLadder {
-        param: "kg",
-        steps: [10.0, 6.0, 4.0, 3.0, 2.0, 1.5, 1.0, 0.7, 0.5, 0.35, 0.25, 0.17, 0.12, 0.08, 0.05]
-            .into_iter()
-            .map(ParamValue::Float)
-            .collect(),
-    }
+    RateLadder::over(
+        PcaAoiParams::kg,
+        [10.0, 6.0, 4.0, 3.0, 2.0, 1.5, 1.0, 0.7, 0.5, 0.35, 0.25, 0.17, 0.12, 0.08, 0.05],
+    )
 }
 
 /// The `pca-aoi` codec.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct PcaAoi;
 
-impl AnimationCodec for PcaAoi {
-    fn name(&self) -> &'static str {
-        NAME
-    }
-    fn fourcc(&self) -> FourCc {
-        FourCc::new(b"PAOI")
-    }
-    fn stream_version(&self) -> u16 {
-        2
-    }
-    fn summary(&self) -> &'static str {
-        "streaming block PCA; dictionaries tracked by adaptive orthogonal iterations (Lalos et al. 2017)"
-    }
-    fn param_specs(&self) -> Vec<ParamSpec> {
-        PcaAoiParams::specs()
-    }
+impl TypedCodec for PcaAoi {
+    type Params = PcaAoiParams;
+    const NAME: &'static str = NAME;
+    const FOURCC: FourCc = FourCc::new(b"PAOI");
+    const STREAM_VERSION: u16 = 2;
+    const SUMMARY: &'static str =
+        "streaming block PCA; dictionaries tracked by adaptive orthogonal iterations (Lalos et al. 2017)";
+
     /// The error band's upper edge for `qaoi`, whose rank follows it; otherwise the target KG
     /// for the toolkit coding (the RD rule picks ranks and steps) and `k` for the paper's.
-    fn rate_ladder(&self, base: &ParamSet) -> RateLadder {
-        let p = PcaAoiParams::of_base(base);
-        if p.is_some_and(|p| p.mode == Mode::Qaoi) {
+    fn ladder(&self, base: &PcaAoiParams) -> RateLadder {
+        if base.mode == Mode::Qaoi {
             return qaoi_rate_ladder();
         }
-        if p.is_some_and(|p| p.coding == Coding::Toolkit) {
+        if base.coding == Coding::Toolkit {
             return toolkit_rate_ladder();
         }
-        RateLadder {
-            param: "k",
-            steps: [1, 2, 3, 4, 6, 8, 12, 16, 24, 32, 48].into_iter().map(ParamValue::Int).collect(),
-        }
+        RateLadder::over(PcaAoiParams::k, [1, 2, 3, 4, 6, 8, 12, 16, 24, 32, 48])
     }
     /// Toolkit coding in the fixed-rank modes: the ladder over the target KG, on blocks of the
     /// default 40 frames and of 120 (a basis per block: longer blocks share it over more
     /// frames, shorter ones follow changing motion; which wins depends on the input).
-    fn search_space(&self, base: &ParamSet) -> SearchSpace {
-        let primary = self.rate_ladder(base);
-        let Some(p) = PcaAoiParams::of_base(base).filter(|p| p.coding == Coding::Toolkit && p.mode != Mode::Qaoi)
-        else {
+    fn space(&self, base: &PcaAoiParams) -> SearchSpace {
+        let primary = self.ladder(base);
+        if base.coding != Coding::Toolkit || base.mode == Mode::Qaoi {
             return SearchSpace::ladder_only(primary);
-        };
-        let block = i64::from(p.block);
-        let mut values = vec![ParamValue::Int(block)];
-        if block != 120 {
-            values.push(ParamValue::Int(120));
         }
-        SearchSpace { primary, secondary: vec![SearchAxis { param: "block", values }] }
-    }
-    fn validate(&self, params: &ParamSet) -> Result<()> {
-        PcaAoiParams::from_param_set(params).map(|_| ())
+        let mut values = vec![base.block];
+        if base.block != 120 {
+            values.push(120);
+        }
+        SearchSpace { primary, secondary: vec![SearchAxis::over(PcaAoiParams::block, values)] }
     }
     /// With `mode=svd` every block's dictionary is estimated from that block alone; baoi and
     /// qaoi start from the previous block's dictionary (`dictionary::Tracker`), so their packets
     /// depend on every earlier block.
-    fn independent_blocks(&self, params: &ParamSet, _frame_count: usize) -> Result<usize> {
-        let p = PcaAoiParams::from_param_set(params)?;
+    fn blocks(&self, p: &PcaAoiParams, _frame_count: usize) -> Result<usize> {
         if p.mode != Mode::Svd {
             return Err(Error::Unsupported {
                 context: NAME.into(),
@@ -147,24 +123,19 @@ impl AnimationCodec for PcaAoi {
     /// A block (one packet, analysed at once) whose modelled peak ([`block_memory`]) exceeds
     /// `budget` is shortened to the fewest equal blocks that fit; a block that fits is kept.
     /// Fails, naming the budget, when [`MIN_MEMORY_BLOCK`] frames do not fit.
-    fn fit_memory(&self, params: &ParamSet, vertices: usize, frames: usize, budget: u64) -> Result<ParamSet> {
-        let p = PcaAoiParams::from_param_set(params)?;
+    fn fit(&self, p: &PcaAoiParams, vertices: usize, frames: usize, budget: u64) -> Result<Vec<Setting>> {
         let Some(chosen) = memory::block_for_budget(p.block as usize, vertices, frames, budget)? else {
-            return Ok(params.clone());
+            return Ok(Vec::new());
         };
-        let mut out = params.clone();
-        out.set(&PcaAoiParams::specs(), "block", ParamValue::Int(chosen as i64))?;
-        Ok(out)
+        Ok(vec![PcaAoiParams::block.to(u32::try_from(chosen).unwrap_or(u32::MAX))])
     }
-    fn error_bound(&self, params: &ParamSet, animation: &Animation) -> Result<ErrorBound> {
-        let p = PcaAoiParams::from_param_set(params)?;
-        Ok(bound::error_bound(&p, animation))
+    fn bound(&self, p: &PcaAoiParams, animation: &Animation) -> Result<ErrorBound> {
+        Ok(bound::error_bound(p, animation))
     }
-    fn new_encoder(&self, params: &ParamSet, setup: &EncoderSetup<'_>) -> Result<Box<dyn FrameEncoder>> {
-        let p = PcaAoiParams::from_param_set(params)?;
+    fn encoder(&self, p: PcaAoiParams, setup: &EncoderSetup<'_>) -> Result<Box<dyn FrameEncoder>> {
         Ok(Box::new(PcaAoiEncoder::new(&p, setup)?))
     }
-    fn new_decoder(&self, info: &StreamInfo, config: &[u8], limits: &Limits) -> Result<Box<dyn FrameDecoder>> {
+    fn decoder(&self, info: &StreamInfo, config: &[u8], limits: &Limits) -> Result<Box<dyn FrameDecoder>> {
         Ok(Box::new(PcaAoiDecoder::new(info, config, limits)?))
     }
 }

@@ -32,7 +32,7 @@ pub(crate) fn block_for_budget(block: usize, vertices: usize, frames: usize, bud
     let Some(fits) = (least..block).rev().find(|&b| block_memory(vertices, b) <= budget) else {
         return Err(Error::parameter(
             NAME,
-            "block",
+            crate::params::PcaAoiParams::block.name(),
             format!(
                 "a memory budget of {budget} bytes does not hold a block of {least} frames of {vertices} vertices \
                  (about {} bytes); give a larger budget",

@@ -3,7 +3,8 @@
 //! `dict_bits` / `feat_bits`, codes predicted from the code `stride` places earlier, byte
 //! planes + zstd.
 
-use codec_core::bytes::{zigzag_decode, zigzag_encode, ByteReader, ByteWriter};
+use codec_core::bytes::{zigzag_decode, ByteReader, ByteWriter};
+use codec_core::toolkit::planes::{delta_plane_count, plane_value, push_byte_planes, push_zigzag_deltas};
 use codec_core::{entropy, Error, Limits, Quantizer, Result};
 use faer::Mat;
 
@@ -11,24 +12,6 @@ use crate::dictionary::BlockDictionary;
 use crate::params::PcaAoiParams;
 use crate::payload::{check_matrices, matrix_dims, read_domain, read_means, spend_cluster, DecodedCluster, Resolved};
 use crate::{linalg, NAME};
-
-fn plane_count(bits: u8) -> usize {
-    (bits as usize + 1).div_ceil(8)
-}
-
-/// Zigzag residuals of `codes` predicted from the code `stride` places earlier.
-fn push_residuals(codes: &[u32], stride: usize, out: &mut Vec<u32>) {
-    for (i, &c) in codes.iter().enumerate() {
-        let d = if i >= stride { c as i64 - codes[i - stride] as i64 } else { c as i64 };
-        out.push(zigzag_encode(d) as u32);
-    }
-}
-
-fn to_planes(values: &[u32], planes: usize, out: &mut Vec<u8>) {
-    for p in 0..planes {
-        out.extend(values.iter().map(|v| (v >> (8 * p)) as u8));
-    }
-}
 
 /// The paper coding's payload of one cluster (§4.1): the domain byte, `k`, the stored means,
 /// the quantizers and the zstd-compressed byte planes of the stride-predicted codes. The
@@ -73,15 +56,15 @@ pub(crate) fn encode_cluster(
     };
     let mut dict_res = Vec::with_capacity(dict_codes.len());
     for col in dict_codes.chunks(e_dim.max(1)) {
-        push_residuals(col, dict_stride, &mut dict_res);
+        push_zigzag_deltas(col, dict_stride, &mut dict_res);
     }
     let mut feat_res = Vec::with_capacity(feat_codes.len());
     for row in feat_codes.chunks(m_dim.max(1)) {
-        push_residuals(row, feat_stride, &mut feat_res);
+        push_zigzag_deltas(row, feat_stride, &mut feat_res);
     }
     let mut raw = Vec::new();
-    to_planes(&dict_res, plane_count(params.dict_bits), &mut raw);
-    to_planes(&feat_res, plane_count(params.feat_bits), &mut raw);
+    push_byte_planes(&dict_res, delta_plane_count(params.dict_bits), &mut raw);
+    push_byte_planes(&feat_res, delta_plane_count(params.feat_bits), &mut raw);
 
     let mut w = ByteWriter::new();
     w.u8(match domain {
@@ -125,7 +108,7 @@ pub(crate) fn decode_cluster(
         }
         quantizers.push(q);
     }
-    let (pd, pf) = (plane_count(dict_bits), plane_count(feat_bits));
+    let (pd, pf) = (delta_plane_count(dict_bits), delta_plane_count(feat_bits));
     let (nd, nf) = (e_dim * k, k * m_dim);
     let raw_len = nd * pd + nf * pf;
     memory.check_alloc(NAME, "cluster.codes", raw_len as u64)?;
@@ -152,11 +135,8 @@ pub(crate) fn decode_cluster(
      -> Result<Vec<u32>> {
         let mut v: Vec<u32> = Vec::with_capacity(len);
         for i in 0..len {
-            let mut z = 0u32;
-            for p in 0..planes {
-                z |= (raw[plane_base + p * count + offset + i] as u32) << (8 * p);
-            }
-            let c = zigzag_decode(z as u64) + if i >= stride { v[i - stride] as i64 } else { 0 };
+            let z = plane_value(&raw[plane_base..], count, planes, offset + i);
+            let c = zigzag_decode(u64::from(z)) + if i >= stride { v[i - stride] as i64 } else { 0 };
             if !(0..=max as i64).contains(&c) {
                 return Err(Error::malformed(NAME, field, format!("code {c} outside 0..={max}")));
             }

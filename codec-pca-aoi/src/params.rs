@@ -2,9 +2,8 @@
 //! (`mode`, `k`, `block`, `z`, `tmax`, `eps_low`, `eps_high`, `domain`, `clusters`,
 //! `dict_bits`, `feat_bits`; §3–4) and the toolkit coding's, with the cross-field checks.
 
-use codec_core::params::DeclaredParams;
 use codec_core::toolkit::predict::Predictor;
-use codec_core::{Error, ParamSet, Result};
+use codec_core::{Error, Result};
 
 use crate::dictionary::{EstimatorSettings, Mode};
 use crate::{MAX_BLOCK, MAX_CLUSTERS, NAME};
@@ -135,14 +134,6 @@ impl PcaAoiParams {
     /// between fields (`eps_low < eps_high`; `drift` is 0 or at least 1).
     pub fn validate(&self) -> Result<()> {
         self.to_param_set().map(|_| ())
-    }
-
-    /// The fields of a rate-control hook's `base` (a full parameter set of this codec), read
-    /// once and typed, so a hook decides on fields the compiler checks, never on a parameter's
-    /// name. The cross-field checks are not run: the search's own encodes run them. `None` for
-    /// a set of another codec.
-    pub(crate) fn of_base(base: &ParamSet) -> Option<Self> {
-        <Self as DeclaredParams>::read_fields(base).ok()
     }
 
     pub(crate) fn settings(&self) -> EstimatorSettings {

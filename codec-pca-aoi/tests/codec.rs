@@ -371,7 +371,7 @@ fn paper_coding_reproduces_the_version_1_golden_packets_byte_for_byte() {
             golden.push(p);
         }
     }
-    let anim = codec_core::synth::waving_flag(8, 6, 16);
+    let anim = animcodec_synth::waving_flag(8, 6, 16);
     let p = PcaAoiParams { coding: Coding::Paper, ..Default::default() };
     let (config, packets, _) = setup_and_packets(&anim, &p);
     assert_eq!(config[0], 0);

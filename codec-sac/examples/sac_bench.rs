@@ -10,7 +10,7 @@
 //! `examples/eigsh_bench.py` (python3 + scipy) on the dumped matrices in the same run. The
 //! baseline `quant-delta` at 8/10/12 bits is measured first for context.
 //!
-//! `--eigen 100,250 --dump-laplacian DIR` (issue 14, item 4) only compares eigensolvers: for
+//! `--eigen 100,250 --dump-laplacian DIR` only compares eigensolvers: for
 //! each count, sac's manifold harmonics of frame 0 and scipy's `eigsh` in shift-invert mode
 //! (ARPACK + SuperLU) on the very same dumped matrices, alternately, `--repeat` times each, and
 //! the largest relative difference of the eigenvalues.
@@ -217,7 +217,7 @@ fn rate_point(anim: &Animation, p: SacParams) -> codec_core::Result<()> {
 
 /// The baseline `quant-delta` at `bits`, measured in the same run for context.
 fn baseline(anim: &Animation, bits: u8) -> codec_core::Result<()> {
-    use codec_core::quant_delta::{QuantDelta, QuantDeltaParams};
+    use codec_quant_delta::{QuantDelta, QuantDeltaParams};
     let ps = QuantDeltaParams { bits, ..Default::default() }.to_param_set()?;
     let t = Instant::now();
     let enc = codec_core::encode_animation_fed(&QuantDelta, &ps, anim, true, anim.frame_count())?;
@@ -250,7 +250,7 @@ fn dump_laplacian(anim: &Animation, dir: &Path, name: &str) -> std::io::Result<(
     Ok(())
 }
 
-/// Issue 14, item 4: sac's eigensolver against scipy's `eigsh` (shift-invert) on the same
+/// sac's eigensolver against scipy's `eigsh` (shift-invert) on the same
 /// matrices, timed alternately in this run; eigenvalues compared to 1e-6 relative.
 fn eigen_comparison(anim: &Animation, name: &str, dir: &Path, counts: &[usize], repeat: usize) {
     let tris: Vec<[usize; 3]> =

@@ -1,4 +1,4 @@
-//! Where `sac`'s error floor comes from (issue 14, item 1): the KG error of one animation at
+//! Where `sac`'s error floor comes from: the KG error of one animation at
 //! one `bases` under pipelines that switch the error sources on one at a time.
 //!
 //! ```text

@@ -151,7 +151,7 @@ fn malformed(detail: impl Into<String>) -> Error {
 
 /// Decodes what [`encode`] wrote: `sizes[g]` codes per group. Every symbol is checked.
 pub fn decode(bytes: &[u8], sizes: &[usize], bases: usize, ctx: &mut Contexts) -> Result<Vec<Vec<i64>>> {
-    // Issue 41: a decoder that runs past the coded words (a stream declaring more codes than
+    // A decoder that runs past the coded words (a stream declaring more codes than
     // it holds) fails instead of decoding zeros, and one that leaves words unread fails at the end.
     let mut dec = checked_range_decoder(bytes, NAME, "descriptors")?;
     let bad = |e| range_error(NAME, "descriptors", e);

@@ -7,6 +7,7 @@
 use std::sync::Arc;
 
 use codec_core::bytes::ByteReader;
+use codec_core::toolkit::planes::plane_value;
 use codec_core::{entropy, Error, FrameDecoder, Limits, Packet, Quantizer, Result, StreamInfo};
 use faer::Mat;
 
@@ -94,12 +95,7 @@ pub(crate) fn decode_positions(r: &mut ByteReader<'_>, n: usize, bits: u8, limit
     if raw.len() != len {
         return Err(Error::malformed(NAME, "positions", format!("{} bytes, expected {len}", raw.len())));
     }
-    Ok((0..count)
-        .map(|i| {
-            let q = (0..planes).fold(0u32, |acc, p| acc | (raw[p * count + i] as u32) << (8 * p));
-            qs[i % 3].dequantize(q)
-        })
-        .collect())
+    Ok((0..count).map(|i| qs[i % 3].dequantize(plane_value(&raw, count, planes, i))).collect())
 }
 
 /// Reads and applies the spectral part (step 0: none).
@@ -153,8 +149,7 @@ fn decode_residual(r: &mut ByteReader<'_>, rec: &mut [f32], limits: &Limits) -> 
     }
     let step64 = step as f64;
     for (i, x) in rec.iter_mut().enumerate() {
-        let z = (0..planes).fold(0u64, |acc, p| acc | (raw[p * count + i] as u64) << (8 * p));
-        let q = codec_core::bytes::zigzag_decode(z);
+        let q = codec_core::bytes::zigzag_decode(u64::from(plane_value(&raw, count, planes, i)));
         *x = (*x as f64 + q as f64 * step64) as f32;
     }
     Ok(())
@@ -168,7 +163,7 @@ pub(crate) struct SacDecoder {
     state: Option<Arc<BasisState>>,
     /// The basis the current interval's keyframe asked for, not computed yet: the first
     /// P-frame computes it once its descriptors decoded at the size the basis will have
-    /// (issue 41 round 4, `sac-config`: a config asking for more bases than the stream codes
+    /// (a config asking for more bases than the stream codes
     /// used to cost the whole basis before the descriptors were found malformed).
     pending: Option<PendingBasis>,
 }

@@ -8,7 +8,8 @@
 use std::sync::Arc;
 
 use codec_core::bytes::ByteWriter;
-use codec_core::{entropy, EncodedPacket, EncoderSetup, Error, FrameEncoder, Packet, ParamSet, Quantizer, Result};
+use codec_core::toolkit::planes::{planes_needed, to_byte_planes};
+use codec_core::{entropy, EncodedPacket, EncoderSetup, Error, FrameEncoder, Packet, Quantizer, Result};
 use faer::Mat;
 
 use crate::coding::{self, Contexts};
@@ -20,8 +21,7 @@ use crate::state::{
 };
 use crate::{NAME, STREAM_VERSION, UNLIMITED};
 
-pub(crate) fn new_encoder(params: &ParamSet, setup: &EncoderSetup<'_>) -> Result<Box<dyn FrameEncoder>> {
-    let p = SacParams::from_param_set(params)?;
+pub(crate) fn new_encoder(p: SacParams, setup: &EncoderSetup<'_>) -> Result<Box<dyn FrameEncoder>> {
     let shared = Shared::new(
         setup.topology,
         &UNLIMITED,
@@ -46,21 +46,12 @@ pub(crate) fn encode_positions(w: &mut ByteWriter, frame: &[f32], bits: u8, leve
         let axis: Vec<f32> = frame.iter().skip(a).step_by(3).copied().collect();
         qs.push(Quantizer::covering(&axis, bits)?);
     }
-    let planes = (bits as usize).div_ceil(8);
-    let count = frame.len();
-    let mut raw = vec![0u8; count * planes];
-    let mut rec = Vec::with_capacity(count);
-    for (i, &x) in frame.iter().enumerate() {
-        let q = qs[i % 3].quantize(x);
-        rec.push(qs[i % 3].dequantize(q));
-        for p in 0..planes {
-            raw[p * count + i] = (q >> (8 * p)) as u8;
-        }
-    }
+    let codes: Vec<u32> = frame.iter().enumerate().map(|(i, &x)| qs[i % 3].quantize(x)).collect();
+    let rec = codes.iter().enumerate().map(|(i, &q)| qs[i % 3].dequantize(q)).collect();
     for q in &qs {
         q.write(w);
     }
-    w.bytes(&entropy::compress(&raw, level));
+    w.bytes(&entropy::compress(&to_byte_planes(&codes, (bits as usize).div_ceil(8)), level));
     Ok(rec)
 }
 
@@ -80,16 +71,8 @@ fn encode_residual(frame: &[f32], rec: &mut [f32], step: f32, level: i32) -> Opt
         *r = (*r as f64 + q as f64 * step64) as f32;
         codes.push(codec_core::bytes::zigzag_encode(q) as u32);
     }
-    let max = codes.iter().copied().max().unwrap_or(0);
-    let planes = (((32 - max.leading_zeros()) as usize).div_ceil(8)).max(1);
-    let count = codes.len();
-    let mut raw = vec![0u8; count * planes];
-    for (i, &c) in codes.iter().enumerate() {
-        for p in 0..planes {
-            raw[p * count + i] = (c >> (8 * p)) as u8;
-        }
-    }
-    Some((planes as u8, entropy::compress(&raw, level)))
+    let planes = planes_needed(&codes);
+    Some((planes as u8, entropy::compress(&to_byte_planes(&codes, planes), level)))
 }
 
 /// How much finer the spectral step is than the per-vertex step (measured on horse-gallop,
@@ -184,6 +167,86 @@ const GUARD_REPAIR_FINER: f64 = 16.0;
 /// The residual layer of one P-frame: `((spectral step, spectral block), vertex step, (planes, block))`.
 type ResidualLayer = ((f32, Vec<u8>), f32, (u8, Vec<u8>));
 
+/// The 9 per-triangle fields of the deformation gradients `grads` (§3.7 a)–c)): with `polar`,
+/// the rotation's log map and the stretch's 6 entries minus the identity; otherwise the
+/// gradient minus the identity. `None` when a polar decomposition fails or a value is not
+/// finite.
+fn gradient_fields(grads: &[geometry::M3], polar: bool) -> Option<Vec<Vec<f64>>> {
+    let mut fields = vec![vec![0.0f64; grads.len()]; 9];
+    let mut svd = Svd3::new();
+    for (j, g) in grads.iter().enumerate() {
+        if polar {
+            let (u, p) = svd.polar(g)?;
+            let w = geometry::log_rotation(&u);
+            let vals = [w[0], w[1], w[2], p[0][0] - 1.0, p[1][1] - 1.0, p[2][2] - 1.0, p[0][1], p[0][2], p[1][2]];
+            for (ch, v) in vals.into_iter().enumerate() {
+                fields[ch][j] = v;
+            }
+        } else {
+            for ch in 0..9 {
+                fields[ch][j] = g[ch / 3][ch % 3] - geometry::IDENTITY[ch / 3][ch % 3];
+            }
+        }
+    }
+    fields.iter().all(|f| f.iter().all(|x| x.is_finite())).then_some(fields)
+}
+
+/// §3.5: the coefficients `coeffs`, channel groups of `groups` channels each quantized at
+/// `bits` over the group's amplitude. Returns the codes and amplitudes per group; `None` when
+/// an amplitude is not finite.
+fn quantize_groups(coeffs: &[Vec<f64>], groups: &[usize], bits: u8) -> Option<(Vec<Vec<i64>>, Vec<f32>)> {
+    let mut codes = Vec::new();
+    let mut amps = Vec::new();
+    let mut ch = 0;
+    for &count in groups {
+        let group = &coeffs[ch..ch + count];
+        ch += count;
+        let amax = group.iter().flatten().fold(0.0f64, |a, &c| a.max(c.abs()));
+        let amp = coding::amplitude(amax);
+        if !amp.is_finite() {
+            return None;
+        }
+        let step = coding::step(amp, bits);
+        codes.push(group.iter().flatten().map(|&c| coding::quantize(c, step, bits)).collect::<Vec<_>>());
+        amps.push(amp);
+    }
+    Some((codes, amps))
+}
+
+/// A P-frame's bytes: kind, group amplitudes, per-component shifts, then (`residual` is
+/// `Some` from stream version 2 on) the residual layer or its two zero steps, then the coded
+/// descriptors.
+fn p_frame_bytes(amps: &[f32], shifts: &[[f32; 3]], residual: Option<Option<&ResidualLayer>>, coded: &[u8]) -> Vec<u8> {
+    let mut w = ByteWriter::new();
+    w.u8(KIND_P);
+    for a in amps {
+        w.f32(*a);
+    }
+    for sh in shifts {
+        for &x in sh {
+            w.f32(x);
+        }
+    }
+    match residual {
+        Some(Some(((amp, spectral), step, (planes, block)))) => {
+            w.f32(*amp);
+            if *amp > 0.0 {
+                w.length_prefixed(spectral);
+            }
+            w.f32(*step);
+            w.u8(*planes);
+            w.length_prefixed(block);
+        }
+        Some(None) => {
+            w.f32(0.0);
+            w.f32(0.0);
+        }
+        None => {}
+    }
+    w.bytes(coded);
+    w.into_vec()
+}
+
 impl SacEncoder {
     pub(crate) fn new(params: SacParams, shared: Shared, want_reconstruction: bool) -> Self {
         Self {
@@ -274,43 +337,10 @@ impl SacEncoder {
         let target = to_v3(frame);
         // §3.7 a)–c): gradients from the previous reconstruction, polar decomposition, log map.
         let grads = geometry::deformation_gradients(&s.tris, &gop.prev, &target);
-        let m = s.tris.len();
-        let mut fields = vec![vec![0.0f64; m]; 9];
-        let mut svd = Svd3::new();
-        for (j, g) in grads.iter().enumerate() {
-            if settings.polar {
-                let Some((u, p)) = svd.polar(g) else { return Ok(None) };
-                let w = geometry::log_rotation(&u);
-                let vals = [w[0], w[1], w[2], p[0][0] - 1.0, p[1][1] - 1.0, p[2][2] - 1.0, p[0][1], p[0][2], p[1][2]];
-                for (ch, v) in vals.into_iter().enumerate() {
-                    fields[ch][j] = v;
-                }
-            } else {
-                for ch in 0..9 {
-                    fields[ch][j] = g[ch / 3][ch % 3] - geometry::IDENTITY[ch / 3][ch % 3];
-                }
-            }
-        }
-        if fields.iter().any(|f| f.iter().any(|x| !x.is_finite())) {
-            return Ok(None);
-        }
+        let Some(fields) = gradient_fields(&grads, settings.polar) else { return Ok(None) };
         // §3.4 Eq. 8–9 (least-squares form) and §3.5 quantization.
         let coeffs: Vec<Vec<f64>> = fields.iter().map(|f| harmonics::analyze(analysis, f)).collect();
-        let mut codes = Vec::new();
-        let mut amps = Vec::new();
-        let mut ch = 0;
-        for &count in settings.groups() {
-            let group = &coeffs[ch..ch + count];
-            ch += count;
-            let amax = group.iter().flatten().fold(0.0f64, |a, &c| a.max(c.abs()));
-            let amp = coding::amplitude(amax);
-            if !amp.is_finite() {
-                return Ok(None);
-            }
-            let step = coding::step(amp, settings.bits);
-            codes.push(group.iter().flatten().map(|&c| coding::quantize(c, step, settings.bits)).collect::<Vec<_>>());
-            amps.push(amp);
-        }
+        let Some((codes, amps)) = quantize_groups(&coeffs, settings.groups(), settings.bits) else { return Ok(None) };
         let mut contexts = gop.contexts.clone();
         let coded = coding::encode(&codes, analysis.nrows(), &mut contexts);
         // §3.7 e)–f) through the decoder's own code path.
@@ -371,35 +401,8 @@ impl SacEncoder {
         if !within(rms) {
             return Ok(None);
         }
-        let mut w = ByteWriter::new();
-        w.u8(KIND_P);
-        for a in &amps {
-            w.f32(*a);
-        }
-        for sh in &shifts {
-            for &x in sh {
-                w.f32(x);
-            }
-        }
-        if settings.version >= 2 {
-            match &residual {
-                Some(((amp, spectral), step, (planes, block))) => {
-                    w.f32(*amp);
-                    if *amp > 0.0 {
-                        w.length_prefixed(spectral);
-                    }
-                    w.f32(*step);
-                    w.u8(*planes);
-                    w.length_prefixed(block);
-                }
-                None => {
-                    w.f32(0.0);
-                    w.f32(0.0);
-                }
-            }
-        }
-        w.bytes(&coded);
-        Ok(Some(((w.into_vec(), rec, contexts), repaired)))
+        let residual = (settings.version >= 2).then_some(residual.as_ref());
+        Ok(Some(((p_frame_bytes(&amps, &shifts, residual, &coded), rec, contexts), repaired)))
     }
 
     fn encode_p(&mut self, frame: &[f32]) -> Result<(Vec<u8>, Vec<f32>)> {

@@ -408,7 +408,7 @@ fn harmonics_with(
 /// eigenvalue 0 has one eigenvector per component: on chicken-crossing (41 components) the
 /// single-start-vector Krylov–Schur of [`harmonics`] must find a 41-fold eigenvalue, which it
 /// cannot (a Krylov space holds one vector per eigenspace), and with 16 bases it ran for more
-/// than 12 minutes (issue 14). Per component, 0 is simple. Components without triangles or
+/// than 12 minutes. Per component, 0 is simple. Components without triangles or
 /// without area carry no triangle field and get no basis vector. Components of at most
 /// [`DENSE_COMPONENT`] vertices use the dense solver. Ties in `λ` are broken by component
 /// (lowest vertex first), then by position within the component; the order is deterministic.
@@ -636,7 +636,7 @@ mod tests {
         assert_eq!(again.basis, h.basis, "the basis must be bit-for-bit reproducible");
     }
 
-    /// Issue 14: identical disconnected components make every eigenvalue a multiple one (the
+    /// Identical disconnected components make every eigenvalue a multiple one (the
     /// eigenvalue 0 once per component), which the single-vector Krylov iteration of the whole
     /// mesh cannot resolve. Per component, the result is the single component's spectrum
     /// repeated, with exact eigenpairs of the whole mesh.

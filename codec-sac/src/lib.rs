@@ -10,12 +10,12 @@
 //! quantization and arithmetic coding (§3.5) → decoded gradients → least-squares Poisson
 //! reconstruction (§3.6) plus one stored translation per connected component.
 //!
-//! Beyond the paper (issue 14, stream version 2): the harmonics of a disconnected mesh are
+//! Beyond the paper (stream version 2): the harmonics of a disconnected mesh are
 //! computed per connected component, and an optional residual layer (`residual > 0`; spectral
 //! projection on the same harmonics, then per-vertex residuals) codes what the Poisson
 //! reconstruction missed, inside the closed loop. `residual = 0` is the paper's method.
 //!
-//! Stream version 3 (issue 14, items 5–6): the basis is computed once per stream from the first
+//! Stream version 3: the basis is computed once per stream from the first
 //! frame, which later keyframes name (`basis = keyframe` for the paper's per-keyframe basis);
 //! the Poisson system is solved over the vertices only and re-factored every `refactor`
 //! P-frames (1 = every frame, the paper's solve); the error guard refreshes up to a cap and
@@ -35,8 +35,8 @@ mod params;
 mod state;
 
 use codec_core::{
-    Animation, AnimationCodec, EncoderSetup, ErrorBound, FourCc, FrameDecoder, FrameEncoder, Limits, ParamSet,
-    ParamSpec, ParamValue, Quantizer, RateLadder, Result, StreamInfo,
+    Animation, EncoderSetup, ErrorBound, FourCc, FrameDecoder, FrameEncoder, Limits, Quantizer, RateLadder, Result,
+    Setting, StreamInfo, TypedCodec,
 };
 
 pub use params::{BasisSource, SacParams, PRESET_GUARD_AT_100, RATE_PRESETS};
@@ -48,10 +48,10 @@ pub const NAME: &str = "sac";
 /// the input it was given (the decoder uses the caller's [`Limits`]).
 pub(crate) const UNLIMITED: Limits = Limits::UNLIMITED;
 
-/// Stream version the encoder writes. Version 2 (issue 14) computes the manifold harmonics of
+/// Stream version the encoder writes. Version 2 computes the manifold harmonics of
 /// a disconnected mesh one connected component at a time
 /// ([`harmonics::harmonics_by_component`]) and adds the residual layer to P-frames; version 1
-/// solved the whole mesh at once. Version 3 (issue 14, items 5–6) computes the basis once per
+/// solved the whole mesh at once. Version 3 computes the basis once per
 /// stream from a rest pose every keyframe names (`basis = stream`), solves the Poisson system
 /// over the vertices only, re-factored every `refactor` P-frames ([`geometry::ReducedPoisson`]),
 /// synthesizes through the vertex basis, and lets the error guard repair a P-frame with a
@@ -76,34 +76,23 @@ pub fn encode_memory(vertices: usize, frames: usize, bases: usize) -> u64 {
 #[derive(Debug, Clone, Copy, Default)]
 pub struct Sac;
 
-impl AnimationCodec for Sac {
-    fn name(&self) -> &'static str {
-        NAME
-    }
-    fn fourcc(&self) -> FourCc {
-        FourCc::new(b"SAC1")
-    }
-    fn stream_version(&self) -> u16 {
-        STREAM_VERSION
-    }
-    fn summary(&self) -> &'static str {
-        "spectral compression of deformation gradients (polar decomposition + manifold harmonics)"
-    }
-    fn param_specs(&self) -> Vec<ParamSpec> {
-        SacParams::specs()
-    }
+impl TypedCodec for Sac {
+    type Params = SacParams;
+    const NAME: &'static str = NAME;
+    const FOURCC: FourCc = FourCc::new(b"SAC1");
+    const STREAM_VERSION: u16 = STREAM_VERSION;
+    const SUMMARY: &'static str =
+        "spectral compression of deformation gradients (polar decomposition + manifold harmonics)";
+
     /// Walks the rate presets ([`RATE_PRESETS`]): 16…100 bases with the paper's method, then
     /// 100 bases with the residual layer at decreasing steps, which continues the curve below
-    /// the paper's error floor (issue 14). It starts at 16 bases: below that the error guard
-    /// replaces many P-frames with refresh frames on real data, and the stream grows again
-    /// while the error stays high (measured with `animcodec sweep`: horse-gallop 2 bases 11.8
-    /// bpvf at KG 19.3 against 16 bases 2.0 bpvf at KG 7.0; samba 4 bases 1.07 bpvf against 8
-    /// bases 0.82), so those points are dominated and only break the ladder's order.
-    fn rate_ladder(&self, _base: &ParamSet) -> RateLadder {
-        RateLadder { param: "rate", steps: (1..=RATE_PRESETS.len() as i64).map(ParamValue::Int).collect() }
-    }
-    fn validate(&self, params: &ParamSet) -> Result<()> {
-        SacParams::from_param_set(params).map(|_| ())
+    /// the paper's error floor. It starts at 16 bases: below that the error guard replaces
+    /// many P-frames with refresh frames on real data, and the stream grows again while the
+    /// error stays high (measured with `animcodec sweep`: horse-gallop 2 bases 11.8 bpvf at KG
+    /// 19.3 against 16 bases 2.0 bpvf at KG 7.0; samba 4 bases 1.07 bpvf against 8 bases 0.82),
+    /// so those points are dominated and only break the ladder's order.
+    fn ladder(&self, _base: &SacParams) -> RateLadder {
+        RateLadder::over(SacParams::rate, 1..=RATE_PRESETS.len() as u8)
     }
     /// The error guard makes the bound provable: every P-frame that is kept has RMS error at
     /// most `max_error × (its frame's bounding-box diagonal) ≤ max_error × (the animation's
@@ -111,8 +100,7 @@ impl AnimationCodec for Sac {
     /// frame's range per coordinate, no more than the same step over the animation's range.
     /// The overall RMS is the root of the mean of per-frame mean squares, so it is below the
     /// larger of the two.
-    fn error_bound(&self, params: &ParamSet, animation: &Animation) -> Result<ErrorBound> {
-        let p = SacParams::from_param_set(params)?;
+    fn bound(&self, p: &SacParams, animation: &Animation) -> Result<ErrorBound> {
         let (lo, hi) = animation.bounding_box();
         let diag = animation.bounding_box_diagonal();
         let mut q = 0.0f64;
@@ -123,21 +111,20 @@ impl AnimationCodec for Sac {
         // Relative headroom for the f32 rounding of the stored frames.
         Ok(ErrorBound { max_coordinate_error: None, relative_rms_error: Some(rel * (1.0 + 1e-6)) })
     }
-    /// Issue 41 (10c): sac's encoder holds per-mesh state (the manifold harmonic basis and its
-    /// eigensolver's work, the Poisson factorization, a few frames), never a block of frames it
-    /// could shorten: a budget below [`encode_memory`] is refused up front, naming the need.
-    fn fit_memory(&self, params: &ParamSet, vertices: usize, frames: usize, budget: u64) -> Result<ParamSet> {
-        let p = SacParams::from_param_set(params)?;
+    /// sac's encoder holds per-mesh state (the manifold harmonic basis and its eigensolver's
+    /// work, the Poisson factorization, a few frames), never a block of frames it could
+    /// shorten: a budget below [`encode_memory`] is refused up front, naming the need.
+    fn fit(&self, p: &SacParams, vertices: usize, frames: usize, budget: u64) -> Result<Vec<Setting>> {
         let bases = (p.bases as usize).min(vertices);
         let what = format!("{frames} frames of {vertices} vertices, {bases} harmonic bases");
         let advice = if bases > 16 { ", or fewer bases (-p bases=N)" } else { "" };
         codec_core::memory::check_budget(NAME, budget, encode_memory(vertices, frames, bases), &what, advice)?;
-        Ok(params.clone())
+        Ok(Vec::new())
     }
-    fn new_encoder(&self, params: &ParamSet, setup: &EncoderSetup<'_>) -> Result<Box<dyn FrameEncoder>> {
-        encoder::new_encoder(params, setup)
+    fn encoder(&self, p: SacParams, setup: &EncoderSetup<'_>) -> Result<Box<dyn FrameEncoder>> {
+        encoder::new_encoder(p, setup)
     }
-    fn new_decoder(&self, info: &StreamInfo, config: &[u8], limits: &Limits) -> Result<Box<dyn FrameDecoder>> {
+    fn decoder(&self, info: &StreamInfo, config: &[u8], limits: &Limits) -> Result<Box<dyn FrameDecoder>> {
         decoder::new_decoder(info, config, limits)
     }
 }
@@ -146,7 +133,7 @@ impl AnimationCodec for Sac {
 // old stream versions, the error guard's frame kinds.
 #[cfg(test)]
 use {
-    codec_core::{EncodedPacket, Error, Topology},
+    codec_core::{AnimationCodec, EncodedPacket, Error, ParamSet, ParamValue, Topology},
     encoder::SacEncoder,
     geometry::V3,
     state::{to_v3, Settings, Shared, KIND_I, KIND_P, KIND_REFRESH},

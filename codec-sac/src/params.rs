@@ -1,5 +1,5 @@
 //! Parameters of `sac`, each declared once ([`codec_core::declare_params!`]): the paper's
-//! (`bases`, `bits`, `polar`, `keyframe_interval`; §3–4) and issue 14's additions (`residual`,
+//! (`bases`, `bits`, `polar`, `keyframe_interval`; §3–4) and additions beyond it (`residual`,
 //! `rate`, `basis`, `refactor`), with the rate presets the ladder walks.
 
 use codec_core::{Error, Result};
@@ -34,7 +34,7 @@ codec_core::declare_params! {
             => float(1e-6, 1.0, "per-frame RMS error guard relative to the frame's bounding-box diagonal"),
         /// zstd level of I-frame and refresh-frame positions, 1..=22. Default 19.
         pub level: i32 = 19 => int(1, 22, "zstd level of I-frame positions"),
-        /// Residual layer (not in the paper; issue 14): after the Poisson reconstruction every
+        /// Residual layer (not in the paper): after the Poisson reconstruction every
         /// P-frame codes what it missed as per-coordinate residuals, uniformly quantized with step
         /// `residual × (the frame's bounding-box diagonal)`, zstd-coded; the corrected frame is
         /// the closed loop's reference, so the correction does not accumulate. 0 = off (the
@@ -44,7 +44,7 @@ codec_core::declare_params! {
             0.1,
             "residual layer step relative to the frame diagonal (0 = off, the paper's method; else >= 1e-6)"
         ),
-        /// Rate preset, 0..=10 (issue 14): 0 uses `bases` and `residual` as given; `k ≥ 1` is step
+        /// Rate preset, 0..=10: 0 uses `bases` and `residual` as given; `k ≥ 1` is step
         /// `k` of the rate ladder and sets both from [`RATE_PRESETS`] (steps 1–6: the paper's
         /// method at 16…100 bases; 7–10: 100 bases plus the residual layer); steps 6–10 also cap
         /// `max_error` at [`PRESET_GUARD_AT_100`]. Default 0.
@@ -53,19 +53,19 @@ codec_core::declare_params! {
             RATE_PRESETS.len() as i64,
             "rate ladder step; 0 = bases/residual as given, k >= 1 sets them (1-6 paper at 16..100 bases, 7-10 residual layer)"
         ),
-        /// Where the manifold harmonic basis comes from (issue 14): computed once per stream from
+        /// Where the manifold harmonic basis comes from: computed once per stream from
         /// the first frame, which every keyframe names ([`BasisSource::Stream`], default), or
         /// recomputed from every keyframe as in the paper ([`BasisSource::Keyframe`]).
         pub basis: BasisSource = BasisSource::Stream => choice(
             "harmonic basis computed once per stream from the first frame (stream) or at every keyframe (keyframe, the paper)"
         ),
-        /// Poisson factorization schedule (issue 14), 0..=255: the system is factored at the
+        /// Poisson factorization schedule, 0..=255: the system is factored at the
         /// previous reconstruction every `refactor` P-frames of an interval and reused in between
         /// (the targets are carried to the factor's reference, see [`crate::geometry::ReducedPoisson`]);
         /// 1 = every frame, exactly the paper's solve; 0 = never, the rest pose's factor. Default 8
         /// (measured: KG +5 % against 1 on horse-gallop and samba at 100 bases; samba decodes in
-        /// 0.49× the time of the pre-issue-14 decoder, against 0.54× with 4; 0 costs +60–80 % KG;
-        /// README, issue-14 note session 3).
+        /// 0.49× the time of the stream version 2 decoder, against 0.54× with 4; 0 costs +60–80 % KG;
+        /// README).
         pub refactor: u8 = 8 => int(
             0,
             255,

@@ -106,7 +106,7 @@ pub(crate) enum Bases {
 }
 
 /// Everything derived from the rest pose (the decoded frame the basis is computed from).
-/// With `basis = stream` one of these serves every keyframe of the stream (issue 14, item 5).
+/// With `basis = stream` one of these serves every keyframe of the stream.
 pub(crate) struct BasisState {
     /// The rest pose's position block (quantizers + zstd codes) as stored in the stream; a
     /// keyframe naming the same bytes reuses this state.
@@ -231,7 +231,7 @@ impl Shared {
 
     /// The number of basis vectors `l` the basis of the rest pose `rest` has (what
     /// [`Shared::basis_state`] computes, found without computing it: a P-frame's descriptors
-    /// are checked against it before the basis is paid for, issue 41 round 4 `sac-config`).
+    /// are checked against it before the basis is paid for).
     /// Versions 2–3 solve per connected component: every component with triangles and an
     /// area that is not zero gives `min(bases, its vertices)` vectors, the `bases` smallest of
     /// all are kept (`harmonics::harmonics_by_component_within`); version 1 and a connected
@@ -286,7 +286,7 @@ impl Shared {
         let v = self.settings.version;
         let bases = self.settings.bases as usize;
         let result = (|| -> Result<(Bases, Option<Mat<f64>>)> {
-            // Version 2 on: per connected component (issue 14); version 1: the whole mesh.
+            // Version 2 on: per connected component; version 1: the whole mesh.
             let h = if v >= 2 {
                 harmonics::harmonics_by_component_within(&rest, &self.tris, bases, &self.limits)?
             } else {

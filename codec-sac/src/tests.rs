@@ -1,5 +1,6 @@
 use super::*;
-use codec_core::{decode_animation, decode_frame, encode_animation_fed, synth, CodecRegistry};
+use animcodec_synth as synth;
+use codec_core::{decode_animation, decode_frame, encode_animation_fed, CodecRegistry};
 
 fn params(p: SacParams) -> ParamSet {
     p.to_param_set().unwrap()

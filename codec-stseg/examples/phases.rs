@@ -2,7 +2,7 @@
 //! `target/release/examples/phases [key=value]...` prints the true phase changes, the
 //! segmentation's boundaries and segment lengths for Small, Medium and Large.
 
-use codec_core::synth::{self, SynthSize};
+use animcodec_synth::{self as synth, SynthSize};
 use codec_core::AnimationCodec;
 use codec_stseg::{segment_animation, Stseg, StsegParams};
 

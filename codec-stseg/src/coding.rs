@@ -322,6 +322,109 @@ fn set_reference_steps(comps: &mut [Component<'_>], target: f64) {
     }
 }
 
+/// What a segment's kind of component is: a mean axis, a coefficient row `B` or a basis
+/// column `A` (pass 1's unquantized one).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Part {
+    Mean,
+    B,
+    A,
+}
+
+/// Pass 1's components of every group in stream order (mean, `B` rows, unquantized `A`
+/// columns), each with its group, [`Part`] and index.
+fn pass1_components<'g>(
+    p: &StsegParams,
+    models: &[GroupModel],
+    group_graphs: &'g [CausalGraph],
+    time: &'g CausalGraph,
+    pr: Predictors,
+    frames: usize,
+) -> (Vec<Component<'g>>, Vec<(usize, Part, usize)>) {
+    let mut comps = Vec::new();
+    let mut kinds = Vec::new();
+    for (g, m) in models.iter().enumerate() {
+        let gg = &group_graphs[g];
+        for (c, comp) in
+            mean_components(p.centering, &m.mean, m.own.len(), frames, gg, time, pr).into_iter().enumerate()
+        {
+            comps.push(comp);
+            kinds.push((g, Part::Mean, c));
+        }
+        for j in 0..m.k {
+            comps.push(Component {
+                class: CLASS_B + j.min(PER_KIND - 1),
+                graph: time,
+                predictor: pr.time,
+                fields: vec![m.b[j].clone()],
+                gain2: m.a_norm2[j],
+                reference_step: 0.0,
+                shaping: 0.0,
+            });
+            kinds.push((g, Part::B, j));
+        }
+        for j in 0..m.k {
+            comps.push(Component {
+                class: CLASS_A + j.min(PER_KIND - 1),
+                graph: gg,
+                predictor: pr.mesh,
+                fields: m.a[j].iter().map(|f| in_order(gg, f)).collect(),
+                gain2: 1.0,
+                reference_step: 0.0,
+                shaping: p.shaping,
+            });
+            kinds.push((g, Part::A, j));
+        }
+    }
+    (comps, kinds)
+}
+
+/// The packet payload of a segment: case, group count, ranks, the zstd-compressed steps, then
+/// the arithmetic-coded labels and, per group, mean and `B` at pass 1's steps and the fitted
+/// `A` at pass 2's.
+fn write_segment(
+    seg: &Segment,
+    full: &CausalGraph,
+    models: &[GroupModel],
+    (comps, steps1): (&[Component<'_>], &[f64]),
+    (comps2, steps2): (&[Component<'_>], &[f64]),
+    level: i32,
+) -> Vec<u8> {
+    let mut enc = AdaptiveEncoder::new(CLASSES);
+    if seg.group_count > 1 {
+        let codes = label_codes(full, &seg.labels);
+        for p in 0..codes.len() {
+            enc.encode(codes[p], CLASS_LABEL, predict::neighbour_bucket(full, &codes, p));
+        }
+    }
+    let mut side = ByteWriter::new();
+    let mut a_at = 0;
+    let mut idx = 0;
+    for m in models {
+        for _ in 0..m.mean.len() + m.k {
+            let (comp, s) = (&comps[idx], steps1[idx]);
+            code_component(comp, s, &mut enc);
+            side.f32(s as f32);
+            idx += 1;
+        }
+        idx += m.k; // pass-1 basis components
+        for _ in 0..m.k {
+            code_component(&comps2[a_at], steps2[a_at], &mut enc);
+            side.f32(steps2[a_at] as f32);
+            a_at += 1;
+        }
+    }
+    let mut w = ByteWriter::new();
+    w.u8(seg.kind.case());
+    w.varint(seg.group_count as u64);
+    for m in models {
+        w.varint(m.k as u64);
+    }
+    w.length_prefixed(&entropy::compress(side.as_slice(), level));
+    w.bytes(&enc.finish());
+    w.into_vec()
+}
+
 /// Toolkit-coded packet payload of one segment (layout in README "Stream version 3").
 pub(crate) fn encode_segment(
     p: &StsegParams,
@@ -349,41 +452,7 @@ pub(crate) fn encode_segment(
 
     // Pass 1: mean, coefficient rows and the unquantized basis together; the mean and B steps
     // are kept.
-    let mut comps = Vec::new();
-    let mut kinds = Vec::new(); // (group, 0 mean / 1 B / 2 A, index)
-    for (g, m) in models.iter().enumerate() {
-        let gg = &group_graphs[g];
-        for (c, comp) in
-            mean_components(p.centering, &m.mean, m.own.len(), frames, gg, &time, pr).into_iter().enumerate()
-        {
-            comps.push(comp);
-            kinds.push((g, 0, c));
-        }
-        for j in 0..m.k {
-            comps.push(Component {
-                class: CLASS_B + j.min(PER_KIND - 1),
-                graph: &time,
-                predictor: pr.time,
-                fields: vec![m.b[j].clone()],
-                gain2: m.a_norm2[j],
-                reference_step: 0.0,
-                shaping: 0.0,
-            });
-            kinds.push((g, 1, j));
-        }
-        for j in 0..m.k {
-            comps.push(Component {
-                class: CLASS_A + j.min(PER_KIND - 1),
-                graph: gg,
-                predictor: pr.mesh,
-                fields: m.a[j].iter().map(|f| in_order(gg, f)).collect(),
-                gain2: 1.0,
-                reference_step: 0.0,
-                shaping: p.shaping,
-            });
-            kinds.push((g, 2, j));
-        }
-    }
+    let (mut comps, kinds) = pass1_components(p, &models, group_graphs, &time, pr, frames);
     set_reference_steps(&mut comps, target);
     // 3% of the budget held back so the fitted basis usually meets it at its pass-1 steps.
     let (steps1, dist1) = allocate(&comps, 0.97 * target);
@@ -396,16 +465,16 @@ pub(crate) fn encode_segment(
     let mut used = 0.0;
     for ((comp, &(g, kind, i)), (&s, &d)) in comps.iter().zip(&kinds).zip(steps1.iter().zip(&dist1)) {
         match kind {
-            0 => {
+            Part::Mean => {
                 let r = code_component(comp, s, &mut scratch).remove(0);
                 mean_hat[g][i] = if p.centering == Centering::Vertex { from_order(&group_graphs[g], &r) } else { r };
                 used += d;
             }
-            1 => {
+            Part::B => {
                 b_hat[g][i] = code_component(comp, s, &mut scratch).remove(0);
                 used += d;
             }
-            _ => {}
+            Part::A => {}
         }
     }
     drop(scratch);
@@ -436,7 +505,8 @@ pub(crate) fn encode_segment(
     // The fitted basis is close to the unquantized one: its pass-1 steps are kept when they
     // still meet the budget (measured), otherwise its steps are allocated again.
     let target2 = (target - used).max(0.0);
-    let pass1_a: Vec<f64> = kinds.iter().zip(&steps1).filter(|((_, kind, _), _)| *kind == 2).map(|(_, &s)| s).collect();
+    let pass1_a: Vec<f64> =
+        kinds.iter().zip(&steps1).filter(|((_, kind, _), _)| *kind == Part::A).map(|(_, &s)| s).collect();
     let (mut codes, mut recon) = (Vec::new(), Vec::new());
     let kept: f64 = comps2.iter().zip(&pass1_a).map(|(c, &s)| c.evaluate(s, &mut codes, &mut recon).distortion).sum();
     let steps2 = if kept <= target2 || comps2.is_empty() {
@@ -447,39 +517,7 @@ pub(crate) fn encode_segment(
     };
 
     // Stream: labels, then per group mean, B, A.
-    let mut enc = AdaptiveEncoder::new(CLASSES);
-    if seg.group_count > 1 {
-        let codes = label_codes(full, &seg.labels);
-        for p in 0..codes.len() {
-            enc.encode(codes[p], CLASS_LABEL, predict::neighbour_bucket(full, &codes, p));
-        }
-    }
-    let mut side = ByteWriter::new();
-    let mut a_at = 0;
-    let mut idx = 0;
-    for m in &models {
-        for _ in 0..m.mean.len() + m.k {
-            let (comp, s) = (&comps[idx], steps1[idx]);
-            code_component(comp, s, &mut enc);
-            side.f32(s as f32);
-            idx += 1;
-        }
-        idx += m.k; // pass-1 basis components
-        for _ in 0..m.k {
-            code_component(&comps2[a_at], steps2[a_at], &mut enc);
-            side.f32(steps2[a_at] as f32);
-            a_at += 1;
-        }
-    }
-    let mut w = ByteWriter::new();
-    w.u8(seg.kind.case());
-    w.varint(seg.group_count as u64);
-    for m in &models {
-        w.varint(m.k as u64);
-    }
-    w.length_prefixed(&entropy::compress(side.as_slice(), p.level));
-    w.bytes(&enc.finish());
-    Ok(w.into_vec())
+    Ok(write_segment(seg, full, &models, (&comps, &steps1), (&comps2, &steps2), p.level))
 }
 
 /// Label residuals along the mesh order: label minus the breadth-first parent's label.

@@ -29,8 +29,8 @@ mod pca;
 mod segment;
 
 use codec_core::{
-    Animation, AnimationCodec, EncoderSetup, ErrorBound, FourCc, FrameDecoder, FrameEncoder, Limits, ParamSet,
-    ParamSpec, ParamValue, RateLadder, Result, StreamInfo,
+    Animation, EncoderSetup, ErrorBound, FourCc, FrameDecoder, FrameEncoder, Limits, RateLadder, Result, Setting,
+    StreamInfo, TypedCodec,
 };
 
 pub use encoder::{encode_with_segmentation, fixed_block_segmentation};
@@ -47,60 +47,44 @@ pub const MAX_GROUPS: usize = 16;
 #[derive(Debug, Clone, Copy, Default)]
 pub struct Stseg;
 
-impl AnimationCodec for Stseg {
-    fn name(&self) -> &'static str {
-        NAME
+impl TypedCodec for Stseg {
+    type Params = StsegParams;
+    const NAME: &'static str = NAME;
+    const FOURCC: FourCc = FourCc::new(b"STSG");
+    /// 2: config carries the centering; the mean is per frame for `centering = frame`.
+    /// 3: config adds the coding (paper = version 2's packets, toolkit = `coding.rs`) and the
+    /// toolkit's predictors.
+    const STREAM_VERSION: u16 = 3;
+    const SUMMARY: &'static str =
+        "spatio-temporal segmentation (initial cut, vertex groups, PC-count boundaries) + per-segment PCA";
+
+    fn ladder(&self, _base: &StsegParams) -> RateLadder {
+        RateLadder::over(
+            StsegParams::omega,
+            [0.9, 0.95, 0.98, 0.99, 0.995, 0.998, 0.999, 0.9995, 0.9998, 0.9999, 0.99995, 0.99999, 0.999999],
+        )
     }
-    fn fourcc(&self) -> FourCc {
-        FourCc::new(b"STSG")
-    }
-    fn stream_version(&self) -> u16 {
-        // 2: config carries the centering; the mean is per frame for `centering = frame`.
-        // 3: config adds the coding (paper = version 2's packets, toolkit = `coding.rs`) and
-        // the toolkit's predictors.
-        3
-    }
-    fn summary(&self) -> &'static str {
-        "spatio-temporal segmentation (initial cut, vertex groups, PC-count boundaries) + per-segment PCA"
-    }
-    fn param_specs(&self) -> Vec<ParamSpec> {
-        StsegParams::specs()
-    }
-    fn rate_ladder(&self, _base: &ParamSet) -> RateLadder {
-        RateLadder {
-            param: "omega",
-            steps: [0.9, 0.95, 0.98, 0.99, 0.995, 0.998, 0.999, 0.9995, 0.9998, 0.9999, 0.99995, 0.99999, 0.999999]
-                .into_iter()
-                .map(ParamValue::Float)
-                .collect(),
-        }
-    }
-    fn validate(&self, params: &ParamSet) -> Result<()> {
-        StsegParams::from_param_set(params).map(|_| ())
-    }
-    fn error_bound(&self, params: &ParamSet, animation: &Animation) -> Result<ErrorBound> {
-        let p = StsegParams::from_param_set(params)?;
+    fn bound(&self, p: &StsegParams, animation: &Animation) -> Result<ErrorBound> {
         let bound = match p.coding {
-            Coding::Paper => bound::relative_rms_bound(&p, animation),
-            Coding::Toolkit => bound::toolkit_rms_bound(&p, animation),
+            Coding::Paper => bound::relative_rms_bound(p, animation),
+            Coding::Toolkit => bound::toolkit_rms_bound(p, animation),
         };
         Ok(ErrorBound { max_coordinate_error: None, relative_rms_error: bound })
     }
     /// stseg's segments are chosen by the data (up to `gamma_max` frames, cut
     /// by the detector), so there is no block to shorten: a budget below [`encode_memory`] is
     /// refused up front, naming the need.
-    fn fit_memory(&self, params: &ParamSet, vertices: usize, frames: usize, budget: u64) -> Result<ParamSet> {
-        let p = StsegParams::from_param_set(params)?;
+    fn fit(&self, p: &StsegParams, vertices: usize, frames: usize, budget: u64) -> Result<Vec<Setting>> {
         let window = frames.min((p.gamma_max + p.gamma_init) as usize);
         let need = encode_memory(vertices, frames, window);
         let what = format!("{frames} frames of {vertices} vertices, segments of up to {} frames", p.gamma_max);
         codec_core::memory::check_budget(NAME, budget, need, &what, "")?;
-        Ok(params.clone())
+        Ok(Vec::new())
     }
-    fn new_encoder(&self, params: &ParamSet, setup: &EncoderSetup<'_>) -> Result<Box<dyn FrameEncoder>> {
-        encoder::new_encoder(&StsegParams::from_param_set(params)?, setup)
+    fn encoder(&self, p: StsegParams, setup: &EncoderSetup<'_>) -> Result<Box<dyn FrameEncoder>> {
+        encoder::new_encoder(&p, setup)
     }
-    fn new_decoder(&self, info: &StreamInfo, config: &[u8], limits: &Limits) -> Result<Box<dyn FrameDecoder>> {
+    fn decoder(&self, info: &StreamInfo, config: &[u8], limits: &Limits) -> Result<Box<dyn FrameDecoder>> {
         decoder::new_decoder(info, config, limits)
     }
 }
@@ -108,7 +92,12 @@ impl AnimationCodec for Stseg {
 // The unit tests (`tests.rs`, `use super::*`) drive the internals directly: the decoder on
 // hand-made packets, the mean layout, the longest segment.
 #[cfg(test)]
-use {codec_core::Packet, decoder::StsegDecoder, params::MAX_SEGMENT_FRAMES, pca::mean_layout};
+use {
+    codec_core::{AnimationCodec, Packet},
+    decoder::StsegDecoder,
+    params::MAX_SEGMENT_FRAMES,
+    pca::mean_layout,
+};
 
 #[cfg(test)]
 mod tests;

@@ -2,7 +2,8 @@
 //! `coding=paper`): uniform quantizers at `bits` / `coef_bits`, zigzag run deltas, byte planes +
 //! zstd.
 
-use codec_core::bytes::{zigzag_decode, zigzag_encode, ByteReader, ByteWriter};
+use codec_core::bytes::{ByteReader, ByteWriter};
+use codec_core::toolkit::planes::{delta_plane_count, plane_value, push_byte_planes, push_zigzag_run, zigzag_run_sums};
 use codec_core::{entropy, Error, Limits, Quantizer, Result};
 use faer::Mat;
 use rayon::prelude::*;
@@ -12,20 +13,6 @@ use crate::params::{Centering, StsegParams};
 use crate::pca::{centred_block, group_pca, mean_layout, reconstruct_group};
 use crate::segment::{MeshGraph, Segment};
 use crate::{coding, NAME};
-
-/// Byte planes needed for zigzag differences of `bits`-bit codes.
-fn plane_count(bits: u8) -> usize {
-    (bits as usize + 1).div_ceil(8)
-}
-
-/// Appends codes as zigzag differences from the previous code of the same run.
-fn push_run(out: &mut Vec<u32>, codes: impl Iterator<Item = u32>) {
-    let mut prev = 0i64;
-    for c in codes {
-        out.push(zigzag_encode(c as i64 - prev) as u32);
-        prev = c as i64;
-    }
-}
 
 /// One group's coded PCA (§4.4, Eq. 5): `X ≈ mean + A·B`, the mean as [`Centering`] says.
 struct GroupCode {
@@ -71,7 +58,7 @@ fn code_group(p: &StsegParams, graph: &MeshGraph, own: &[u32], block: &[f32], fr
             for c in 0..3 {
                 let axis: Vec<f32> = (0..n).map(|i| mean[i * 3 + c] as f32).collect();
                 let q = Quantizer::covering(&axis, p.bits)?;
-                push_run(&mut values, axis.iter().map(|&x| q.quantize(x)));
+                push_zigzag_run(axis.iter().map(|&x| q.quantize(x)), 0, &mut values);
                 for i in 0..n {
                     hat[i * 3 + c] = q.dequantize(q.quantize(axis[i])) as f64;
                 }
@@ -84,7 +71,7 @@ fn code_group(p: &StsegParams, graph: &MeshGraph, own: &[u32], block: &[f32], fr
             let (_, mean) = centred_block(Centering::Frame, &ext, block, n3, frames);
             let m: Vec<f32> = mean.iter().map(|&x| x as f32).collect();
             let q = Quantizer::covering(&m, p.bits)?;
-            push_run(&mut values, m.iter().map(|&x| q.quantize(x)));
+            push_zigzag_run(m.iter().map(|&x| q.quantize(x)), 0, &mut values);
             mean_q.push(q);
             m.iter().map(|&x| q.dequantize(q.quantize(x)) as f64).collect()
         }
@@ -95,7 +82,7 @@ fn code_group(p: &StsegParams, graph: &MeshGraph, own: &[u32], block: &[f32], fr
             for c in 0..3 {
                 let axis: Vec<f32> = (0..frames).map(|t| mean[t * 3 + c] as f32).collect();
                 let q = Quantizer::covering(&axis, p.bits)?;
-                push_run(&mut values, axis.iter().map(|&x| q.quantize(x)));
+                push_zigzag_run(axis.iter().map(|&x| q.quantize(x)), 0, &mut values);
                 for t in 0..frames {
                     hat[t * 3 + c] = q.dequantize(q.quantize(axis[t])) as f64;
                 }
@@ -129,12 +116,12 @@ fn code_group(p: &StsegParams, graph: &MeshGraph, own: &[u32], block: &[f32], fr
         let col: Vec<f32> = (0..n * 3).map(|r| a[(r, j)] as f32).collect();
         let q = Quantizer::covering(&col, p.bits)?;
         for c in 0..3 {
-            push_run(&mut values, (0..n).map(|i| q.quantize(col[i * 3 + c])));
+            push_zigzag_run((0..n).map(|i| q.quantize(col[i * 3 + c])), 0, &mut values);
         }
         a_q.push(q);
     }
     for j in 0..k {
-        push_run(&mut values, b_codes[j * frames..(j + 1) * frames].iter().copied());
+        push_zigzag_run(b_codes[j * frames..(j + 1) * frames].iter().copied(), 0, &mut values);
     }
     Ok(GroupCode { mean_q, a_q, b_q, values })
 }
@@ -159,12 +146,10 @@ pub(crate) fn encode_segment(p: &StsegParams, graph: &MeshGraph, seg: &Segment, 
         }
     }
     let values: Vec<u32> = codes.iter().flat_map(|c| c.values.iter().copied()).collect();
-    let planes = plane_count(p.bits.max(p.coef_bits));
+    let planes = delta_plane_count(p.bits.max(p.coef_bits));
     let mut raw = Vec::with_capacity(v + values.len() * planes);
     raw.extend_from_slice(&seg.labels);
-    for pl in 0..planes {
-        raw.extend(values.iter().map(|&x| (x >> (8 * pl)) as u8));
-    }
+    push_byte_planes(&values, planes, &mut raw);
     w.bytes(&entropy::compress(&raw, p.level));
     Ok(w.into_vec())
 }
@@ -207,7 +192,7 @@ pub(crate) fn decode_segment(
         ks.push(k);
         quants.push(qs);
     }
-    let planes = plane_count(bits.max(coef_bits));
+    let planes = delta_plane_count(bits.max(coef_bits));
     let sum_k: usize = ks.iter().sum();
     let max_k_used = ks.iter().copied().max().unwrap_or(0);
     let bound = (v as u64)
@@ -245,18 +230,11 @@ pub(crate) fn decode_segment(
     let planes_raw = &raw[v..];
     let mut idx = 0usize;
     let mut next_run = |len: usize| -> Vec<u32> {
-        let mut prev = 0i64;
-        let mut out = Vec::with_capacity(len);
-        for _ in 0..len {
-            let mut z = 0u32;
-            for pl in 0..planes {
-                z |= (planes_raw[pl * count + idx] as u32) << (8 * pl);
-            }
+        let next = || {
             idx += 1;
-            prev += zigzag_decode(z as u64);
-            out.push(prev.clamp(0, u32::MAX as i64) as u32);
-        }
-        out
+            plane_value(planes_raw, count, planes, idx - 1)
+        };
+        zigzag_run_sums(len, 0, next).map(|c| c.clamp(0, u32::MAX as i64) as u32).collect()
     };
     let n3 = v * 3;
     let mut out = vec![0f32; frames * n3];

@@ -472,19 +472,14 @@ fn dist2(a: &[f64], b: &[f64]) -> f64 {
     a.iter().zip(b).map(|(x, y)| (x - y) * (x - y)).sum()
 }
 
-/// Two-stage vertex clustering (§4.2) on the initial-cut frames: rigid clusters from the
-/// maximal edge-length change, grown over deformed vertices, then grouped by clustered PCA
-/// (Alg. 1). Returns per-vertex group labels and the number of groups.
-pub(crate) fn cluster_vertices(graph: &MeshGraph, frames: &[f32], p: &StsegParams) -> Result<(Vec<u8>, usize)> {
-    let v = graph.vertex_count();
-    let n3 = v * 3;
-    let n = frames.len() / n3;
-    let (y, d) = centered_trajectories(frames, v);
-    let traj = |i: usize| &y[i * d..(i + 1) * d];
+/// The cluster of a vertex on no rigid edge (yet).
+const NO_CLUSTER: usize = usize::MAX;
 
-    // Maximal edge-length change, relative to the edge's mean length so that the rigidity
-    // test does not depend on local mesh density.
-    let mec: Vec<f64> = graph
+/// Maximal edge-length change of every edge of `graph` over the `n` frames, relative to the
+/// edge's mean length so that the rigidity test does not depend on local mesh density.
+fn max_edge_change(graph: &MeshGraph, frames: &[f32], n: usize) -> Vec<f64> {
+    let n3 = graph.vertex_count() * 3;
+    graph
         .edges
         .iter()
         .map(|e| {
@@ -504,13 +499,14 @@ pub(crate) fn cluster_vertices(graph: &MeshGraph, frames: &[f32], p: &StsegParam
                 0.0
             }
         })
-        .collect();
-    // Exponential fit (maximum likelihood: rate = 1/mean); its inverse CDF at ρ gives the
-    // rigidity threshold.
-    let mean_mec = mec.iter().sum::<f64>() / mec.len().max(1) as f64;
-    let threshold = -(1.0 - p.rho).ln() * mean_mec;
+        .collect()
+}
 
-    // Rigid regions: connected components of the rigid edges (union-find).
+/// Rigid regions: the connected components of the edges whose change `mec` is at most
+/// `threshold` (union-find), numbered in order of their lowest vertex. Returns every vertex's
+/// cluster ([`NO_CLUSTER`] for a vertex on no rigid edge) and the number of clusters.
+fn rigid_clusters(graph: &MeshGraph, mec: &[f64], threshold: f64) -> (Vec<usize>, usize) {
+    let v = graph.vertex_count();
     let mut parent: Vec<usize> = (0..v).collect();
     fn find(parent: &mut [usize], mut i: usize) -> usize {
         while parent[i] != i {
@@ -520,7 +516,7 @@ pub(crate) fn cluster_vertices(graph: &MeshGraph, frames: &[f32], p: &StsegParam
         i
     }
     let mut rigid = vec![false; v];
-    for (e, &m) in graph.edges.iter().zip(&mec) {
+    for (e, &m) in graph.edges.iter().zip(mec) {
         if m <= threshold {
             let (a, b) = (e[0] as usize, e[1] as usize);
             rigid[a] = true;
@@ -531,40 +527,44 @@ pub(crate) fn cluster_vertices(graph: &MeshGraph, frames: &[f32], p: &StsegParam
             }
         }
     }
-    const NONE: usize = usize::MAX;
-    let mut cluster = vec![NONE; v];
-    let mut root_to_cluster = vec![NONE; v];
+    let mut cluster = vec![NO_CLUSTER; v];
+    let mut root_to_cluster = vec![NO_CLUSTER; v];
     let mut count = 0usize;
     for i in 0..v {
         if rigid[i] {
             let r = find(&mut parent, i);
-            if root_to_cluster[r] == NONE {
+            if root_to_cluster[r] == NO_CLUSTER {
                 root_to_cluster[r] = count;
                 count += 1;
             }
             cluster[i] = root_to_cluster[r];
         }
     }
-    let mut sums: Vec<Vec<f64>> = vec![vec![0.0; d]; count];
-    let mut sizes = vec![0usize; count];
-    for i in 0..v {
-        if cluster[i] != NONE {
-            sizes[cluster[i]] += 1;
-            sums[cluster[i]].iter_mut().zip(traj(i)).for_each(|(s, x)| *s += x);
-        }
-    }
-    // Rigid cluster growing: wave by wave, each deformed vertex next to a cluster joins the
-    // adjacent cluster whose centre trajectory is closest; centres are updated after each wave.
+    (cluster, count)
+}
+
+/// Rigid cluster growing: wave by wave, each vertex in no cluster next to a cluster joins the
+/// adjacent cluster whose centre trajectory (`sums / sizes`) is closest; centres are updated
+/// after each wave. A part with no rigid edge at all gets a new cluster at its lowest vertex.
+fn grow_clusters<'t>(
+    graph: &MeshGraph,
+    traj: &impl Fn(usize) -> &'t [f64],
+    cluster: &mut [usize],
+    count: &mut usize,
+    sums: &mut Vec<Vec<f64>>,
+    sizes: &mut Vec<usize>,
+) {
+    let v = graph.vertex_count();
     loop {
         let mut wave: Vec<(usize, usize)> = Vec::new();
         for i in 0..v {
-            if cluster[i] != NONE {
+            if cluster[i] != NO_CLUSTER {
                 continue;
             }
             let mut best: Option<(usize, f64)> = None;
             for &nb in graph.neighbours(i) {
                 let c = cluster[nb as usize];
-                if c == NONE {
+                if c == NO_CLUSTER {
                     continue;
                 }
                 let centre: Vec<f64> = sums[c].iter().map(|s| s / sizes[c] as f64).collect();
@@ -579,13 +579,13 @@ pub(crate) fn cluster_vertices(graph: &MeshGraph, frames: &[f32], p: &StsegParam
         }
         if wave.is_empty() {
             // A part with no rigid edge at all: seed a new cluster at its lowest vertex.
-            match (0..v).find(|&i| cluster[i] == NONE) {
+            match (0..v).find(|&i| cluster[i] == NO_CLUSTER) {
                 None => break,
                 Some(i) => {
-                    wave.push((i, count));
-                    sums.push(vec![0.0; d]);
+                    wave.push((i, *count));
+                    sums.push(vec![0.0; traj(i).len()]);
                     sizes.push(0);
-                    count += 1;
+                    *count += 1;
                 }
             }
         }
@@ -595,6 +595,34 @@ pub(crate) fn cluster_vertices(graph: &MeshGraph, frames: &[f32], p: &StsegParam
             sums[c].iter_mut().zip(traj(i)).for_each(|(s, x)| *s += x);
         }
     }
+}
+
+/// Two-stage vertex clustering (§4.2) on the initial-cut frames: rigid clusters from the
+/// maximal edge-length change, grown over deformed vertices, then grouped by clustered PCA
+/// (Alg. 1). Returns per-vertex group labels and the number of groups.
+pub(crate) fn cluster_vertices(graph: &MeshGraph, frames: &[f32], p: &StsegParams) -> Result<(Vec<u8>, usize)> {
+    let v = graph.vertex_count();
+    let n3 = v * 3;
+    let n = frames.len() / n3;
+    let (y, d) = centered_trajectories(frames, v);
+    let traj = |i: usize| &y[i * d..(i + 1) * d];
+
+    let mec = max_edge_change(graph, frames, n);
+    // Exponential fit (maximum likelihood: rate = 1/mean); its inverse CDF at ρ gives the
+    // rigidity threshold.
+    let mean_mec = mec.iter().sum::<f64>() / mec.len().max(1) as f64;
+    let threshold = -(1.0 - p.rho).ln() * mean_mec;
+
+    let (mut cluster, mut count) = rigid_clusters(graph, &mec, threshold);
+    let mut sums: Vec<Vec<f64>> = vec![vec![0.0; d]; count];
+    let mut sizes = vec![0usize; count];
+    for i in 0..v {
+        if cluster[i] != NO_CLUSTER {
+            sizes[cluster[i]] += 1;
+            sums[cluster[i]].iter_mut().zip(traj(i)).for_each(|(s, x)| *s += x);
+        }
+    }
+    grow_clusters(graph, &traj, &mut cluster, &mut count, &mut sums, &mut sizes);
     let members: Vec<Vec<usize>> = {
         let mut m = vec![Vec::new(); count];
         for i in 0..v {

@@ -1,5 +1,6 @@
 use super::*;
-use codec_core::{decode_animation, encode_animation_fed, synth, CodecRegistry};
+use animcodec_synth as synth;
+use codec_core::{decode_animation, encode_animation_fed, CodecRegistry};
 
 fn registry() -> CodecRegistry {
     CodecRegistry::new(vec![Box::new(Stseg)]).unwrap()
@@ -296,7 +297,7 @@ fn frame_centring_keeps_fewer_components_and_eq8_counts_them() {
 /// segment but the last is shorter than `w`.
 #[test]
 fn scanning_detector_finds_every_phase_change_at_every_size() {
-    use codec_core::synth::SynthSize;
+    use animcodec_synth::SynthSize;
     let p = StsegParams { detector: Detector::Scan, ..Default::default() };
     let w = p.w as usize;
     for size in [SynthSize::Small, SynthSize::Medium, SynthSize::Large] {

@@ -36,7 +36,7 @@ fn every_file_a_reader_opened_is_refused_as_an_output() {
     output::protect_files_read();
     let dir = Dir::new("gltf");
     // A .gltf with an external buffer: the synthetic flag written as a .glb, split.
-    let anim = codec_core::synth::by_name("flag", codec_core::synth::SynthSize::Small).unwrap();
+    let anim = animcodec_synth::by_name("flag", animcodec_synth::SynthSize::Small).unwrap();
     let glb_path = dir.path("flag.glb");
     formats::write_animation(&glb_path, &anim).unwrap();
     let glb = std::fs::read(&glb_path).unwrap();

@@ -22,7 +22,7 @@ use animcodec::harness::{
 };
 use animcodec::output::OutputPolicy;
 use animcodec::params::params_json;
-use codec_core::synth::{self as gen, SynthSize};
+use animcodec::synth::{self as gen, SynthSize};
 use codec_core::{
     Animation, AnimationCodec, CodecRegistry, Limits, ParamKind, ParamSet, ParamValue, StreamDecoder, Topology,
 };

@@ -22,8 +22,9 @@
 use std::io::Cursor;
 use std::path::{Path, PathBuf};
 
+use animcodec::synth;
 use codec_core::container::{self, ContainerWriter};
-use codec_core::{synth, Animation, Limits, Packet, Topology};
+use codec_core::{Animation, Limits, Packet, Topology};
 
 use crate::peak_budget;
 

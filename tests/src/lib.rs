@@ -6,7 +6,7 @@
 //! and corrupt it in controlled ways (byte flips with the packet or header CRC patched,
 //! rebuilt streams with mutated packets or configuration).
 //!
-//! Synthetic data comes from `codec_core::synth`. Every test loops over
+//! Synthetic data comes from `animcodec::synth`. Every test loops over
 //! `animcodec::registry()`, so a codec added to the registry list is tested with no other
 //! change.
 
@@ -67,11 +67,11 @@ pub fn codecs_under_test() -> CodecRegistry {
 // Synthetic animations
 // ---------------------------------------------------------------------------------------
 
-/// The shared synthetic animations (`codec_core::synth`).
-pub use codec_core::synth;
+/// The shared synthetic animations (`animcodec::synth`).
+pub use animcodec::synth;
 
 /// The animations every round-trip test runs on: `(name, animation)`, every
-/// `codec_core::synth` preset at `SynthSize::Small` (a few hundred vertices × 40 frames;
+/// `animcodec::synth` preset at `SynthSize::Small` (a few hundred vertices × 40 frames;
 /// a preset added there is tested here too).
 pub fn animations() -> Vec<(&'static str, Animation)> {
     synth::NAMES
@@ -645,7 +645,7 @@ mod tests {
 
     #[test]
     fn crc_patch_makes_a_flipped_payload_pass_the_container() {
-        let codec = codec_core::quant_delta::QuantDelta;
+        let codec = codec_quant_delta::QuantDelta;
         let anim = small_animation();
         let bytes = codec_core::encode_animation(&codec, &codec.default_params(), &anim).unwrap();
         let parts = split(&bytes).unwrap();

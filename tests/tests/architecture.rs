@@ -17,6 +17,9 @@ fn workspace() -> PathBuf {
 /// crates of a lower floor.
 const FLOORS: &[(&str, &str, u8)] = &[
     ("codec-core", "codec-core", 0),
+    // The synthetic animations: only the data model below them, beside the codecs.
+    ("synth", "animcodec-synth", 1),
+    ("codec-quant-delta", "codec-quant-delta", 1),
     ("codec-pca-aoi", "codec-pca-aoi", 1),
     ("codec-hosvd", "codec-hosvd", 1),
     ("codec-sac", "codec-sac", 1),

@@ -2,8 +2,8 @@
 //! package's Dask encode runs on its workers) and assembled gives the local encode's bytes.
 
 use animcodec::registry;
+use animcodec::synth::waving_flag;
 use codec_core::blocks::{assemble_blocks, block_plan, encode_block};
-use codec_core::synth::waving_flag;
 use codec_core::{encode_animation, Animation, AnimationCodec, ParamSet, ParamValue};
 
 fn params(codec: &dyn AnimationCodec, pairs: &[(&str, ParamValue)]) -> ParamSet {

@@ -11,8 +11,9 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
+use animcodec::synth;
 use codec_core::container::ContainerReader;
-use codec_core::{decode_animation, encode_animation, synth, Animation, Limits, ParamValue};
+use codec_core::{decode_animation, encode_animation, Animation, Limits, ParamValue};
 use conformance_tests::registry;
 
 fn golden_dir() -> PathBuf {

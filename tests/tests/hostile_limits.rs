@@ -57,12 +57,12 @@ fn sac_stream(topology: &Topology, bases: u32) -> Vec<u8> {
 /// work budget, before the basis or the Poisson factor is allocated.
 #[test]
 fn a_thousand_bases_on_a_large_mesh_is_refused_by_the_work_budget() {
-    let bytes = sac_stream(&codec_core::synth::flag_topology(160, 160), 1000);
+    let bytes = sac_stream(&animcodec::synth::flag_topology(160, 160), 1000);
     let e = refused("sac, 1000 bases on 25 600 vertices", &bytes);
     assert!(matches!(e, Error::WorkLimit { .. }) && e.to_string().contains("harmonics"), "{e}");
     // The same mesh with the default 16 bases is not refused by the limits (it fails only on
     // its placeholder packet).
-    let ok = sac_stream(&codec_core::synth::flag_topology(160, 160), 16);
+    let ok = sac_stream(&animcodec::synth::flag_topology(160, 160), 16);
     let e = decode_animation(&ok, &registry(), Limits::default()).unwrap_err();
     assert!(!matches!(e, Error::WorkLimit { .. } | Error::AllocLimit { .. }), "{e}");
 }
@@ -103,7 +103,7 @@ fn an_expander_connectivity_is_refused_before_its_factorization() {
 fn the_memory_limit_bounds_the_total_not_each_allocation() {
     let registry = registry();
     let codec = registry.by_name("quant-delta").unwrap();
-    let anim = codec_core::synth::waving_flag(40, 30, 20);
+    let anim = animcodec::synth::waving_flag(40, 30, 20);
     let bytes = codec_core::encode_animation(codec, &codec.default_params(), &anim).unwrap();
     let decoded = anim.positions().len() as u64 * 4;
     // Room for the decoded animation alone, not for it and one decoded packet besides.
@@ -123,7 +123,7 @@ fn the_memory_limit_bounds_the_total_not_each_allocation() {
 fn the_work_limit_refuses_what_exceeds_it() {
     let registry = registry();
     let codec = registry.by_name("sac").unwrap();
-    let anim = codec_core::synth::waving_flag(12, 10, 6);
+    let anim = animcodec::synth::waving_flag(12, 10, 6);
     let bytes = codec_core::encode_animation(codec, &codec.default_params(), &anim).unwrap();
     assert!(decode_animation(&bytes, &registry, Limits::default()).is_ok());
     let e = decode_animation(&bytes, &registry, Limits { max_work: 1000, ..Limits::default() }).unwrap_err();
@@ -169,7 +169,7 @@ fn a_tiny_stream_claiming_16m_vertices_is_refused_early() {
     let registry = registry();
     // Few frames: the decoded frames (4 × 2^24 × 12 bytes) fit the default budget, so what
     // is refused is what each codec would build on top of them.
-    let anim = codec_core::synth::waving_flag(6, 5, 4);
+    let anim = animcodec::synth::waving_flag(6, 5, 4);
     let huge = Topology::new(1 << 24, anim.topology().triangles().to_vec()).unwrap();
     for codec in registry.iter() {
         // hosvd's default size model cannot reduce 4 frames; the smallest rate point can.
@@ -202,7 +202,7 @@ fn a_tiny_stream_claiming_16m_vertices_is_refused_early() {
 fn a_sac_config_asking_for_more_bases_is_refused_before_the_basis() {
     let registry = registry();
     let codec = registry.by_name("sac").unwrap();
-    let anim = codec_core::synth::waving_flag(30, 30, 8);
+    let anim = animcodec::synth::waving_flag(30, 30, 8);
     let params = conformance_tests::params_with(codec, "bases", codec_core::ParamValue::Int(32)).unwrap();
     let bytes = codec_core::encode_animation(codec, &params, &anim).unwrap();
     let parts = conformance_tests::split(&bytes).unwrap();

@@ -5,7 +5,7 @@
 #[test]
 fn corrupt_payload_errors_show_no_debug_values() {
     let registry = animcodec::registry();
-    let anim = codec_core::synth::waving_flag(6, 5, 12);
+    let anim = animcodec::synth::waving_flag(6, 5, 12);
     for codec in registry.iter() {
         let enc = codec_core::encode_animation(codec, &codec.default_params(), &anim).unwrap();
         let parts = conformance_tests::split(&enc).unwrap();

@@ -4,11 +4,11 @@
 
 use std::sync::Once;
 
-use codec_core::quant_delta::{QuantDelta, QuantDeltaParams};
 use codec_core::{
     Animation, AnimationCodec, CodecRegistry, EncodedPacket, EncoderSetup, ErrorBound, FourCc, FrameDecoder,
     FrameEncoder, Limits, Packet, ParamSet, ParamSpec, ParamValue, RateLadder, Result, StreamInfo,
 };
+use codec_quant_delta::{QuantDelta, QuantDeltaParams};
 use conformance_tests::suite::{self, Check};
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

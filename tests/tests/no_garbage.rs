@@ -15,7 +15,7 @@
 use std::path::PathBuf;
 
 use animcodec::formats::{read_animation, ReadOptions};
-use codec_core::synth::{skinned_character, CharacterSpec};
+use animcodec::synth::{skinned_character, CharacterSpec};
 use codec_core::{
     decode_animation, encode_animation_fed, Animation, AnimationCodec, CodecRegistry, EncodedPacket, EncoderSetup,
     ErrorBound, FourCc, FrameDecoder, FrameEncoder, Limits, Packet, ParamKind, ParamSet, ParamSpec, ParamValue,
@@ -206,16 +206,16 @@ impl AnimationCodec for Liar {
         "quant-delta that lies"
     }
     fn param_specs(&self) -> Vec<ParamSpec> {
-        codec_core::quant_delta::QuantDelta.param_specs()
+        codec_quant_delta::QuantDelta.param_specs()
     }
     fn rate_ladder(&self, base: &ParamSet) -> RateLadder {
-        codec_core::quant_delta::QuantDelta.rate_ladder(base)
+        codec_quant_delta::QuantDelta.rate_ladder(base)
     }
     fn validate(&self, _params: &ParamSet) -> Result<()> {
         Ok(())
     }
     fn error_bound(&self, _params: &ParamSet, animation: &Animation) -> Result<ErrorBound> {
-        let inner = codec_core::quant_delta::QuantDelta;
+        let inner = codec_quant_delta::QuantDelta;
         let mut b = inner.error_bound(&inner.default_params(), animation)?;
         if self.0 == Lie::Bound {
             b.max_coordinate_error = b.max_coordinate_error.map(|e| e / 10.0);
@@ -223,12 +223,12 @@ impl AnimationCodec for Liar {
         Ok(b)
     }
     fn new_encoder(&self, _params: &ParamSet, setup: &EncoderSetup<'_>) -> Result<Box<dyn FrameEncoder>> {
-        let inner = codec_core::quant_delta::QuantDelta;
+        let inner = codec_quant_delta::QuantDelta;
         Ok(Box::new(LiarEncoder(inner.new_encoder(&inner.default_params(), setup)?)))
     }
     fn new_decoder(&self, info: &StreamInfo, config: &[u8], limits: &Limits) -> Result<Box<dyn FrameDecoder>> {
-        let info = StreamInfo { fourcc: codec_core::quant_delta::QuantDelta.fourcc(), ..info.clone() };
-        let inner = codec_core::quant_delta::QuantDelta.new_decoder(&info, config, limits)?;
+        let info = StreamInfo { fourcc: codec_quant_delta::QuantDelta.fourcc(), ..info.clone() };
+        let inner = codec_quant_delta::QuantDelta.new_decoder(&info, config, limits)?;
         Ok(Box::new(LiarDecoder { lie: self.0, inner }))
     }
 }
@@ -264,7 +264,7 @@ impl FrameDecoder for LiarDecoder {
 
 #[test]
 fn the_stream_driver_refuses_a_stream_beyond_its_bound_or_not_finite() {
-    let anim = codec_core::synth::waving_flag(12, 8, 20);
+    let anim = animcodec::synth::waving_flag(12, 8, 20);
     for (lie, needle) in [(Lie::Bound, "> bound"), (Lie::NotFinite, "not finite")] {
         let codec = Liar(lie);
         let params = codec.default_params();

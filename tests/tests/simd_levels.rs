@@ -18,7 +18,8 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use codec_core::{decode_animation, encode_animation, synth, Animation, Limits};
+use animcodec::synth;
+use codec_core::{decode_animation, encode_animation, Animation, Limits};
 use conformance_tests::registry;
 
 /// Set in the child: decode and print the hashes instead of comparing.

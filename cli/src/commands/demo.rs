@@ -5,7 +5,7 @@ use std::fmt::Write as _;
 use std::io::IsTerminal;
 use std::time::Instant;
 
-use codec_core::synth::{self, SynthSize};
+use animcodec::synth::{self, SynthSize};
 use codec_core::{encode_animation_fed, Animation, AnimationCodec, CodecRegistry, Limits, StreamDecoder};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use serde_json::{json, Value};

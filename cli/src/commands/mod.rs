@@ -19,7 +19,7 @@ use std::io::Write;
 use std::path::Path;
 
 use animcodec::formats::{self, ReadOptions};
-use codec_core::synth::{self as gen, SynthSize};
+use animcodec::synth::{self as gen, SynthSize};
 use codec_core::{Animation, Limits};
 use serde_json::Value;
 

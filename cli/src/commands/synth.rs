@@ -3,7 +3,7 @@
 use animcodec::formats::stream::{is_streamable_output, CacheWriter};
 use animcodec::formats::{self, WriteOptions};
 use animcodec::output::OutputPolicy;
-use codec_core::synth;
+use animcodec::synth;
 
 use super::{emit, shown, CmdResult};
 use crate::SynthArgs;

@@ -24,7 +24,7 @@
 //! garbage (a corrupted stream decodes to wrong integers or an error, which the caller's range
 //! checks catch).
 //!
-//! Issue 41 (round 4, `forged-vertex-count`): constriction's range decoder reads zeros once its
+//! Forged symbol counts: constriction's range decoder reads zeros once its
 //! words run out, so a stream whose header claims more symbols than were coded (e.g. twice the
 //! vertices) used to decode to garbage. [`CheckedWords`] counts the reads past the end: the
 //! encoder's seal leaves the decoder at most one word short (it writes the point word, and a
@@ -320,7 +320,7 @@ pub fn checked_range_decoder(bytes: &[u8], context: &'static str, field: &'stati
     CheckedRangeDecoder::with_backend(words).map_err(|_| corrupt(context, field, "range coder header"))
 }
 
-/// The error of a symbol that could not be decoded: the data ran out (issue 41) or is invalid.
+/// The error of a symbol that could not be decoded: the data ran out or is invalid.
 pub fn range_error<F>(context: &'static str, field: &'static str, e: CoderError<F, RanPastEnd>) -> Error {
     match e {
         CoderError::Backend(RanPastEnd) => corrupt(
@@ -333,7 +333,7 @@ pub fn range_error<F>(context: &'static str, field: &'static str, e: CoderError<
 }
 
 /// Checks that a range decoder that decoded its last symbol read every word of its block:
-/// trailing words mean the stream declares fewer values than it codes (issue 41).
+/// trailing words mean the stream declares fewer values than it codes.
 pub fn check_consumed(dec: CheckedRangeDecoder, context: &'static str, field: &'static str) -> Result<()> {
     let (words, _, _) = dec.into_raw_parts();
     if words.consumed() {
@@ -379,7 +379,7 @@ impl AdaptiveDecoder {
     }
 
     /// Ends decoding: fails unless every word of the block was read, i.e. the block held no
-    /// more than the symbols decoded (issue 41). Call after the last symbol.
+    /// more than the symbols decoded. Call after the last symbol.
     pub fn finish(self) -> Result<()> {
         if !self.used && !self.empty {
             return Err(corrupt(self.context, self.field, "arithmetic-coded words where no value is coded"));
@@ -587,7 +587,7 @@ mod tests {
         }
     }
 
-    /// Issue 41: decoding exactly what was coded reads every word and never runs past the
+    /// Decoding exactly what was coded reads every word and never runs past the
     /// allowance, for every length (the seal's one or two words included); decoding more runs
     /// past the end and fails; a block with a word more than was coded fails `finish`.
     #[test]

@@ -1,4 +1,4 @@
-//! Coding toolkit shared by the codecs (issue 15): what the classical mesh-animation coders get
+//! Coding toolkit shared by the codecs: what the classical mesh-animation coders get
 //! their edge from, beyond one uniform step and zstd.
 //!
 //! - [`order`]: a deterministic connectivity-driven vertex order (breadth first over the
@@ -10,6 +10,8 @@
 //! - [`adaptive`]: context-adaptive binary arithmetic coding of the resulting integers on
 //!   `constriction`'s range coder, and a cost model for rate estimates.
 //! - [`rdq`]: per-component steps by the equal-slope (Lagrangian) rule for a target error.
+//! - [`planes`]: the plain coding the simpler streams share: zigzag differences and runs of
+//!   integer codes in byte planes (for zstd).
 //! - [`regress`]: cross-component prediction — a field regressed locally (over causal two-ring
 //!   neighbourhoods) on fields already known everywhere, e.g. later mode-1 factor columns on
 //!   the leading ones.
@@ -18,6 +20,7 @@
 
 pub mod adaptive;
 pub mod order;
+pub mod planes;
 pub mod predict;
 pub mod rdq;
 pub mod regress;

@@ -9,7 +9,7 @@
 //! predicts the geometric detail the column shares with the leading ones. Measured on
 //! horse-gallop (`v = 8`) and samba (`v = 14`) before this module was written (Python
 //! prototype, closed loop, zero-order entropy): the mode-1 factor's codes took 26% / 39% fewer
-//! bits than with the neighbour average (`docs/notes/issue-15.md`, session 5).
+//! bits than with the neighbour average (measured with a Python prototype).
 //!
 //! The fit at position `p` uses the *neighbourhood* `N(p)`: the positions within two mesh rings
 //! coded before `p` ([`Neighbourhoods`], at most [`MAX_NEIGHBOURS`], the latest ones). The
@@ -25,7 +25,7 @@
 //! Everything is plain `f64` arithmetic in a fixed order (no fused operations, no library
 //! functions), so the encoder and the decoder compute the same predictions bit for bit.
 //!
-//! **Guarded fits** ([`Fit::guarded`], hosvd stream version 5, issue 26). The closed loop
+//! **Guarded fits** ([`Fit::guarded`], hosvd stream version 5). The closed loop
 //! regresses on *decoded* regressors, which carry quantization noise of about `step²/12` per
 //! entry. Across a small rigid part the decoded leads can be flat up to floating-point rounding
 //! (every entry coded with 0): the Gram matrix is ~1e-36, a ridge relative to its trace adds
@@ -343,13 +343,12 @@ impl Regression<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::synth;
 
     /// A grid mesh and three fields: two "coordinates" with per-vertex detail (a hash, so the
     /// neighbour average cannot predict it) and a piecewise-affine function of them, the
     /// situation the module is for.
     fn setup() -> (CausalGraph, Vec<Vec<f64>>) {
-        let topo = synth::flag_topology(20, 16);
+        let topo = crate::Topology::grid(20, 16).unwrap();
         let graph = CausalGraph::mesh(topo.vertex_count(), topo.triangles());
         let n = graph.len();
         let detail = |x: u32, salt: u32| {

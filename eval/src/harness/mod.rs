@@ -58,13 +58,14 @@ mod tests {
     use super::search::midpoint;
     use super::*;
     use crate::error::EvalError;
-    use codec_core::{synth, CodecRegistry, ParamValue};
+    use animcodec_synth as synth;
+    use codec_core::{CodecRegistry, ParamValue};
     use serde_json::Value;
 
     /// The harness takes its codecs from the caller; these tests use the baseline and one
     /// transform codec (the facade crate's `registry()` is above this crate).
     fn test_registry() -> CodecRegistry {
-        CodecRegistry::new(vec![Box::new(codec_core::quant_delta::QuantDelta), Box::new(codec_pca_aoi::PcaAoi)])
+        CodecRegistry::new(vec![Box::new(codec_quant_delta::QuantDelta), Box::new(codec_pca_aoi::PcaAoi)])
             .expect("unique codec names")
     }
 
@@ -223,7 +224,7 @@ mod parts_tests {
     use codec_core::{Animation, CodecRegistry};
 
     fn registry() -> CodecRegistry {
-        CodecRegistry::new(vec![Box::new(codec_core::quant_delta::QuantDelta), Box::new(codec_pca_aoi::PcaAoi)])
+        CodecRegistry::new(vec![Box::new(codec_quant_delta::QuantDelta), Box::new(codec_pca_aoi::PcaAoi)])
             .expect("unique codec names")
     }
 

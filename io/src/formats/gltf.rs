@@ -1274,7 +1274,7 @@ mod tests {
     #[test]
     fn meshopt_compressed_quantized_files_are_read_and_checked() {
         use super::super::gltf_out::{encode_gltf, GltfLayout, GltfOptions};
-        let a = codec_core::synth::waving_flag(8, 5, 6);
+        let a = animcodec_synth::waving_flag(8, 5, 6);
         let opts = GltfOptions { layout: GltfLayout::Frames, ..Default::default() };
         let (text, _) = encode_gltf(&a, &opts, false).unwrap();
         let doc: Value = serde_json::from_slice(&text).unwrap();
@@ -1432,7 +1432,7 @@ mod tests {
     #[test]
     fn meshopt_indices_mode_is_read() {
         use super::super::gltf_out::{encode_gltf, GltfLayout, GltfOptions};
-        let a = codec_core::synth::waving_flag(8, 5, 6);
+        let a = animcodec_synth::waving_flag(8, 5, 6);
         let opts = GltfOptions { layout: GltfLayout::Frames, ..Default::default() };
         let (text, _) = encode_gltf(&a, &opts, false).unwrap();
         let mut doc: Value = serde_json::from_slice(&text).unwrap();
@@ -1471,7 +1471,7 @@ mod tests {
     #[test]
     fn meshopt_sizes_are_checked_before_decoding() {
         use super::super::gltf_out::{encode_gltf, GltfLayout, GltfOptions};
-        let a = codec_core::synth::waving_flag(8, 5, 6);
+        let a = animcodec_synth::waving_flag(8, 5, 6);
         let opts = GltfOptions { layout: GltfLayout::Frames, ..Default::default() };
         let (text, _) = encode_gltf(&a, &opts, false).unwrap();
         let doc: Value = serde_json::from_slice(&text).unwrap();

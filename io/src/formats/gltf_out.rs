@@ -952,7 +952,7 @@ fn glb_bytes(root: &Value, bin: &[u8]) -> Result<Vec<u8>> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use codec_core::synth;
+    use animcodec_synth as synth;
 
     fn read_back(bytes: &[u8], fps: f32) -> Animation {
         super::super::gltf::parse_gltf(bytes, None, "test.glb", fps).unwrap()

@@ -371,7 +371,7 @@ pub(super) fn quantized_basis(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use codec_core::synth;
+    use animcodec_synth as synth;
 
     /// The exact KG of the written integers meets the target and tightens with it; the
     /// estimate the search uses is close to it; weights stay in [0, 1].

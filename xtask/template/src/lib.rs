@@ -19,16 +19,15 @@
 //!    (spatial or temporal prediction) as class and the magnitude of the vertex's already coded
 //!    neighbours' codes as context bucket ([`predict::neighbour_bucket`]).
 //!
-//! Declared error bound ([`AnimationCodec::error_bound`]): every coordinate within half the
+//! Declared error bound ([`TypedCodec::bound`]): every coordinate within half the
 //! largest step any packet can get (a packet's box lies inside the whole animation's), plus the
 //! rounding of the reconstruction to `f32`.
 
 use codec_core::bytes::{ByteReader, ByteWriter};
 use codec_core::codec::{
-    AnimationCodec, EncodedPacket, EncoderSetup, ErrorBound, FourCc, FrameDecoder, FrameEncoder, Packet, StreamInfo,
+    EncodedPacket, EncoderSetup, ErrorBound, FourCc, FrameDecoder, FrameEncoder, Packet, StreamInfo, TypedCodec,
 };
-
-use codec_core::params::{ParamSet, ParamSpec, ParamValue, RateLadder};
+use codec_core::params::RateLadder;
 use codec_core::toolkit::adaptive::{AdaptiveDecoder, AdaptiveEncoder};
 use codec_core::toolkit::order::{mesh_bytes, CausalGraph};
 use codec_core::toolkit::predict::{self, Predictor};
@@ -90,32 +89,23 @@ fn extent(positions: &[f32]) -> (f64, f64) {
     (diagonal, magnitude)
 }
 
-impl AnimationCodec for Template {
-    fn name(&self) -> &'static str {
-        NAME
-    }
-    fn fourcc(&self) -> FourCc {
-        FourCc::new(b"TMPL")
-    }
-    fn stream_version(&self) -> u16 {
-        STREAM_VERSION
-    }
-    fn summary(&self) -> &'static str {
-        "closed-loop predictive quantizer (parallelogram keyframes, temporal extrapolation), adaptive arithmetic coding"
-    }
-    fn param_specs(&self) -> Vec<ParamSpec> {
-        TemplateParams::specs()
-    }
-    fn rate_ladder(&self, _base: &ParamSet) -> RateLadder {
+impl TypedCodec for Template {
+    type Params = TemplateParams;
+    const NAME: &'static str = NAME;
+    const FOURCC: FourCc = FourCc::new(b"TMPL");
+    const STREAM_VERSION: u16 = STREAM_VERSION;
+    const SUMMARY: &'static str =
+        "closed-loop predictive quantizer (parallelogram keyframes, temporal extrapolation), adaptive arithmetic coding";
+
+    fn ladder(&self, _base: &TemplateParams) -> RateLadder {
         // From small streams to large: the step shrinks by about half an octave per rung.
         let steps = [0.05, 0.02, 0.01, 5e-3, 2e-3, 1e-3, 5e-4, 2e-4, 1e-4, 5e-5, 2e-5, 1e-5];
-        RateLadder { param: "step", steps: steps.into_iter().map(ParamValue::Float).collect() }
+        RateLadder::over(TemplateParams::step, steps)
     }
-    fn validate(&self, params: &ParamSet) -> Result<()> {
-        TemplateParams::from_param_set(params)?.validate()
+    fn check(&self, p: &TemplateParams) -> Result<()> {
+        p.validate()
     }
-    fn error_bound(&self, params: &ParamSet, animation: &Animation) -> Result<ErrorBound> {
-        let p = TemplateParams::from_param_set(params)?;
+    fn bound(&self, p: &TemplateParams, animation: &Animation) -> Result<ErrorBound> {
         let (diagonal, magnitude) = extent(animation.positions());
         // No packet's diagonal or magnitude exceeds the animation's, so no packet's step exceeds
         // this one, up to the f32 rounding of the stored step (relative 2^-24, doubled here).
@@ -125,8 +115,7 @@ impl AnimationCodec for Template {
         let bound = 0.5 * largest_step + (magnitude + largest_step) * f32::EPSILON as f64;
         Ok(ErrorBound { max_coordinate_error: Some(bound), relative_rms_error: None })
     }
-    fn new_encoder(&self, params: &ParamSet, setup: &EncoderSetup<'_>) -> Result<Box<dyn FrameEncoder>> {
-        let params = TemplateParams::from_param_set(params)?;
+    fn encoder(&self, params: TemplateParams, setup: &EncoderSetup<'_>) -> Result<Box<dyn FrameEncoder>> {
         let topology = setup.topology;
         let graph = CausalGraph::mesh(topology.vertex_count(), topology.triangles());
         Ok(Box::new(TemplateEncoder {
@@ -137,7 +126,7 @@ impl AnimationCodec for Template {
             next_frame: 0,
         }))
     }
-    fn new_decoder(&self, info: &StreamInfo, config: &[u8], limits: &Limits) -> Result<Box<dyn FrameDecoder>> {
+    fn decoder(&self, info: &StreamInfo, config: &[u8], limits: &Limits) -> Result<Box<dyn FrameDecoder>> {
         if info.codec_version != STREAM_VERSION {
             return Err(Error::malformed(
                 NAME,
@@ -370,7 +359,8 @@ impl FrameDecoder for TemplateDecoder {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use codec_core::{decode_animation, encode_animation_fed, synth, CodecRegistry};
+    use animcodec_synth as synth;
+    use codec_core::{decode_animation, encode_animation_fed, AnimationCodec, CodecRegistry};
 
     /// A quick check while developing; the conformance suite (`tests/`) checks much more once
     /// the codec is registered.

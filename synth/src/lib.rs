@@ -8,8 +8,8 @@
 //! | `tumble`   | [`tumbling_body`]                           | exact rigid motion of a closed mesh          |
 //! | `phases`   | [`phased_motion`]                           | motion whose character changes at known frames |
 //!
-//! [`skinned_character`] (not in [`by_name`]: it takes a [`CharacterSpec`]) is issue 26's
-//! stress input: disconnected meshes, tiny rigid parts, duplicated seam vertices, bone chains.
+//! [`skinned_character`] (not in [`by_name`]: it takes a [`CharacterSpec`]) is a stress
+//! input: disconnected meshes, tiny rigid parts, duplicated seam vertices, bone chains.
 //!
 //! [`by_name`] builds any of them at a [`SynthSize`]. [`flag_frame`] generates the flag one
 //! frame at a time, so arbitrarily long sequences can be streamed into an encoder without
@@ -26,8 +26,7 @@
 
 use std::f64::consts::{PI, TAU};
 
-use crate::animation::{Animation, Topology};
-use crate::error::{Error, Result};
+use codec_core::{Animation, Error, Result, Topology};
 
 /// Frame rate of every synthetic animation.
 pub const FRAME_RATE: f32 = 30.0;
@@ -171,28 +170,10 @@ fn lerp3(a: [f64; 3], b: [f64; 3], w: f64) -> [f64; 3] {
 const FLAG_WIDTH: f64 = 2.0;
 const FLAG_HEIGHT: f64 = 1.25;
 
-/// Triangles of a `cols × rows` vertex grid (row-major vertex index `r * cols + c`), two per
-/// quad with consistent winding.
-fn grid_triangles(cols: usize, rows: usize) -> Vec<[u32; 3]> {
-    let mut tris = Vec::with_capacity(2 * (cols - 1) * (rows - 1));
-    for r in 0..rows - 1 {
-        for c in 0..cols - 1 {
-            let a = index(r * cols + c);
-            let b = index(r * cols + c + 1);
-            let d = index((r + 1) * cols + c);
-            let e = index((r + 1) * cols + c + 1);
-            tris.push([a, b, e]);
-            tris.push([a, e, d]);
-        }
-    }
-    tris
-}
-
 /// Topology of [`waving_flag`]`(cols, rows, _)`: a `cols × rows` grid (each clamped to at
 /// least 2), vertex `r * cols + c` at column `c`, row `r`.
 pub fn flag_topology(cols: usize, rows: usize) -> Topology {
-    let (cols, rows) = (cols.max(2), rows.max(2));
-    Topology::new(cols * rows, grid_triangles(cols, rows)).expect("grid indices are in range")
+    Topology::grid(cols.max(2), rows.max(2)).expect("synthetic mesh vertex count fits in u32")
 }
 
 /// Writes frame `t` of [`waving_flag`]`(cols, rows, frames)` into `out` (cleared first; it
@@ -242,7 +223,8 @@ pub fn waving_flag(cols: usize, rows: usize, frames: usize) -> Animation {
         flag_frame(cols, rows, t, frames, &mut frame);
         positions.extend_from_slice(&frame);
     }
-    animation(cols * rows, grid_triangles(cols, rows), positions)
+    Animation::new(flag_topology(cols, rows), positions, FRAME_RATE)
+        .expect("synthetic generators produce finite positions")
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -664,7 +646,7 @@ mod tests {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Skinned character with tiny rigid parts (issue 26's stress input)
+// Skinned character with tiny rigid parts (a stress input)
 
 /// What [`skinned_character`] builds. Every field is clamped to a meaningful range.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -770,7 +752,7 @@ fn uv_sphere(lat: usize, lon: usize, radius: f64) -> (Vec<[f64; 3]>, Vec<[u32; 3
     (v, f)
 }
 
-/// A skinned "character" with what the failing real one of issue 26 has: several
+/// A skinned "character" with what a real character that once failed has: several
 /// disconnected meshes, tiny rigid parts, coincident seam vertices and bone-driven motion.
 ///
 /// The body is an open tube along z (length 2, radius 0.12) of `rings × (segments + 1)`
