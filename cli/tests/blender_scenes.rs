@@ -111,6 +111,15 @@ fn animcodec_reads_what_blender_exports() {
                     let worst = worst_over_diagonal(&reference, &ours);
                     eprintln!("{skel}: max |ours − usd-core UsdSkel| = {worst:.3e} × diagonal");
                     assert!(worst <= 1e-6, "{skel}: {worst:e} × diagonal from usd-core's UsdSkel evaluation");
+                    // The same layer as text (usd-core's export) reads the same.
+                    let text = dir.0.join(format!("{name}-skel.usda"));
+                    let script = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/usd/skel_check.py");
+                    let o = Command::new("python3").arg(script).arg("export").arg(&file).arg(&text).output().unwrap();
+                    assert!(o.status.success(), "export to usda: {}", String::from_utf8_lossy(&o.stderr));
+                    let from_text = read_animation(&text, &ReadOptions::default()).unwrap();
+                    let worst = worst_over_diagonal(&reference, &from_text);
+                    eprintln!("{name}-skel.usda: max |ours − usd-core UsdSkel| = {worst:.3e} × diagonal");
+                    assert!(worst <= 1e-6, "{name}-skel.usda: {worst:e} × diagonal from usd-core");
                 }
             }
         }

@@ -18,6 +18,9 @@ cli/tests/usd_skel.rs (and cli/tests/blender_scenes.rs for the reference mode):
         writes world-space points, float32 little-endian, frame-major (integer time codes
         from startTimeCode to endTimeCode), meshes in traversal order; prints one JSON line
         {"frames", "vertices"}.
+
+    python3 skel_check.py export IN OUT
+        Writes the layer IN again as OUT (its format by OUT's extension), with usd-core.
 """
 
 import json
@@ -199,5 +202,7 @@ def reference(path, out):
 if __name__ == "__main__":
     if sys.argv[1] == "write":
         write(sys.argv[2])
+    elif sys.argv[1] == "export":
+        assert Sdf.Layer.FindOrOpen(sys.argv[2]).Export(sys.argv[3])
     else:
         reference(sys.argv[2], sys.argv[3])

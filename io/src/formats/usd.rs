@@ -21,12 +21,16 @@
 //!
 //! The `xformOp`s of each mesh and of its ancestors (`xformOpOrder`, `usd_xform`) are applied
 //! to its points at every frame; ops sampled at other times than the points add those frames.
+//! Meshes bound to a `UsdSkel` skeleton or blend shapes are evaluated as UsdSkel plays them
+//! (`usd_skel`: blend shapes, then linear blend skinning into the Skeleton's space, placed by
+//! the Skeleton's transforms); the animation's samples add frames too.
 //!
 //! What is refused by name rather than read wrongly: composition arcs (`subLayers`,
 //! `references`, `payload`, `inherits`, `specializes`, variant sets: flatten the stage first,
-//! with usd-core's `Usd.Stage.Open(IN).Export(OUT)`), meshes deformed by UsdSkel (joint
-//! indices or blend shapes), a time-sampled topology, points whose count changes over time,
-//! value clips, spline-valued points and ops.
+//! with usd-core's `Usd.Stage.Open(IN).Export(OUT)`), the UsdSkel features not evaluated
+//! (inbetween shapes, dual-quaternion skinning, indexed skinning primvars, bindings without
+//! `SkelBindingAPI` or outside a `SkelRoot`), a time-sampled topology, points whose count
+//! changes over time, value clips, spline-valued points and ops.
 //!
 //! The input is untrusted: nesting is bounded ([`MAX_DEPTH`]), every array is counted against
 //! the read's memory budget before it is kept, the cache's size is checked against

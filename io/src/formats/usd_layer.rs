@@ -3,10 +3,12 @@
 //!
 //! A [`Layer`] holds the prims of the played-back scene only (`def` prims under `def`s, none
 //! inactive), in the order `UsdStage::Traverse` visits them (depth first, authored order),
-//! each with its parent, its type name and the attributes a vertex cache needs (the mesh's
-//! `points`, `faceVertexCounts`, `faceVertexIndices`, `orientation`, and `xformOpOrder` /
-//! `xformOp:*` of every prim), each with its default value and time samples; and the layer's
-//! metadata (time codes, up axis, units). `usd_assemble` makes the animation from it.
+//! each with its parent, its type name, its applied API schemas and the attributes a vertex
+//! cache needs (the mesh's `points`, `faceVertexCounts`, `faceVertexIndices`, `orientation`,
+//! `xformOpOrder` / `xformOp:*` of every prim, and the `UsdSkel` ones), each with its default
+//! value, time samples and primvar metadata (`elementSize`, `interpolation`); the `UsdSkel`
+//! relationships and their targets; and the layer's metadata (time codes, up axis, units).
+//! `usd_assemble` makes the animation from it.
 
 use codec_core::Error;
 

@@ -575,9 +575,11 @@ fn load_skin(
         Some(a) => {
             let names = tokens(Some(a)).ok_or_else(|| malformed(file, &path, "skel:joints", "is not a token array"))?;
             budget.take("joint order", (names.len() as u64).saturating_mul(4))?;
+            budget.take("joint names", (skel_joints.len() as u64).saturating_mul(48))?;
+            let index: HashMap<&str, usize> = skel_joints.iter().enumerate().map(|(i, j)| (j.as_str(), i)).collect();
             let mut order = Vec::with_capacity(names.len());
             for name in names {
-                let j = skel_joints.iter().position(|s| s == name).ok_or_else(|| {
+                let j = index.get(name.as_str()).copied().ok_or_else(|| {
                     malformed(
                         file,
                         &path,
@@ -821,5 +823,209 @@ impl Deformer<'_> {
             }
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::usd::parse_usd;
+
+    /// A text layer: a SkelRoot holding a two-joint Skeleton, its animation and a mesh, with
+    /// `mesh_extra` added to the mesh, `skel_extra` to the Skeleton and `anim_extra` to the
+    /// animation.
+    fn layer(mesh_extra: &str, skel_extra: &str, anim_extra: &str) -> String {
+        format!(
+            r#"#usda 1.0
+(
+    startTimeCode = 0
+    endTimeCode = 1
+)
+def SkelRoot "root"
+{{
+    def Skeleton "skel" (prepend apiSchemas = ["SkelBindingAPI"])
+    {{
+        uniform token[] joints = ["a", "a/b"]
+        uniform matrix4d[] bindTransforms = [((1,0,0,0),(0,1,0,0),(0,0,1,0),(0,0,0,1)), ((1,0,0,0),(0,1,0,0),(0,0,1,0),(1,0,0,1))]
+        uniform matrix4d[] restTransforms = [((1,0,0,0),(0,1,0,0),(0,0,1,0),(0,0,0,1)), ((1,0,0,0),(0,1,0,0),(0,0,1,0),(1,0,0,1))]
+        rel skel:animationSource = <anim>
+        {skel_extra}
+        def SkelAnimation "anim"
+        {{
+            uniform token[] joints = ["a/b", "a"]
+            float3[] translations.timeSamples = {{ 0: [(1, 0, 0), (0, 0, 0)], 1: [(1, 0, 0), (0, 0, 0)] }}
+            quatf[] rotations.timeSamples = {{ 0: [(1, 0, 0, 0), (1, 0, 0, 0)], 1: [(1, 0, 0, 0), (0.70710677, 0, 0, 0.70710677)] }}
+            half3[] scales = [(1, 1, 1), (1, 1, 1)]
+            {anim_extra}
+        }}
+    }}
+    def Mesh "m" (prepend apiSchemas = ["SkelBindingAPI"])
+    {{
+        point3f[] points = [(1, 0, 0), (2, 0, 0), (2, 1, 0)]
+        int[] faceVertexCounts = [3]
+        int[] faceVertexIndices = [0, 1, 2]
+        rel skel:skeleton = </root/skel>
+        {mesh_extra}
+    }}
+}}
+"#
+        )
+    }
+
+    const INFLUENCES: &str = r#"int[] primvars:skel:jointIndices = [0, 0, 1, 1, 1, 0] (elementSize = 2 interpolation = "vertex")
+        float[] primvars:skel:jointWeights = [1, 0, 0.5, 0.5, 1, 0] (elementSize = 2 interpolation = "vertex")"#;
+
+    fn read(text: &str) -> codec_core::Result<codec_core::Animation> {
+        parse_usd(text.as_bytes(), "t.usda", None, Some(64 << 20))
+    }
+
+    fn close(a: &[f32], b: &[f32]) -> bool {
+        a.len() == b.len() && a.iter().zip(b).all(|(x, y)| (x - y).abs() < 1e-6)
+    }
+
+    #[test]
+    fn skinning_follows_the_joints() {
+        let a = read(&layer(INFLUENCES, "", "")).unwrap();
+        assert_eq!(a.frame_count(), 2);
+        // Frame 0: the rest pose (the animation repeats it).
+        assert!(close(&a.positions()[..9], &[1., 0., 0., 2., 0., 0., 2., 1., 0.]), "{:?}", &a.positions()[..9]);
+        // Frame 1: joint a turns 90° about Z, and b with it. Point 0 (on a) → (0, 1, 0);
+        // point 2 (on a, by its row) → (-1, 2, 0); point 1 half on each: both give (0, 2, 0).
+        assert!(close(&a.positions()[9..], &[0., 1., 0., 0., 2., 0., -1., 2., 0.]), "{:?}", &a.positions()[9..]);
+        // Rigid: constant interpolation binds every point to joint b.
+        let rigid = r#"int[] primvars:skel:jointIndices = [1] (interpolation = "constant")
+            float[] primvars:skel:jointWeights = [1] (interpolation = "constant")"#;
+        let a = read(&layer(rigid, "", "")).unwrap();
+        assert!(close(&a.positions()[9..], &[0., 1., 0., 0., 2., 0., -1., 2., 0.]));
+        // The mesh's own joint order: index 0 names joint a/b.
+        let ordered = r#"uniform token[] skel:joints = ["a/b"]
+            int[] primvars:skel:jointIndices = [0] (interpolation = "constant")
+            float[] primvars:skel:jointWeights = [1] (interpolation = "constant")"#;
+        let b = read(&layer(ordered, "", "")).unwrap();
+        assert_eq!(a.positions(), b.positions());
+    }
+
+    #[test]
+    fn sparse_blend_shapes_add_weighted_offsets() {
+        let mesh = r#"uniform token[] skel:blendShapes = ["up"]
+        rel skel:blendShapeTargets = [<up>]
+        def BlendShape "up" { uniform vector3f[] offsets = [(0, 0, 2)]
+            uniform int[] pointIndices = [1] }"#;
+        let anim = r#"uniform token[] blendShapes = ["other", "up"]
+            float[] blendShapeWeights.timeSamples = { 0: [1, 0], 1: [1, 0.25] }"#;
+        let a = read(&layer(mesh, "", anim)).unwrap();
+        // No joint influences: the points stay in the mesh's space; only the blend shape moves.
+        assert!(close(&a.positions()[..9], &[1., 0., 0., 2., 0., 0., 2., 1., 0.]));
+        assert!(close(&a.positions()[9..], &[1., 0., 0., 2., 0., 0.5, 2., 1., 0.]), "{:?}", &a.positions()[9..]);
+    }
+
+    #[test]
+    fn malformed_or_unevaluated_bindings_are_refused_by_name() {
+        let shape = |extra: &str| {
+            format!(
+                r#"uniform token[] skel:blendShapes = ["up"]
+            rel skel:blendShapeTargets = [<up>]
+            def BlendShape "up" {{ uniform vector3f[] offsets = [(0, 0, 2)]
+                {extra} }}"#
+            )
+        };
+        let cases: Vec<(String, String, String, &[&str])> = vec![
+            (
+                INFLUENCES.replace("[0, 0, 1, 1, 1, 0]", "[0, 0, 1, 7, 1, 0]"),
+                String::new(),
+                String::new(),
+                &["/root/m", "jointIndices", "index 7", "out of range"],
+            ),
+            (
+                INFLUENCES.replace(
+                    "elementSize = 2 interpolation = \"vertex\")\n",
+                    "elementSize = 3 interpolation = \"vertex\")\n",
+                ),
+                String::new(),
+                String::new(),
+                &["/root/m", "elementSize"],
+            ),
+            (
+                INFLUENCES.replace("[1, 0, 0.5, 0.5, 1, 0]", "[1, 0, 0.5]"),
+                String::new(),
+                String::new(),
+                &["/root/m", "needs 6"],
+            ),
+            (
+                format!("uniform token[] skel:joints = [\"nope\"]\n{INFLUENCES}"),
+                String::new(),
+                String::new(),
+                &["/root/m", "skel:joints", "nope"],
+            ),
+            (
+                format!("uniform token primvars:skel:skinningMethod = \"dualQuaternion\"\n{INFLUENCES}"),
+                String::new(),
+                String::new(),
+                &["/root/m", "dualQuaternion"],
+            ),
+            (
+                shape("uniform int[] pointIndices = [5]"),
+                String::new(),
+                String::new(),
+                &["/root/m/up", "pointIndices", "out of range"],
+            ),
+            (shape(""), String::new(), String::new(), &["/root/m/up", "offsets", "1 offsets for 3 points"]),
+            (
+                shape(
+                    "uniform int[] pointIndices = [1]\nuniform vector3f[] inbetweens:half = [(0, 0, 1)] (weight = 0.5)",
+                ),
+                String::new(),
+                String::new(),
+                &["/root/m/up", "inbetween"],
+            ),
+            (
+                INFLUENCES.to_owned(),
+                String::new(),
+                "float3[] translations.timeSamples = { 0: [(1, 0, 0)] }".to_owned(),
+                &["/root/m", "translations"],
+            ),
+            (
+                INFLUENCES.to_owned(),
+                "uniform matrix4d[] bindTransforms = [((1,0,0,0),(0,1,0,0),(0,0,1,0),(0,0,0,1))]".to_owned(),
+                String::new(),
+                &["/root/skel", "bindTransforms", "1 matrices for 2 joints"],
+            ),
+            (
+                INFLUENCES.to_owned(),
+                "uniform token[] joints = [\"a/b\", \"a\"]".to_owned(),
+                String::new(),
+                &["/root/skel", "before its parent"],
+            ),
+        ];
+        for (mesh, skel, anim, needles) in cases {
+            let text = layer(&mesh, &skel, &anim);
+            let e = read(&text).expect_err(&text).to_string();
+            for n in needles {
+                assert!(e.contains(n), "`{n}` not in: {e}\n{text}");
+            }
+        }
+        // Without SkelBindingAPI, and outside a SkelRoot.
+        let text = layer(INFLUENCES, "", "")
+            .replace("def Mesh \"m\" (prepend apiSchemas = [\"SkelBindingAPI\"])", "def Mesh \"m\"");
+        let e = read(&text).unwrap_err().to_string();
+        assert!(e.contains("/root/m") && e.contains("SkelBindingAPI"), "{e}");
+        let text = layer(INFLUENCES, "", "").replace("def SkelRoot", "def Xform");
+        let e = read(&text).unwrap_err().to_string();
+        assert!(e.contains("/root/m") && e.contains("no SkelRoot"), "{e}");
+        // A skeleton binding that names a prim that is not a Skeleton.
+        let text = layer(INFLUENCES, "", "").replace("</root/skel>", "</root/m>");
+        let e = read(&text).unwrap_err().to_string();
+        assert!(e.contains("skel:skeleton") && e.contains("not a Skeleton"), "{e}");
+    }
+
+    #[test]
+    fn joint_arrays_are_budgeted_before_allocation() {
+        // 200,000 joints: the skeleton's per-joint transforms are counted against the budget.
+        let joints: Vec<String> = (0..200_000).map(|i| format!("\"j{i}\"")).collect();
+        let skel = format!("uniform token[] joints = [{}]", joints.join(","));
+        let text = layer(INFLUENCES, &skel, "");
+        let t = std::time::Instant::now();
+        let e = parse_usd(text.as_bytes(), "t.usda", None, Some(40 << 20)).unwrap_err().to_string();
+        assert!(e.contains("memory") && e.contains("skeleton joints"), "{e}");
+        assert!(t.elapsed().as_secs_f64() < 5.0);
     }
 }
