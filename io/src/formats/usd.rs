@@ -1038,9 +1038,9 @@ mod tests {
     #[test]
     fn half_values_round_as_usd_reads_them() {
         use super::to_half_precision as h;
-        assert_eq!(h(1.03), 1.0302734375);
+        assert_eq!(h(1.03), 1.0 + 31.0 / 1024.0);
         assert_eq!(h(1.0), 1.0);
-        assert_eq!(h(-0.333), -0.33300781);
+        assert_eq!(h(-0.333), -1364.0 / 4096.0);
         assert_eq!(h(65504.0), 65504.0);
         assert_eq!(h(65520.0), f32::INFINITY);
         assert_eq!(h(1e-8), 0.0);

@@ -73,11 +73,15 @@ impl Paths {
         let mut map = HashMap::with_capacity(layer.prims.len());
         let mut paths: Vec<String> = Vec::with_capacity(layer.prims.len());
         for (i, prim) in layer.prims.iter().enumerate() {
-            // Parents come before their children: extend the parent's path.
-            let mut path = prim.parent.map(|p| paths[p].clone()).unwrap_or_default();
+            // Parents come before their children: extend the parent's path (its length
+            // budgeted first: deep prims with long names make long paths).
+            let parent: &str = prim.parent.map_or("", |p| paths[p].as_str());
+            let len = (parent.len() as u64).saturating_add(1).saturating_add(prim.name.len() as u64);
+            budget.take("prim paths", len.saturating_mul(2).saturating_add(64))?;
+            let mut path = String::with_capacity(len as usize);
+            path.push_str(parent);
             path.push('/');
             path.push_str(&prim.name);
-            budget.take("prim paths", (path.len() as u64).saturating_mul(2).saturating_add(64))?;
             map.insert(path.clone(), i);
             paths.push(path);
         }
@@ -180,28 +184,50 @@ fn numbers(value: &Value) -> Option<Vec<f64>> {
 /// `t`, else linear interpolation between the samples around it when both hold as many
 /// values (quaternions, real first, by slerp), else the earlier one; held outside them; the
 /// default when there are no samples. Blocked samples are skipped.
-fn array_at(attr: &Attribute, t: f64, quaternions: bool) -> Option<Vec<f64>> {
+///
+/// `expected` is the number of values the caller needs: a value of another length is an
+/// error (its length), found before anything is copied.
+fn array_at(
+    attr: &Attribute,
+    t: f64,
+    quaternions: bool,
+    expected: usize,
+) -> std::result::Result<Option<Vec<f64>>, usize> {
+    let checked = |v: &Value| -> std::result::Result<Option<Vec<f64>>, usize> {
+        let len = match v {
+            Value::Floats { values, .. } => values.len(),
+            Value::Doubles { values, .. } => values.len(),
+            Value::Ints(values) => values.len(),
+            _ => return Ok(None),
+        };
+        if len != expected {
+            return Err(len);
+        }
+        Ok(numbers(v))
+    };
     let s = &attr.samples;
     if !s.iter().any(|x| x.1.is_some()) {
-        return numbers(attr.default.as_ref()?);
+        return attr.default.as_ref().map_or(Ok(None), checked);
     }
     let after = s.partition_point(|x| x.0 < t);
     if let Some((time, Some(v))) = s.get(after) {
         if *time == t {
-            return numbers(v);
+            return checked(v);
         }
     }
     let before = s[..after].iter().rev().find_map(|(time, v)| Some((*time, v.as_ref()?)));
     let next = s[after..].iter().find_map(|(time, v)| Some((*time, v.as_ref()?)));
     let ((t0, a), (t1, b)) = match (before, next) {
         (Some(a), Some(b)) => (a, b),
-        (Some((_, v)), None) | (None, Some((_, v))) => return numbers(v),
-        (None, None) => return None,
+        (Some((_, v)), None) | (None, Some((_, v))) => return checked(v),
+        (None, None) => return Ok(None),
     };
-    let (a, b) = (numbers(a)?, numbers(b)?);
-    if a.len() != b.len() {
-        return Some(a);
-    }
+    // Samples of other lengths than each other are not interpolated: the earlier one holds.
+    let Some(a) = checked(a)? else { return Ok(None) };
+    let b = match checked(b) {
+        Ok(Some(b)) => b,
+        _ => return Ok(Some(a)),
+    };
     let alpha = (t - t0) / (t1 - t0);
     if quaternions && a.len() % 4 == 0 {
         let mut out = Vec::with_capacity(a.len());
@@ -210,12 +236,12 @@ fn array_at(attr: &Attribute, t: f64, quaternions: bool) -> Option<Vec<f64>> {
             let q = gltf_anim::slerp([qa[0], qa[1], qa[2], qa[3]], [qb[0], qb[1], qb[2], qb[3]], alpha);
             out.extend_from_slice(&q);
         }
-        return Some(out);
+        return Ok(Some(out));
     }
-    Some(a.iter().zip(&b).map(|(x, y)| x + (y - x) * alpha).collect())
+    Ok(Some(a.iter().zip(&b).map(|(x, y)| x + (y - x) * alpha).collect()))
 }
 
-fn tokens<'a>(attr: Option<&'a Attribute>) -> Option<&'a [String]> {
+fn tokens(attr: Option<&Attribute>) -> Option<&[String]> {
     match attr.and_then(uniform) {
         Some(Value::Tokens(t)) => Some(t),
         _ => None,
@@ -726,23 +752,19 @@ impl Deformer<'_> {
             None => vec![None; n],
         };
         if let Some(anim) = &skel.anim {
+            let m = anim.joint_map.len();
+            let part = |attr: Option<&Attribute>, name: &str, width: usize| {
+                attr.map_or(Ok(None), |a| array_at(a, t, name == "rotations", width.saturating_mul(m))).map_err(|len| {
+                    format!("the SkelAnimation has {m} joints but {} {name} at time code {t}", len / width)
+                })
+            };
             let parts = (
-                anim.translations.and_then(|a| array_at(a, t, false)),
-                anim.rotations.and_then(|a| array_at(a, t, true)),
-                anim.scales.and_then(|a| array_at(a, t, false)),
+                part(anim.translations, "translations", 3)?,
+                part(anim.rotations, "rotations", 4)?,
+                part(anim.scales, "scales", 3)?,
             );
             // Without all three arrays the animation drives no joint: the rest pose holds.
             if let (Some(tr), Some(ro), Some(sc)) = parts {
-                let m = anim.joint_map.len();
-                if tr.len() != 3 * m || ro.len() != 4 * m || sc.len() != 3 * m {
-                    return Err(format!(
-                        "the SkelAnimation has {m} joints but {} translations, {} rotations and {} scales at time \
-                         code {t}",
-                        tr.len() / 3,
-                        ro.len() / 4,
-                        sc.len() / 3
-                    ));
-                }
                 for (a, j) in anim.joint_map.iter().enumerate() {
                     if let Some(j) = *j {
                         let q = &ro[4 * a..4 * a + 4];
@@ -757,8 +779,8 @@ impl Deformer<'_> {
             }
         }
         let mut skel_space: Vec<Mat4> = Vec::with_capacity(n);
-        for j in 0..n {
-            let l = local[j].ok_or_else(|| {
+        for (j, l) in local.iter().enumerate() {
+            let l = l.ok_or_else(|| {
                 format!("joint {j} has no animated transform and the Skeleton has no restTransforms for every joint")
             })?;
             // Row vectors: skel = local · parent's skel. `gltf_anim::mul` composes the same
@@ -776,15 +798,16 @@ impl Deformer<'_> {
     pub(super) fn deform(&self, t: f64, points: &mut [f32]) -> std::result::Result<(), String> {
         if !self.shapes.is_empty() {
             let anim = self.skeleton.anim.as_ref();
-            let weights = anim.and_then(|a| a.weights).and_then(|a| array_at(a, t, false));
-            if let (Some(anim), Some(weights)) = (anim, weights) {
-                if weights.len() != anim.blend_shapes.len() {
-                    return Err(format!(
-                        "the SkelAnimation names {} blend shapes but has {} blendShapeWeights at time code {t}",
-                        anim.blend_shapes.len(),
-                        weights.len()
-                    ));
-                }
+            let weights = match anim.and_then(|a| a.weights.map(|w| (a, w))) {
+                None => None,
+                Some((a, w)) => array_at(w, t, false, a.blend_shapes.len()).map_err(|len| {
+                    format!(
+                        "the SkelAnimation names {} blend shapes but has {len} blendShapeWeights at time code {t}",
+                        a.blend_shapes.len()
+                    )
+                })?,
+            };
+            if let Some(weights) = weights {
                 for shape in &self.shapes {
                     let Some(w) = shape.weight.map(|k| weights[k]) else { continue };
                     if w.abs() <= 1e-6 {
