@@ -184,6 +184,83 @@ fn layers_we_write_open_in_usd_core_and_pass_its_compliance_checker() {
     assert_eq!(ours.triangles(), decoded.triangles());
 }
 
+/// usd-core's view of a layer's stage: up axis, units, time codes per second and the first
+/// time samples of its first mesh.
+fn stage_view(r: &Value) -> Value {
+    serde_json::json!([r["up_axis"], r["meters_per_unit"], r["time_codes_per_second"], r["times"]])
+}
+
+/// Layers as pipelines author them (+Z up, centimetres, animated xformOps; 30 time codes per
+/// second sampled every 2 codes from code 10) keep their stage metadata and time codes through
+/// our reader and writers, in-process and through `encode` / `decode`; an Alembic written from
+/// a +Z-up stream is turned +Y up, as DCCs read Alembic.
+#[test]
+fn stage_metadata_survives_read_encode_decode_and_write() {
+    if let Err(why) = usd_core() {
+        return skip("stage_metadata_survives_read_encode_decode_and_write", &why);
+    }
+    let dir = Scratch::new("usd-stage-metadata");
+    let cases: Vec<String> = serde_json::from_str(python(&["write", &dir.path("")]).trim()).unwrap();
+    let mut checked = 0;
+    for case in ["case-xforms-usda", "case-xforms-usdc", "case-step-two-usda"] {
+        assert!(cases.iter().any(|c| c == case), "usd_check.py no longer writes {case}");
+        let ext = case.rsplit('-').next().unwrap();
+        let source = dir.path(&format!("{case}.{ext}"));
+        let f32_of = |a: &Animation, tag: &str| {
+            let bin = dir.path(&format!("{tag}.f32"));
+            std::fs::write(&bin, a.positions().iter().flat_map(|x| x.to_le_bytes()).collect::<Vec<u8>>()).unwrap();
+            bin
+        };
+        let a = read_animation(Path::new(&source), &ReadOptions::default()).unwrap();
+        let fps = a.frame_rate().to_string();
+        let src_view =
+            stage_view(&serde_json::from_str(python(&["check", &source, &f32_of(&a, case), &fps]).trim()).unwrap());
+        // In-process: positions bit for bit, the stage as the source's.
+        for out_ext in ["usda", "usdc"] {
+            let out = dir.path(&format!("{case}-ours.{out_ext}"));
+            write_animation(Path::new(&out), &a).unwrap();
+            let r: Value = serde_json::from_str(python(&["check", &out, &f32_of(&a, case), &fps]).trim()).unwrap();
+            assert_eq!(r["coordinates_differing"], 0, "{case} -> {out_ext}: {r}");
+            assert_eq!(stage_view(&r), src_view, "{case} -> {out_ext}: the stage metadata changed");
+            checked += 1;
+        }
+        // Through a stream: `info` shows the metadata; the decoded layer keeps it.
+        let anim = dir.path(&format!("{case}.anim"));
+        ok(&["encode", &source, "-c", "quant-delta", "-p", "bits=16", "-o", &anim]);
+        let info = common::ok_json(&["info", &anim, "--json"]);
+        assert_eq!(info["container_version"], 4, "{case}: {info}");
+        assert_eq!(info["metadata"]["time_codes_per_second"], src_view[2], "{case}: {info}");
+        let pc2 = dir.path(&format!("{case}-decoded.pc2"));
+        ok(&["decode", &anim, "-o", &pc2, "--topology-obj"]);
+        let decoded = read_animation(Path::new(&pc2), &ReadOptions::default()).unwrap();
+        let usdc = dir.path(&format!("{case}-decoded.usdc"));
+        ok(&["decode", &anim, "-o", &usdc]);
+        let r: Value = serde_json::from_str(python(&["check", &usdc, &f32_of(&decoded, case), &fps]).trim()).unwrap();
+        assert_eq!(r["coordinates_differing"], 0, "{case}: decoded usdc: {r}");
+        assert_eq!(stage_view(&r), src_view, "{case}: the decoded layer lost the stage metadata");
+        // Alembic states no up axis: a +Z-up stream is written +Y up, (x, y, z) -> (x, z, -y).
+        let abc = dir.path(&format!("{case}-decoded.abc"));
+        ok(&["decode", &anim, "-o", &abc]);
+        let back = read_animation(Path::new(&abc), &ReadOptions::default()).unwrap();
+        let z_up = src_view[0] == "Z";
+        let want: Vec<f32> = if z_up {
+            decoded.positions().chunks_exact(3).flat_map(|p| [p[0], p[2], -p[1]]).collect()
+        } else {
+            decoded.positions().to_vec()
+        };
+        assert!(same_bits(back.positions(), &want), "{case}: the Alembic is not the decode turned +Y up");
+        // Its time line starts where the source's did.
+        let start = src_view[3][0].as_f64().unwrap();
+        assert_eq!(
+            back.metadata().start_time_code.unwrap_or(0.0) / back.frame_rate() as f64,
+            start / r["time_codes_per_second"].as_f64().unwrap(),
+            "{case}"
+        );
+        checked += 1;
+    }
+    assert_eq!(checked, 9);
+}
+
 /// Damaged and hostile crate files and packages, through the binary: one clear `error:` line
 /// naming the file and what is wrong, quickly, with no panic (no usd-core needed).
 #[test]

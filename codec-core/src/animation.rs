@@ -1,6 +1,7 @@
 //! The animation data model: one triangle list, positions changing every frame.
 
 use crate::error::{Error, Result};
+use crate::metadata::SceneMetadata;
 
 /// Frame rates a stream may carry, and the ones the file readers accept (`io` re-exports this
 /// constant as `formats::FRAME_RATE_RANGE`): one frame per 1000 s to 10 000 frames per second.
@@ -82,6 +83,7 @@ pub struct Animation {
     positions: Vec<f32>,
     frame_count: usize,
     frame_rate: f32,
+    metadata: SceneMetadata,
 }
 
 impl Animation {
@@ -105,7 +107,7 @@ impl Animation {
         }
         check_finite(&positions, topology.vertex_count, 0)?;
         let frame_count = positions.len() / floats_per_frame;
-        Ok(Self { topology, positions, frame_count, frame_rate })
+        Ok(Self { topology, positions, frame_count, frame_rate, metadata: SceneMetadata::default() })
     }
 
     /// Convenience constructor from a vertex count and a triangle list.
@@ -141,6 +143,18 @@ impl Animation {
     /// Frames per second.
     pub fn frame_rate(&self) -> f32 {
         self.frame_rate
+    }
+
+    /// What the source said about its scene (up axis, units, time line); see [`SceneMetadata`].
+    pub fn metadata(&self) -> &SceneMetadata {
+        &self.metadata
+    }
+
+    /// The animation with `metadata` attached (checked by [`SceneMetadata::validate`]).
+    pub fn with_metadata(mut self, metadata: SceneMetadata) -> Result<Self> {
+        metadata.validate()?;
+        self.metadata = metadata;
+        Ok(self)
     }
 
     /// All positions, frame-major (`frames × vertices × 3`).

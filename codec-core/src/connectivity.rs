@@ -152,7 +152,7 @@ fn fan_order(group: &[[u32; 3]], out: &mut Vec<[u32; 3]>) {
 const MAX_KNOWN: usize = 32;
 
 /// Most bytes [`decode`] allocates besides the triangles: the neighbour lists (8 bytes per
-/// entry, at most 6 entries per triangle and [`MAX_KNOWN`] per vertex, doubled for growth)
+/// entry, at most 6 entries per triangle and `MAX_KNOWN` per vertex, doubled for growth)
 /// and their headers (24 bytes per vertex up to the largest index).
 pub fn decoder_bytes(vertex_count: usize, triangle_count: usize) -> u64 {
     let entries = (6 * triangle_count as u64).min(MAX_KNOWN as u64 * vertex_count as u64);

@@ -18,12 +18,17 @@ use crate::codec::{FourCc, Packet, StreamInfo};
 use crate::entropy;
 use crate::error::{Error, Result};
 pub use crate::limits::{Limits, DEFAULT_MAX_MEMORY, DEFAULT_MAX_WORK};
+use crate::metadata::SceneMetadata;
 
 /// File magic: `ANIMCDC` then 0x1A (stops `type` on DOS, catches text-mode mangling).
 pub const MAGIC: [u8; 8] = *b"ANIMCDC\x1a";
-/// Newest container version this library reads and writes. It writes 3 when the topology
-/// block uses the traversal coding (method 2), else 2 (the same bytes as before version 3).
-pub const CONTAINER_VERSION: u16 = 3;
+/// Newest container version this library reads and writes. It writes 4 when the stream
+/// carries scene metadata ([`crate::metadata`]; a block after the topology), else 3 when the
+/// topology block uses the traversal coding (method 2), else 2 (the same bytes as before
+/// versions 3 and 4).
+pub const CONTAINER_VERSION: u16 = 4;
+/// First container version with the scene-metadata block.
+pub const METADATA_CONTAINER_VERSION: u16 = 4;
 /// Tag opening every packet.
 pub const PACKET_TAG: [u8; 4] = *b"APKT";
 /// Tag opening the index.
@@ -61,6 +66,8 @@ pub struct Header {
     pub header_bytes: usize,
     /// Size of the compressed topology section in bytes.
     pub topology_bytes: usize,
+    /// The source's scene metadata (empty before container version 4).
+    pub metadata: SceneMetadata,
 }
 
 /// One entry of the packet index.
@@ -209,7 +216,7 @@ impl<W: Write> ContainerWriter<W> {
     /// Writes the header. `frame_count` is the number of frames the packets will cover;
     /// [`ContainerWriter::finish`] checks it.
     pub fn new(
-        mut sink: W,
+        sink: W,
         fourcc: FourCc,
         codec_version: u16,
         topology: &Topology,
@@ -217,9 +224,21 @@ impl<W: Write> ContainerWriter<W> {
         frame_rate: f32,
         config: &[u8],
     ) -> Result<Self> {
+        let info = StreamInfo { fourcc, codec_version, topology: topology.clone(), frame_count, frame_rate };
+        Self::with_metadata(sink, &info, config, &SceneMetadata::default())
+    }
+
+    /// Writes the header of the stream `info` describes, with the source's scene `metadata`
+    /// (container version 4 when there is any, else the version the topology needs).
+    pub fn with_metadata(mut sink: W, info: &StreamInfo, config: &[u8], metadata: &SceneMetadata) -> Result<Self> {
+        let StreamInfo { fourcc, codec_version, ref topology, frame_count, frame_rate } = *info;
         let too_big = |what: &str| Error::InvalidAnimation(format!("{what} does not fit the container's 32-bit field"));
         crate::animation::check_stream_frame_rate(frame_rate)?;
-        let (container_version, topo) = encode_topology(topology);
+        metadata.validate()?;
+        let (topology_version, topo) = encode_topology(topology);
+        let meta_block = metadata.to_block();
+        let container_version =
+            if meta_block.is_empty() { topology_version } else { METADATA_CONTAINER_VERSION.max(topology_version) };
         let mut w = ByteWriter::new();
         w.bytes(&MAGIC);
         w.u16(container_version);
@@ -234,6 +253,10 @@ impl<W: Write> ContainerWriter<W> {
         w.bytes(config);
         w.u32(u32::try_from(topo.len()).map_err(|_| too_big("topology"))?);
         w.bytes(&topo);
+        if container_version >= METADATA_CONTAINER_VERSION {
+            w.u32(meta_block.len() as u32);
+            w.bytes(&meta_block);
+        }
         let crc = crc32fast::hash(w.as_slice());
         w.u32(crc);
         sink.write_all(w.as_slice()).map_err(|e| Error::io("writing container header", e))?;
@@ -407,6 +430,15 @@ impl<R: Read> ContainerReader<R> {
         read_exact_or_truncated(&mut src, &mut len, "topology_len")?;
         let topology_len = u32::from_le_bytes(len) as u64;
         let topo_block = read_vec(&mut src, topology_len, limits.max_alloc_bytes as u64, "topology")?;
+        let (meta_len, meta_block) = if container_version >= METADATA_CONTAINER_VERSION {
+            let mut meta_len = [0u8; 4];
+            read_exact_or_truncated(&mut src, &mut meta_len, "metadata_len")?;
+            let n = u32::from_le_bytes(meta_len) as u64;
+            limit("metadata_len", n, crate::metadata::MAX_METADATA_BYTES)?;
+            (Some(meta_len), read_vec(&mut src, n, limits.max_alloc_bytes as u64, "metadata")?)
+        } else {
+            (None, Vec::new())
+        };
         let mut crc_bytes = [0u8; 4];
         read_exact_or_truncated(&mut src, &mut crc_bytes, "header_crc")?;
         let mut hasher = crc32fast::Hasher::new();
@@ -414,6 +446,10 @@ impl<R: Read> ContainerReader<R> {
         hasher.update(&config);
         hasher.update(&len);
         hasher.update(&topo_block);
+        if let Some(meta_len) = meta_len {
+            hasher.update(&meta_len);
+            hasher.update(&meta_block);
+        }
         let computed = hasher.finalize();
         let stored = u32::from_le_bytes(crc_bytes);
         if stored != computed {
@@ -421,7 +457,14 @@ impl<R: Read> ContainerReader<R> {
         }
         let topology =
             decode_topology(&topo_block, container_version, vertex_count as usize, triangle_count as usize, &limits)?;
-        let header_bytes = FIXED_HEADER_BYTES + 4 + config.len() + 4 + topo_block.len() + 4;
+        let metadata = SceneMetadata::from_block(&meta_block)?;
+        let header_bytes = FIXED_HEADER_BYTES
+            + 4
+            + config.len()
+            + 4
+            + topo_block.len()
+            + meta_len.map_or(0, |l| l.len() + meta_block.len())
+            + 4;
         let header = Header {
             container_version,
             info: StreamInfo {
@@ -434,6 +477,7 @@ impl<R: Read> ContainerReader<R> {
             config,
             header_bytes,
             topology_bytes: topo_block.len(),
+            metadata,
         };
         Ok(Self { src, header, limits, next_frame: 0, offset: header_bytes as u64, seen: Vec::new(), done: false })
     }
@@ -767,6 +811,49 @@ mod tests {
                 assert!(read_all(&b).is_err(), "flip of byte {i} bit {bit:#x} accepted");
             }
         }
+    }
+
+    #[test]
+    fn metadata_makes_version_4_and_round_trips_sequentially_and_indexed() {
+        use crate::metadata::UpAxis;
+        let (topo, packets) = sample();
+        let plain = write(&topo, &packets);
+        let (header, _, _) = read_all(&plain).unwrap();
+        assert!(header.container_version < METADATA_CONTAINER_VERSION && header.metadata.is_empty());
+        let metadata = SceneMetadata {
+            up_axis: Some(UpAxis::Z),
+            meters_per_unit: Some(0.01),
+            time_codes_per_second: Some(48.0),
+            start_time_code: Some(101.0),
+        };
+        let info = StreamInfo {
+            fourcc: FourCc(*b"TEST"),
+            codec_version: 3,
+            topology: topo.clone(),
+            frame_count: 6,
+            frame_rate: 25.0,
+        };
+        let mut w = ContainerWriter::with_metadata(Vec::new(), &info, b"cfg", &metadata).unwrap();
+        for p in &packets {
+            w.write_packet(p).unwrap();
+        }
+        let bytes = w.finish().unwrap();
+        let (header, got, index) = read_all(&bytes).unwrap();
+        assert_eq!(header.container_version, METADATA_CONTAINER_VERSION);
+        assert_eq!(header.metadata, metadata);
+        assert_eq!(got, packets);
+        let (seek_header, seek_index) = read_index(&mut Cursor::new(&bytes), Limits::default()).unwrap();
+        assert_eq!((seek_header.metadata, seek_index), (metadata, index));
+        // The block is under the header's checksum: every flip and truncation is an error.
+        for i in 0..header.header_bytes {
+            let mut b = bytes.clone();
+            b[i] ^= 0x10;
+            assert!(read_all(&b).is_err(), "flip of header byte {i} accepted");
+            assert!(read_all(&bytes[..i]).is_err());
+        }
+        // Metadata that is not valid is refused when written.
+        let bad = SceneMetadata { meters_per_unit: Some(-1.0), ..Default::default() };
+        assert!(ContainerWriter::with_metadata(Vec::new(), &info, b"", &bad).is_err());
     }
 
     #[test]

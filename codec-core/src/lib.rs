@@ -17,6 +17,7 @@ pub mod error;
 pub mod limits;
 pub mod linalg;
 pub mod memory;
+pub mod metadata;
 pub mod params;
 pub mod quant;
 pub mod quant_delta;
@@ -33,6 +34,7 @@ pub use codec::{
 };
 pub use error::{Error, Result};
 pub use limits::Limits;
+pub use metadata::{SceneMetadata, UpAxis};
 pub use params::{
     DeclaredParams, DistortionKind, ParamChoice, ParamKind, ParamSet, ParamSpec, ParamValue, RateLadder, SearchAxis,
     SearchSpace,

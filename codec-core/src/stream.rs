@@ -10,6 +10,7 @@ use crate::codec::{
 use crate::container::{self, ContainerReader, ContainerWriter, Header, IndexEntry, Section};
 use crate::error::{Error, Result};
 use crate::limits::Limits;
+use crate::metadata::SceneMetadata;
 use crate::params::ParamSet;
 use crate::registry::CodecRegistry;
 
@@ -53,6 +54,22 @@ impl<'c, W: Write> StreamEncoder<'c, W> {
         want_reconstruction: bool,
         sink: W,
     ) -> Result<Self> {
+        let metadata = SceneMetadata::default();
+        Self::with_metadata(codec, params, topology, frame_count, frame_rate, want_reconstruction, &metadata, sink)
+    }
+
+    /// [`StreamEncoder::new`] for a source with scene metadata, which the header keeps.
+    #[allow(clippy::too_many_arguments)]
+    pub fn with_metadata(
+        codec: &'c dyn AnimationCodec,
+        params: &ParamSet,
+        topology: &Topology,
+        frame_count: usize,
+        frame_rate: f32,
+        want_reconstruction: bool,
+        metadata: &SceneMetadata,
+        sink: W,
+    ) -> Result<Self> {
         if params.codec() != codec.name() {
             return Err(Error::parameter(
                 codec.name(),
@@ -88,15 +105,7 @@ impl<'c, W: Write> StreamEncoder<'c, W> {
             encoder.declared_bound().is_none(),
             0,
         );
-        let writer = ContainerWriter::new(
-            sink,
-            codec.fourcc(),
-            codec.stream_version(),
-            topology,
-            frame_count,
-            frame_rate,
-            &encoder.config(),
-        )?;
+        let writer = ContainerWriter::with_metadata(sink, &info, &encoder.config(), metadata)?;
         Ok(Self {
             codec: codec.name(),
             codec_ref: codec,
@@ -369,13 +378,14 @@ pub fn encode_animation_fed(
     want_reconstruction: bool,
     feed_frames: usize,
 ) -> Result<Encoded> {
-    let mut enc = StreamEncoder::new(
+    let mut enc = StreamEncoder::with_metadata(
         codec,
         params,
         animation.topology(),
         animation.frame_count(),
         animation.frame_rate(),
         want_reconstruction,
+        animation.metadata(),
         Vec::new(),
     )?;
     let per_frame = animation.vertex_count() * 3;
@@ -393,8 +403,11 @@ pub fn encode_animation_fed(
     let topology = enc.topology().clone();
     let (last, bytes, notes) = enc.finish_with_notes()?;
     keep(last);
-    let reconstruction =
-        if want_reconstruction { Some(Animation::new(topology, rec, animation.frame_rate())?) } else { None };
+    let reconstruction = if want_reconstruction {
+        Some(Animation::new(topology, rec, animation.frame_rate())?.with_metadata(*animation.metadata())?)
+    } else {
+        None
+    };
     Ok(Encoded { bytes, reconstruction, notes })
 }
 
@@ -543,8 +556,8 @@ impl<R: Read> StreamDecoder<R> {
         while let Some(p) = self.next_packet() {
             positions.extend_from_slice(&p?.positions);
         }
-        let info = &self.reader.header().info;
-        Animation::new(info.topology.clone(), positions, info.frame_rate)
+        let header = self.reader.header();
+        Animation::new(header.info.topology.clone(), positions, header.info.frame_rate)?.with_metadata(header.metadata)
     }
 }
 

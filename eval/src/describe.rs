@@ -108,6 +108,37 @@ pub fn container_sizes(header: &Header, index: &[IndexEntry]) -> ContainerSizes 
     }
 }
 
+/// The stream's scene metadata as JSON: each field the source stated, null when it did not.
+pub fn metadata_json(m: &codec_core::SceneMetadata) -> Value {
+    json!({
+        "up_axis": m.up_axis.map(|a| a.name()),
+        "meters_per_unit": m.meters_per_unit,
+        "time_codes_per_second": m.time_codes_per_second,
+        "start_time_code": m.start_time_code,
+    })
+}
+
+/// The scene metadata in one line for people (`None` when the source stated none).
+pub fn metadata_line(m: &codec_core::SceneMetadata) -> Option<String> {
+    if m.is_empty() {
+        return None;
+    }
+    let mut parts = Vec::new();
+    if let Some(a) = m.up_axis {
+        parts.push(format!("+{} up", a.name()));
+    }
+    if let Some(u) = m.meters_per_unit {
+        parts.push(format!("{u} m per unit"));
+    }
+    if let Some(t) = m.time_codes_per_second {
+        parts.push(format!("{t} time codes/s"));
+    }
+    if let Some(s) = m.start_time_code {
+        parts.push(format!("frame 0 at time code {s}"));
+    }
+    Some(parts.join(", "))
+}
+
 /// `info --json`: codec, sizes, bpvf, checksums verified and every packet, for a container
 /// verified by [`read_verified`].
 pub fn info_json(registry: &CodecRegistry, header: &Header, index: &[IndexEntry]) -> Value {
@@ -148,6 +179,7 @@ pub fn info_json(registry: &CodecRegistry, header: &Header, index: &[IndexEntry]
         "bpvf": bpvf(sizes.total),
         "geometry_bpvf": bpvf(sizes.payload_bytes),
         "keyframes": index.iter().filter(|e| e.keyframe).count(),
+        "metadata": metadata_json(&header.metadata),
         "verified": { "header_checksum": true, "index_checksum": true, "packet_checksums": index.len() },
         "packets": packets,
     })

@@ -1,15 +1,15 @@
 //! Error metrics for mesh animations.
 //!
-//! Every metric takes a `(reference, candidate)` pair of [`Animation`]s with the same vertex
+//! Every metric takes a `(reference, candidate)` pair of [`Animation`](codec_core::Animation)s with the same vertex
 //! count, frame count and triangle list (checked: a mismatch is an `Err`, never a panic):
 //!
 //! * [`kg_error`] — Karni & Gotsman's KG error (percent),
 //! * [`displacement_stats`] — MSE, RMSE (absolute and relative to the bounding-box
 //!   diagonal) and the largest vertex displacement,
-//! * [`hausdorff`] — per-frame symmetric vertex-to-surface Hausdorff distance,
-//! * [`sted`] — Váša & Skala's spatio-temporal edge difference with [`StedParams`],
+//! * [`hausdorff()`] — per-frame symmetric vertex-to-surface Hausdorff distance,
+//! * [`sted()`] — Váša & Skala's spatio-temporal edge difference with [`StedParams`],
 //! * [`per_vertex_displacement`], [`sted_with_fields`] — per-vertex fields for heatmaps,
-//! * [`bpvf`] / [`geometry_bpvf`] — bits per vertex per frame from byte counts,
+//! * [`bpvf()`] / [`geometry_bpvf`] — bits per vertex per frame from byte counts,
 //! * [`part_errors`] — the KG error of every connected part against its own spread (issue 41),
 //! * [`evaluate`] — everything at once as a serializable [`MetricReport`].
 

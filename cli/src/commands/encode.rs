@@ -242,6 +242,15 @@ enum Source {
 }
 
 impl Source {
+    /// What the input said about its scene (up axis, units, time line); the stream keeps it.
+    /// The streamed caches (PC2, MDD) and synthetic inputs say nothing.
+    fn metadata(&self) -> codec_core::SceneMetadata {
+        match self {
+            Source::Whole(a) => *a.metadata(),
+            Source::Cache(_) | Source::Flag { .. } => codec_core::SceneMetadata::default(),
+        }
+    }
+
     fn topology(&self) -> Topology {
         match self {
             Source::Whole(a) => a.topology().clone(),
@@ -330,13 +339,14 @@ fn encode_to_file(
     file: PendingFile,
     feed: usize,
 ) -> CmdResult<(PendingFile, u64, Vec<String>)> {
-    let mut encoder = StreamEncoder::new(
+    let mut encoder = StreamEncoder::with_metadata(
         codec,
         params,
         topology,
         frame_count,
         frame_rate,
         false,
+        &source.metadata(),
         CountingWriter { inner: file, count: 0 },
     )?;
     let per_frame = topology.vertex_count() * 3;

@@ -64,6 +64,9 @@ pub fn run(args: &InfoArgs, limits: Limits) -> CmdResult {
         header.container_version
     );
     let _ = writeln!(out, "animation  {f} frames × {v} vertices, {t} triangles, {} fps", info.frame_rate);
+    if let Some(line) = describe::metadata_line(&header.metadata) {
+        let _ = writeln!(out, "scene      {line} (kept from the source for the USD and Alembic writers)");
+    }
     let _ = writeln!(
         out,
         "header     {} bytes (codec config {} bytes, topology {} bytes)",

@@ -408,7 +408,7 @@ impl AdaptiveDecoder {
         Ok(bit)
     }
 
-    /// Decodes one integer in context (`class`, `bucket`), mirroring [`binarize`].
+    /// Decodes one integer in context (`class`, `bucket`), mirroring `binarize`.
     pub fn decode(&mut self, class: usize, bucket: usize) -> Result<i32> {
         let ctx = self.models.context(class, bucket);
         if !self.bit(Some((Which::Zero, ctx)))? {

@@ -21,7 +21,7 @@ pub struct Monotonicity {
     pub violations: Vec<usize>,
 }
 
-/// Checks every series' curve in sorted `points` (as [`sweep`] returns them). Metric values
+/// Checks every series' curve in sorted `points` (as [`sweep`](super::sweep::sweep) returns them). Metric values
 /// that are missing are skipped. The tolerance absorbs float noise only.
 pub fn monotone_report(points: &[Point]) -> Vec<Monotonicity> {
     let mut out: Vec<Monotonicity> = Vec::new();

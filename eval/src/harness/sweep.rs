@@ -199,7 +199,7 @@ const ENVELOPE_STED: (f64, f64) = (0.01, 0.2);
 /// `per_config` ladder positions spread evenly over the positions where the first
 /// configuration's KG or STED fell in the range the targets live in (every position if none
 /// did), then up to `per_config` more per
-/// configuration next to its points on the envelope ([`envelope_neighbours`]). Curves are labelled
+/// configuration next to its points on the envelope (`envelope_neighbours`). Curves are labelled
 /// `codec[key=value,…]`; [`envelope`] picks the points on the lower envelope. Results are in
 /// a fixed order (the first phase's series, then the others) whatever the scheduling.
 pub fn envelope_sweep<'a>(

@@ -112,7 +112,7 @@ impl FromStr for Target {
     }
 }
 
-/// What [`search_target`] found: the chosen point, its container bytes, and every point it
+/// What [`search_target`](super::search::search_target) found: the chosen point, its container bytes, and every point it
 /// measured on the way (sorted by ladder position).
 #[derive(Debug, Clone)]
 pub struct TargetHit {
@@ -130,7 +130,7 @@ pub struct TargetHit {
     pub rejected: Vec<String>,
 }
 
-/// Why [`search_target`] found nothing: no ladder point meets the target.
+/// Why [`search_target`](super::search::search_target) found nothing: no ladder point meets the target.
 #[derive(Debug, Clone)]
 pub struct TargetMiss {
     /// Codec name.

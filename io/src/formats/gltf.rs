@@ -31,7 +31,7 @@
 //!   that spans less than one frame at the file's own rate, are refused by name rather than
 //!   collapsed to one frame. Interpolation: `STEP`,
 //!   `LINEAR` (rotations: slerp along the short arc), and `CUBICSPLINE` evaluated with the
-//!   Hermite formula (spec Appendix C), rotations normalized ([`super::gltf_anim`]). Before
+//!   Hermite formula (spec Appendix C), rotations normalized (`gltf_anim`). Before
 //!   its first key a channel holds its first value, after its last key its last value.
 //! - Arithmetic in `f64`, positions rounded to `f32` once at the end.
 //!

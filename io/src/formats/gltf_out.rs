@@ -6,7 +6,7 @@
 //! - [`GltfLayout::Basis`] (default): the mean shape as the base mesh plus principal components
 //!   of the frames (centred on that mean) as morph targets; weights keyed at every frame,
 //!   `LINEAR`. Compressed (the default): every component quantized at its own step for the KG
-//!   target, the ones that round to nothing dropped, weights in [0, 1] ([`super::gltf_out_rd`]).
+//!   target, the ones that round to nothing dropped, weights in [0, 1] (`gltf_out_rd`).
 //!   Uncompressed: the `k` leading components in f32, each shifted and scaled so its weights
 //!   lie in [0, 1] (the slider range DCC importers clamp shape keys to), `k` the smallest meeting the KG target (computed exactly from the PCA's discarded
 //!   energy), or given.

@@ -179,6 +179,10 @@ pub fn write_animation_with(path: &Path, animation: &Animation, options: &WriteO
             (bytes, false)
         }
         Some("abc") => {
+            // Alembic has no up axis: DCCs read its caches as +Y up, so a +Z-up source is
+            // turned to +Y up on the way out (and would otherwise import lying on its back).
+            let turned = y_up(animation)?;
+            let animation = turned.as_ref().unwrap_or(animation);
             let bytes = abc::encode_abc(animation)?;
             abc::check_reads_back(path, &bytes, animation)?;
             (bytes, false)
@@ -234,6 +238,18 @@ pub fn write_animation_with(path: &Path, animation: &Animation, options: &WriteO
     let written = files.iter().map(|f| f.target().to_path_buf()).collect();
     commit_all(files, &[])?;
     Ok(written)
+}
+
+/// `animation` turned from +Z up to +Y up when its metadata says it is +Z up (a rotation of
+/// −90° about X, `(x, y, z) → (x, z, −y)`, exact in `f32`, triangle winding unchanged), with its
+/// metadata then saying +Y; `None` when it is already +Y up or says nothing.
+pub fn y_up(animation: &Animation) -> Result<Option<Animation>> {
+    if animation.metadata().up_axis != Some(codec_core::UpAxis::Z) {
+        return Ok(None);
+    }
+    let positions = animation.positions().chunks_exact(3).flat_map(|p| [p[0], p[2], -p[1]]).collect();
+    let metadata = codec_core::SceneMetadata { up_axis: Some(codec_core::UpAxis::Y), ..*animation.metadata() };
+    Animation::new(animation.topology().clone(), positions, animation.frame_rate())?.with_metadata(metadata).map(Some)
 }
 
 /// A glTF about to be written must read back (with our reader) as an animation of the same

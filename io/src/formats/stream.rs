@@ -1,5 +1,5 @@
 //! Streamed reading of PC2 and MDD caches and of OBJ sequences (issue 30): a cache's header is
-//! read and checked against [`reader_limits`](super::reader_limits) and the file's size before
+//! read and checked against [`super::reader_limits`] and the file's size before
 //! anything else, an OBJ sequence's files are listed and its frame 0 read for the topology; then
 //! frames are handed out in chunks as they are read, so an animation far larger than memory (a
 //! 1 000 000-vertex, 1 000-frame PC2 is 12 GB) can be encoded by a streaming encoder.

@@ -39,10 +39,13 @@
 //!
 //! **Write** ([`encode_usda`]; [`super::usdc::encode_usdc`] writes the same scene as a crate
 //! file): one `Mesh` prim `/animcodec/mesh` under an `Xform`, triangles as
-//! `faceVertexCounts` of 3, `points.timeSamples` at time codes 0, 1, … with
-//! `timeCodesPerSecond` = `framesPerSecond` = the animation's frame rate, per-frame `extent`,
-//! `upAxis = "Y"`, `metersPerUnit = 1` and `defaultPrim`, so Pixar's compliance checker passes
-//! it. Coordinates are written in the shortest decimal form that reads back as the same `f32`,
+//! `faceVertexCounts` of 3, `points.timeSamples`, per-frame `extent` and `defaultPrim`, so
+//! Pixar's compliance checker passes it. The stage metadata is the source's when the animation
+//! carries it ([`codec_core::SceneMetadata`]: `upAxis`, `metersPerUnit`, `timeCodesPerSecond`,
+//! the time code of frame 0), else a vertex cache's conventions: `upAxis = "Y"`,
+//! `metersPerUnit = 1`, time codes 0, 1, … at `timeCodesPerSecond` = the frame rate;
+//! `framesPerSecond` is always the frame rate. The reader fills the same metadata, so a layer
+//! read and written again keeps it. Coordinates are written in the shortest decimal form that reads back as the same `f32`,
 //! so a round trip is exact.
 
 use std::fmt::Write as _;
@@ -54,8 +57,8 @@ use super::gltf_buffers::Budget;
 use super::usd_assemble::assemble;
 pub use super::usd_layer::USD_DEFAULT_TIME_CODES_PER_SECOND;
 use super::usd_layer::{
-    is_kept_attribute, is_kept_relationship, shown, unsupported, Attribute, Layer, Prim, Relationship, Value,
-    FLATTEN_ADVICE,
+    is_kept_attribute, is_kept_relationship, shown, unsupported, Attribute, Layer, Prim, Relationship, StageTimeLine,
+    Value, FLATTEN_ADVICE,
 };
 use super::{name, read_file};
 
@@ -931,19 +934,22 @@ fn push_f32(out: &mut String, value: f32) {
 
 /// A USD text layer holding `animation` (see the module documentation).
 pub fn encode_usda(animation: &Animation) -> Result<Vec<u8>> {
-    let fps = animation.frame_rate();
     let (v, f) = (animation.vertex_count(), animation.frame_count());
     let tris = animation.triangles();
     // About 3 × 12 characters per vertex and frame.
     let mut s = String::with_capacity(64 + tris.len() * 16 + v * f * 40);
-    let mut rate = String::new();
-    push_f32(&mut rate, fps);
+    let stage = StageTimeLine::of(animation);
     let _ = write!(
         s,
         "#usda 1.0\n(\n    defaultPrim = \"animcodec\"\n    doc = \"animcodec vertex cache: {v} vertices, {f} frames\"\n    \
-         endTimeCode = {}\n    framesPerSecond = {rate}\n    metersPerUnit = 1\n    startTimeCode = 0\n    \
-         timeCodesPerSecond = {rate}\n    upAxis = \"Y\"\n)\n\n",
-        f - 1
+         endTimeCode = {}\n    framesPerSecond = {}\n    metersPerUnit = {}\n    startTimeCode = {}\n    \
+         timeCodesPerSecond = {}\n    upAxis = \"{}\"\n)\n\n",
+        stage.time_code(f - 1),
+        stage.frames_per_second,
+        stage.meters_per_unit,
+        stage.time_code(0),
+        stage.time_codes_per_second,
+        stage.up_axis,
     );
     s.push_str("def Xform \"animcodec\" (\n    kind = \"component\"\n)\n{\n    def Mesh \"mesh\"\n    {\n");
     s.push_str("        float3[] extent.timeSamples = {\n");
@@ -957,7 +963,7 @@ pub fn encode_usda(animation: &Animation) -> Result<Vec<u8>> {
                 *h = h.max(x);
             }
         }
-        let _ = write!(s, "            {t}: [(");
+        let _ = write!(s, "            {}: [(", stage.time_code(t));
         for (k, x) in lo.iter().enumerate() {
             if k > 0 {
                 s.push_str(", ");
@@ -983,7 +989,7 @@ pub fn encode_usda(animation: &Animation) -> Result<Vec<u8>> {
     }
     s.push_str("]\n        point3f[] points.timeSamples = {\n");
     for t in 0..f {
-        let _ = write!(s, "            {t}: [");
+        let _ = write!(s, "            {}: [", stage.time_code(t));
         for (i, p) in animation.frame(t).chunks_exact(3).enumerate() {
             s.push_str(if i == 0 { "(" } else { ", (" });
             push_f32(&mut s, p[0]);
@@ -1000,16 +1006,18 @@ pub fn encode_usda(animation: &Animation) -> Result<Vec<u8>> {
 }
 
 /// A layer about to be written must read back (with [`parse_usda`]) as exactly `animation`:
-/// the same triangles and every coordinate bit for bit. A layer that does not is never written.
+/// the same triangles, every coordinate bit for bit, and the same stage metadata and time
+/// codes. A layer that does not is never written.
 pub(super) fn check_reads_back(path: &Path, bytes: &[u8], animation: &Animation) -> Result<()> {
     let back = parse_usda(bytes, &name(path), Some(animation.frame_rate()), Some(u64::MAX))
         .map_err(|e| Error::InvalidAnimation(format!("the USD layer written does not read back: {e}")))?;
     let same = back.triangles() == animation.triangles()
+        && StageTimeLine::of(&back) == StageTimeLine::of(animation)
         && back.positions().len() == animation.positions().len()
         && back.positions().iter().zip(animation.positions()).all(|(a, b)| a.to_bits() == b.to_bits());
     if !same {
         return Err(Error::InvalidAnimation(format!(
-            "{}: the USD layer written does not read back as the same positions and triangles",
+            "{}: the USD layer written does not read back as the same positions, triangles and stage metadata",
             name(path)
         )));
     }

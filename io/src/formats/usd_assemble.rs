@@ -2,7 +2,7 @@
 //! layers alike (see [`super::usd`]'s module documentation for the rules): points at every
 //! frame time, polygons fanned, transforms of each mesh and its ancestors applied.
 
-use codec_core::{Animation, Error, Result};
+use codec_core::{Animation, Error, Result, SceneMetadata, UpAxis};
 
 use super::gltf_buffers::Budget;
 use super::usd_layer::{shown, unsupported, Layer, Prim, Value, USD_DEFAULT_TIME_CODES_PER_SECOND};
@@ -180,8 +180,28 @@ pub(super) fn assemble(file: &str, layer: Layer, frame_rate: Option<f32>, budget
             super::check_frame_rate(fps).map_err(|e| in_file(file, e))?
         }
     };
-    Animation::from_parts(vertices, triangles, positions, fps).map_err(|e| in_file(file, e))
+    // What the layer said about its scene goes with the animation to every writer. An up axis
+    // other than USD's two is not a scene USD can describe; it is dropped, as Pixar's stage
+    // does (`UsdGeomGetStageUpAxis` falls back to the default). A layer that states no unit is
+    // in centimetres by USD's rule (`UsdGeomGetStageMetersPerUnit`'s fallback, 0.01), which
+    // the writers then state.
+    let metadata = SceneMetadata {
+        up_axis: meta.up_axis.as_deref().and_then(UpAxis::from_name),
+        meters_per_unit: Some(
+            meta.meters_per_unit.filter(|m| m.is_finite() && *m > 0.0).unwrap_or(USD_FALLBACK_METERS_PER_UNIT),
+        ),
+        time_codes_per_second: (meta.time_codes_per_second.is_some() || meta.frames_per_second.is_some())
+            .then_some(tcps)
+            .filter(|t| t.is_finite() && *t > 0.0),
+        start_time_code: times.first().copied(),
+    };
+    Animation::from_parts(vertices, triangles, positions, fps)
+        .and_then(|a| a.with_metadata(metadata))
+        .map_err(|e| in_file(file, e))
 }
+
+/// `metersPerUnit` of a layer that authors none (`UsdGeomLinearUnits::centimeters`).
+const USD_FALLBACK_METERS_PER_UNIT: f64 = 0.01;
 
 /// Points of `mesh` at time code `t`, as `UsdAttribute::Get(t)` gives them: the sample at
 /// `t`, else linear interpolation between the samples around it, held outside them; the

@@ -24,6 +24,39 @@ pub const MAX_DEPTH: usize = 256;
 /// USD's default `timeCodesPerSecond` (and `framesPerSecond`) when the layer authors none.
 pub const USD_DEFAULT_TIME_CODES_PER_SECOND: f64 = 24.0;
 
+/// The stage metadata and time codes both USD writers author for an animation: what its
+/// source said ([`codec_core::SceneMetadata`]), else USD's conventions for a vertex cache (+Y
+/// up, metres, one time code per frame from 0).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) struct StageTimeLine {
+    pub up_axis: &'static str,
+    pub meters_per_unit: f64,
+    pub time_codes_per_second: f64,
+    pub frames_per_second: f64,
+    start: f64,
+    step: f64,
+}
+
+impl StageTimeLine {
+    pub fn of(animation: &codec_core::Animation) -> Self {
+        let meta = animation.metadata();
+        let fps = animation.frame_rate() as f64;
+        Self {
+            up_axis: meta.up_axis.map_or("Y", |a| a.name()),
+            meters_per_unit: meta.meters_per_unit.unwrap_or(1.0),
+            time_codes_per_second: meta.time_codes_per_second.unwrap_or(fps),
+            frames_per_second: fps,
+            start: meta.start_time_code.unwrap_or(0.0),
+            step: meta.time_codes_per_frame(animation.frame_rate()),
+        }
+    }
+
+    /// The time code of frame `t`.
+    pub fn time_code(&self, t: usize) -> f64 {
+        self.start + t as f64 * self.step
+    }
+}
+
 /// An attribute value as far as the readers need it. Tuples are flattened: `arity` is the
 /// tuple size (1 for scalars), and an array of k tuples holds k × arity values. Quaternions
 /// are held as (real, i, j, k), as USDA writes them.

@@ -16,7 +16,7 @@
 
 use std::collections::HashSet;
 
-use codec_core::{Animation, Error, Result};
+use codec_core::{Animation, Error, Result, SceneMetadata};
 
 use super::core::{meta_get, Archive, Compound, Pod, PropHeader, PropKind, TimeSampling};
 use super::ogawa::Group;
@@ -714,7 +714,12 @@ pub(super) fn assemble(
             .filter(|f| crate::formats::FRAME_RATE_RANGE.contains(f))
             .unwrap_or(crate::formats::DEFAULT_FRAME_RATE),
     };
-    Animation::from_parts(vertices, triangles, positions, fps).map_err(|e| in_file(file, e))
+    // Alembic states no up axis or unit; its time line starts where the first sample is.
+    let start = times.first().copied().filter(|t| *t != 0.0);
+    let metadata = SceneMetadata { start_time_code: start.map(|t| t * f64::from(fps)), ..Default::default() };
+    Animation::from_parts(vertices, triangles, positions, fps)
+        .and_then(|a| a.with_metadata(metadata))
+        .map_err(|e| in_file(file, e))
 }
 
 #[cfg(test)]

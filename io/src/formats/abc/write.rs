@@ -358,7 +358,8 @@ pub fn encode_abc(animation: &Animation) -> Result<Vec<u8>> {
     let mut w = Writer { og: OgawaWriter::new(), written: HashMap::new(), metadata: Vec::new() };
     let version = w.og.data(&[&FILE_VERSION.to_le_bytes()]);
     let library = w.og.data(&[&LIBRARY_VERSION.to_le_bytes()]);
-    let sampling = Sampling { index: 1, time_per_cycle: 1.0 / f64::from(fps), start: 0.0 };
+    let start = animation.metadata().start_seconds(fps);
+    let sampling = Sampling { index: 1, time_per_cycle: 1.0 / f64::from(fps), start };
 
     // The Xform's `.inherits` (true): its only property, as an identity transform writes it.
     let mut inherits = Prop::new(".inherits", "", PropKind::Scalar, Pod::Bool, 1, DEFAULT_SAMPLING);

@@ -14,6 +14,7 @@ use codec_core::{Animation, Result};
 use super::compression::{compress, encode_ints};
 use super::container::{SPEC_ATTRIBUTE, SPEC_PRIM, SPEC_PSEUDO_ROOT};
 use super::values::ty;
+use crate::formats::usd_layer::StageTimeLine;
 
 /// The crate version written: what usd-core 26.11 and Blender 5 write.
 const VERSION: [u8; 3] = [0, 8, 0];
@@ -188,7 +189,7 @@ fn jumps(paths: &[PathItem]) -> Vec<i64> {
 
 /// A crate file holding `animation` (see the module documentation).
 pub fn encode_usdc(animation: &Animation) -> Result<Vec<u8>> {
-    let fps = animation.frame_rate() as f64;
+    let stage = StageTimeLine::of(animation);
     let (v, f) = (animation.vertex_count(), animation.frame_count());
     let tris = animation.triangles();
     let mut b = Builder::default();
@@ -217,7 +218,7 @@ pub fn encode_usdc(animation: &Animation) -> Result<Vec<u8>> {
         let extent = [lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]];
         extents.push(b.vec3f_array_rep(&extent));
     }
-    let times: Vec<f64> = (0..f).map(|t| t as f64).collect();
+    let times: Vec<f64> = (0..f).map(|t| stage.time_code(t)).collect();
     let times = b.times_rep(&times);
     let points = b.time_samples_rep(times, &points);
     let extent = b.time_samples_rep(times, &extents);
@@ -232,12 +233,12 @@ pub fn encode_usdc(animation: &Animation) -> Result<Vec<u8>> {
     let fields = [
         ("defaultPrim", b.token_rep("animcodec")),
         ("documentation", b.string_rep(&format!("animcodec vertex cache: {v} vertices, {f} frames"))),
-        ("endTimeCode", b.double_rep((f - 1) as f64)),
-        ("framesPerSecond", b.double_rep(fps)),
-        ("metersPerUnit", b.double_rep(1.0)),
-        ("startTimeCode", b.double_rep(0.0)),
-        ("timeCodesPerSecond", b.double_rep(fps)),
-        ("upAxis", b.token_rep("Y")),
+        ("endTimeCode", b.double_rep(stage.time_code(f - 1))),
+        ("framesPerSecond", b.double_rep(stage.frames_per_second)),
+        ("metersPerUnit", b.double_rep(stage.meters_per_unit)),
+        ("startTimeCode", b.double_rep(stage.time_code(0))),
+        ("timeCodesPerSecond", b.double_rep(stage.time_codes_per_second)),
+        ("upAxis", b.token_rep(stage.up_axis)),
         ("primChildren", b.token_vector_rep(&["animcodec"])),
     ];
     b.spec(root, SPEC_PSEUDO_ROOT, &fields);
