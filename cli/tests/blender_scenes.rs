@@ -8,7 +8,9 @@
 //! exporters order objects their own way), Blender's positions within 1e-6 of the bounding-box
 //! diagonal, in the file's axes (Blender's Alembic exporter turns Z up into Y up; USD keeps
 //! Blender's Z up and says so in `upAxis`). USD files written with the exporter's defaults
-//! (shape keys and armatures as UsdSkel) must be refused by name, not read as rest poses.
+//! (shape keys as UsdSkel blend shapes, armatures as a Skeleton and SkelAnimation, skinned
+//! meshes bound to it, bone-parented parts under animated Xforms) must read the same way, and
+//! also match usd-core's own UsdSkel evaluation of the same file (skipped without usd-core).
 //! Without bpy 5 the test skips through `codec_core::testing::skip` (a failure in CI).
 
 mod common;
@@ -19,7 +21,7 @@ use std::process::Command;
 use animcodec::formats::{read_animation, ReadOptions};
 use codec_core::testing::skip;
 use codec_core::Animation;
-use common::{shared_data, Scratch};
+use common::{shared_data, usd_core, usd_core_skel_reference, worst_over_diagonal, Scratch};
 use serde_json::Value;
 
 fn script() -> PathBuf {
@@ -68,16 +70,20 @@ fn animcodec_reads_what_blender_exports() {
     for scene in &scenes {
         let name = scene["name"].as_str().unwrap();
         let theirs = blender_positions(&dir.0, scene);
-        for (ext, axes) in [("abc", alembic_axes), ("usdc", usd_axes), ("usdz", usd_axes)] {
-            let file = dir.0.join(format!("{name}.{ext}"));
+        let skel = format!("{name}-skel.usdc");
+        let skel = Some(skel.as_str()).filter(|f| dir.0.join(f).exists());
+        let files = [("abc", alembic_axes), ("usdc", usd_axes), ("usdz", usd_axes)]
+            .map(|(ext, axes)| (format!("{name}.{ext}"), axes));
+        for (file_name, axes) in files.iter().map(|(f, a)| (f.as_str(), *a)).chain(skel.map(|f| (f, usd_axes))) {
+            let file = dir.0.join(file_name);
             let ours = read_animation(&file, &ReadOptions::default())
-                .unwrap_or_else(|e| panic!("{name}.{ext} (written by Blender 5) does not read: {e}"));
+                .unwrap_or_else(|e| panic!("{file_name} (written by Blender 5) does not read: {e}"));
             let expected = converted(&theirs, axes);
-            assert_eq!(ours.frame_count(), expected.frame_count(), "{name}.{ext}: frame count");
-            assert_eq!(ours.vertex_count(), expected.vertex_count(), "{name}.{ext}: vertex count");
-            assert!((ours.frame_rate() - 24.0).abs() < 1e-4, "{name}.{ext}: {} fps", ours.frame_rate());
+            assert_eq!(ours.frame_count(), expected.frame_count(), "{file_name}: frame count");
+            assert_eq!(ours.vertex_count(), expected.vertex_count(), "{file_name}: vertex count");
+            assert!((ours.frame_rate() - 24.0).abs() < 1e-4, "{file_name}: {} fps", ours.frame_rate());
             let matched = metrics::match_vertices(&expected, &ours)
-                .unwrap_or_else(|e| panic!("{name}.{ext}: vertices do not match Blender's: {e}"));
+                .unwrap_or_else(|e| panic!("{file_name}: vertices do not match Blender's: {e}"));
             let played = matched.apply(&expected, &ours).unwrap();
             let worst = expected
                 .positions()
@@ -87,16 +93,35 @@ fn animcodec_reads_what_blender_exports() {
                 .fold(0.0, f64::max)
                 / expected.bounding_box_diagonal();
             eprintln!(
-                "{name}.{ext}: {} frames × {} vertices, max |ours − Blender| = {worst:.3e} × diagonal",
+                "{file_name}: {} frames × {} vertices, max |ours − Blender| = {worst:.3e} × diagonal",
                 ours.frame_count(),
                 ours.vertex_count()
             );
-            assert!(worst <= 1e-6, "{name}.{ext}: {worst:e} × diagonal from Blender's evaluated mesh");
+            assert!(worst <= 1e-6, "{file_name}: {worst:e} × diagonal from Blender's evaluated mesh");
         }
-        let skel = dir.0.join(format!("{name}-skel.usdc"));
-        if skel.exists() {
-            let e = read_animation(&skel, &ReadOptions::default()).expect_err("a UsdSkel-deformed mesh read as points");
-            assert!(e.to_string().contains("UsdSkel"), "{name}-skel.usdc: {e}");
+        // The UsdSkel export (the exporter's defaults) evaluated by usd-core too: the same
+        // meshes in the same order, so no matching.
+        if let Some(skel) = skel {
+            let file = dir.0.join(skel);
+            match usd_core() {
+                Err(why) => skip(&format!("{test} ({skel} against usd-core)"), &why),
+                Ok(()) => {
+                    let ours = read_animation(&file, &ReadOptions::default()).unwrap();
+                    let reference = usd_core_skel_reference(&file, &dir.0);
+                    let worst = worst_over_diagonal(&reference, &ours);
+                    eprintln!("{skel}: max |ours − usd-core UsdSkel| = {worst:.3e} × diagonal");
+                    assert!(worst <= 1e-6, "{skel}: {worst:e} × diagonal from usd-core's UsdSkel evaluation");
+                    // The same layer as text (usd-core's export) reads the same.
+                    let text = dir.0.join(format!("{name}-skel.usda"));
+                    let script = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/usd/skel_check.py");
+                    let o = Command::new("python3").arg(script).arg("export").arg(&file).arg(&text).output().unwrap();
+                    assert!(o.status.success(), "export to usda: {}", String::from_utf8_lossy(&o.stderr));
+                    let from_text = read_animation(&text, &ReadOptions::default()).unwrap();
+                    let worst = worst_over_diagonal(&reference, &from_text);
+                    eprintln!("{name}-skel.usda: max |ours − usd-core UsdSkel| = {worst:.3e} × diagonal");
+                    assert!(worst <= 1e-6, "{name}-skel.usda: {worst:e} × diagonal from usd-core");
+                }
+            }
         }
     }
 }

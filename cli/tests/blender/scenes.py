@@ -149,7 +149,7 @@ for name in names:
         bpy.ops.wm.usd_export(filepath=f"{base}.{ext}", export_animation=True,
                               export_shapekeys=False, export_armatures=False)
     # The exporter's defaults: shape keys and armatures as UsdSkel (BlendShapes, Skeleton +
-    # SkelAnimation), which the reader must refuse by name rather than read as rest poses.
+    # SkelAnimation), which the reader evaluates.
     if name in ("shape_keys", "robot"):
         bpy.ops.wm.usd_export(filepath=f"{base}-skel.usdc", export_animation=True)
     print("SCENE " + json.dumps({"name": name, "frames": end - start + 1, "fps": FPS, "objects": objects}))

@@ -159,6 +159,43 @@ pub fn join_glb(json: &serde_json::Value, bin: &[u8]) -> Vec<u8> {
     out
 }
 
+/// `Ok` when `python3` imports usd-core (`pip install usd-core`), else why not.
+pub fn usd_core() -> Result<(), String> {
+    match Command::new("python3").args(["-c", "import pxr.Usd, pxr.UsdSkel"]).output() {
+        Ok(o) if o.status.success() => Ok(()),
+        Ok(o) => Err(format!(
+            "usd-core not installed (pip install usd-core): {}",
+            String::from_utf8_lossy(&o.stderr).lines().last().unwrap_or("")
+        )),
+        Err(e) => Err(format!("python3 not found: {e}")),
+    }
+}
+
+/// usd-core's own UsdSkel evaluation of `file` (`cli/tests/usd/skel_check.py reference`):
+/// world-space points at every integer time code from startTimeCode to endTimeCode, meshes in
+/// traversal order, as an animation without triangles.
+pub fn usd_core_skel_reference(file: &Path, scratch: &Path) -> Animation {
+    let script = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/usd/skel_check.py");
+    let out = scratch.join(format!("{}.ref.f32", file.file_name().unwrap().to_string_lossy()));
+    let o = Command::new("python3").arg(script).arg("reference").arg(file).arg(&out).output().expect("python3 runs");
+    assert!(o.status.success(), "skel_check.py reference {file:?} failed: {}", String::from_utf8_lossy(&o.stderr));
+    let info: Value = serde_json::from_slice(o.stdout.trim_ascii()).expect("one JSON line");
+    let positions: Vec<f32> =
+        std::fs::read(&out).unwrap().chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
+    let vertices = info["vertices"].as_u64().unwrap() as usize;
+    assert_eq!(positions.len(), vertices * 3 * info["frames"].as_u64().unwrap() as usize, "{info}");
+    Animation::from_parts(vertices, Vec::new(), positions, 24.0).unwrap()
+}
+
+/// The largest coordinate difference between two animations of the same vertices in the same
+/// order, over the bounding-box diagonal of `reference`.
+pub fn worst_over_diagonal(reference: &Animation, ours: &Animation) -> f64 {
+    assert_eq!(reference.vertex_count(), ours.vertex_count(), "vertex count");
+    assert_eq!(reference.frame_count(), ours.frame_count(), "frame count");
+    reference.positions().iter().zip(ours.positions()).map(|(a, b)| (a - b).abs() as f64).fold(0.0, f64::max)
+        / reference.bounding_box_diagonal()
+}
+
 /// `Ok` when `python3` imports Blender 5 as the `bpy` module (`pip install bpy==5.0.1`), else
 /// why not: the condition of the Blender client tests.
 pub fn blender5() -> Result<(), String> {

@@ -31,6 +31,7 @@ pub mod stream;
 pub mod usd;
 mod usd_assemble;
 mod usd_layer;
+mod usd_skel;
 mod usd_xform;
 pub mod usdc;
 mod usdz;

@@ -21,12 +21,16 @@
 //!
 //! The `xformOp`s of each mesh and of its ancestors (`xformOpOrder`, `usd_xform`) are applied
 //! to its points at every frame; ops sampled at other times than the points add those frames.
+//! Meshes bound to a `UsdSkel` skeleton or blend shapes are evaluated as UsdSkel plays them
+//! (`usd_skel`: blend shapes, then linear blend skinning into the Skeleton's space, placed by
+//! the Skeleton's transforms); the animation's samples add frames too.
 //!
 //! What is refused by name rather than read wrongly: composition arcs (`subLayers`,
 //! `references`, `payload`, `inherits`, `specializes`, variant sets: flatten the stage first,
-//! with usd-core's `Usd.Stage.Open(IN).Export(OUT)`), meshes deformed by UsdSkel (joint
-//! indices or blend shapes), a time-sampled topology, points whose count changes over time,
-//! value clips, spline-valued points and ops.
+//! with usd-core's `Usd.Stage.Open(IN).Export(OUT)`), the UsdSkel features not evaluated
+//! (inbetween shapes, dual-quaternion skinning, indexed skinning primvars, bindings without
+//! `SkelBindingAPI` or outside a `SkelRoot`), a time-sampled topology, points whose count
+//! changes over time, value clips, spline-valued points and ops.
 //!
 //! The input is untrusted: nesting is bounded ([`MAX_DEPTH`]), every array is counted against
 //! the read's memory budget before it is kept, the cache's size is checked against
@@ -53,7 +57,8 @@ use super::gltf_buffers::Budget;
 use super::usd_assemble::assemble;
 pub use super::usd_layer::USD_DEFAULT_TIME_CODES_PER_SECOND;
 use super::usd_layer::{
-    is_kept_attribute, shown, unsupported, Attribute, Layer, Prim, StageTimeLine, Value, FLATTEN_ADVICE,
+    is_kept_attribute, is_kept_relationship, shown, unsupported, Attribute, Layer, Prim, Relationship, StageTimeLine,
+    Value, FLATTEN_ADVICE,
 };
 use super::{name, read_file};
 
@@ -455,12 +460,24 @@ impl<'a> Parser<'a, '_> {
             other => return Err(self.lexer.error(format!("expected the prim's name, found {}", describe(other)))),
         };
         let mut active = true;
+        let mut api_schemas = Vec::new();
         if self.eat(b'(')? {
             self.metadata(depth + 1, &mut |key, value| {
                 if key == "active"
                     && matches!(value, TextValue::Atom(Tok::Ident("false")) | TextValue::Atom(Tok::Number("0")))
                 {
                     active = false;
+                }
+                // `prepend apiSchemas = ["SkelBindingAPI"]`: within one layer, the prepended,
+                // appended, added and explicit items are what apply (a `delete` only removes
+                // from weaker layers, and there are none here).
+                if key == "apiSchemas" {
+                    if let TextValue::Array { items, .. } = value {
+                        api_schemas.extend(items.iter().filter_map(|t| match t {
+                            Tok::Str(s) | Tok::Ident(s) => Some((*s).to_owned()),
+                            _ => None,
+                        }));
+                    }
                 }
                 Ok(())
             })?;
@@ -473,11 +490,13 @@ impl<'a> Parser<'a, '_> {
         let index = match parent {
             Some(parent) if active && specifier == "def" => {
                 self.budget.take("prim paths", (prim_name.len() + std::mem::size_of::<Prim>()) as u64)?;
+                self.budget.take("apiSchemas", api_schemas.iter().map(|s| s.len() as u64 + 24).sum())?;
                 layer.prims.push(Prim {
                     name: prim_name.to_owned(),
                     parent,
                     type_name: type_name.unwrap_or_default().to_owned(),
-                    attributes: Vec::new(),
+                    api_schemas,
+                    ..Prim::default()
                 });
                 Some(layer.prims.len() - 1)
             }
@@ -513,12 +532,20 @@ impl<'a> Parser<'a, '_> {
                     self.value(depth + 1)?;
                 }
                 Tok::Eof => return Err(self.lexer.error(format!("`{}` is not closed", shown(path)))),
-                _ => {
-                    let attribute = self.property(depth + 1, path)?;
-                    if let (Some(i), Some(attribute)) = (index, attribute) {
-                        merge_attribute(&mut layer.prims[i].attributes, attribute);
+                _ => match (index, self.property(depth + 1, path)?) {
+                    (Some(i), Some(Property::Attribute(attribute))) => {
+                        merge_attribute(&mut layer.prims[i].attributes, attribute)
                     }
-                }
+                    (Some(i), Some(Property::Relationship(rel))) => {
+                        let rels = &mut layer.prims[i].relationships;
+                        match rels.iter_mut().find(|r| r.name == rel.name) {
+                            // `prepend rel x = …` beside `append rel x = …`: one list op.
+                            Some(r) => r.targets.extend(rel.targets),
+                            None => rels.push(rel),
+                        }
+                    }
+                    _ => {}
+                },
             }
         }
         path.truncate(parent_len);
@@ -528,13 +555,16 @@ impl<'a> Parser<'a, '_> {
 
     /// One property: `[custom] [uniform|varying|config] Type[[]] name[.timeSamples|.connect|
     /// .spline] [= value] [(metadata)]`, or `rel name [= targets]`. Returns the attribute when
-    /// it is one the layer keeps ([`is_kept_attribute`]), its values converted.
-    fn property(&mut self, depth: usize, path: &str) -> Result<Option<Attribute>> {
+    /// it is one the layer keeps ([`is_kept_attribute`], [`is_kept_relationship`]), its values
+    /// converted.
+    fn property(&mut self, depth: usize, path: &str) -> Result<Option<Property>> {
         let mut tok = self.bump()?;
+        let mut deleted = false;
         while matches!(
             tok,
             Tok::Ident("custom" | "uniform" | "varying" | "config" | "add" | "append" | "prepend" | "delete")
         ) {
+            deleted |= tok == Tok::Ident("delete");
             tok = self.bump()?;
         }
         let is_rel = tok == Tok::Ident("rel");
@@ -554,6 +584,33 @@ impl<'a> Parser<'a, '_> {
         };
         let kept = !is_rel && is_kept_attribute(prop);
         let mut attribute = None;
+        if is_rel {
+            let mut rel = None;
+            if self.eat(b'=')? {
+                let value = self.value(depth + 1)?;
+                // `delete rel x = <…>` removes targets of weaker layers only: none here.
+                if is_kept_relationship(prop) && !deleted && suffix.is_empty() {
+                    let targets: Vec<String> = match value {
+                        TextValue::Atom(Tok::Other(p)) => vec![p.to_owned()],
+                        TextValue::Array { items, .. } => items
+                            .iter()
+                            .filter_map(|t| match t {
+                                Tok::Other(p) => Some((*p).to_owned()),
+                                _ => None,
+                            })
+                            .collect(),
+                        _ => Vec::new(),
+                    };
+                    self.budget.take("relationship targets", targets.iter().map(|t| t.len() as u64 + 24).sum())?;
+                    let targets = targets.iter().map(|t| absolute_target(path, t)).collect();
+                    rel = Some(Property::Relationship(Relationship { name: prop.to_owned(), targets }));
+                }
+            }
+            if self.eat(b'(')? {
+                self.metadata(depth + 1, &mut |_, _| Ok(()))?;
+            }
+            return Ok(rel);
+        }
         if self.eat(b'=')? {
             if suffix == "timeSamples" {
                 let samples = self.time_samples(depth + 1)?;
@@ -563,7 +620,7 @@ impl<'a> Parser<'a, '_> {
                         let value = value.map(|v| self.converted(type_name, v, path, prop)).transpose()?;
                         converted.push((time, value));
                     }
-                    attribute = Some(Attribute { name: prop.to_owned(), default: None, samples: converted });
+                    attribute = Some(Attribute { name: prop.to_owned(), samples: converted, ..Attribute::default() });
                 }
             } else if suffix == "spline" {
                 self.skip_braces(depth + 1)?;
@@ -576,14 +633,26 @@ impl<'a> Parser<'a, '_> {
                 let blocked = value == TextValue::Atom(Tok::Ident("None"));
                 if (suffix.is_empty() || suffix == "default") && kept {
                     let default = if blocked { None } else { Some(self.converted(type_name, value, path, prop)?) };
-                    attribute = Some(Attribute { name: prop.to_owned(), default, samples: Vec::new() });
+                    attribute = Some(Attribute { name: prop.to_owned(), default, ..Attribute::default() });
                 }
             }
         }
         if self.eat(b'(')? {
-            self.metadata(depth + 1, &mut |_, _| Ok(()))?;
+            let (mut element_size, mut interpolation) = (None, None);
+            self.metadata(depth + 1, &mut |key, value| {
+                match (key, value) {
+                    ("elementSize", TextValue::Atom(Tok::Number(n))) => element_size = n.parse::<i64>().ok(),
+                    ("interpolation", TextValue::Atom(Tok::Str(s))) => interpolation = Some((*s).to_owned()),
+                    _ => {}
+                }
+                Ok(())
+            })?;
+            if let Some(a) = attribute.as_mut() {
+                a.element_size = element_size;
+                a.interpolation = interpolation;
+            }
         }
-        Ok(attribute)
+        Ok(attribute.map(Property::Attribute))
     }
 
     /// A text value of an attribute declared as `type_name`, in the layer model: tokens and
@@ -630,8 +699,13 @@ impl<'a> Parser<'a, '_> {
             return Ok(Value::Other);
         }
         self.budget.take("numbers", items.len() as u64 * 4)?;
-        let values = items.iter().map(|t| number(t).and_then(|n| n.parse::<f32>().ok())).collect::<Option<_>>();
-        Ok(Value::Floats { arity, values: values.ok_or_else(|| bad("holds a value that is not a number"))? })
+        let values: Option<Vec<f32>> = items.iter().map(|t| number(t).and_then(|n| n.parse::<f32>().ok())).collect();
+        let mut values = values.ok_or_else(|| bad("holds a value that is not a number"))?;
+        // `half` types hold what USD reads into a 16-bit float, as the crate reader does.
+        if type_name.starts_with("half") || type_name.ends_with('h') {
+            values.iter_mut().for_each(|v| *v = to_half_precision(*v));
+        }
+        Ok(Value::Floats { arity, values })
     }
 
     /// `{ time: value, … }` (the `{` not yet consumed).
@@ -768,12 +842,65 @@ impl<'a> Parser<'a, '_> {
     }
 }
 
+/// `x` rounded to the nearest IEEE binary16 value (ties to even), as a `half` attribute holds
+/// it: 11 significant bits, subnormals below 2⁻¹⁴, infinity from 65520 up.
+fn to_half_precision(x: f32) -> f32 {
+    let a = x.abs() as f64;
+    if a == 0.0 || !a.is_finite() {
+        return x;
+    }
+    if a >= 65520.0 {
+        return f32::INFINITY.copysign(x);
+    }
+    // The binary exponent of `a` (a normal f64, since it came from an f32), at least -14.
+    let exponent = (((a.to_bits() >> 52) & 0x7ff) as i32 - 1023).max(-14);
+    let quantum = 2f64.powi(exponent - 10);
+    ((x as f64 / quantum).round_ties_even() * quantum) as f32
+}
+
+/// A kept property of a prim.
+enum Property {
+    Attribute(Attribute),
+    Relationship(Relationship),
+}
+
+/// A relationship target as an absolute prim path: `<../Skel>` and `<Anim>` are relative to
+/// the prim `prim` (`/a/b`) that authors the relationship.
+fn absolute_target(prim: &str, target: &str) -> String {
+    if target.starts_with('/') {
+        return target.to_owned();
+    }
+    let mut parts: Vec<&str> = prim.split('/').filter(|p| !p.is_empty()).collect();
+    for part in target.split('/') {
+        match part {
+            "" | "." => {}
+            ".." => {
+                parts.pop();
+            }
+            p => parts.push(p),
+        }
+    }
+    parts.iter().fold(String::new(), |mut s, p| {
+        s.push('/');
+        s.push_str(p);
+        s
+    })
+}
+
 /// Adds `attribute` to a prim's attributes; a second declaration of the same attribute (a
 /// default beside `.timeSamples`) fills in what it authors.
 fn merge_attribute(attributes: &mut Vec<Attribute>, attribute: Attribute) {
     match attributes.iter_mut().find(|a| a.name == attribute.name) {
-        Some(a) if attribute.samples.is_empty() => a.default = attribute.default,
-        Some(a) => a.samples = attribute.samples,
+        Some(a) if attribute.samples.is_empty() => {
+            a.default = attribute.default;
+            a.element_size = attribute.element_size.or(a.element_size);
+            a.interpolation = attribute.interpolation.or(a.interpolation.take());
+        }
+        Some(a) => {
+            a.samples = attribute.samples;
+            a.element_size = attribute.element_size.or(a.element_size);
+            a.interpolation = attribute.interpolation.or(a.interpolation.take());
+        }
         None => attributes.push(attribute),
     }
 }
@@ -916,6 +1043,20 @@ fn times_of(animation_text: &str) -> std::collections::BTreeMap<String, usize> {
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn half_values_round_as_usd_reads_them() {
+        use super::to_half_precision as h;
+        assert_eq!(h(1.03), 1.0 + 31.0 / 1024.0);
+        assert_eq!(h(1.0), 1.0);
+        assert_eq!(h(-0.333), -1364.0 / 4096.0);
+        assert_eq!(h(65504.0), 65504.0);
+        assert_eq!(h(65520.0), f32::INFINITY);
+        assert_eq!(h(1e-8), 0.0);
+        assert_eq!(h(6e-8), 5.9604645e-8);
+        // Just below a power of two rounds up to it.
+        assert_eq!(h(0.99999), 1.0);
+    }
+
     use super::*;
     use crate::formats::{assert_same_geometry, test_animation};
 

@@ -5,14 +5,14 @@
 use codec_core::{Animation, Error, Result, SceneMetadata, UpAxis};
 
 use super::gltf_buffers::Budget;
-use super::usd_layer::{shown, unsupported, Layer, Prim, Value, SKEL_ATTRIBUTES, USD_DEFAULT_TIME_CODES_PER_SECOND};
-use super::{check_finite_in, in_file, reader_limits, usd_xform};
+use super::usd_layer::{shown, unsupported, Layer, Prim, Value, USD_DEFAULT_TIME_CODES_PER_SECOND};
+use super::{check_finite_in, in_file, reader_limits, usd_skel, usd_xform};
 
 // ---------------------------------------------------------------------------------------------
 // From the layer to an animation.
 
 /// One mesh's topology and point samples, converted.
-struct MeshData {
+struct MeshData<'a> {
     vertices: usize,
     triangles: Vec<[u32; 3]>,
     /// Sorted by time: (time code, points); empty when only the default value exists.
@@ -20,35 +20,34 @@ struct MeshData {
     default: Option<Vec<f32>>,
     /// Prims (indexes in the layer) whose transforms apply, the mesh's own first.
     transforms: Vec<usize>,
-    /// Time codes at which those transforms are sampled.
+    /// Time codes at which those transforms (and the skeleton animation) are sampled.
     transform_times: Vec<f64>,
+    /// The skeleton and blend shapes deforming the points (`usd_skel`), if any.
+    deformer: Option<usd_skel::Deformer<'a>>,
+    /// Index of the mesh prim in the layer.
+    prim: usize,
 }
 
 /// The vertex cache of every `Mesh` prim of `layer`, one after another (see
 /// [`super::usd`]'s module documentation for the rules).
 pub(super) fn assemble(file: &str, layer: Layer, frame_rate: Option<f32>, budget: &mut Budget) -> Result<Animation> {
     let mut meshes = Vec::new();
+    let mut paths = None;
     for (i, prim) in layer.prims.iter().enumerate() {
         if prim.type_name != "Mesh" {
             continue;
         }
         let path = layer.path(i);
         budget.take("prim paths", path.len() as u64)?;
-        if let Some(skel) = SKEL_ATTRIBUTES.iter().find(|a| prim.attribute(a).is_some()) {
-            return Err(unsupported(
-                file,
-                format!(
-                    "the mesh {} is deformed by UsdSkel (`{skel}`): skinning and blend shapes are not evaluated \
-                     here; bake the deformation into the points first (Blender's USD export: without armatures \
-                     and shape keys as skeletons and blend shapes)",
-                    shown(&path)
-                ),
-            ));
-        }
         let mut mesh = mesh_data(file, &path, prim, budget)?;
-        // The prims whose transforms place the mesh: itself and its ancestors, up to one that
-        // resets the transform stack.
-        let mut at = Some(i);
+        mesh.prim = i;
+        let deformer = usd_skel::deformer(file, &layer, &mut paths, i, mesh.vertices, budget)?;
+        if let Some(d) = &deformer {
+            d.sample_times(&layer, &mut mesh.transform_times);
+        }
+        // The prims whose transforms place the points: the mesh (or, when it is skinned, its
+        // Skeleton) and its ancestors, up to one that resets the transform stack.
+        let mut at = Some(deformer.as_ref().map_or(i, |d| d.placed_by()));
         while let Some(p) = at {
             let local = usd_xform::local_transform(&layer.prims[p], 0.0)
                 .map_err(|e| Error::malformed(file.to_owned(), format!("{} xformOpOrder", shown(&layer.path(p))), e))?;
@@ -61,6 +60,7 @@ pub(super) fn assemble(file: &str, layer: Layer, frame_rate: Option<f32>, budget
             }
             at = layer.prims[p].parent;
         }
+        mesh.deformer = deformer;
         meshes.push(mesh);
     }
     if meshes.is_empty() {
@@ -108,6 +108,18 @@ pub(super) fn assemble(file: &str, layer: Layer, frame_rate: Option<f32>, budget
             limit: limits.max_frames as u64,
         });
     }
+    // Skeleton and blend shape playback costs work every frame beyond the output's size.
+    let per_frame =
+        meshes.iter().filter_map(|m| m.deformer.as_ref()).fold(0u64, |sum, d| sum.saturating_add(d.work_per_frame()));
+    let work = per_frame.saturating_mul(times.len() as u64);
+    if work > usd_skel::MAX_SKEL_WORK {
+        return Err(Error::LimitExceeded {
+            context: file.to_owned().into(),
+            field: "UsdSkel playback work (frames × (joints + points × influences + blend shape offsets))".into(),
+            value: work,
+            limit: usd_skel::MAX_SKEL_WORK,
+        });
+    }
     let floats = (vertices as u64).saturating_mul(3).saturating_mul(times.len() as u64);
     limits.check_alloc("formats", "positions", floats.saturating_mul(4))?;
     budget.take("positions", floats.saturating_mul(4))?;
@@ -142,6 +154,11 @@ pub(super) fn assemble(file: &str, layer: Layer, frame_rate: Option<f32>, budget
         for m in &meshes {
             let start = positions.len();
             push_points_at(m, t, &mut positions);
+            if let Some(d) = &m.deformer {
+                d.deform(t, &mut positions[start..]).map_err(|e| {
+                    Error::malformed(file.to_owned(), format!("{} UsdSkel", shown(&layer.path(m.prim))), e)
+                })?;
+            }
             if let Some(world) = m.transforms.first().and_then(|p| worlds.get(p)) {
                 usd_xform::transform_points(&world[f], &mut positions[start..]);
             }
@@ -210,7 +227,7 @@ fn push_points_at(mesh: &MeshData, t: f64, out: &mut Vec<f32>) {
     }
 }
 
-fn mesh_data(file: &str, path: &str, prim: &Prim, budget: &mut Budget) -> Result<MeshData> {
+fn mesh_data<'a>(file: &str, path: &str, prim: &Prim, budget: &mut Budget) -> Result<MeshData<'a>> {
     let at = |what: &str| format!("{} {what}", shown(path));
     let bad = |field: String, detail: String| Error::malformed(file.to_owned(), field, detail);
     let floats = |value: &Value, field: &str, budget: &mut Budget| -> Result<Vec<f32>> {
@@ -311,5 +328,14 @@ fn mesh_data(file: &str, path: &str, prim: &Prim, budget: &mut Budget) -> Result
         }
         at_corner += n;
     }
-    Ok(MeshData { vertices, triangles, samples, default, transforms: Vec::new(), transform_times: Vec::new() })
+    Ok(MeshData {
+        vertices,
+        triangles,
+        samples,
+        default,
+        transforms: Vec::new(),
+        transform_times: Vec::new(),
+        deformer: None,
+        prim: 0,
+    })
 }

@@ -3,10 +3,12 @@
 //!
 //! A [`Layer`] holds the prims of the played-back scene only (`def` prims under `def`s, none
 //! inactive), in the order `UsdStage::Traverse` visits them (depth first, authored order),
-//! each with its parent, its type name and the attributes a vertex cache needs (the mesh's
-//! `points`, `faceVertexCounts`, `faceVertexIndices`, `orientation`, and `xformOpOrder` /
-//! `xformOp:*` of every prim), each with its default value and time samples; and the layer's
-//! metadata (time codes, up axis, units). `usd_assemble` makes the animation from it.
+//! each with its parent, its type name, its applied API schemas and the attributes a vertex
+//! cache needs (the mesh's `points`, `faceVertexCounts`, `faceVertexIndices`, `orientation`,
+//! `xformOpOrder` / `xformOp:*` of every prim, and the `UsdSkel` ones), each with its default
+//! value, time samples and primvar metadata (`elementSize`, `interpolation`); the `UsdSkel`
+//! relationships and their targets; and the layer's metadata (time codes, up axis, units).
+//! `usd_assemble` makes the animation from it.
 
 use codec_core::Error;
 
@@ -81,6 +83,18 @@ pub(super) struct Attribute {
     pub name: String,
     pub default: Option<Value>,
     pub samples: Vec<(f64, Option<Value>)>,
+    /// The `elementSize` metadata (primvars: values per element), when authored.
+    pub element_size: Option<i64>,
+    /// The `interpolation` metadata (primvars: `constant`, `vertex`, …), when authored.
+    pub interpolation: Option<String>,
+}
+
+/// One relationship: its target paths (absolute, as authored; list ops composed within the
+/// one layer: prepended, added and appended targets, in that order).
+#[derive(Debug, Default)]
+pub(super) struct Relationship {
+    pub name: String,
+    pub targets: Vec<String>,
 }
 
 /// One prim of the played-back scene.
@@ -92,11 +106,23 @@ pub(super) struct Prim {
     pub parent: Option<usize>,
     pub type_name: String,
     pub attributes: Vec<Attribute>,
+    /// The kept relationships ([`is_kept_relationship`]).
+    pub relationships: Vec<Relationship>,
+    /// The applied API schemas (`apiSchemas` metadata, its list op composed within the layer).
+    pub api_schemas: Vec<String>,
 }
 
 impl Prim {
     pub fn attribute(&self, name: &str) -> Option<&Attribute> {
         self.attributes.iter().find(|a| a.name == name)
+    }
+
+    pub fn relationship(&self, name: &str) -> Option<&Relationship> {
+        self.relationships.iter().find(|r| r.name == name)
+    }
+
+    pub fn has_api(&self, schema: &str) -> bool {
+        self.api_schemas.iter().any(|s| s == schema)
     }
 }
 
@@ -121,11 +147,41 @@ pub(super) fn is_kept_attribute(name: &str) -> bool {
     matches!(name, "points" | "faceVertexCounts" | "faceVertexIndices" | "orientation" | "xformOpOrder")
         || name.starts_with("xformOp:")
         || SKEL_ATTRIBUTES.contains(&name)
+        // A blend shape's inbetween shapes (`inbetweens:NAME`): kept to be refused by name.
+        || name.starts_with("inbetweens:")
 }
 
-/// Mesh attributes that bind it to a `UsdSkel` skeleton or blend shapes: its points are then
-/// the rest pose, not what plays, and such a mesh is refused rather than read still.
-pub(super) const SKEL_ATTRIBUTES: &[&str] = &["primvars:skel:jointIndices", "skel:blendShapes"];
+/// The `UsdSkel` attributes the skeleton evaluation reads (`usd_skel`): the binding's
+/// primvars and orders on skinnable prims and their ancestors, the `Skeleton`'s joints and
+/// transforms, the `SkelAnimation`'s joint transforms and blend shape weights, and the
+/// `BlendShape`'s offsets.
+pub(super) const SKEL_ATTRIBUTES: &[&str] = &[
+    "primvars:skel:jointIndices",
+    "primvars:skel:jointWeights",
+    "primvars:skel:geomBindTransform",
+    "primvars:skel:skinningMethod",
+    "skel:skinningMethod",
+    "skel:joints",
+    "skel:blendShapes",
+    "joints",
+    "bindTransforms",
+    "restTransforms",
+    "translations",
+    "rotations",
+    "scales",
+    "blendShapes",
+    "blendShapeWeights",
+    "offsets",
+    "pointIndices",
+    // Indexed primvars: kept to be refused by name.
+    "primvars:skel:jointIndices:indices",
+    "primvars:skel:jointWeights:indices",
+];
+
+/// Relationships a reader keeps: the `UsdSkel` bindings.
+pub(super) fn is_kept_relationship(name: &str) -> bool {
+    matches!(name, "skel:skeleton" | "skel:animationSource" | "skel:blendShapeTargets")
+}
 
 impl Layer {
     /// The path of prim `i` (`/a/b`).

@@ -31,7 +31,7 @@ pub(super) fn multiply(a: &Matrix, b: &Matrix) -> Matrix {
 }
 
 /// The inverse of `m` (Gauss–Jordan with partial pivoting), `None` when it is singular.
-fn inverse(m: &Matrix) -> Option<Matrix> {
+pub(super) fn inverse(m: &Matrix) -> Option<Matrix> {
     let mut a = *m;
     let mut inv = IDENTITY;
     for col in 0..4 {
@@ -290,14 +290,14 @@ mod tests {
     fn prim(ops: &[(&str, Value)], order: &[&str]) -> Prim {
         let mut attributes: Vec<Attribute> = ops
             .iter()
-            .map(|(n, v)| Attribute { name: (*n).to_owned(), default: Some(v.clone()), samples: Vec::new() })
+            .map(|(n, v)| Attribute { name: (*n).to_owned(), default: Some(v.clone()), ..Attribute::default() })
             .collect();
         attributes.push(Attribute {
             name: "xformOpOrder".into(),
             default: Some(Value::Tokens(order.iter().map(|s| (*s).to_owned()).collect())),
-            samples: Vec::new(),
+            ..Attribute::default()
         });
-        Prim { name: "p".into(), parent: None, type_name: "Xform".into(), attributes }
+        Prim { name: "p".into(), type_name: "Xform".into(), attributes, ..Prim::default() }
     }
 
     fn apply(p: &Prim, point: [f32; 3]) -> [f32; 3] {

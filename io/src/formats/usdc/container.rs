@@ -36,6 +36,7 @@ pub const FIELD_SET_END: u32 = u32::MAX;
 pub const SPEC_ATTRIBUTE: u32 = 1;
 pub const SPEC_PRIM: u32 = 6;
 pub const SPEC_PSEUDO_ROOT: u32 = 7;
+pub const SPEC_RELATIONSHIP: u32 = 8;
 /// Spec types past this are not defined (`SdfNumSpecTypes`).
 const SPEC_TYPE_COUNT: u32 = 12;
 
@@ -153,11 +154,20 @@ impl<'a> Crate<'a> {
 
     /// Path `i` as text (`/a/b.prop`), for messages and prim paths.
     pub fn path_text(&self, i: u32) -> Result<String> {
+        self.path_text_within(i, usize::MAX)
+    }
+
+    /// Path `i` as text, or an error when it has more than `max_names` names (a relationship
+    /// target deeper than any prim kept: a file may hold many, so each walk is bounded).
+    pub fn path_text_within(&self, i: u32, max_names: usize) -> Result<String> {
         let mut names = Vec::new();
         let mut at = Some(i);
         // Parents always come earlier in the walk that built the tree, so this ends; the
         // count bound makes that certain.
         while let Some(p) = at {
+            if names.len() > max_names {
+                return Err(self.err("PATHS", format!("a relationship target deeper than {max_names} prims")));
+            }
             if names.len() > self.paths.len() {
                 return Err(self.err("PATHS", "the path tree has a cycle"));
             }

@@ -11,9 +11,10 @@ use codec_core::Result;
 
 use super::super::gltf_buffers::Budget;
 use super::super::usd_layer::{
-    is_kept_attribute, shown, unsupported, Attribute, Layer, Prim, Value, FLATTEN_ADVICE, MAX_DEPTH,
+    is_kept_attribute, is_kept_relationship, shown, unsupported, Attribute, Layer, Prim, Relationship, Value,
+    FLATTEN_ADVICE, MAX_DEPTH,
 };
-use super::container::{Crate, SPEC_ATTRIBUTE, SPEC_PRIM, SPEC_PSEUDO_ROOT};
+use super::container::{Crate, SPEC_ATTRIBUTE, SPEC_PRIM, SPEC_PSEUDO_ROOT, SPEC_RELATIONSHIP};
 use super::values::{ty, Rep, Values};
 
 /// Fields that bring in other layers or prims: not composed here.
@@ -30,6 +31,7 @@ pub fn layer(k: &Crate, budget: &mut Budget) -> Result<Layer> {
     let mut spec_of: HashMap<u32, usize> = HashMap::new();
     let mut children: HashMap<Option<u32>, Vec<u32>> = HashMap::new();
     let mut attributes: HashMap<u32, Vec<u32>> = HashMap::new();
+    let mut relationships: HashMap<u32, Vec<u32>> = HashMap::new();
     let mut root = None;
     budget.take("specs", (k.specs.len() as u64).saturating_mul(64))?;
     for (i, spec) in k.specs.iter().enumerate() {
@@ -43,6 +45,11 @@ pub fn layer(k: &Crate, budget: &mut Budget) -> Result<Layer> {
             SPEC_ATTRIBUTE if node.is_property => {
                 if let Some(parent) = node.parent {
                     attributes.entry(parent).or_default().push(spec.path);
+                }
+            }
+            SPEC_RELATIONSHIP if node.is_property => {
+                if let Some(parent) = node.parent {
+                    relationships.entry(parent).or_default().push(spec.path);
                 }
             }
             _ => {}
@@ -103,6 +110,7 @@ pub fn layer(k: &Crate, budget: &mut Budget) -> Result<Layer> {
             k.paths[path as usize].unwrap_or(super::container::PathNode { parent: None, token: 0, is_property: false });
         let mut live = true;
         let mut type_name = String::new();
+        let mut api_schemas = Vec::new();
         for (token, rep) in fields(path) {
             let name = k.token(token, "FIELDS")?;
             let rep = Rep(rep);
@@ -119,6 +127,13 @@ pub fn layer(k: &Crate, budget: &mut Budget) -> Result<Layer> {
                         type_name = t;
                     }
                 }
+                "apiSchemas" if rep.ty() == ty::TOKEN_LIST_OP => {
+                    for token in values.list_op(rep, name, budget)? {
+                        let t = k.token(token, "apiSchemas")?;
+                        budget.take("apiSchemas", t.len() as u64 + 24)?;
+                        api_schemas.push(t.to_owned());
+                    }
+                }
                 _ => {}
             }
         }
@@ -127,7 +142,7 @@ pub fn layer(k: &Crate, budget: &mut Budget) -> Result<Layer> {
         }
         let prim_name = k.token(node.token, "PATHS")?;
         budget.take("prim paths", (prim_name.len() + std::mem::size_of::<Prim>()) as u64)?;
-        let mut prim = Prim { name: prim_name.to_owned(), parent, type_name, attributes: Vec::new() };
+        let mut prim = Prim { name: prim_name.to_owned(), parent, type_name, api_schemas, ..Prim::default() };
         for &attr in attributes.get(&path).map(Vec::as_slice).unwrap_or_default() {
             let Some(attr_node) = k.paths[attr as usize] else { continue };
             let attr_name = k.token(attr_node.token, "PATHS")?;
@@ -135,6 +150,25 @@ pub fn layer(k: &Crate, budget: &mut Budget) -> Result<Layer> {
                 continue;
             }
             prim.attributes.push(attribute(k, &values, attr, attr_name, &fields(attr), budget)?);
+        }
+        for &rel in relationships.get(&path).map(Vec::as_slice).unwrap_or_default() {
+            let Some(rel_node) = k.paths[rel as usize] else { continue };
+            let rel_name = k.token(rel_node.token, "PATHS")?;
+            if !is_kept_relationship(rel_name) {
+                continue;
+            }
+            let mut targets = Vec::new();
+            for (token, rep) in fields(rel) {
+                let rep = Rep(rep);
+                if k.token(token, "FIELDS")? == "targetPaths" && rep.ty() == ty::PATH_LIST_OP {
+                    for target in values.list_op(rep, rel_name, budget)? {
+                        let text = k.path_text_within(target, MAX_DEPTH + 1)?;
+                        budget.take("relationship targets", text.len() as u64 + 24)?;
+                        targets.push(text);
+                    }
+                }
+            }
+            prim.relationships.push(Relationship { name: rel_name.to_owned(), targets });
         }
         layer.prims.push(prim);
         let index = layer.prims.len() - 1;
@@ -237,6 +271,16 @@ fn attribute(
                     let value =
                         if value.ty() == ty::VALUE_BLOCK { None } else { Some(values.value(value, name, budget)?) };
                     attr.samples.push((time, value));
+                }
+            }
+            "elementSize" => {
+                if let Value::Ints(v) = values.value(rep, name, budget)? {
+                    attr.element_size = v.first().copied();
+                }
+            }
+            "interpolation" => {
+                if let Value::Token(t) = values.value(rep, name, budget)? {
+                    attr.interpolation = Some(t);
                 }
             }
             "spline" => {

@@ -38,6 +38,8 @@ pub mod ty {
     pub const QUATH: u8 = 18;
     pub const VEC2D: u8 = 19;
     pub const VEC4I: u8 = 30;
+    pub const TOKEN_LIST_OP: u8 = 32;
+    pub const PATH_LIST_OP: u8 = 34;
     pub const TOKEN_VECTOR: u8 = 41;
     pub const SPECIFIER: u8 = 42;
     pub const VARIABILITY: u8 = 44;
@@ -190,6 +192,38 @@ impl Values<'_, '_> {
     fn at(&self, offset: u64, what: &str) -> Result<Cursor<'_>> {
         Cursor::new(self.krate.bytes, offset, self.krate.bytes.len() as u64)
             .ok_or_else(|| self.err(what, format!("a value at offset {offset}, past the end of the file")))
+    }
+
+    /// The items of a token or path list op (`SdfListOp`, `crateFile.cpp` `_ListOpHeader`) as
+    /// token or path indexes: a header byte (bit 0 explicit, then which of the explicit,
+    /// added, deleted, ordered, prepended and appended lists follow), then each present list
+    /// as a `u64` count and that many `u32` indexes, in the order explicit, added, prepended,
+    /// appended, deleted, ordered. Composed over nothing (one layer): the explicit items, else
+    /// the prepended, added and appended ones; deleted and ordered items change nothing.
+    pub fn list_op(&self, rep: Rep, what: &str, budget: &mut Budget) -> Result<Vec<u32>> {
+        if rep.is_inlined() || rep.is_array() {
+            return Err(self.err(what, "a list op that is inlined or an array"));
+        }
+        let mut c = self.at(rep.payload(), what)?;
+        let bits = c.u8().map_err(|e| self.err(what, e))?;
+        let mut items = Vec::new();
+        // (header bit, kept): explicit, added, prepended, appended, deleted, ordered.
+        for (bit, kept) in [(1u8, true), (2, true), (5, true), (6, true), (3, false), (4, false)] {
+            if bits & (1 << bit) == 0 {
+                continue;
+            }
+            let n = c.u64().map_err(|e| self.err(what, e))?;
+            let data = c.take(n.saturating_mul(4)).map_err(|e| self.err(what, format!("a list of {n} items: {e}")))?;
+            if kept {
+                budget.take("list op items", n.saturating_mul(4))?;
+                items.extend(data.chunks_exact(4).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]])));
+            }
+            // An explicit list op authors its explicit items only.
+            if bit == 1 && bits & 1 != 0 {
+                break;
+            }
+        }
+        Ok(items)
     }
 
     /// The value of `rep` in the layer model; types not needed here are [`Value::Other`].
