@@ -403,28 +403,6 @@ impl Buffer {
                 .push(json!({"bufferView": view, "componentType": 5126, "count": data.len(), "type": "SCALAR"}));
             return Ok(self.accessors.len() - 1);
         }
-        if form == WeightForm::U16 {
-            // Normalized UNSIGNED_SHORT (glTF 2.0 §5.22.1: a `weights` output may be): a
-            // record is one frame's weights (two frames when `k` is odd, so records are whole
-            // 4-byte units), the data padded to whole records.
-            let per_record = if k % 2 == 0 { k } else { 2 * k };
-            let per_record = if per_record > 128 {
-                (1..=64).rev().find(|d| k % d == 0 && d % 2 == 0).unwrap_or(2)
-            } else {
-                per_record
-            };
-            let mut raw: Vec<u8> = data
-                .iter()
-                .flat_map(|&x| ((x as f64 * 65535.0).round().clamp(0.0, 65535.0) as u16).to_le_bytes())
-                .collect();
-            while raw.len() % (2 * per_record) != 0 {
-                raw.push(0);
-            }
-            let view = self.view(&raw, Stream::Attributes { stride: 2 * per_record, vertex_stride: false }, None)?;
-            self.accessors.push(json!({"bufferView": view, "componentType": 5123, "normalized": true,
-                "count": data.len(), "type": "SCALAR"}));
-            return Ok(self.accessors.len() - 1);
-        }
         let raw: Vec<u8> = data.iter().flat_map(|x| x.to_le_bytes()).collect();
         let per_record = (1..=k.min(64)).rev().find(|d| k % d == 0).unwrap_or(1);
         let view = self.view(&raw, Stream::Attributes { stride: 4 * per_record, vertex_stride: false }, None)?;
@@ -474,8 +452,6 @@ impl Buffer {
 enum WeightForm {
     /// Plain `f32`.
     F32,
-    /// Normalized UNSIGNED_SHORT (every weight a multiple of 1/65535).
-    U16,
     /// `f32` through the `EXPONENTIAL` filter ([`gltf_out_rd::exponential_words`]); plain
     /// `f32` without meshopt.
     Exponential,
@@ -928,13 +904,7 @@ fn finish(
             node["translation"] = shortest(&q.translation.map(|x| x as f32));
             let scale = q.scale as f32;
             node["scale"] = shortest(&[scale, scale, scale]);
-            weight_form = if q.weights_u16 {
-                WeightForm::U16
-            } else if q.weights_exponential {
-                WeightForm::Exponential
-            } else {
-                WeightForm::F32
-            };
+            weight_form = if q.weights_exponential { WeightForm::Exponential } else { WeightForm::F32 };
             let arrays: Vec<&[[i16; 3]]> =
                 std::iter::once(q.base.as_slice()).chain(q.targets.iter().map(|t| t.values.as_slice())).collect();
             let bytes: Vec<bool> = std::iter::once(false).chain(q.targets.iter().map(|t| t.bytes)).collect();
@@ -1134,13 +1104,6 @@ mod tests {
         let start =
             view["byteOffset"].as_u64().unwrap() as usize + accessor["byteOffset"].as_u64().unwrap_or(0) as usize;
         let count = accessor["count"].as_u64().unwrap() as usize;
-        if accessor["componentType"] == 5123 {
-            assert_eq!(accessor["normalized"], true, "{accessor}");
-            return bin[start..start + 2 * count]
-                .chunks_exact(2)
-                .map(|b| u16::from_le_bytes(b.try_into().unwrap()) as f32 / 65535.0)
-                .collect();
-        }
         bin[start..start + 4 * count].chunks_exact(4).map(|b| f32::from_le_bytes(b.try_into().unwrap())).collect()
     }
 

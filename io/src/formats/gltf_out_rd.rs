@@ -152,9 +152,7 @@ pub(super) struct QBasis {
     /// `scale · base / 32767`, a step 32767× finer than the node scale, so the targets' steps
     /// (`scale · weight`) can all be coarser than the base's with weights in [0, 1].
     pub(super) base_normalized: bool,
-    /// Every weight is a multiple of 1/65535: written as normalized UNSIGNED_SHORT.
-    pub(super) weights_u16: bool,
-    /// Otherwise: every column of weights is `m · 2^e` with one exponent per column and a
+    /// Every column of weights is `m · 2^e` with one exponent per column and a
     /// 16-bit mantissa ([`exponential_words`]), written through `EXT_meshopt_compression`'s
     /// `EXPONENTIAL` filter.
     pub(super) weights_exponential: bool,
@@ -299,7 +297,6 @@ fn quantize_at(a: &Animation, p: &Pca, units: &[Unit], d: f64, max_targets: usiz
         scale,
         base: base_int,
         base_normalized: false,
-        weights_u16: false,
         weights_exponential: false,
         targets: targets
             .into_iter()
@@ -532,11 +529,6 @@ fn pick(choices: &[Choice], weight: f64, mu: f64) -> Choice {
         .expect("a stream has a choice")
 }
 
-/// The smallest `denominator ≤ 64` making every value of `a` times it an integer, if any.
-fn denominator(a: &[f64]) -> Option<u32> {
-    (1..=64u32).find(|&d| a.iter().all(|&x| ((x * d as f64) - (x * d as f64).round()).abs() < 1e-9))
-}
-
 /// The quantized basis meeting `target_kg` with steps chosen on the bytes meshoptimizer's
 /// vertex codec actually spends: each stream (the base and every component's target) is
 /// coded at a grid of steps around its water-filling step, and the steps minimizing
@@ -548,9 +540,8 @@ fn denominator(a: &[f64]) -> Option<u32> {
 ///
 /// glTF form: the base is normalized SHORT at step `s_b` (node scale `32767 · s_b`), so
 /// every target's step `s_j` is a weight `s_j / (32767 · s_b)` in [0, 1] and no residual
-/// target is needed. When every component's weights are multiples of `1/d` (differences of
-/// frames), each step is rounded to a multiple of `d · scale / 65535` so the weights are
-/// exact 16-bit normalized values (`weights_u16`).
+/// target is needed. The weights are those the `EXPONENTIAL` filter stores
+/// ([`exponential_words`]): 16 bits relative to each column's largest, a constant exponent.
 pub(super) fn quantized_basis_coded(a: &Animation, p: &Pca, target_kg: f64) -> Result<QBasis> {
     let units = units(p, usize::MAX);
     let (frames, n) = (p.coeffs.nrows(), p.mean.len());
@@ -632,8 +623,6 @@ pub(super) fn quantized_basis_coded(a: &Animation, p: &Pca, target_kg: f64) -> R
         let (b, t, _) = at(hi.exp());
         (b, t)
     };
-    let dens: Vec<Option<u32>> = units.iter().map(|u| denominator(&u.a)).collect();
-    let exact_weights = dens.iter().all(Option::is_some);
     // The aim is searched between the last aim that met the target and the last that missed
     // (the estimate assumes independent rounding errors, which sticky rounding is not), and
     // the met basis with the fewest estimated bytes is kept.
@@ -658,13 +647,7 @@ pub(super) fn quantized_basis_coded(a: &Animation, p: &Pca, target_kg: f64) -> R
         let mut written = Vec::new();
         let mut columns: Vec<Vec<f64>> = Vec::new();
         for (j, c) in t.iter().enumerate().filter(|(_, c)| c.step.is_finite()) {
-            let mut step = c.step.min(scale);
-            if exact_weights {
-                let den = dens[j].expect("checked") as f64;
-                let most = (65535.0 / den).floor() * den;
-                let units_of = ((step * 65535.0 / scale / den).round() * den).clamp(den, most);
-                step = units_of * scale / 65535.0;
-            }
+            let step = c.step.min(scale);
             let (values, _) = round_at(&targets[j], step, c.stick);
             written.push(values);
             columns.push(units[j].a.iter().map(|&x| x * step / scale).collect());
@@ -676,10 +659,8 @@ pub(super) fn quantized_basis_coded(a: &Animation, p: &Pca, target_kg: f64) -> R
                 weights[f * k + j] = c[f] as f32;
             }
         }
-        if !exact_weights {
-            let words = exponential_words(&weights, k);
-            weights = words.iter().map(|&w| exponential_value(w)).collect();
-        }
+        let words = exponential_words(&weights, k);
+        weights = words.iter().map(|&w| exponential_value(w)).collect();
         let mut q = QBasis {
             translation: centre,
             scale,
@@ -693,8 +674,7 @@ pub(super) fn quantized_basis_coded(a: &Animation, p: &Pca, target_kg: f64) -> R
                 })
                 .collect(),
             weights,
-            weights_u16: exact_weights,
-            weights_exponential: !exact_weights,
+            weights_exponential: true,
             components: k,
             kg: f64::NAN,
             estimate: f64::NAN,
@@ -741,8 +721,8 @@ mod tests {
     use codec_core::synth;
 
     /// The coded allocation: the exact KG meets the target, the base is normalized (no
-    /// residual target), weights lie in [0, 1]; frame differences get exact 16-bit weights,
-    /// principal components exponential-filter ones that the filter's form gives back exactly.
+    /// residual target), weights lie in [0, 1] and are in the exponential filter's form (which
+    /// gives them back exactly), for principal components and for frame differences.
     #[test]
     fn coded_basis_meets_the_target_with_exact_weights() {
         let a = synth::waving_flag(16, 10, 30);
@@ -754,11 +734,11 @@ mod tests {
                 assert!(q.base_normalized && q.components == q.targets.len());
                 assert!(q.weights.iter().all(|w| (0.0..=1.0).contains(w)));
             }
-            assert!(frames.weights_u16 && !components.weights_u16 && components.weights_exponential);
-            assert!(frames.weights.iter().all(|&w| ((w as f64 * 65535.0) - (w as f64 * 65535.0).round()).abs() < 1e-3));
-            let k = components.targets.len();
-            let words = exponential_words(&components.weights, k);
-            assert!(words.iter().zip(&components.weights).all(|(&w, &x)| exponential_value(w) == x));
+            for q in [&components, &frames] {
+                assert!(q.weights_exponential);
+                let words = exponential_words(&q.weights, q.targets.len());
+                assert!(words.iter().zip(&q.weights).all(|(&w, &x)| exponential_value(w) == x));
+            }
         }
     }
 
