@@ -17,6 +17,11 @@
 //! minimum folded into the base): Blender 3.4 clamps shape-key values to [0, 1] (notes of
 //! issue 29 §3). The base, quantized at `S`, gets its finer step back from one more target, the
 //! base's residual, at a constant weight `s_b / S`.
+//!
+//! That allocation serves an explicit target count (`--targets K`). Without one, the export
+//! uses [`quantized_basis_coded`]: steps chosen on the bytes meshoptimizer's vertex codec
+//! actually spends, the base normalized (no residual target), the weights in the form of the
+//! `EXPONENTIAL` filter.
 
 use codec_core::{linalg, Animation, Error, Result};
 use faer::Mat;
