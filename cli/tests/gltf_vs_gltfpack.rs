@@ -173,18 +173,6 @@ fn assert_beats(row: &Row) {
     );
 }
 
-/// The bar short clips meet: KG ≤ gltfpack's and fewer bytes than gltfpack's.
-fn assert_smaller(row: &Row) {
-    assert!(row.ours_kg <= row.gltfpack_kg, "{}: our KG {} > gltfpack's {}", row.name, row.ours_kg, row.gltfpack_kg);
-    assert!(
-        row.ours_bytes < row.gltfpack_bytes,
-        "{}: {} bytes ≥ gltfpack's {}",
-        row.name,
-        row.ours_bytes,
-        row.gltfpack_bytes
-    );
-}
-
 /// The synthetic comparison (always runs with the tools): a waving flag.
 #[test]
 fn our_glb_beats_gltfpack_on_a_synthetic_animation() {
@@ -249,11 +237,10 @@ fn clip(a: &Animation, frames: usize) -> Animation {
     .unwrap()
 }
 
-/// Short clips, where the JSON's share of the file is largest: Horse.glb (16 frames, a morph
-/// animation) and the first 10, 15 and 22 frames of samba and of RobotExpressive's Walking.
-/// Measured: 0.65–0.94× gltfpack's bytes at its KG (the table in `docs/notes/session-2026-11-28.md`);
-/// the 0.7× the long clips meet is not reached below about 20 frames, so this asserts what holds
-/// on every clip: smaller than gltfpack at no larger KG.
+/// Short clips: Horse.glb (16 frames, a morph animation) and the first 10, 15 and 22 frames of
+/// samba and of RobotExpressive's Walking. The 0.7× of the long clips holds from 22 frames;
+/// below, what was measured (`docs/notes/issue-40-short.md`: 0.89× Horse, 0.72–0.78× at 10–15
+/// frames) is asserted with a small margin, as [`short_clip_bound`] says.
 #[test]
 fn our_glb_beats_gltfpack_on_short_clips() {
     let test = "our_glb_beats_gltfpack_on_short_clips";
@@ -293,6 +280,33 @@ fn our_glb_beats_gltfpack_on_short_clips() {
     println!("| animation | frames × vertices | gltfpack -cc bytes | its KG | ours bytes | our KG | ratio | targets |");
     let rows: Vec<Row> = inputs.iter().map(|(name, a)| compare(&tools, &s, name, a)).collect();
     for row in &rows {
-        assert_smaller(row);
+        assert_within(row, short_clip_bound(&row.name));
     }
+}
+
+/// The size bar for a short clip (a fraction of gltfpack's bytes): 0.7 from 22 frames; below,
+/// the measured ratio plus about 0.01 (see `docs/notes/issue-40-short.md` for why 0.7 is out
+/// of reach there).
+fn short_clip_bound(name: &str) -> f64 {
+    if name == "Horse.glb" {
+        0.90
+    } else if name.ends_with("[..10]") {
+        0.79
+    } else if name.ends_with("[..15]") {
+        0.735
+    } else {
+        RATIO
+    }
+}
+
+/// KG ≤ gltfpack's and bytes ≤ `bound` × gltfpack's.
+fn assert_within(row: &Row, bound: f64) {
+    assert!(row.ours_kg <= row.gltfpack_kg, "{}: our KG {} > gltfpack's {}", row.name, row.ours_kg, row.gltfpack_kg);
+    assert!(
+        row.ours_bytes as f64 <= bound * row.gltfpack_bytes as f64,
+        "{}: {} bytes > {bound} × gltfpack's {}",
+        row.name,
+        row.ours_bytes,
+        row.gltfpack_bytes
+    );
 }

@@ -309,11 +309,26 @@ impl Buffer {
                     hi[k] = hi[k].max(c[k]);
                 }
             }
-            accessor["min"] = json!(lo);
-            accessor["max"] = json!(hi);
+            accessor["min"] = shortest(&lo);
+            accessor["max"] = shortest(&hi);
         }
         self.accessors.push(accessor);
         Ok(self.accessors.len() - 1)
+    }
+
+    /// A meshopt-coded view of `raw` in records of `stride` bytes whose decoded data goes
+    /// through `filter` (`EXT_meshopt_compression` "Filters").
+    fn filtered_view(&mut self, raw: &[u8], stride: usize, filter: &str) -> Result<usize> {
+        align4(&mut self.bin);
+        let encoded = encode_stride(raw, stride)?;
+        let view = json!({"buffer": 1, "byteOffset": self.fallback, "byteLength": raw.len(),
+            "extensions": {"EXT_meshopt_compression": {"buffer": 0, "byteOffset": self.bin.len(),
+                "byteLength": encoded.len(), "byteStride": stride, "count": raw.len() / stride,
+                "mode": "ATTRIBUTES", "filter": filter}}});
+        self.fallback += raw.len().div_ceil(4) * 4;
+        self.bin.extend_from_slice(&encoded);
+        self.views.push(view);
+        Ok(self.views.len() - 1)
     }
 
     /// A view that is never compressed.
@@ -334,7 +349,7 @@ impl Buffer {
     /// accessor at its offset in its view, with the min/max glTF requires. Few views keep the
     /// JSON small (a view and its meshopt entry cost about 150 bytes; a 16-frame clip has 16
     /// arrays). Returns the accessor of every array, in order.
-    fn positions(&mut self, arrays: &[&[[i16; 3]]], bytes: &[bool]) -> Result<Vec<usize>> {
+    fn positions(&mut self, arrays: &[&[[i16; 3]]], bytes: &[bool], base_normalized: bool) -> Result<Vec<usize>> {
         let mut accessors = vec![0; arrays.len()];
         for narrow in [false, true] {
             let members: Vec<usize> = (0..arrays.len()).filter(|&i| bytes[i] == narrow).collect();
@@ -364,6 +379,9 @@ impl Buffer {
                 if offset > 0 {
                     accessor["byteOffset"] = offset.into();
                 }
+                if i == 0 && base_normalized {
+                    accessor["normalized"] = true.into();
+                }
                 self.accessors.push(accessor);
                 accessors[i] = self.accessors.len() - 1;
             }
@@ -374,7 +392,17 @@ impl Buffer {
     /// Appends a weights sampler output (`F × k` f32, frame-major). Compressed, a meshopt record
     /// is one frame's weights (or as many whole weights as fit 256 bytes), so the codec's deltas
     /// run from a weight to the same weight one record earlier; returns the accessor index.
-    fn weights(&mut self, data: &[f32], k: usize) -> Result<usize> {
+    fn weights(&mut self, data: &[f32], k: usize, form: WeightForm) -> Result<usize> {
+        if form == WeightForm::Exponential && self.meshopt && k > 0 {
+            // One frame's weights per record; the exponent bytes are constant down a column.
+            let words = gltf_out_rd::exponential_words(data, k);
+            let raw: Vec<u8> = words.iter().flat_map(|w| w.to_le_bytes()).collect();
+            let per_record = (1..=k.min(64)).rev().find(|d| k % d == 0).unwrap_or(1);
+            let view = self.filtered_view(&raw, 4 * per_record, "EXPONENTIAL")?;
+            self.accessors
+                .push(json!({"bufferView": view, "componentType": 5126, "count": data.len(), "type": "SCALAR"}));
+            return Ok(self.accessors.len() - 1);
+        }
         let raw: Vec<u8> = data.iter().flat_map(|x| x.to_le_bytes()).collect();
         let per_record = (1..=k.min(64)).rev().find(|d| k % d == 0).unwrap_or(1);
         let view = self.view(&raw, Stream::Attributes { stride: 4 * per_record, vertex_stride: false }, None)?;
@@ -417,6 +445,16 @@ impl Buffer {
             .push(json!({"bufferView": view, "componentType": component, "count": data.len(), "type": "SCALAR"}));
         self.accessors.len() - 1
     }
+}
+
+/// How a weights sampler output is stored.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum WeightForm {
+    /// Plain `f32`.
+    F32,
+    /// `f32` through the `EXPONENTIAL` filter ([`gltf_out_rd::exponential_words`]); plain
+    /// `f32` without meshopt.
+    Exponential,
 }
 
 /// Base mesh, morph targets (each `3V` values) and per-frame weights (`F × k`, frame-major).
@@ -667,22 +705,48 @@ pub fn encode_gltf(animation: &Animation, options: &GltfOptions, glb: bool) -> R
         // KG on the welded vertices counts each trajectory once, on the input's as often as it
         // repeats: the target is checked on the input's vertices as played back, and aimed
         // lower by the overshoot when missed (a few rounds).
+        // The inner aim is bisected between the last that met the target and the last that
+        // missed; the smallest file that meets it is kept.
         let mut inner = GltfOptions { reorder: false, ..options.clone() };
         let mut best: Option<(Vec<u8>, GltfSummary, f64)> = None;
-        for _ in 0..4 {
+        let (mut met_aim, mut missed_aim) = (None::<f64>, None::<f64>);
+        for _ in 0..5 {
             let (bytes, mut summary) = encode_inner(&moved, &inner, glb, true)?;
             let played = super::gltf::parse_gltf(&bytes, None, "glTF export", animation.frame_rate())?;
             let played = restore_vertices(&played, &map, animation.triangles())?;
             let kg = gltf_out_rd::kg_between(animation, &played);
             summary.basis_kg = kg;
-            let met = kg <= options.target_kg || options.layout == GltfLayout::Frames || options.targets.is_some();
-            if met || best.as_ref().is_none_or(|b| kg < b.2) {
+            let fixed = options.layout == GltfLayout::Frames || options.targets.is_some();
+            let met = kg <= options.target_kg || fixed;
+            let better = match &best {
+                None => true,
+                Some((held, _, held_kg)) => match (met, *held_kg <= options.target_kg || fixed) {
+                    (true, true) => bytes.len() < held.len(),
+                    (true, false) => true,
+                    (false, true) => false,
+                    (false, false) => kg < *held_kg,
+                },
+            };
+            if better {
                 best = Some((bytes, summary, kg));
             }
-            if met {
+            if fixed {
                 break;
             }
-            inner.target_kg *= options.target_kg / kg * 0.995;
+            let aim = inner.target_kg;
+            if met {
+                met_aim = Some(met_aim.map_or(aim, |m: f64| m.max(aim)));
+            } else {
+                missed_aim = Some(missed_aim.map_or(aim, |m: f64| m.min(aim)));
+            }
+            inner.target_kg = match (met_aim, missed_aim) {
+                // Met with room to spare: aim higher.
+                (Some(_), None) if kg < 0.98 * options.target_kg => aim * options.target_kg / kg * 0.995,
+                (Some(_), None) => break,
+                (Some(lo), Some(hi)) if hi / lo < 1.02 => break,
+                (Some(lo), Some(hi)) => (lo * hi).sqrt(),
+                _ => aim * options.target_kg / kg * 0.995,
+            };
         }
         let (bytes, mut summary, _) = best.expect("one round");
         summary.vertex_map = Some(map);
@@ -751,17 +815,27 @@ fn basis_geometry(a: &Animation, options: &GltfOptions) -> Result<Vec<Geometry>>
         let limit = options.targets.unwrap_or(usize::MAX);
         let pca = gltf_out_rd::pca(a)?;
         let kg = options.target_kg;
-        let mut out = vec![Geometry::Quantized(gltf_out_rd::quantized_basis(a, &pca, kg, (limit, limit))?)];
+        let mut out = Vec::new();
+        // Without a target count: steps chosen on the coded bytes; with one, the high-rate
+        // allocation that can hold the count exactly.
+        let mut add = |basis: &gltf_out_rd::Pca| -> Result<()> {
+            out.push(Geometry::Quantized(match options.targets {
+                None => gltf_out_rd::quantized_basis_coded(a, basis, kg)?,
+                Some(_) => gltf_out_rd::quantized_basis(a, basis, kg, (limit, limit))?,
+            }));
+            Ok(())
+        };
+        add(&pca)?;
         match options.targets {
             None => {
                 let differences = gltf_out_rd::differences(a);
-                out.push(Geometry::Quantized(gltf_out_rd::quantized_basis(a, &differences, kg, (limit, limit))?));
+                add(&differences)?;
                 // Short clips, where one target per frame is what a KG target needs: frame-to-
                 // frame steps. (On long clips the principal components win and this candidate's
                 // F − 1 targets would only cost time.)
                 if a.frame_count() <= SUCCESSIVE_DIFFERENCES_FRAMES {
                     let steps = gltf_out_rd::successive_differences(a);
-                    out.push(Geometry::Quantized(gltf_out_rd::quantized_basis(a, &steps, kg, (limit, limit))?));
+                    add(&steps)?;
                 }
             }
             // `targets` counts every target written (issue 41: K components plus the base's
@@ -796,6 +870,7 @@ fn finish(
     let tri: Vec<u32> = animation.triangles().iter().flatten().copied().collect();
     let indices = buf.indices(&tri, animation.vertex_count());
     let mut node = json!({"mesh": 0, "name": options.name});
+    let mut weight_form = WeightForm::F32;
     let (position, targets, weights, basis_kg, components, names) = match geometry {
         Geometry::Float(mut morphs) => {
             let k = morphs.targets.len();
@@ -807,11 +882,11 @@ fn finish(
                 .collect();
             let (position, targets) = if options.compression.quantized() {
                 let q = quantize(animation, &mut morphs);
-                node["translation"] = json!(q.translation);
-                node["scale"] = json!(q.scale);
+                node["translation"] = shortest(&q.translation);
+                node["scale"] = shortest(&q.scale);
                 let arrays: Vec<&[[i16; 3]]> =
                     std::iter::once(q.base.as_slice()).chain(q.targets.iter().map(Vec::as_slice)).collect();
-                let accessors = buf.positions(&arrays, &vec![false; arrays.len()])?;
+                let accessors = buf.positions(&arrays, &vec![false; arrays.len()], false)?;
                 let targets = accessors[1..].iter().map(|&a| json!({"POSITION": a})).collect();
                 (accessors[0], targets)
             } else {
@@ -826,13 +901,14 @@ fn finish(
             (position, targets, morphs.weights, morphs.basis_kg, k, names)
         }
         Geometry::Quantized(q) => {
-            node["translation"] = json!(q.translation.map(|x| x as f32));
+            node["translation"] = shortest(&q.translation.map(|x| x as f32));
             let scale = q.scale as f32;
-            node["scale"] = json!([scale, scale, scale]);
+            node["scale"] = shortest(&[scale, scale, scale]);
+            weight_form = if q.weights_exponential { WeightForm::Exponential } else { WeightForm::F32 };
             let arrays: Vec<&[[i16; 3]]> =
                 std::iter::once(q.base.as_slice()).chain(q.targets.iter().map(|t| t.values.as_slice())).collect();
             let bytes: Vec<bool> = std::iter::once(false).chain(q.targets.iter().map(|t| t.bytes)).collect();
-            let accessors = buf.positions(&arrays, &bytes)?;
+            let accessors = buf.positions(&arrays, &bytes, q.base_normalized)?;
             let position = accessors[0];
             let targets: Vec<Value> = accessors[1..].iter().map(|&a| json!({"POSITION": a})).collect();
             let names = (0..q.targets.len())
@@ -844,7 +920,12 @@ fn finish(
     let k = targets.len();
     let fps = animation.frame_rate();
     let mut primitive = json!({"attributes": {"POSITION": position}, "indices": indices, "mode": 4});
-    let mut mesh = json!({"name": options.name, "primitives": [], "extras": {"targetNames": names}});
+    let mut mesh = json!({"name": options.name, "primitives": []});
+    // Shape-key names for DCC importers; the compressed basis's targets are numbered
+    // components, which importers name the same way by default, so the bytes are saved.
+    if !names.is_empty() && !options.compression.meshopt() {
+        mesh["extras"] = json!({"targetNames": names});
+    }
     let mut root = json!({
         "asset": {"version": "2.0", "generator": concat!("animcodec ", env!("CARGO_PKG_VERSION"))},
         "scene": 0,
@@ -854,7 +935,7 @@ fn finish(
     if let Some(m) = &motion {
         // The rigid part's node starts at frame 0's pose.
         let parent = json!({"name": format!("{} motion", options.name), "children": [1],
-            "translation": m.translations[..3], "rotation": m.rotations[..4]});
+            "translation": shortest(&m.translations[..3]), "rotation": shortest(&m.rotations[..4])});
         root["nodes"] = json!([parent, root["nodes"][0].clone()]);
     }
     let (mut channels, mut samplers) = (Vec::new(), Vec::new());
@@ -863,11 +944,11 @@ fn finish(
     if k > 0 {
         primitive["targets"] = targets.into();
         // The node starts at frame 0's weights so a viewer without animation shows frame 0.
-        mesh["weights"] = json!(weights[..k]);
+        mesh["weights"] = shortest(&weights[..k]);
         if frames > 1 {
             let keys = buf.floats(&times, "SCALAR", None, true)?;
             input = Some(keys);
-            let output = buf.weights(&weights, k)?;
+            let output = buf.weights(&weights, k, weight_form)?;
             let interpolation = if options.layout == GltfLayout::Frames { "STEP" } else { "LINEAR" };
             channels.push(json!({"sampler": samplers.len(), "target": {"node": mesh_node, "path": "weights"}}));
             samplers.push(json!({"input": keys, "output": output, "interpolation": interpolation}));
@@ -920,6 +1001,20 @@ fn finish(
         let text = serde_json::to_vec(&root).map_err(|e| Error::InvalidAnimation(format!("glTF JSON: {e}")))?;
         Ok((text, summary))
     }
+}
+
+/// `values` as a JSON array of the shortest decimals that read back as the same `f32`
+/// (serde_json would print the `f64` widening: 0.036700748 as 0.03670074790716171).
+fn shortest(values: &[f32]) -> Value {
+    Value::Array(
+        values
+            .iter()
+            .map(|x| {
+                let short: f64 = format!("{x}").parse().unwrap_or(*x as f64);
+                serde_json::Number::from_f64(short).map_or(Value::Null, Value::Number)
+            })
+            .collect(),
+    )
 }
 
 /// GLB container (glTF spec §4.4): 12-byte header, JSON chunk padded with spaces, BIN chunk

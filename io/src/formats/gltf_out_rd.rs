@@ -17,6 +17,11 @@
 //! minimum folded into the base): Blender 3.4 clamps shape-key values to [0, 1] (notes of
 //! issue 29 §3). The base, quantized at `S`, gets its finer step back from one more target, the
 //! base's residual, at a constant weight `s_b / S`.
+//!
+//! That allocation serves an explicit target count (`--targets K`). Without one, the export
+//! uses [`quantized_basis_coded`]: steps chosen on the bytes meshoptimizer's vertex codec
+//! actually spends, the base normalized (no residual target), the weights in the form of the
+//! `EXPONENTIAL` filter.
 
 use codec_core::{linalg, Animation, Error, Result};
 use faer::Mat;
@@ -148,6 +153,14 @@ pub(super) struct QBasis {
     pub(super) translation: [f64; 3],
     pub(super) scale: f64,
     pub(super) base: Vec<[i16; 3]>,
+    /// The base is written as normalized SHORT (`KHR_mesh_quantization`): it plays
+    /// `scale · base / 32767`, a step 32767× finer than the node scale, so the targets' steps
+    /// (`scale · weight`) can all be coarser than the base's with weights in [0, 1].
+    pub(super) base_normalized: bool,
+    /// Every column of weights is `m · 2^e` with one exponent per column and a
+    /// 16-bit mantissa ([`exponential_words`]), written through `EXT_meshopt_compression`'s
+    /// `EXPONENTIAL` filter.
+    pub(super) weights_exponential: bool,
     pub(super) targets: Vec<QTarget>,
     /// `F × K`, frame-major, each in [0, 1].
     pub(super) weights: Vec<f32>,
@@ -288,6 +301,8 @@ fn quantize_at(a: &Animation, p: &Pca, units: &[Unit], d: f64, max_targets: usiz
         translation: centre,
         scale,
         base: base_int,
+        base_normalized: false,
+        weights_exponential: false,
         targets: targets
             .into_iter()
             .map(|values| {
@@ -314,10 +329,12 @@ fn played_error(a: &Animation, q: &QBasis) -> f64 {
     let t = Mat::<f64>::from_fn(k, 3 * v, |j, i| q.targets[j].values[i / 3][i % 3] as f64);
     let moved = linalg::mul(w.as_ref(), t.as_ref());
     let mut err = 0.0;
+    let unit = if q.base_normalized { 1.0 / 32767.0 } else { 1.0 };
     for f in 0..frames {
         let frame = a.frame(f);
         for i in 0..3 * v {
-            let played = q.translation[i % 3] + q.scale * (q.base[i / 3][i % 3] as f64 + moved[(f, i)]);
+            let base = q.base[i / 3][i % 3] as f64 * unit;
+            let played = q.translation[i % 3] + q.scale * (base + moved[(f, i)]);
             err += (played - frame[i] as f64).powi(2);
         }
     }
@@ -368,10 +385,367 @@ pub(super) fn quantized_basis(
     Ok(best.expect("at least one round"))
 }
 
+/// Bytes meshoptimizer's vertex codec (version 0, the one `EXT_meshopt_compression` defines)
+/// spends on `values` in the records the writer stores them in: signed bytes in 4-byte records
+/// when every value fits, else 16-bit integers in 8-byte records.
+pub(super) fn coded_bytes(values: &[[i16; 3]]) -> usize {
+    let narrow = values.iter().all(|v| v.iter().all(|&x| (-127..=127).contains(&x)));
+    let encoded = if narrow {
+        let records: Vec<[u8; 4]> =
+            values.iter().map(|p| [p[0] as i8 as u8, p[1] as i8 as u8, p[2] as i8 as u8, 0]).collect();
+        meshopt::encode_vertex_buffer(&records)
+    } else {
+        let records: Vec<[u8; 8]> = values
+            .iter()
+            .map(|p| {
+                let mut r = [0u8; 8];
+                for k in 0..3 {
+                    r[2 * k..2 * k + 2].copy_from_slice(&p[k].to_le_bytes());
+                }
+                r
+            })
+            .collect();
+        meshopt::encode_vertex_buffer(&records)
+    };
+    encoded.map_or(usize::MAX, |e| e.len())
+}
+
+/// `EXT_meshopt_compression`'s `EXPONENTIAL` filter form of non-negative `weights` (`k` per
+/// frame, frame-major): each 32-bit word holds a signed 24-bit mantissa and, in its high byte,
+/// a signed exponent (the spec's "Exponential filter"); every column shares the exponent that
+/// puts its largest weight in [2^15, 2^16), so a weight keeps 16 bits relative to its column's
+/// largest and the codec sees a constant exponent byte. Weights already in this form come back
+/// unchanged.
+pub(super) fn exponential_words(weights: &[f32], k: usize) -> Vec<u32> {
+    let exponents: Vec<i32> = (0..k)
+        .map(|j| {
+            let top = weights.iter().skip(j).step_by(k.max(1)).fold(0.0f64, |m, &w| m.max(w as f64));
+            if top > 0.0 {
+                (top.log2().floor() as i32 - 15).clamp(-100, 100)
+            } else {
+                0
+            }
+        })
+        .collect();
+    weights
+        .iter()
+        .enumerate()
+        .map(|(i, &w)| {
+            let e = exponents[i % k.max(1)];
+            let m = (w as f64 / 2f64.powi(e)).round().clamp(-8_388_607.0, 8_388_607.0) as i32;
+            ((e as u32) << 24) | (m as u32 & 0x00ff_ffff)
+        })
+        .collect()
+}
+
+/// The value an `EXPONENTIAL` word decodes to: `m · 2^e`.
+pub(super) fn exponential_value(word: u32) -> f32 {
+    let m = ((word << 8) as i32) >> 8;
+    let e = (word as i32) >> 24;
+    (m as f64 * 2f64.powi(e)) as f32
+}
+
+/// One way to write a stream (the base or a target): its step (infinite: the target is not
+/// written), the bytes it codes to and its squared error (unweighted).
+#[derive(Clone, Copy)]
+struct Choice {
+    step: f64,
+    stick: f64,
+    bytes: f64,
+    err: f64,
+}
+
+/// Steps tried per stream: quarter octaves, this many either side of the water-filling step.
+const STEP_GRID: i32 = 24;
+
+/// How far past half a step a value may keep the previous vertex's integer ([`round_at`]);
+/// tried on clips up to [`STICKY_FRAMES`] frames (on long clips it would triple the
+/// allocation's time for the few streams that carry the bytes).
+const STICK: [f64; 3] = [0.0, 0.1, 0.25];
+
+/// See [`STICK`].
+const STICKY_FRAMES: usize = 64;
+
+/// JSON and weights a written target costs beyond its coded values (an accessor with its
+/// min/max, a `targets` entry, a column of weights), in bytes.
+const TARGET_OVERHEAD: f64 = 130.0;
+
+/// `values` rounded at `step`: the integers and their squared error. With `stick` > 0 a
+/// value keeps the previous vertex's integer (same coordinate) when it lies within
+/// `0.5 + stick` steps of it: a zero delta, which meshoptimizer's vertex codec stores in
+/// fewer bits (2 or 0 per byte of a group of 16) at a bounded extra error.
+fn round_at(values: &[f64], step: f64, stick: f64) -> (Vec<[i16; 3]>, f64) {
+    let mut err = 0.0;
+    let mut previous = [0i16; 3];
+    let q = values
+        .chunks_exact(3)
+        .map(|c| {
+            let v: [i16; 3] = std::array::from_fn(|k| {
+                let x = c[k] / step;
+                let r = if stick > 0.0 && (x - previous[k] as f64).abs() <= 0.5 + stick {
+                    previous[k]
+                } else {
+                    round_i16(x)
+                };
+                err += (c[k] - r as f64 * step).powi(2);
+                r
+            });
+            previous = v;
+            v
+        })
+        .collect();
+    (q, err)
+}
+
+/// The choices for a stream of `values` around the step `reference`: every grid step at
+/// which they fit 16 bits (at least the finest that fits), and for a target, not writing it
+/// (error `dropped`).
+fn choices(values: &[f64], reference: f64, dropped: Option<f64>, sticky: bool) -> Vec<Choice> {
+    let peak = values.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    let mut out = Vec::new();
+    if let Some(err) = dropped {
+        out.push(Choice { step: f64::INFINITY, stick: 0.0, bytes: 0.0, err });
+    }
+    let finest = (peak / 32767.0).max(f64::MIN_POSITIVE);
+    let mut steps: Vec<f64> =
+        (-STEP_GRID..=STEP_GRID).map(|k| reference * 2f64.powf(k as f64 / 8.0)).filter(|&s| s >= finest).collect();
+    if steps.is_empty() {
+        steps.push(finest);
+    }
+    for step in steps {
+        for stick in if sticky { &STICK[..] } else { &STICK[..1] } {
+            let stick = *stick;
+            let (q, err) = round_at(values, step, stick);
+            if dropped.is_some() && q.iter().all(|v| *v == [0, 0, 0]) {
+                continue;
+            }
+            let overhead = if dropped.is_some() { TARGET_OVERHEAD } else { 0.0 };
+            out.push(Choice { step, stick, bytes: coded_bytes(&q) as f64 + overhead, err });
+        }
+    }
+    out
+}
+
+/// The choice minimizing `bytes + mu · weight · err`.
+fn pick(choices: &[Choice], weight: f64, mu: f64) -> Choice {
+    *choices
+        .iter()
+        .min_by(|a, b| (a.bytes + mu * weight * a.err).total_cmp(&(b.bytes + mu * weight * b.err)))
+        .expect("a stream has a choice")
+}
+
+/// The quantized basis meeting `target_kg` with steps chosen on the bytes meshoptimizer's
+/// vertex codec actually spends: each stream (the base and every component's target) is
+/// coded at a grid of steps around its water-filling step, and the steps minimizing
+/// `bytes + μ · weighted error` (Lagrangian rate-distortion allocation, Shoham & Gersho 1988)
+/// are kept for the smallest `μ` whose estimated KG meets the aim; the exact KG of the
+/// integers is then checked and the aim lowered until it holds. The codec's cost is a
+/// staircase in the step (2, 4 or 8 bits per byte of each group of 16 deltas, signed bytes
+/// when a target fits them), which the high-rate model of [`quantized_basis`] cannot see.
+///
+/// glTF form: the base is normalized SHORT at step `s_b` (node scale `32767 · s_b`), so
+/// every target's step `s_j` is a weight `s_j / (32767 · s_b)` in [0, 1] and no residual
+/// target is needed. The weights are those the `EXPONENTIAL` filter stores
+/// ([`exponential_words`]): 16 bits relative to each column's largest, a constant exponent.
+pub(super) fn quantized_basis_coded(a: &Animation, p: &Pca, target_kg: f64) -> Result<QBasis> {
+    let units = units(p, usize::MAX);
+    let (frames, n) = (p.coeffs.nrows(), p.mean.len());
+    // The water-filling level for the target: the reference each stream's grid centres on.
+    let diag = a.bounding_box_diagonal().max(f64::MIN_POSITIVE);
+    let (mut lo, mut hi) = ((diag * 1e-9).ln(), diag.ln());
+    for _ in 0..40 {
+        let mid = 0.5 * (lo + hi);
+        if quantize_at(a, p, &units, mid.exp(), usize::MAX, false).estimate <= target_kg {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    let d = lo.exp();
+    let sticky = frames <= STICKY_FRAMES;
+    let targets: Vec<Vec<f64>> =
+        units.iter().enumerate().map(|(j, u)| (0..n).map(|i| u.range * p.dirs[(j, i)]).collect()).collect();
+    let target_choices: Vec<Vec<Choice>> = units
+        .iter()
+        .zip(&targets)
+        .enumerate()
+        .map(|(j, (u, t))| {
+            let energy = u.weight_energy.max(f64::MIN_POSITIVE);
+            // Not written: the component's own energy (its minimum leaves the base too).
+            choices(t, d / energy.sqrt(), Some(p.lambda[j] / energy), sticky)
+        })
+        .collect();
+    let tail: f64 = p.lambda[units.len()..].iter().sum();
+    let base_of = |kept: &[bool]| -> (Vec<f64>, [f64; 3]) {
+        let mut base = p.mean.clone();
+        for (j, _) in kept.iter().enumerate().filter(|(_, &k)| k) {
+            for (i, b) in base.iter_mut().enumerate() {
+                *b += units[j].min * p.dirs[(j, i)];
+            }
+        }
+        let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+        for q in base.chunks_exact(3) {
+            for k in 0..3 {
+                lo[k] = lo[k].min(q[k]);
+                hi[k] = hi[k].max(q[k]);
+            }
+        }
+        let centre: [f64; 3] = std::array::from_fn(|k| (lo[k] + hi[k]) / 2.0);
+        for (i, b) in base.iter_mut().enumerate() {
+            *b -= centre[i % 3];
+        }
+        (base, centre)
+    };
+    let kg_of = |e: f64| if p.energy > 0.0 { 100.0 * (e.max(0.0) / p.energy).sqrt() } else { 0.0 };
+    let weights_of = |j: usize| units[j].weight_energy;
+    let mut kept = vec![true; units.len()];
+    let (mut base, mut centre) = base_of(&kept);
+    let mut base_choices = choices(&base, d / (frames as f64).sqrt(), None, sticky);
+    // μ's range: the error is measured as a fraction of KG's denominator.
+    let scale_mu = 1.0 / p.energy.max(f64::MIN_POSITIVE);
+    let solve = |aim: f64, base_choices: &[Choice]| -> (Choice, Vec<Choice>) {
+        let at = |mu: f64| {
+            let b = pick(base_choices, frames as f64, mu * scale_mu);
+            let t: Vec<Choice> =
+                target_choices.iter().enumerate().map(|(j, c)| pick(c, weights_of(j), mu * scale_mu)).collect();
+            let err =
+                frames as f64 * b.err + t.iter().enumerate().map(|(j, c)| weights_of(j) * c.err).sum::<f64>() + tail;
+            (b, t, kg_of(err))
+        };
+        let (mut lo, mut hi) = (0.0f64, 60.0f64);
+        if at(hi.exp()).2 > aim {
+            let (b, t, _) = at(hi.exp());
+            return (b, t);
+        }
+        for _ in 0..60 {
+            let mid = 0.5 * (lo + hi);
+            if at(mid.exp()).2 <= aim {
+                hi = mid;
+            } else {
+                lo = mid;
+            }
+        }
+        let (b, t, _) = at(hi.exp());
+        (b, t)
+    };
+    // The aim is searched between the last aim that met the target and the last that missed
+    // (the estimate assumes independent rounding errors, which sticky rounding is not), and
+    // the met basis with the fewest estimated bytes is kept.
+    let mut aim = target_kg;
+    let (mut met_aim, mut missed_aim) = (None::<f64>, None::<f64>);
+    let mut best: Option<(QBasis, f64)> = None;
+    for _ in 0..8 {
+        let (mut b, mut t) = solve(aim, &base_choices);
+        // The base depends on which components are written (their minimum is folded in).
+        for _ in 0..3 {
+            let now: Vec<bool> = t.iter().map(|c| c.step.is_finite()).collect();
+            if now == kept {
+                break;
+            }
+            kept = now;
+            (base, centre) = base_of(&kept);
+            base_choices = choices(&base, d / (frames as f64).sqrt(), None, sticky);
+            (b, t) = solve(aim, &base_choices);
+        }
+        let scale = 32767.0 * b.step;
+        let (base_int, _) = round_at(&base, b.step, b.stick);
+        let mut written = Vec::new();
+        let mut columns: Vec<Vec<f64>> = Vec::new();
+        for (j, c) in t.iter().enumerate().filter(|(_, c)| c.step.is_finite()) {
+            let step = c.step.min(scale);
+            let (values, _) = round_at(&targets[j], step, c.stick);
+            written.push(values);
+            columns.push(units[j].a.iter().map(|&x| x * step / scale).collect());
+        }
+        let k = written.len();
+        let mut weights = vec![0.0f32; frames * k];
+        for (j, c) in columns.iter().enumerate() {
+            for f in 0..frames {
+                weights[f * k + j] = c[f] as f32;
+            }
+        }
+        let words = exponential_words(&weights, k);
+        weights = words.iter().map(|&w| exponential_value(w)).collect();
+        let mut q = QBasis {
+            translation: centre,
+            scale,
+            base: base_int,
+            base_normalized: true,
+            targets: written
+                .into_iter()
+                .map(|values| {
+                    let bytes = values.iter().all(|v| v.iter().all(|&x| (-127..=127).contains(&x)));
+                    QTarget { values, bytes }
+                })
+                .collect(),
+            weights,
+            weights_exponential: true,
+            components: k,
+            kg: f64::NAN,
+            estimate: f64::NAN,
+        };
+        q.kg = kg_of(played_error(a, &q));
+        if !q.kg.is_finite() {
+            return Err(Error::InvalidAnimation("glTF export: the quantized basis is not finite".into()));
+        }
+        let met = q.kg <= target_kg;
+        let overshoot = q.kg / target_kg;
+        let bytes: f64 = b.bytes + t.iter().map(|c| c.bytes).sum::<f64>();
+        let better = match &best {
+            None => true,
+            Some((held, held_bytes)) => match (met, held.kg <= target_kg) {
+                (true, true) => bytes < *held_bytes,
+                (true, false) => true,
+                (false, true) => false,
+                (false, false) => q.kg < held.kg,
+            },
+        };
+        if better {
+            best = Some((q, bytes));
+        }
+        if met {
+            met_aim = Some(met_aim.map_or(aim, |m: f64| m.max(aim)));
+        } else {
+            missed_aim = Some(missed_aim.map_or(aim, |m: f64| m.min(aim)));
+        }
+        aim = match (met_aim, missed_aim) {
+            // Met with room to spare (the errors partly cancel): aim higher.
+            (Some(_), None) if overshoot < 0.98 => aim / overshoot * 0.995,
+            (Some(_), None) => break,
+            (Some(lo), Some(hi)) if hi / lo < 1.02 => break,
+            (Some(lo), Some(hi)) => (lo * hi).sqrt(),
+            _ => aim / (overshoot * 1.01),
+        };
+    }
+    Ok(best.expect("at least one round").0)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use animcodec_synth as synth;
+
+    /// The coded allocation: the exact KG meets the target, the base is normalized (no
+    /// residual target), weights lie in [0, 1] and are in the exponential filter's form (which
+    /// gives them back exactly), for principal components and for frame differences.
+    #[test]
+    fn coded_basis_meets_the_target_with_exact_weights() {
+        let a = synth::waving_flag(16, 10, 30);
+        for t in [0.1, 0.01] {
+            let components = quantized_basis_coded(&a, &pca(&a).unwrap(), t).unwrap();
+            let frames = quantized_basis_coded(&a, &differences(&a), t).unwrap();
+            for q in [&components, &frames] {
+                assert!(q.kg <= t, "target {t}: exact KG {}", q.kg);
+                assert!(q.base_normalized && q.components == q.targets.len());
+                assert!(q.weights.iter().all(|w| (0.0..=1.0).contains(w)));
+            }
+            for q in [&components, &frames] {
+                assert!(q.weights_exponential);
+                let words = exponential_words(&q.weights, q.targets.len());
+                assert!(words.iter().zip(&q.weights).all(|(&w, &x)| exponential_value(w) == x));
+            }
+        }
+    }
 
     /// The exact KG of the written integers meets the target and tightens with it; the
     /// estimate the search uses is close to it; weights stay in [0, 1].
