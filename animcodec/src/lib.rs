@@ -48,6 +48,8 @@ pub fn registry() -> CodecRegistry {
         Box::new(codec_sac::Sac),
         // issue #7, Luo et al. 2020
         Box::new(codec_stseg::Stseg),
+        // laplacian: made by cargo xtask new-codec; say what it is (method, paper, issue)
+        Box::new(codec_laplacian::Laplacian),
         // cargo xtask new-codec inserts above this line
     ])
     .expect("codec names and FourCCs in the registry list are unique")
