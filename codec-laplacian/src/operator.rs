@@ -132,14 +132,18 @@ fn cotangent(p: &[f64], o: usize, a: usize, b: usize) -> f64 {
     }
 }
 
-/// Which vertices are anchors: every `spacing`-th position of `graph`'s order and every
-/// component seed (a position with no earlier neighbour). Returns `(anchors, free)`, both in
-/// coding order.
-pub fn split_anchors(graph: &CausalGraph, spacing: usize) -> (Vec<u32>, Vec<u32>) {
+/// Whether each position of `graph`'s order is an anchor: every `spacing`-th position and
+/// every component seed (a position with no earlier neighbour).
+pub fn anchor_positions(graph: &CausalGraph, spacing: usize) -> Vec<bool> {
     let spacing = spacing.max(1);
+    (0..graph.len()).map(|p| p % spacing == 0 || graph.earlier(p).is_empty()).collect()
+}
+
+/// The anchors and the free vertices ([`anchor_positions`]), both in coding order.
+pub fn split_anchors(graph: &CausalGraph, spacing: usize) -> (Vec<u32>, Vec<u32>) {
     let (mut anchors, mut free) = (Vec::new(), Vec::new());
-    for (p, &v) in graph.order().iter().enumerate() {
-        if p % spacing == 0 || graph.earlier(p).is_empty() {
+    for (&v, anchor) in graph.order().iter().zip(anchor_positions(graph, spacing)) {
+        if anchor {
             anchors.push(v);
         } else {
             free.push(v);
@@ -291,13 +295,9 @@ impl Operator {
     }
 
     /// Free vertices, in coding order.
+    #[cfg(test)]
     pub fn free(&self) -> &[u32] {
         &self.free_coding
-    }
-
-    /// Multiply-adds of one [`Operator::solve`] (and of [`Operator::delta`]).
-    pub fn solve_work(&self) -> u64 {
-        2 * self.factor.len() as u64 + self.adj.len() as u64
     }
 
     /// `δ` of `field` (vertex order) at the free vertices, in coding order: the free rows of
