@@ -74,10 +74,7 @@ impl AnimationCodec for Laplacian {
     fn rate_ladder(&self, _base: &ParamSet) -> RateLadder {
         // From small streams to large: the coefficient step (and with it the rank, the basis
         // and mean steps) shrinks by about half an octave per rung.
-        let steps = [
-            0.05, 0.035, 0.025, 0.018, 0.012, 8e-3, 6e-3, 4e-3, 3e-3, 2e-3, 1.4e-3, 1e-3, 7e-4, 5e-4, 3e-4, 2e-4, 1e-4,
-            5e-5, 2e-5,
-        ];
+        let steps = [0.05, 0.03, 0.02, 0.012, 8e-3, 5e-3, 3e-3, 2e-3, 1.2e-3, 8e-4, 5e-4, 3e-4, 2e-4, 1e-4, 5e-5, 2e-5];
         RateLadder { param: "step", steps: steps.into_iter().map(ParamValue::Float).collect() }
     }
     /// The ladder over `step`, with and without the Laplacian domain (so a sweep measures the
