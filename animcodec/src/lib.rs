@@ -48,7 +48,8 @@ pub fn registry() -> CodecRegistry {
         Box::new(codec_sac::Sac),
         // issue #7, Luo et al. 2020
         Box::new(codec_stseg::Stseg),
-        // laplacian: made by cargo xtask new-codec; say what it is (method, paper, issue)
+        // laplacian: trajectory PCA, coefficient fields in the cotangent-Laplacian domain of the
+        // average mesh with anchors (Váša et al. 2014; codec-laplacian/README.md)
         Box::new(codec_laplacian::Laplacian),
         // cargo xtask new-codec inserts above this line
     ])
