@@ -31,10 +31,10 @@ impl BoundStats {
         }
         for frame in frames.chunks_exact(v * 3) {
             for q in frame.chunks_exact(3) {
-                for a in 0..3 {
-                    self.lo[a] = self.lo[a].min(q[a]);
-                    self.hi[a] = self.hi[a].max(q[a]);
-                    self.max_abs = self.max_abs.max(q[a].abs() as f64);
+                for (a, &x) in q.iter().enumerate() {
+                    self.lo[a] = self.lo[a].min(x);
+                    self.hi[a] = self.hi[a].max(x);
+                    self.max_abs = self.max_abs.max(x.abs() as f64);
                 }
             }
             self.centered += crate::packet::centered_energy(frame, v);

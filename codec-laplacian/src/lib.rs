@@ -189,7 +189,7 @@ impl FrameEncoder for LaplacianEncoder {
         self.stats.push(frames);
         self.pending.extend_from_slice(frames);
         let mut out = Vec::new();
-        while self.graph.len() > 0 && self.frames_pending() >= self.block {
+        while !self.graph.is_empty() && self.frames_pending() >= self.block {
             out.push(self.encode_block(self.block)?);
         }
         Ok(out)

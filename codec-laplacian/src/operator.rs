@@ -281,7 +281,9 @@ impl Operator {
                 return Err(Error::malformed(
                     NAME,
                     "Laplacian",
-                    format!("the average mesh's Laplacian factorization met pivot {d} at row {i} (not positive definite)"),
+                    format!(
+                        "the average mesh's Laplacian factorization met pivot {d} at row {i} (not positive definite)"
+                    ),
                 ));
             }
             factor[si + (i - fi)] = d.sqrt();
@@ -346,8 +348,8 @@ impl Operator {
         for i in 0..m {
             let (fi, si) = (self.first[i], self.start[i]);
             let mut s = y[i];
-            for k in fi..i {
-                s -= self.factor[si + (k - fi)] * y[k];
+            for (l, &yk) in self.factor[si..si + (i - fi)].iter().zip(&y[fi..i]) {
+                s -= l * yk;
             }
             y[i] = s / self.factor[si + (i - fi)];
         }
@@ -355,8 +357,8 @@ impl Operator {
             let (fi, si) = (self.first[i], self.start[i]);
             y[i] /= self.factor[si + (i - fi)];
             let x = y[i];
-            for k in fi..i {
-                y[k] -= self.factor[si + (k - fi)] * x;
+            for (yk, l) in y[fi..i].iter_mut().zip(&self.factor[si..si + (i - fi)]) {
+                *yk -= l * x;
             }
         }
         for (i, &v) in self.elim_vertex.iter().enumerate() {

@@ -208,7 +208,12 @@ pub(crate) struct Coded {
 /// centred energy (the bound's premise, `bound.rs`): when the coded reconstruction would, the
 /// steps are quartered and the packet coded again, and after [`RETRIES`] the frames are
 /// written raw.
-pub(crate) fn encode(p: &LaplacianParams, graph: &CausalGraph, triangles: &[[u32; 3]], frames: &[f32]) -> Result<Coded> {
+pub(crate) fn encode(
+    p: &LaplacianParams,
+    graph: &CausalGraph,
+    triangles: &[[u32; 3]],
+    frames: &[f32],
+) -> Result<Coded> {
     let v = graph.len();
     let f = if v == 0 { 0 } else { frames.len() / (v * 3) };
     let centered = centered_energy(frames, v);
@@ -376,7 +381,8 @@ fn encode_coded(
     if out.iter().any(|x| !x.is_finite()) {
         return Ok(None);
     }
-    let header = Header { laplacian: op.is_some(), spacing: p.spacing as usize, step: s, mean_step, anchor_step, basis_steps };
+    let header =
+        Header { laplacian: op.is_some(), spacing: p.spacing as usize, step: s, mean_step, anchor_step, basis_steps };
     let mut w = ByteWriter::new();
     w.u8(MODE_CODED);
     header.write(&mut w);
@@ -479,7 +485,11 @@ fn decode_coded(
         .saturating_add(Limits::product(&[3, f64_]))
         .saturating_add(Limits::product(&[3, f64_, n64]))
         .saturating_add(Limits::product(&[v64, n64]));
-    limits.check_alloc(NAME, "decoded planes", values.saturating_mul(8).saturating_add(Limits::product(&[v64, 4 * 4])))?;
+    limits.check_alloc(
+        NAME,
+        "decoded planes",
+        values.saturating_mul(8).saturating_add(Limits::product(&[v64, 4 * 4])),
+    )?;
     limits.check_work(NAME, "arithmetic decoding", values.saturating_mul(WORK_PER_CODED_VALUE))?;
     let coords = Limits::product(&[f64_, v64, 3]);
     limits.check_work(

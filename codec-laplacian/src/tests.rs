@@ -23,7 +23,11 @@ fn round_trip_matches_encoder_and_improves_with_step() {
             let err = relative_rms(&anim, &dec);
             assert!(err <= bound, "step {step}: error {err} > bound {bound}");
             if let Some((size, e)) = last {
-                assert!(enc.bytes.len() > size && err < e, "step {step} laplacian {laplacian}: {size} {e} -> {} {err}", enc.bytes.len());
+                assert!(
+                    enc.bytes.len() > size && err < e,
+                    "step {step} laplacian {laplacian}: {size} {e} -> {} {err}",
+                    enc.bytes.len()
+                );
             }
             last = Some((enc.bytes.len(), err));
         }
