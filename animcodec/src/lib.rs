@@ -51,6 +51,9 @@ pub fn registry() -> CodecRegistry {
         Box::new(codec_sac::Sac),
         // spatio-temporal segmentation + PCA: Luo et al. 2020, ACM TOMM
         Box::new(codec_stseg::Stseg),
+        // laplacian: trajectory PCA, coefficient fields in the cotangent-Laplacian domain of the
+        // average mesh with anchors (Váša et al. 2014; codec-laplacian/README.md)
+        Box::new(codec_laplacian::Laplacian),
         // cargo xtask new-codec inserts above this line
     ])
     .expect("codec names and FourCCs in the registry list are unique")

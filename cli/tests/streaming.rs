@@ -39,6 +39,7 @@ fn streamed_encodes_equal_the_in_memory_encodes_for_every_codec() {
             "hosvd" => "ss=0.9",
             "pca-aoi" => "block=16",
             "quant-delta" => "bits=12",
+            "laplacian" => "block=16",
             _ => "level=3",
         };
         for input in [&pc2, &mdd] {
