@@ -32,9 +32,9 @@ mod packet;
 mod params;
 
 use codec_core::codec::{
-    AnimationCodec, EncodedPacket, EncoderSetup, ErrorBound, FourCc, FrameDecoder, FrameEncoder, Packet, StreamInfo,
+    EncodedPacket, EncoderSetup, ErrorBound, FourCc, FrameDecoder, FrameEncoder, Packet, StreamInfo, TypedCodec,
 };
-use codec_core::params::{ParamSet, ParamSpec, ParamValue, RateLadder, SearchAxis, SearchSpace};
+use codec_core::params::{RateLadder, SearchAxis, SearchSpace, Setting};
 use codec_core::toolkit::order::{mesh_bytes, CausalGraph};
 use codec_core::{Animation, Error, Limits, Result};
 
@@ -55,69 +55,49 @@ const MAX_MAGNITUDE: f64 = 1.2676506002282294e30;
 #[derive(Debug, Clone, Copy, Default)]
 pub struct Laplacian;
 
-impl AnimationCodec for Laplacian {
-    fn name(&self) -> &'static str {
-        NAME
-    }
-    fn fourcc(&self) -> FourCc {
-        FourCc::new(b"LAPL")
-    }
-    fn stream_version(&self) -> u16 {
-        STREAM_VERSION
-    }
-    fn summary(&self) -> &'static str {
-        "trajectory PCA, coefficient fields coded as cotangent-Laplacian deltas with anchors (Vasa et al. 2014)"
-    }
-    fn param_specs(&self) -> Vec<ParamSpec> {
-        LaplacianParams::specs()
-    }
-    fn rate_ladder(&self, _base: &ParamSet) -> RateLadder {
+impl TypedCodec for Laplacian {
+    type Params = LaplacianParams;
+    const NAME: &'static str = NAME;
+    const FOURCC: FourCc = FourCc::new(b"LAPL");
+    const STREAM_VERSION: u16 = STREAM_VERSION;
+    const SUMMARY: &'static str =
+        "trajectory PCA, coefficient fields coded as cotangent-Laplacian deltas with anchors (Vasa et al. 2014)";
+
+    fn ladder(&self, _base: &LaplacianParams) -> RateLadder {
         // From small streams to large: the coefficient step (and with it the rank, the basis
         // and mean steps) shrinks by about half an octave per rung.
         let steps = [0.05, 0.03, 0.02, 0.012, 8e-3, 5e-3, 3e-3, 2e-3, 1.2e-3, 8e-4, 5e-4, 3e-4, 2e-4, 1e-4, 5e-5, 2e-5];
-        RateLadder { param: "step", steps: steps.into_iter().map(ParamValue::Float).collect() }
+        RateLadder::over(LaplacianParams::step, steps)
     }
     /// The ladder over `step`, with and without the Laplacian domain (so a sweep measures the
     /// Laplacian lever against direct coding at equal bits, and a target search keeps the
     /// smaller).
-    fn search_space(&self, base: &ParamSet) -> SearchSpace {
+    fn space(&self, base: &LaplacianParams) -> SearchSpace {
         SearchSpace {
-            primary: self.rate_ladder(base),
-            secondary: vec![SearchAxis {
-                param: "laplacian",
-                values: vec![ParamValue::Bool(true), ParamValue::Bool(false)],
-            }],
+            primary: self.ladder(base),
+            secondary: vec![SearchAxis::over(LaplacianParams::laplacian, [true, false])],
         }
     }
-    fn validate(&self, params: &ParamSet) -> Result<()> {
-        LaplacianParams::from_param_set(params)?.validate()
-    }
-    fn independent_blocks(&self, params: &ParamSet, frame_count: usize) -> Result<usize> {
-        let p = LaplacianParams::from_param_set(params)?;
+    fn blocks(&self, p: &LaplacianParams, frame_count: usize) -> Result<usize> {
         Ok(if p.block == 0 { frame_count.max(1) } else { p.block as usize })
     }
     /// With `block=0`, the frames per block that fit `budget` by [`block_memory`]; an explicit
     /// `block` is kept.
-    fn fit_memory(&self, params: &ParamSet, vertices: usize, frames: usize, budget: u64) -> Result<ParamSet> {
-        let p = LaplacianParams::from_param_set(params)?;
+    fn fit(&self, p: &LaplacianParams, vertices: usize, frames: usize, budget: u64) -> Result<Vec<Setting>> {
         if p.block != 0 || frames == 0 {
-            return Ok(params.clone());
+            return Ok(Vec::new());
         }
         let Some(block) = memory::block_for_budget(vertices, frames, budget)? else {
-            return Ok(params.clone());
+            return Ok(Vec::new());
         };
-        let mut out = params.clone();
-        out.set(&LaplacianParams::specs(), "block", ParamValue::Int(block as i64))?;
-        Ok(out)
+        Ok(vec![LaplacianParams::block.to(u32::try_from(block).unwrap_or(u32::MAX))])
     }
-    fn error_bound(&self, params: &ParamSet, animation: &Animation) -> Result<ErrorBound> {
-        LaplacianParams::from_param_set(params)?;
+    fn bound(&self, _params: &LaplacianParams, animation: &Animation) -> Result<ErrorBound> {
         let mut stats = bound::BoundStats::new(animation.vertex_count());
         stats.push(animation.positions());
         Ok(stats.bound())
     }
-    fn new_encoder(&self, params: &ParamSet, setup: &EncoderSetup<'_>) -> Result<Box<dyn FrameEncoder>> {
-        let params = LaplacianParams::from_param_set(params)?;
+    fn encoder(&self, params: LaplacianParams, setup: &EncoderSetup<'_>) -> Result<Box<dyn FrameEncoder>> {
         let topology = setup.topology;
         let graph = CausalGraph::mesh(topology.vertex_count(), topology.triangles());
         let block = if params.block == 0 { setup.frame_count.max(1) } else { params.block as usize };
@@ -132,7 +112,7 @@ impl AnimationCodec for Laplacian {
             stats: bound::BoundStats::new(topology.vertex_count()),
         }))
     }
-    fn new_decoder(&self, info: &StreamInfo, config: &[u8], limits: &Limits) -> Result<Box<dyn FrameDecoder>> {
+    fn decoder(&self, info: &StreamInfo, config: &[u8], limits: &Limits) -> Result<Box<dyn FrameDecoder>> {
         if info.codec_version != STREAM_VERSION {
             return Err(Error::malformed(
                 NAME,

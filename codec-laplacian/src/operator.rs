@@ -371,7 +371,7 @@ impl Operator {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use codec_core::synth;
+    use animcodec_synth as synth;
 
     #[test]
     fn solve_inverts_delta_and_holds_anchors() {

@@ -1,5 +1,6 @@
 use super::*;
-use codec_core::{decode_animation, encode_animation_fed, synth, CodecRegistry};
+use animcodec_synth as synth;
+use codec_core::{decode_animation, encode_animation_fed, AnimationCodec, CodecRegistry};
 
 fn relative_rms(a: &Animation, b: &Animation) -> f64 {
     let e: f64 = a.positions().iter().zip(b.positions()).map(|(x, y)| (*x as f64 - *y as f64).powi(2)).sum();
