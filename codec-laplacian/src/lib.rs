@@ -16,7 +16,7 @@
 //!    quantized value: the decoder solves the Dirichlet problem `L_ff c_f = δ̂ + W_fa ĉ_a`, so the
 //!    quantization error is smooth over the surface and cannot drift beyond the anchors.
 //!
-//! Declared error bound ([`AnimationCodec::error_bound`], `bound.rs`): the RMS error is at most
+//! Declared error bound ([`AnimationCodec::error_bound`](codec_core::AnimationCodec::error_bound), `bound.rs`): the RMS error is at most
 //! the RMS distance of the vertices to their frame's centroid (plus `f32` rounding), relative
 //! to the bounding-box diagonal: every packet's squared error is kept within its centred
 //! energy, by finer steps or, failing that, a raw packet.
