@@ -838,9 +838,8 @@ fn basis_geometry(a: &Animation, options: &GltfOptions) -> Result<Vec<Geometry>>
                     add(&steps)?;
                 }
             }
-            // `targets` counts every target written (issue 41: K components plus the base's
-            // residual made K + 1): K components, or K − 1 and the residual, whichever plays
-            // closer.
+            // `targets` counts every target written (K components plus the base's residual
+            // would be K + 1): K components, or K − 1 and the residual, whichever plays closer.
             Some(k) if k > 0 => {
                 out.push(Geometry::Quantized(gltf_out_rd::quantized_basis(a, &pca, kg, (k - 1, k))?));
             }

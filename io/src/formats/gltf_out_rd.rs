@@ -1,4 +1,4 @@
-//! The compressed basis layout of the glTF export (issue 29): principal components quantized
+//! The compressed basis layout of the glTF export: principal components quantized
 //! at steps chosen for a KG target, instead of every component at the full 16-bit range.
 //!
 //! Transform coding (reverse water-filling, e.g. Cover & Thomas §10.3.3): with orthogonal
@@ -14,8 +14,7 @@
 //! glTF form (`KHR_mesh_quantization`): the node's uniform scale `S` is the coarsest step; a
 //! target's finer step `s_j` lives in its weights (stored weight `a_j(f) · s_j / S`), so every
 //! weight stays in [0, 1] (`a_j` is the component's weight shifted and scaled to [0, 1], its
-//! minimum folded into the base): Blender 3.4 clamps shape-key values to [0, 1] (notes of
-//! issue 29 §3). The base, quantized at `S`, gets its finer step back from one more target, the
+//! minimum folded into the base): Blender clamps shape-key values to its sliders' [0, 1]. The base, quantized at `S`, gets its finer step back from one more target, the
 //! base's residual, at a constant weight `s_b / S`.
 //!
 //! That allocation serves an explicit target count (`--targets K`). Without one, the export

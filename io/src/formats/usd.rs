@@ -332,7 +332,7 @@ impl<'a> Parser<'a, '_> {
     fn depth_check(&self, depth: usize) -> Result<()> {
         if depth > MAX_DEPTH {
             // `depth` counts every nesting level, not only prims: say so, with both counts
-            // (issue 41: 254 nested prims were refused as "nested more than 256 deep").
+            // (254 nested prims reach 257 levels, which "more than 256 prims deep" would hide).
             return Err(self.lexer.error(format!(
                 "nested {depth} levels deep, past the limit of {MAX_DEPTH} levels ({} of them nested prims; every \
                  prim, metadata block, property, dictionary, list and tuple is one level)",
@@ -1194,7 +1194,7 @@ def Scope "world" (
         assert!(f.iter().zip(want).all(|(x, y)| (x - y).abs() < 1e-6), "{f:?}");
     }
 
-    /// Issue 41 (misc): the nesting error counts levels, not prims; it says so, with both.
+    /// The nesting error counts levels, not prims, and says so, with both (probe misc).
     #[test]
     fn the_nesting_error_states_the_levels_and_prims_counted() {
         let mesh = "def Mesh \"m\" { point3f[] points.timeSamples = { 0: [(0,0,0),(1,0,0),(0,1,0)] }\n int[] \
@@ -1206,9 +1206,9 @@ def Scope "world" (
         assert_eq!(parse(&nested(250)).unwrap().vertex_count(), 3);
     }
 
-    /// Issue 41 (usd-deepnames): every prim cloned its whole path, so nested long names cost
-    /// the sum of every prefix (2.5 GB for a 20 MB layer). Only a kept mesh's path is held, and
-    /// it is counted against the budget.
+    /// Nested long prim names do not cost the sum of every path prefix (2.5 GB for a 20 MB
+    /// layer if every prim kept its whole path): only a kept mesh's path is held, and it is
+    /// counted against the budget (probe usd-deepnames).
     #[test]
     fn long_prim_paths_are_counted_once() {
         let name = "n".repeat(10_000);
