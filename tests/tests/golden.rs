@@ -272,6 +272,42 @@ fn container_v3_traversal_golden() {
     assert!(e.contains("unknown topology coding method 2"), "{e}");
 }
 
+/// Container version 4 carries the source's scene metadata after the topology. The committed
+/// stream (`container-v4/quant-delta-v1-metadata.anim`, written by `ANIMCODEC_WRITE_GOLDEN=1`
+/// when missing) still reads with the same metadata and decodes to the same frames, and this
+/// build writes it byte for byte (a change to the block would need a new container version).
+#[test]
+fn container_v4_metadata_golden() {
+    let registry = registry();
+    let metadata = codec_core::SceneMetadata {
+        up_axis: Some(codec_core::UpAxis::Z),
+        meters_per_unit: Some(0.01),
+        time_codes_per_second: Some(48.0),
+        start_time_code: Some(101.0),
+    };
+    let input = synth::waving_flag(12, 8, 3).with_metadata(metadata).unwrap();
+    let codec = registry.by_name("quant-delta").unwrap();
+    let fresh = encode_animation(codec, &codec.default_params(), &input).unwrap();
+    let path = golden_dir().join("container-v4").join("quant-delta-v1-metadata.anim");
+    if std::env::var_os("ANIMCODEC_WRITE_GOLDEN").is_some() && !path.exists() {
+        std::fs::create_dir_all(path.parent().unwrap()).unwrap();
+        std::fs::write(&path, &fresh).unwrap();
+    }
+    let bytes = std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    assert_eq!(bytes, fresh, "this build writes the committed version 4 stream byte for byte");
+    let header = ContainerReader::new(&bytes[..], Limits::default()).unwrap().header().clone();
+    assert_eq!((header.container_version, header.metadata), (4, metadata));
+    let decoded = decode_animation(&bytes, &registry, Limits::default()).unwrap();
+    assert_eq!(*decoded.metadata(), metadata);
+    assert!(codec_core::connectivity::same_triangles(decoded.topology(), input.topology()));
+    // Without metadata the same input keeps the version the topology needs (2 or 3).
+    let plain = encode_animation(codec, &codec.default_params(), &synth::waving_flag(12, 8, 3)).unwrap();
+    let plain_header = ContainerReader::new(&plain[..], Limits::default()).unwrap().header().clone();
+    assert!(plain_header.container_version < 4 && plain_header.metadata.is_empty());
+    let plain_decoded = decode_animation(&plain, &registry, Limits::default()).unwrap();
+    assert_eq!(plain_decoded.positions(), decoded.positions(), "metadata changes no coded position");
+}
+
 /// `a` with each run of `window` consecutive vertex indices shuffled among themselves
 /// (deterministic xorshift): a local, irregular numbering.
 fn shuffled_within(a: &Animation, window: usize) -> Animation {
