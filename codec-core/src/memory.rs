@@ -39,6 +39,36 @@ pub fn check_budget(codec: &'static str, budget: u64, need: u64, what: &str, adv
     })
 }
 
+/// The frames per temporal block that keep an encode of `frames` frames of `vertices`
+/// vertices within `budget` bytes by the codec's model `block_memory(vertices, block)`: `None`
+/// when the whole sequence fits in one block; else equal blocks (`⌈F / n⌉` frames for the
+/// fewest `n` that fit), so no short remainder block is analysed on its own. Fails, naming the
+/// codec's `block` parameter and the budget, when `min_block` frames (or all of them, if fewer)
+/// do not fit.
+pub fn block_for_budget(
+    codec: &'static str,
+    block_param: &'static str,
+    min_block: usize,
+    (vertices, frames): (usize, usize),
+    budget: u64,
+    block_memory: impl Fn(usize, usize) -> u64,
+) -> Result<Option<usize>> {
+    let smallest = min_block.min(frames);
+    match (1..=frames).rev().find(|&b| block_memory(vertices, b) <= budget) {
+        Some(b) if b >= frames => Ok(None),
+        Some(b) if b >= smallest => Ok(Some(frames.div_ceil(frames.div_ceil(b)))),
+        _ => Err(Error::parameter(
+            codec,
+            block_param,
+            format!(
+                "a memory budget of {budget} bytes does not hold a block of {smallest} frames of {vertices} vertices \
+                 (about {} bytes); give a larger budget",
+                block_memory(vertices, smallest)
+            ),
+        )),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

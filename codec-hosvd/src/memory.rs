@@ -2,7 +2,7 @@
 //! [`AnimationCodec::fit_memory`](codec_core::AnimationCodec::fit_memory) sizes blocks with) and
 //! the decoder's work per packet (checked against `Limits::max_work` before decoding).
 
-use codec_core::{Error, Limits, Result};
+use codec_core::{Limits, Result};
 
 use crate::NAME;
 
@@ -33,23 +33,14 @@ const BASE_BYTES: u64 = 64 << 20;
 /// equal blocks (`⌈F / n⌉` frames for the fewest `n` that fit), so no short remainder block is
 /// decomposed on its own. Fails, naming the budget, when [`MIN_MEMORY_BLOCK`] frames do not fit.
 pub(crate) fn block_for_budget(vertices: usize, frames: usize, budget: u64) -> Result<Option<usize>> {
-    let fits = (1..=frames).rev().find(|&b| block_memory(vertices, b) <= budget);
-    match fits {
-        Some(b) if b >= frames => Ok(None),
-        Some(b) if b >= MIN_MEMORY_BLOCK.min(frames) => Ok(Some(frames.div_ceil(frames.div_ceil(b)))),
-        _ => {
-            let need = block_memory(vertices, MIN_MEMORY_BLOCK.min(frames));
-            Err(Error::parameter(
-                NAME,
-                crate::params::HosvdParams::block.name(),
-                format!(
-                    "a memory budget of {budget} bytes does not hold a block of {} frames of {vertices} vertices \
-                     (about {need} bytes); give a larger budget",
-                    MIN_MEMORY_BLOCK.min(frames)
-                ),
-            ))
-        }
-    }
+    codec_core::memory::block_for_budget(
+        NAME,
+        crate::params::HosvdParams::block.name(),
+        MIN_MEMORY_BLOCK,
+        (vertices, frames),
+        budget,
+        block_memory,
+    )
 }
 
 /// Work of decoding one packet of `frames` frames of `k` vertices with ranks `v` and `f`

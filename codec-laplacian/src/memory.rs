@@ -3,7 +3,7 @@
 //! The decoder's memory and work are checked per packet in `packet::decode` and
 //! `operator::Operator::new`, before they are spent.
 
-use codec_core::{Error, Result};
+use codec_core::Result;
 
 use crate::NAME;
 
@@ -24,21 +24,12 @@ pub fn block_memory(vertices: usize, frames: usize) -> u64 {
 /// the whole sequence fits; else equal blocks. Fails, naming the budget, when
 /// [`MIN_MEMORY_BLOCK`] frames do not fit.
 pub(crate) fn block_for_budget(vertices: usize, frames: usize, budget: u64) -> Result<Option<usize>> {
-    let fits = (1..=frames).rev().find(|&b| block_memory(vertices, b) <= budget);
-    match fits {
-        Some(b) if b >= frames => Ok(None),
-        Some(b) if b >= MIN_MEMORY_BLOCK.min(frames) => Ok(Some(frames.div_ceil(frames.div_ceil(b)))),
-        _ => {
-            let need = block_memory(vertices, MIN_MEMORY_BLOCK.min(frames));
-            Err(Error::parameter(
-                NAME,
-                "block",
-                format!(
-                    "a memory budget of {budget} bytes does not hold a block of {} frames of {vertices} vertices \
-                     (about {need} bytes); give a larger budget",
-                    MIN_MEMORY_BLOCK.min(frames)
-                ),
-            ))
-        }
-    }
+    codec_core::memory::block_for_budget(
+        NAME,
+        crate::params::LaplacianParams::block.name(),
+        MIN_MEMORY_BLOCK,
+        (vertices, frames),
+        budget,
+        block_memory,
+    )
 }
