@@ -165,7 +165,9 @@ fn errors_carry_the_message_the_command_line_prints() {
     header_flip[20] ^= 0x40;
     let mut magic = golden.clone();
     magic[0] = b'X';
-    let cases: Vec<(&str, Option<Vec<u8>>, Option<u64>)> = vec![
+    // (file name, its bytes (none: missing), --max-memory)
+    type Case = (&'static str, Option<Vec<u8>>, Option<u64>);
+    let cases: Vec<Case> = vec![
         ("missing.anim", None, None),
         ("header-flip.anim", Some(header_flip), None),
         ("magic.anim", Some(magic), None),

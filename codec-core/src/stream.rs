@@ -479,7 +479,7 @@ pub fn random_access_limits(
     index: &[IndexEntry],
     limits: Limits,
 ) -> Result<Limits> {
-    limits.reserve(codec, "the index", (index.len() * std::mem::size_of::<IndexEntry>()) as u64)?.reserve(
+    limits.reserve(codec, "the index", std::mem::size_of_val(index) as u64)?.reserve(
         codec,
         "the topology",
         header.info.topology.triangle_count() as u64 * 12,
