@@ -8,7 +8,7 @@
 #
 # Streams: every codec at its defaults, plus the block settings that make packets short
 # (random access decodes one packet): hosvd block=16, laplacian block=16, pca-aoi block=16,
-# quant-delta block=8. Output: a Markdown table on stdout.
+# quant-delta block=8, sac keyframe_interval=16. Output: a Markdown table on stdout.
 set -eu
 cd "$(dirname "$0")/.."
 profile=${PROFILE:-debug}
@@ -39,6 +39,7 @@ encode quant-delta-block8 quant-delta block=8
 encode pca-aoi-block16 pca-aoi block=16
 encode hosvd-block16 hosvd block=16
 encode laplacian-block16 laplacian block=16
+encode sac-keyframe16 sac keyframe_interval=16
 echo "input: $input, profile: $profile"
 # shellcheck disable=SC2086
 "$dir/capi_playback" $streams
