@@ -686,7 +686,7 @@ pub unsafe extern "C" fn ac_decode_range(
     guard(|| {
         // SAFETY: the contract.
         let s = unsafe { stream(h) }?;
-        s.check_range(first, count.max(1), n)?;
+        s.check_range(first, count, n)?;
         // SAFETY: the contract.
         let out = unsafe { out_slice(out_xyz, n, "out_xyz") }?;
         s.with_shared(|head| s.decode_into(head, first, count, out))
