@@ -200,6 +200,15 @@ enum ac_status ac_player_new(const struct ac_stream *h, struct ac_player **out);
 // floats.
 enum ac_status ac_player_decode_frame(struct ac_player *p, size_t frame, float *out_xyz, size_t n);
 
+// Decodes frame `frame` with the player and sets `*out_xyz` to its 3 × vertices floats inside
+// the packet the player keeps: no copy (for an engine that uploads straight from it). The
+// pointer is valid until the next call on this player or its free; `*out_xyz` is NULL on failure.
+// Costs as [`ac_player_decode_frame`], less the copy.
+//
+// # Safety
+// `p` is a live player used by no other thread meanwhile; `out_xyz` is writable.
+enum ac_status ac_player_frame_view(struct ac_player *p, size_t frame, const float **out_xyz);
+
 // Frees a player (NULL is accepted).
 //
 // # Safety

@@ -767,6 +767,48 @@ pub unsafe extern "C" fn ac_player_decode_frame(
     })
 }
 
+/// Decodes frame `frame` with the player and sets `*out_xyz` to its 3 × vertices floats inside
+/// the packet the player keeps: no copy (for an engine that uploads straight from it). The
+/// pointer is valid until the next call on this player or its free; `*out_xyz` is NULL on failure.
+/// Costs as [`ac_player_decode_frame`], less the copy.
+///
+/// # Safety
+/// `p` is a live player used by no other thread meanwhile; `out_xyz` is writable.
+#[no_mangle]
+pub unsafe extern "C" fn ac_player_frame_view(p: *mut ac_player, frame: usize, out_xyz: *mut *const f32) -> ac_status {
+    guard(|| {
+        if out_xyz.is_null() {
+            return Err(null("out_xyz"));
+        }
+        // SAFETY: `out_xyz` is writable (the contract) and not NULL.
+        unsafe { *out_xyz = std::ptr::null() };
+        // SAFETY: the contract.
+        let player = unsafe { p.as_mut() }.ok_or_else(|| null("the player"))?;
+        let s = Arc::clone(&player.stream);
+        s.check_range(frame, 1, usize::MAX)?;
+        if player.head.is_none() {
+            player.head = Some(s.playhead().map_err(|e| s.failure(&e))?);
+        }
+        let Some(head) = player.head.as_mut() else { return Err(Failure::new(AC_ERR_INTERNAL, "no decoder")) };
+        let pos = s.packet_of(frame);
+        let local = frame - s.index[pos].first_frame as usize;
+        let v3 = s.values_per_frame();
+        match s.packet(head, pos) {
+            Ok(frames) => {
+                let view = frames[local * v3..(local + 1) * v3].as_ptr();
+                // SAFETY: as above.
+                unsafe { *out_xyz = view };
+                Ok(())
+            }
+            Err(e) => {
+                // The decoder's state after a failed packet is unknown: the next call starts afresh.
+                player.head = None;
+                Err(s.failure(&e))
+            }
+        }
+    })
+}
+
 /// Frees a player (NULL is accepted).
 ///
 /// # Safety
@@ -816,6 +858,6 @@ mod tests {
             assert!(body.contains("guard(") || body.contains("guard_value(") || exempt.contains(&name), "{name}");
             checked += 1;
         }
-        assert!(checked >= 12, "{checked}");
+        assert!(checked >= 13, "{checked}");
     }
 }

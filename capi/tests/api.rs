@@ -49,6 +49,16 @@ fn every_access_path_decodes_what_the_library_decodes_on_every_golden_stream() {
             assert_eq!(unsafe { ac_player_decode_frame(player, t, xyz.as_mut_ptr(), v3) }, ac_status::AC_OK);
             assert!(xyz == frame(t), "{what}: player frame {t}");
         }
+        // The zero-copy view, in a scrambled order.
+        for i in 0..n {
+            let t = (i * stride) % n;
+            let mut view = std::ptr::null();
+            // SAFETY: live player, writable out.
+            assert_eq!(unsafe { ac_player_frame_view(player, t, &mut view) }, ac_status::AC_OK);
+            // SAFETY: `v3` floats, valid until the next call on the player.
+            let got = unsafe { std::slice::from_raw_parts(view, v3) };
+            assert!(got == frame(t), "{what}: view of frame {t}");
+        }
         // SAFETY: not used again.
         unsafe { ac_player_free(player) };
         // A range across packets, and everything.
