@@ -452,6 +452,40 @@ fn packet_alloc(header: &Header, frames: u64) -> u64 {
     frames * header.info.vertex_count() as u64 * 12
 }
 
+/// Decodes one packet the way every decode path does: its frames are charged to `limits`
+/// before the codec runs, and the result must have the packet's shape
+/// (`frame_count × vertices × 3`) and be finite. For callers that drive a [`FrameDecoder`]
+/// themselves over [`container::read_packet_at`] (random access with a decoder kept between
+/// calls, as the C library's player does); the caller resets `decoder` before a keyframe it
+/// seeks to.
+pub fn decode_packet_checked(
+    decoder: &mut dyn FrameDecoder,
+    codec: &'static str,
+    header: &Header,
+    packet: &Packet,
+    limits: &Limits,
+) -> Result<Vec<f32>> {
+    limits.check_alloc(codec, "the decoded packet", packet_alloc(header, packet.frame_count as u64))?;
+    let positions = decoder.decode_packet(packet)?;
+    check_decoded(codec, header, packet, &positions)?;
+    Ok(positions)
+}
+
+/// The limits left for a codec decoder that random access builds: `limits` less the packet
+/// `index` and the topology, which are held while it decodes (what [`decode_frame`] charges).
+pub fn random_access_limits(
+    codec: &'static str,
+    header: &Header,
+    index: &[IndexEntry],
+    limits: Limits,
+) -> Result<Limits> {
+    limits.reserve(codec, "the index", std::mem::size_of_val(index) as u64)?.reserve(
+        codec,
+        "the topology",
+        header.info.topology.triangle_count() as u64 * 12,
+    )
+}
+
 impl<R: Read> StreamDecoder<R> {
     /// Reads the header and makes the decoder of the codec named by its FourCC. The decoded
     /// animation is charged to `limits` whole (what [`StreamDecoder::decode_all`] holds).
@@ -532,11 +566,9 @@ impl<R: Read> StreamDecoder<R> {
     }
 
     fn decode(&mut self, packet: &Packet) -> Result<DecodedPacket> {
-        let header = self.reader.header();
         let limits = *self.reader.limits();
-        limits.check_alloc(self.codec, "the decoded packet", packet_alloc(header, packet.frame_count as u64))?;
-        let positions = self.decoder.decode_packet(packet)?;
-        check_decoded(self.codec, self.reader.header(), packet, &positions)?;
+        let positions =
+            decode_packet_checked(self.decoder.as_mut(), self.codec, self.reader.header(), packet, &limits)?;
         Ok(DecodedPacket {
             first_frame: packet.first_frame as usize,
             frame_count: packet.frame_count as usize,
@@ -580,17 +612,13 @@ pub fn decode_frame<R: Read + Seek>(
         Error::InvalidAnimation(format!("frame {t} is past the end of the stream ({} frames)", header.info.frame_count))
     })?;
     // The index, the topology and the packets from the keyframe on are held while decoding.
-    let decoder_limits = limits
-        .reserve(codec.name(), "the index", (index.len() * std::mem::size_of::<IndexEntry>()) as u64)?
-        .reserve(codec.name(), "the topology", header.info.topology.triangle_count() as u64 * 12)?;
+    let decoder_limits = random_access_limits(codec.name(), &header, &index, limits)?;
     let mut decoder = codec.new_decoder(&header.info, &header.config, &decoder_limits)?;
     decoder.reset();
     let v3 = header.info.vertex_count() * 3;
     for entry in &index[start..=target] {
         let packet = container::read_packet_at(src, entry, &header, limits)?;
-        limits.check_alloc(codec.name(), "the decoded packet", packet_alloc(&header, packet.frame_count as u64))?;
-        let positions = decoder.decode_packet(&packet)?;
-        check_decoded(codec.name(), &header, &packet, &positions)?;
+        let positions = decode_packet_checked(decoder.as_mut(), codec.name(), &header, &packet, &limits)?;
         if entry.first_frame as usize + entry.frame_count as usize > t {
             let local = t - entry.first_frame as usize;
             return Ok(positions[local * v3..(local + 1) * v3].to_vec());

@@ -169,8 +169,9 @@ pub fn codec_stream(codec_name: &str, data: &[u8]) {
 }
 
 /// The container a structure-aware input of codec `codec_name` stands for (see the module
-/// documentation); `None` when it has no record or no frame.
-fn codec_container(codec_name: &str, data: &[u8]) -> Option<Vec<u8>> {
+/// documentation); `None` when it has no record or no frame. Public for the C library's replay
+/// of these corpora (`capi/tests/fuzz_corpus.rs`).
+pub fn codec_container(codec_name: &str, data: &[u8]) -> Option<Vec<u8>> {
     let registry = animcodec::registry();
     let codec = registry.by_name(codec_name).unwrap_or_else(|e| panic!("{e}"));
     let (config, packets) = parse_records(data)?;

@@ -29,6 +29,8 @@ const FLOORS: &[(&str, &str, u8)] = &[
     ("eval", "animcodec-eval", 3),
     ("animcodec", "animcodec", 4),
     ("cli", "animcodec-cli", 5),
+    // The C library over the facade, beside the command line.
+    ("capi", "animcodec-capi", 5),
     ("tests", "conformance-tests", 5),
     // The codec template `cargo xtask new-codec` copies: a codec crate like the others.
     ("xtask/template", "codec-template", 1),
