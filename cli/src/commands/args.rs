@@ -1,6 +1,9 @@
 //! The argument groups several commands share, flattened into their argument structs: the
 //! global options (limits, threads), STED's options, the metric switches, synthetic sizes.
 
+use std::path::PathBuf;
+
+use animcodec::formats::ReadOptions;
 use animcodec::front::MetricOptions;
 use animcodec::synth::SynthSize;
 use clap::{Args, ValueEnum};
@@ -85,6 +88,38 @@ impl MetricArgs {
     /// The metric options these flags give.
     pub fn metric_options(&self) -> MetricOptions {
         MetricOptions { skip_sted: self.no_sted, skip_hausdorff: self.no_hausdorff, ..self.sted.metric_options() }
+    }
+}
+
+/// How one input file is read: the options of [`ReadOptions`] a user sets.
+#[derive(Debug, Args)]
+pub struct ReadArgs {
+    /// OBJ file giving the triangles of a .pc2/.mdd cache (default: the OBJ beside it with the
+    /// same stem).
+    #[arg(long, value_name = "OBJ")]
+    pub topology: Option<PathBuf>,
+
+    /// glTF input: the animation to play, by name or index (default: the first; `animcodec
+    /// list-animations FILE` lists them).
+    #[arg(long, value_name = "NAME|INDEX")]
+    pub animation: Option<String>,
+
+    /// Alembic input: the mesh object to read, by full path (`/root/char/body`), or an object
+    /// whose meshes are read (default: every mesh, merged; `animcodec list-animations FILE.abc`
+    /// lists them).
+    #[arg(long, value_name = "PATH")]
+    pub object: Option<String>,
+}
+
+impl ReadArgs {
+    /// The read options, with `frame_rate` for an input that stores none.
+    pub fn options(&self, frame_rate: Option<f32>) -> ReadOptions {
+        ReadOptions {
+            topology: self.topology.clone(),
+            frame_rate,
+            animation: self.animation.clone(),
+            object: self.object.clone(),
+        }
     }
 }
 

@@ -5,7 +5,6 @@ use std::time::{Duration, Instant};
 
 use animcodec::core::{Animation, AnimationCodec, Limits, ParamSet, StreamDecoder, StreamEncoder, Topology};
 use animcodec::formats::stream::{self as cache_stream, CacheReader};
-use animcodec::formats::ReadOptions;
 use animcodec::front::{self, EvaluationFields, Streams, TargetSummary};
 use animcodec::harness::{self, SearchRequest, Target, TargetMetric};
 use animcodec::metrics::{EvalOptions, MetricReport};
@@ -16,7 +15,7 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use serde::Serialize;
 use serde_json::Value;
 
-use super::args::StedArgs;
+use super::args::{ReadArgs, StedArgs};
 use super::{emit, emit_document, load, raw_bytes, CmdResult, WithContext};
 use clap::Args;
 use std::path::PathBuf;
@@ -49,22 +48,6 @@ pub struct EncodeArgs {
     /// that is also an input is refused even with it.
     #[arg(short, long)]
     pub force: bool,
-
-    /// OBJ file giving the triangles of a .pc2/.mdd cache (default: the OBJ beside it with the
-    /// same stem).
-    #[arg(long, value_name = "OBJ")]
-    pub topology: Option<PathBuf>,
-
-    /// glTF input: the animation to play, by name or index (default: the first; `animcodec
-    /// list-animations FILE` lists them).
-    #[arg(long, value_name = "NAME|INDEX")]
-    pub animation: Option<String>,
-
-    /// Alembic input: the mesh object to read, by full path (`/root/char/body`), or an object
-    /// whose meshes are read (default: every mesh, merged; `animcodec list-animations FILE.abc`
-    /// lists them).
-    #[arg(long, value_name = "PATH")]
-    pub object: Option<String>,
 
     /// Frame rate to use when the input stores none (or to override a synthetic one).
     #[arg(long, value_name = "F", value_parser = super::parse_fps, allow_negative_numbers = true)]
@@ -117,6 +100,10 @@ pub struct EncodeArgs {
     /// Print JSON: {codec, params, bytes, bpvf, frames, vertices, triangles, encode_seconds, …}.
     #[arg(long)]
     pub json: bool,
+
+    /// How the input is read.
+    #[command(flatten)]
+    pub read: ReadArgs,
 }
 
 /// The document of `encode --json` with fixed parameters.
@@ -241,12 +228,7 @@ pub fn run(args: &EncodeArgs, limits: Limits) -> CmdResult {
             Source::Flag { cols, rows, frames }
         }
         None => {
-            let options = ReadOptions {
-                topology: args.topology.clone(),
-                frame_rate: args.fps,
-                animation: args.animation.clone(),
-                object: args.object.clone(),
-            };
+            let options = args.read.options(args.fps);
             // A PC2/MDD cache or an OBJ sequence is read frame by frame as the encoder takes it
             // (inputs may be larger than memory), unless --eval needs the whole input in memory
             // to measure it.
@@ -435,7 +417,7 @@ fn output_policy(args: &EncodeArgs) -> OutputPolicy {
     if !args.input.starts_with("synth:") {
         policy = policy.with_input(&args.input);
     }
-    if let Some(t) = &args.topology {
+    if let Some(t) = &args.read.topology {
         policy = policy.with_input(t);
     }
     policy
@@ -545,12 +527,7 @@ fn run_target(args: &EncodeArgs, target: Target, by_default: bool, limits: Limit
     let read_start = Instant::now();
     // The search decodes and compares whole animations, so a synth:flag:COLSxROWSxFRAMES is
     // built in memory (within the memory limit).
-    let options = ReadOptions {
-        topology: args.topology.clone(),
-        frame_rate: args.fps,
-        animation: args.animation.clone(),
-        object: args.object.clone(),
-    };
+    let options = args.read.options(args.fps);
     let animation = load(&args.input, &options, limits, Streams::Refuse)?.animation;
     // The files the read opened (a .gltf's buffers, …) are inputs too: refused before the work.
     policy.check(&args.output)?;

@@ -5,14 +5,14 @@ use std::path::Path;
 use std::time::Instant;
 
 use animcodec::core::Limits;
+use animcodec::formats::gltf;
 use animcodec::formats::gltf_out::{encode_gltf, restore_vertices, GltfCompression, GltfLayout, GltfOptions};
-use animcodec::formats::{gltf, ReadOptions};
 use animcodec::harness::{self, TargetMetric};
 use animcodec::metrics::EvalOptions;
 use animcodec::output::OutputPolicy;
 use serde::Serialize;
 
-use super::args::StedArgs;
+use super::args::{ReadArgs, StedArgs};
 use super::{emit, emit_document, load, shown, CmdResult, WithContext};
 use clap::Args;
 use std::path::PathBuf;
@@ -76,21 +76,6 @@ pub struct ExportArgs {
     #[arg(long)]
     pub keep_vertices: bool,
 
-    /// OBJ file giving the triangles of a .pc2/.mdd input (default: the OBJ beside it).
-    #[arg(long, value_name = "OBJ")]
-    pub topology: Option<PathBuf>,
-
-    /// glTF input: the animation to play, by name or index (default: the first; `animcodec
-    /// list-animations FILE` lists them).
-    #[arg(long, value_name = "NAME|INDEX")]
-    pub animation: Option<String>,
-
-    /// Alembic input: the mesh object to read, by full path (`/root/char/body`), or an object
-    /// whose meshes are read (default: every mesh, merged; `animcodec list-animations FILE.abc`
-    /// lists them).
-    #[arg(long, value_name = "PATH")]
-    pub object: Option<String>,
-
     /// Frame rate of the input when it stores none (keys are written at frame / fps seconds).
     #[arg(long, value_name = "F", value_parser = super::parse_fps, allow_negative_numbers = true)]
     pub fps: Option<f32>,
@@ -106,6 +91,10 @@ pub struct ExportArgs {
     /// that is also an input is refused even with it.
     #[arg(short, long)]
     pub force: bool,
+
+    /// How the input is read.
+    #[command(flatten)]
+    pub read: ReadArgs,
 }
 
 /// Runs `export`.
@@ -119,17 +108,12 @@ pub fn run(args: &ExportArgs, limits: Limits) -> CmdResult {
         _ => return Err(format!("{}: export writes .glb or .gltf", shown(&args.output)).into()),
     };
     let mut policy = OutputPolicy::new(args.force).with_input(&args.input);
-    if let Some(t) = &args.topology {
+    if let Some(t) = &args.read.topology {
         policy = policy.with_input(t);
     }
     policy.check(&args.output)?;
     let eval = EvalOptions { compute_hausdorff: false, ..args.sted.metric_options().eval_options()? };
-    let read = ReadOptions {
-        topology: args.topology.clone(),
-        frame_rate: args.fps,
-        animation: args.animation.clone(),
-        object: args.object.clone(),
-    };
+    let read = args.read.options(args.fps);
     let stages = crate::progress::Stages::new("export", 4, args.json);
     stages.stage(format!("reading {}", shown(&args.input)));
     let animation = load(&args.input, &read, limits, animcodec::front::Streams::Decode)?.animation;

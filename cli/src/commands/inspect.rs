@@ -7,13 +7,13 @@ use std::path::Path;
 use std::time::Instant;
 
 use animcodec::core::{Animation, ParamSet};
-use animcodec::formats::ReadOptions;
 use animcodec::output::{commit_all, OutputPolicy};
 use animcodec::stseg::{segment_animation, BlockKind, Segment, Segmentation, StsegParams};
 use serde_json::{json, Value};
 
 use animcodec::params::params_json;
 
+use super::args::ReadArgs;
 use super::{emit, load, CmdResult};
 use clap::Args;
 use std::path::PathBuf;
@@ -56,21 +56,9 @@ pub struct InspectArgs {
     #[arg(long, value_name = "N", default_value_t = 0)]
     pub frame: usize,
 
-    /// OBJ file giving the triangles of a .pc2/.mdd cache (default: the OBJ beside it with the
-    /// same stem).
-    #[arg(long, value_name = "OBJ")]
-    pub topology: Option<PathBuf>,
-
-    /// glTF input: the animation to play, by name or index (default: the first; `animcodec
-    /// list-animations FILE` lists them).
-    #[arg(long, value_name = "NAME|INDEX")]
-    pub animation: Option<String>,
-
-    /// Alembic input: the mesh object to read, by full path (`/root/char/body`), or an object
-    /// whose meshes are read (default: every mesh, merged; `animcodec list-animations FILE.abc`
-    /// lists them).
-    #[arg(long, value_name = "PATH")]
-    pub object: Option<String>,
+    /// How the input is read.
+    #[command(flatten)]
+    pub read: ReadArgs,
 }
 
 /// Mesh formats `--mesh` writes, chosen by extension.
@@ -112,19 +100,14 @@ pub fn run(args: &InspectArgs) -> CmdResult {
     if !args.input.starts_with("synth:") {
         policy = policy.with_input(&args.input);
     }
-    if let Some(t) = &args.topology {
+    if let Some(t) = &args.read.topology {
         policy = policy.with_input(t);
     }
     let json_file = args.json.as_deref().filter(|p| *p != Path::new("-"));
     let outputs: Vec<&Path> = [json_file, args.mesh.as_deref()].into_iter().flatten().collect();
     policy.check_all(&outputs)?;
 
-    let options = ReadOptions {
-        topology: args.topology.clone(),
-        frame_rate: None,
-        animation: args.animation.clone(),
-        object: args.object.clone(),
-    };
+    let options = args.read.options(None);
     let animation =
         load(&args.input, &options, animcodec::core::Limits::default(), animcodec::front::Streams::Refuse)?.animation;
     // The files the read opened (a .gltf's buffers, …) are inputs too: refused before the work.

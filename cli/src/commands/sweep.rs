@@ -8,13 +8,12 @@ use std::time::Instant;
 
 use crate::viewer;
 use animcodec::core::{AnimationCodec, CodecRegistry, Limits};
-use animcodec::formats::ReadOptions;
 use animcodec::harness::{self, monotone_report, Point, Sweep, SweepDocument, SweepOptions, SweepSeries, TargetMetric};
 use animcodec::output::{commit_all, OutputPolicy};
 use animcodec::params::params_json;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
-use super::args::MetricArgs;
+use super::args::{MetricArgs, ReadArgs};
 use super::{emit, emit_json, load, CmdResult};
 use clap::Args;
 use std::path::PathBuf;
@@ -87,21 +86,6 @@ pub struct SweepArgs {
     #[arg(short, long)]
     pub force: bool,
 
-    /// OBJ file giving the triangles of a .pc2/.mdd input.
-    #[arg(long, value_name = "OBJ")]
-    pub topology: Option<PathBuf>,
-
-    /// glTF input: the animation to play, by name or index (default: the first; `animcodec
-    /// list-animations FILE` lists them).
-    #[arg(long, value_name = "NAME|INDEX")]
-    pub animation: Option<String>,
-
-    /// Alembic input: the mesh object to read, by full path (`/root/char/body`), or an object
-    /// whose meshes are read (default: every mesh, merged; `animcodec list-animations FILE.abc`
-    /// lists them).
-    #[arg(long, value_name = "PATH")]
-    pub object: Option<String>,
-
     /// Write an HTML report: the interactive rate-distortion plot (hover a point for its
     /// parameters, bytes and every metric), the table, and a viewer per `--view-points` point.
     #[arg(long, value_name = "F.html")]
@@ -116,6 +100,10 @@ pub struct SweepArgs {
     /// Which metrics, and STED's options.
     #[command(flatten)]
     pub metrics: MetricArgs,
+
+    /// How the input is read.
+    #[command(flatten)]
+    pub read: ReadArgs,
 }
 
 /// Input swept when none is given.
@@ -129,7 +117,7 @@ pub fn run(args: &SweepArgs, limits: Limits) -> CmdResult {
     if !input.starts_with("synth:") {
         policy = policy.with_input(input);
     }
-    if let Some(t) = &args.topology {
+    if let Some(t) = &args.read.topology {
         policy = policy.with_input(t);
     }
     let json_file = args.json.as_deref().filter(|p| p.as_os_str() != "-");
@@ -144,12 +132,7 @@ pub fn run(args: &SweepArgs, limits: Limits) -> CmdResult {
     // Checked before the (long) sweep: a typo should not cost it.
     let view_points = args.view_points.iter().map(|t| parse_view_point(t, &series)).collect::<CmdResult<Vec<_>>>()?;
     let eval = args.metrics.metric_options().eval_options()?;
-    let read = ReadOptions {
-        topology: args.topology.clone(),
-        frame_rate: None,
-        animation: args.animation.clone(),
-        object: args.object.clone(),
-    };
+    let read = args.read.options(None);
     let animation = load(input, &read, limits, animcodec::front::Streams::Decode)?.animation;
     // The files the read opened (a .gltf's buffers, …) are inputs too: refused before the work.
     policy.check_all(&outputs)?;
