@@ -131,14 +131,14 @@ pub fn sweep(
     progress: &(dyn Fn(SweepEvent<'_>) + Sync),
 ) -> Result<Sweep> {
     let jobs = sweep_jobs(series, options.points);
-    let run = |&(c, step): &(usize, usize)| -> (usize, usize, Result<(Point, Option<Animation>)>) {
+    let run = |&(c, step): &(usize, usize)| -> (usize, usize, Result<KeptPoint>) {
         progress(SweepEvent::Started { series: &series[c].label, step });
         let keep = options.keep_decoded.iter().any(|(label, s)| *label == series[c].label && *s == step);
         let result = sweep_point_keeping(registry, &series[c], step, animation, options, keep);
         progress(SweepEvent::Finished { series: &series[c].label, step });
         (c, step, result)
     };
-    let mut results: Vec<(usize, usize, Result<(Point, Option<Animation>)>)> = match options.jobs {
+    let mut results: Vec<(usize, usize, Result<KeptPoint>)> = match options.jobs {
         Some(1) => jobs.iter().map(run).collect(),
         None => jobs.par_iter().map(run).collect(),
         Some(n) => rayon::ThreadPoolBuilder::new()
@@ -169,6 +169,9 @@ pub fn sweep(
     Ok(out)
 }
 
+/// A measured point and, when it was asked for, its decoded animation.
+type KeptPoint = (Point, Option<Animation>);
+
 /// One sweep job: `entry` at step `step` of its rate ladder on `animation`, measured as
 /// [`sweep`] measures each of its points (it calls this). Exposed so that other schedulers
 /// (the Python package's Dask sweep runs one job per (input, series, step)) produce rows
@@ -191,7 +194,7 @@ fn sweep_point_keeping(
     animation: &Animation,
     options: &SweepOptions,
     keep: bool,
-) -> Result<(Point, Option<Animation>)> {
+) -> Result<KeptPoint> {
     let ladder = entry.ladder();
     let params = ladder_params(entry.codec, &entry.base, &ladder, step)?;
     let (mut point, _, decoded) = measure_point_keeping(
