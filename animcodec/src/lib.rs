@@ -12,6 +12,8 @@
 //! | [`metrics`] | `metrics` | KG error, STED, Hausdorff, … |
 //! | [`formats`], [`output`] | `animcodec-io` | file formats in and out; safe output files |
 //! | [`harness`], [`plot`], [`describe`], [`params`] | `animcodec-eval` | measured points, sweeps, target search, the rate-distortion plot; codec and stream descriptions; parameters as JSON |
+//! | [`stseg`] | `codec-stseg` | the stseg segmentation, for tools that show it |
+//! | [`front`] | this crate | the front door of the command line and the Python package: inputs, parameters, metric options, limits |
 //!
 //! ```no_run
 //! use animcodec::core::{encode_animation, Limits, StreamDecoder};
@@ -30,7 +32,14 @@ pub use animcodec_synth as synth;
 pub use codec_core as core;
 pub use metrics;
 
+pub mod front;
 pub mod tables;
+
+/// The stseg codec's segmentation, for tools that show it (`animcodec inspect`): the analysis
+/// the encoder runs, its parameters and its result.
+pub mod stseg {
+    pub use codec_stseg::{segment_animation, BlockKind, Segment, Segmentation, StsegParams, MAX_GROUPS};
+}
 
 use codec_core::CodecRegistry;
 

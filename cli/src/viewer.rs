@@ -12,9 +12,9 @@
 
 use std::io::Write as _;
 
+use animcodec::core::{Animation, Error, Result};
+use animcodec::metrics::{MetricReport, StedParams};
 use base64::Engine as _;
-use codec_core::{Animation, Error, Result};
-use metrics::{MetricReport, StedParams};
 use serde::Serialize;
 use serde_json::{json, Value};
 
@@ -126,7 +126,7 @@ fn heat_field(reference: &Animation, candidate: &Animation, options: &ViewerOpti
             .zip(candidate.positions().chunks_exact(3))
             .map(|(a, b)| (0..3).map(|k| (a[k] as f64 - b[k] as f64).powi(2)).sum::<f64>().sqrt() as f32)
             .collect()),
-        HeatMetric::Sted => metrics::sted_local_deviations(reference, candidate, &options.sted),
+        HeatMetric::Sted => animcodec::metrics::sted_local_deviations(reference, candidate, &options.sted),
     }
 }
 
@@ -148,7 +148,7 @@ fn percentile(fields: &[Vec<f32>], p: f64) -> f64 {
 /// The JSON the viewer script mounts: geometry, per-candidate heat maps and headers.
 pub fn viewer_data(reference: &Animation, candidates: &[Candidate<'_>], options: &ViewerOptions) -> Result<Value> {
     for c in candidates {
-        metrics::check_compatible(reference, c.animation)
+        animcodec::metrics::check_compatible(reference, c.animation)
             .map_err(|e| Error::InvalidAnimation(format!("{}: {e}", c.label)))?;
     }
     let mut all: Vec<&Animation> = vec![reference];

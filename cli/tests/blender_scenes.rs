@@ -82,7 +82,7 @@ fn animcodec_reads_what_blender_exports() {
             assert_eq!(ours.frame_count(), expected.frame_count(), "{file_name}: frame count");
             assert_eq!(ours.vertex_count(), expected.vertex_count(), "{file_name}: vertex count");
             assert!((ours.frame_rate() - 24.0).abs() < 1e-4, "{file_name}: {} fps", ours.frame_rate());
-            let matched = metrics::match_vertices(&expected, &ours)
+            let matched = animcodec::metrics::match_vertices(&expected, &ours)
                 .unwrap_or_else(|e| panic!("{file_name}: vertices do not match Blender's: {e}"));
             let played = matched.apply(&expected, &ours).unwrap();
             let worst = expected

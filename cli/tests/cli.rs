@@ -281,3 +281,32 @@ fn demo_runs_quant_delta_on_every_synthetic_animation() {
     let header = text.lines().find(|l| l.starts_with("animation")).unwrap();
     assert!(header.contains("KG %") && header.contains("STED"), "{header}");
 }
+
+/// `eval` resolves inputs as `encode` does (one front door): the flag of any size is accepted
+/// by both.
+#[test]
+fn eval_takes_every_input_encode_takes() {
+    let json = ok_json(&["eval", "synth:flag:12x10x6", "synth:flag:12x10x6", "--json", "--no-sted", "--no-hausdorff"]);
+    assert_eq!(json["vertices"], 120, "{json}");
+    assert_eq!(json["frames"], 6, "{json}");
+    assert_eq!(json["kg"], 0.0, "{json}");
+    // Beyond the memory limit, refused before any frame is made.
+    fails(&["eval", "synth:flag:3000x3000x300", "synth:flag:12x10x6"], &["synth:flag:3000x3000x300", "memory limit"]);
+}
+
+/// An `.anim` stream given as `eval`'s reference is decoded, and the report says so (the
+/// figures are then distances from that decode, not from the animation that was encoded).
+#[test]
+fn eval_says_when_its_reference_is_a_decoded_stream() {
+    let dir = Scratch::new("eval_stream_reference");
+    let anim = dir.path("flag.anim");
+    ok(&["encode", "synth:flag", "-c", "quant-delta", "-p", "bits=10", "-o", &anim]);
+    let json = ok_json(&["eval", &anim, "synth:flag", "--json", "--no-sted", "--no-hausdorff"]);
+    let notes = json["notes"].as_array().expect("notes").iter().map(|n| n.as_str().unwrap_or("")).collect::<Vec<_>>();
+    assert!(notes.iter().any(|n| n.contains("is an .anim stream (quant-delta)") && n.contains("decoded")), "{notes:?}");
+    let text = ok(&["eval", &anim, "synth:flag", "--no-sted", "--no-hausdorff"]);
+    assert!(text.contains("note: the reference") && text.contains(".anim stream"), "{text}");
+    // A stream as the candidate is the usual case: no note.
+    let json = ok_json(&["eval", "synth:flag", &anim, "--json", "--no-sted", "--no-hausdorff"]);
+    assert!(!json["notes"].to_string().contains(".anim stream"), "{json}");
+}

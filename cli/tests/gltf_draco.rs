@@ -169,7 +169,7 @@ fn truncated_and_bit_flipped_draco_data_fail_cleanly() {
 /// Largest distance between a vertex of `a` and its match in `b` (matched by trajectory) over
 /// every frame, over the bounding-box diagonal of `a`.
 fn worst_matched(a: &Animation, b: &Animation) -> f64 {
-    let m = metrics::match_vertices(a, b).unwrap();
+    let m = animcodec::metrics::match_vertices(a, b).unwrap();
     let played = m.apply(a, b).unwrap();
     let worst = a
         .positions()

@@ -96,7 +96,7 @@ fn kg_matched(ours: &Animation, packed: &Animation) -> f64 {
     }
     let played =
         Animation::from_parts(ours.vertex_count(), ours.triangles().to_vec(), positions, ours.frame_rate()).unwrap();
-    metrics::kg_error(ours, &played).unwrap()
+    animcodec::metrics::kg_error(ours, &played).unwrap()
 }
 
 struct Row {
@@ -134,7 +134,7 @@ fn compare(tools: &Path, s: &Scratch, name: &str, a: &Animation) -> Row {
     if let Some(map) = &summary.vertex_map {
         played = animcodec::formats::gltf_out::restore_vertices(&played, map, a.triangles()).unwrap();
     }
-    let ours_kg = metrics::kg_error(a, &played).unwrap();
+    let ours_kg = animcodec::metrics::kg_error(a, &played).unwrap();
     assert_eq!(validator_errors(tools, &ours_path), 0, "{name}: our GLB fails the Khronos validator");
     let row = Row {
         name: name.into(),

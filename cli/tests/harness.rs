@@ -6,13 +6,13 @@ use animcodec::harness::{
     self, csv_columns, ladder_params, measure_point, search_target, search_target_auto, EvalError, SearchRequest,
     SweepRow, Target, TargetMetric,
 };
+use animcodec::metrics::EvalOptions;
 use animcodec::synth;
 use codec_core::{
     Animation, AnimationCodec, CodecRegistry, EncodedPacket, EncoderSetup, ErrorBound, FourCc, FrameDecoder,
     FrameEncoder, Limits, Packet, ParamSet, ParamSpec, ParamValue, RateLadder, StreamInfo,
 };
 use codec_quant_delta::QuantDelta;
-use metrics::EvalOptions;
 use serde_json::Value;
 
 mod common;
@@ -50,14 +50,14 @@ fn eval_identical_files_gives_zeros_and_anim_candidates_are_decoded() {
     let registry = animcodec::registry();
     let reference = animcodec::formats::read_animation(pc2.as_ref(), &Default::default()).unwrap();
     let decoded = codec_core::decode_animation(&std::fs::read(&anim).unwrap(), &registry, Limits::default()).unwrap();
-    let sted = metrics::StedParams {
+    let sted = animcodec::metrics::StedParams {
         ring_radius: 2,
         speed_window: 3,
-        spatial_difference: metrics::EdgeDifference::Absolute,
+        spatial_difference: animcodec::metrics::EdgeDifference::Absolute,
         ..Default::default()
     };
     let opts = EvalOptions { sted, ..Default::default() };
-    let expected = metrics::evaluate(&reference, &decoded, &opts).unwrap();
+    let expected = animcodec::metrics::evaluate(&reference, &decoded, &opts).unwrap();
     assert!(expected.kg.unwrap() > 0.0);
     assert_eq!(f(&v["kg"]), expected.kg.unwrap());
     assert_eq!(f(&v["sted"]), expected.sted.unwrap());

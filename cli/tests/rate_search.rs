@@ -3,13 +3,13 @@
 //! `animcodec encode` without `-p`.
 
 use animcodec::harness::{self, search_space_target, search_target, Target, TargetMetric, DEFAULT_TARGET};
+use animcodec::metrics::EvalOptions;
 use animcodec::synth;
 use codec_core::{
     Animation, AnimationCodec, CodecRegistry, EncodedPacket, EncoderSetup, ErrorBound, FourCc, FrameDecoder,
     FrameEncoder, Limits, Packet, ParamSet, ParamSpec, ParamValue, RateLadder, SearchAxis, SearchSpace, StreamInfo,
 };
 use codec_quant_delta::QuantDelta;
-use metrics::EvalOptions;
 
 mod common;
 use common::*;
@@ -330,7 +330,7 @@ fn sted_search_finds_a_passing_smallest_step_past_failing_ones() {
     let frame0 = animation.positions()[..n].to_vec();
     let still_positions: Vec<f32> = (0..animation.frame_count()).flat_map(|_| frame0.iter().copied()).collect();
     let still = Animation::new(animation.topology().clone(), still_positions, animation.frame_rate()).unwrap();
-    let report = metrics::evaluate(&animation, &still, &EvalOptions::default()).unwrap();
+    let report = animcodec::metrics::evaluate(&animation, &still, &EvalOptions::default()).unwrap();
     let (still_sted, still_kg) = (report.sted.unwrap(), report.kg.unwrap());
     assert!(still_kg <= harness::DEGENERATE_KG, "test data: the still flag is degenerate (KG {still_kg})");
     let target = Target { metric: TargetMetric::Sted, value: 1.05 * still_sted };

@@ -608,12 +608,14 @@ fn metric_parameters_giving_nan_or_infinity_are_refused_everywhere() {
     // The library refuses them too (StedParams::validate, called by every metrics entry point).
     let a = animcodec::formats::read_animation(Path::new(&input), &Default::default()).unwrap();
     for p in [
-        metrics::StedParams { dt: 1e-300, ..Default::default() },
-        metrics::StedParams { c: 1e300, ..Default::default() },
+        animcodec::metrics::StedParams { dt: 1e-300, ..Default::default() },
+        animcodec::metrics::StedParams { c: 1e300, ..Default::default() },
     ] {
-        let e = metrics::evaluate(&a, &a, &metrics::EvalOptions { sted: p, ..Default::default() }).unwrap_err();
+        let e =
+            animcodec::metrics::evaluate(&a, &a, &animcodec::metrics::EvalOptions { sted: p, ..Default::default() })
+                .unwrap_err();
         assert!(e.to_string().contains("sted"), "{e}");
-        assert!(metrics::sted(&a, &a, &p).is_err());
+        assert!(animcodec::metrics::sted(&a, &a, &p).is_err());
     }
     assert_eq!(names(&s.0), ["t.anim", "t.obj", "t.pc2"], "no output of a refused command");
 }

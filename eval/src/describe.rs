@@ -6,6 +6,7 @@ use std::io::{Read, Seek};
 
 use codec_core::container::{self, Header, IndexEntry, INDEX_ENTRY_BYTES, TRAILER_BYTES};
 use codec_core::{AnimationCodec, CodecRegistry, Limits, ParamKind, ParamSpec};
+use serde::Serialize;
 use serde_json::{json, Map, Value};
 
 use crate::params::param_value_json;
@@ -142,45 +143,122 @@ pub fn metadata_line(m: &codec_core::SceneMetadata) -> Option<String> {
 /// `info --json`: codec, sizes, bpvf, checksums verified and every packet, for a container
 /// verified by [`read_verified`].
 pub fn info_json(registry: &CodecRegistry, header: &Header, index: &[IndexEntry]) -> Value {
-    let sizes = container_sizes(header, index);
-    let info = &header.info;
-    let codec = registry.by_fourcc(info.fourcc).ok().map(|c| c.name());
-    let (v, f, t) = (info.vertex_count(), info.frame_count, info.topology.triangle_count());
-    // `read_index` refuses containers without vertices or frames, so bpvf is always defined.
-    let bpvf = |bytes: u64| metrics::bpvf(bytes, v, f).ok();
-    let packets: Vec<_> = index
-        .iter()
-        .map(|e| {
-            json!({
-                "first_frame": e.first_frame,
-                "frames": e.frame_count,
-                "keyframe": e.keyframe,
-                "bytes": e.payload_bytes,
-                "offset": e.offset,
-            })
-        })
-        .collect();
-    json!({
-        "codec": codec,
-        "fourcc": info.fourcc.to_string(),
-        "stream_version": info.codec_version,
-        "container_version": header.container_version,
-        "frames": f,
-        "vertices": v,
-        "triangles": t,
-        "frame_rate": info.frame_rate,
-        "bytes": sizes.total,
-        "header_bytes": header.header_bytes,
-        "config_bytes": header.config.len(),
-        "topology_bytes": header.topology_bytes,
-        "packet_bytes": sizes.packet_bytes,
-        "payload_bytes": sizes.payload_bytes,
-        "index_bytes": sizes.index_bytes,
-        "bpvf": bpvf(sizes.total),
-        "geometry_bpvf": bpvf(sizes.payload_bytes),
-        "keyframes": index.iter().filter(|e| e.keyframe).count(),
-        "metadata": metadata_json(&header.metadata),
-        "verified": { "header_checksum": true, "index_checksum": true, "packet_checksums": index.len() },
-        "packets": packets,
-    })
+    serde_json::to_value(InfoDocument::new(registry, header, index)).unwrap_or(Value::Null)
+}
+
+/// What an `.anim` container holds, every checksum verified: the document of `info --json`
+/// and of the Python package's `info()` ([`info_json`]).
+#[derive(Debug, Clone, Serialize)]
+pub struct InfoDocument {
+    /// The codec's name (`None`: a FourCC no registered codec has).
+    pub codec: Option<&'static str>,
+    /// The codec's FourCC.
+    pub fourcc: String,
+    /// The codec's stream version.
+    pub stream_version: u16,
+    /// The container's version.
+    pub container_version: u16,
+    /// Frames.
+    pub frames: usize,
+    /// Vertices per frame.
+    pub vertices: usize,
+    /// Triangles.
+    pub triangles: usize,
+    /// Frames per second.
+    pub frame_rate: f32,
+    /// The container's size.
+    pub bytes: u64,
+    /// Header bytes (topology included).
+    pub header_bytes: usize,
+    /// Codec configuration bytes.
+    pub config_bytes: usize,
+    /// Topology bytes.
+    pub topology_bytes: usize,
+    /// Packet bytes (with their framing).
+    pub packet_bytes: u64,
+    /// Packet payload bytes.
+    pub payload_bytes: u64,
+    /// Index bytes (with the trailer).
+    pub index_bytes: u64,
+    /// Bits per vertex per frame of the whole container.
+    pub bpvf: Option<f64>,
+    /// Bits per vertex per frame of the packet payloads alone.
+    pub geometry_bpvf: Option<f64>,
+    /// Keyframe packets.
+    pub keyframes: usize,
+    /// The scene metadata ([`metadata_json`]).
+    pub metadata: Value,
+    /// The checksums verified.
+    pub verified: Verified,
+    /// Every packet.
+    pub packets: Vec<PacketEntry>,
+}
+
+/// The checksums an [`InfoDocument`] verified.
+#[derive(Debug, Clone, Serialize)]
+pub struct Verified {
+    /// The header's.
+    pub header_checksum: bool,
+    /// The index's.
+    pub index_checksum: bool,
+    /// Packets whose checksum was verified.
+    pub packet_checksums: usize,
+}
+
+/// One packet of an [`InfoDocument`].
+#[derive(Debug, Clone, Serialize)]
+pub struct PacketEntry {
+    /// Its first frame.
+    pub first_frame: u32,
+    /// Frames it holds.
+    pub frames: u32,
+    /// Whether it decodes without the packets before it.
+    pub keyframe: bool,
+    /// Payload bytes.
+    pub bytes: u32,
+    /// Offset in the container.
+    pub offset: u64,
+}
+
+impl InfoDocument {
+    /// The document of a verified container's header and index.
+    pub fn new(registry: &CodecRegistry, header: &Header, index: &[IndexEntry]) -> Self {
+        let sizes = container_sizes(header, index);
+        let info = &header.info;
+        let (v, f) = (info.vertex_count(), info.frame_count);
+        // `read_index` refuses containers without vertices or frames, so bpvf is always defined.
+        let bpvf = |bytes: u64| metrics::bpvf(bytes, v, f).ok();
+        Self {
+            codec: registry.by_fourcc(info.fourcc).ok().map(|c| c.name()),
+            fourcc: info.fourcc.to_string(),
+            stream_version: info.codec_version,
+            container_version: header.container_version,
+            frames: f,
+            vertices: v,
+            triangles: info.topology.triangle_count(),
+            frame_rate: info.frame_rate,
+            bytes: sizes.total,
+            header_bytes: header.header_bytes,
+            config_bytes: header.config.len(),
+            topology_bytes: header.topology_bytes,
+            packet_bytes: sizes.packet_bytes,
+            payload_bytes: sizes.payload_bytes,
+            index_bytes: sizes.index_bytes,
+            bpvf: bpvf(sizes.total),
+            geometry_bpvf: bpvf(sizes.payload_bytes),
+            keyframes: index.iter().filter(|e| e.keyframe).count(),
+            metadata: metadata_json(&header.metadata),
+            verified: Verified { header_checksum: true, index_checksum: true, packet_checksums: index.len() },
+            packets: index
+                .iter()
+                .map(|e| PacketEntry {
+                    first_frame: e.first_frame,
+                    frames: e.frame_count,
+                    keyframe: e.keyframe,
+                    bytes: e.payload_bytes,
+                    offset: e.offset,
+                })
+                .collect(),
+        }
+    }
 }

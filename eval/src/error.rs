@@ -103,6 +103,11 @@ pub enum EvalError {
     /// A JSON document that cannot be built (a value serde_json cannot represent).
     #[error("cannot write the JSON document: {0}")]
     Json(#[from] serde_json::Error),
+
+    /// A parameter given in a form its codec does not take (not `key=value`, given twice, a
+    /// value of the wrong type); the message names the codec and the parameter.
+    #[error("{0}")]
+    Message(String),
 }
 
 /// ` on [base]` when the base parameters are to be shown.

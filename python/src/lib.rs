@@ -11,22 +11,20 @@
 
 use std::error::Error as StdError;
 use std::io::Cursor;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
+use animcodec::core::{Animation, AnimationCodec, CodecRegistry, Limits, ParamSet, StreamDecoder, Topology};
 use animcodec::describe;
 use animcodec::formats::{self, ReadOptions, WriteOptions};
+use animcodec::front::{self, MetricOptions, ParamInput, Streams};
 use animcodec::harness::{
     self, FailureRow, SearchRequest, Sweep, SweepDocument, SweepOptions, SweepRow, SweepSeries, Target,
 };
+use animcodec::metrics::EvalOptions;
 use animcodec::output::OutputPolicy;
 use animcodec::params::params_json;
-use animcodec::synth::{self as gen, SynthSize};
-use codec_core::{
-    Animation, AnimationCodec, CodecRegistry, Limits, ParamKind, ParamSet, ParamValue, StreamDecoder, Topology,
-};
-use metrics::{EdgeDifference, EvalOptions, StedParams};
 use numpy::{PyArray1, PyArray2, PyArray3, PyArrayMethods, PyReadonlyArray2, PyReadonlyArray3, PyUntypedArrayMethods};
 use pyo3::create_exception;
 use pyo3::exceptions::PyException;
@@ -48,7 +46,7 @@ type BoxError = Box<dyn StdError + Send + Sync>;
 /// The error's message followed by each source not already part of it, on one line — the
 /// command line's `error:` line without the prefix.
 fn message(e: &(dyn StdError + 'static)) -> String {
-    codec_core::error::message_with_sources(e)
+    animcodec::core::error::message_with_sources(e)
 }
 
 fn to_py<E: Into<BoxError>>(e: E) -> PyErr {
@@ -178,43 +176,31 @@ fn py_to_value(obj: &Bound<'_, PyAny>) -> PyResult<Value> {
 // ---------------------------------------------------------------------------------------------
 // parameters and options
 
-/// `codec`'s defaults with the entries of `params` set (typed by each parameter's kind),
-/// validated. Errors name the codec and the parameter, with the allowed range.
+/// `codec`'s parameters from a dict through the front door ([`front::params`]): each value
+/// converted to a [`ParamInput`] by its Python type (the only step of its own), then typed by
+/// the parameter's kind and validated as `-p key=value` is. Errors name the codec and the
+/// parameter, with the allowed range.
 fn params_from(codec: &dyn AnimationCodec, params: Option<&Bound<'_, PyDict>>) -> PyResult<ParamSet> {
-    let specs = codec.param_specs();
-    let mut set = codec.default_params();
+    let mut entries: Vec<(String, ParamInput)> = Vec::new();
     for (key, value) in params.into_iter().flat_map(|d| d.iter()) {
-        let key: String = key.extract()?;
-        let spec = codec_core::params::find_spec(codec.name(), &specs, &key).map_err(to_py)?;
-        let bad = || {
-            let shown = value.repr().map(|r| r.to_string()).unwrap_or_else(|_| "?".into());
-            to_py(format!("{}: parameter '{key}' = {shown} is not a {}", codec.name(), spec.kind))
-        };
-        let typed = match &spec.kind {
-            ParamKind::Bool => {
-                ParamValue::Bool(if value.is_instance_of::<PyBool>() { value.extract()? } else { return Err(bad()) })
-            }
-            ParamKind::Int { .. } => {
-                if value.is_instance_of::<PyBool>() || !value.is_instance_of::<PyInt>() {
-                    return Err(bad());
-                }
-                ParamValue::Int(value.extract().map_err(|_| bad())?)
-            }
-            ParamKind::Float { .. } => {
-                if value.is_instance_of::<PyBool>() {
-                    return Err(bad());
-                }
-                ParamValue::Float(value.extract::<f64>().map_err(|_| bad())?)
-            }
-            ParamKind::Choice(_) => {
-                let text: String = value.extract().map_err(|_| bad())?;
-                spec.parse(codec.name(), &text).map_err(to_py)?
-            }
-        };
-        set.set(&specs, spec.name, typed).map_err(to_py)?;
+        entries.push((key.extract()?, param_input(&value)));
     }
-    codec.validate(&set).map_err(to_py)?;
-    Ok(set)
+    front::params(codec, entries.iter().map(|(k, v)| (k.as_str(), v.clone()))).map_err(to_py)
+}
+
+/// A Python value as a parameter value: `bool`, `int`, `str` as themselves, anything else that
+/// converts to a float (numpy scalars included) as a number, the rest as its `repr`.
+fn param_input(value: &Bound<'_, PyAny>) -> ParamInput {
+    let shown = || value.repr().map(|r| r.to_string()).unwrap_or_else(|_| "?".into());
+    if value.is_instance_of::<PyBool>() {
+        value.extract().map_or_else(|_| ParamInput::Other(shown()), ParamInput::Bool)
+    } else if value.is_instance_of::<PyInt>() {
+        value.extract().map_or_else(|_| ParamInput::Other(shown()), ParamInput::Int)
+    } else if value.is_instance_of::<PyString>() {
+        value.extract().map_or_else(|_| ParamInput::Other(shown()), ParamInput::Str)
+    } else {
+        value.extract::<f64>().map_or_else(|_| ParamInput::Other(shown()), ParamInput::Float)
+    }
 }
 
 fn dict_get<'py, T: FromPyObjectOwned<'py>>(d: Option<&Bound<'py, PyDict>>, key: &str) -> PyResult<Option<T>> {
@@ -229,7 +215,8 @@ fn dict_get<'py, T: FromPyObjectOwned<'py>>(d: Option<&Bound<'py, PyDict>>, key:
 
 /// Metric options from a dict with the command line's `eval`/`sweep` flags: `sted` and
 /// `hausdorff` (compute them; default true), `sted_radius`, `sted_dt`, `sted_window`, `sted_c`,
-/// `sted_absolute`. Unknown keys are refused.
+/// `sted_absolute`; checked by the front door ([`MetricOptions::eval_options`]). Unknown keys
+/// are refused.
 fn eval_options(options: Option<&Bound<'_, PyDict>>) -> PyResult<EvalOptions> {
     const KEYS: [&str; 7] = ["sted", "hausdorff", "sted_radius", "sted_dt", "sted_window", "sted_c", "sted_absolute"];
     if let Some(d) = options {
@@ -240,24 +227,16 @@ fn eval_options(options: Option<&Bound<'_, PyDict>>) -> PyResult<EvalOptions> {
             }
         }
     }
-    let d = StedParams::default();
-    let sted = StedParams {
-        ring_radius: dict_get(options, "sted_radius")?.unwrap_or(d.ring_radius),
-        dt: dict_get(options, "sted_dt")?.unwrap_or(d.dt),
-        speed_window: dict_get(options, "sted_window")?.unwrap_or(d.speed_window),
-        c: dict_get(options, "sted_c")?.unwrap_or(d.c),
-        spatial_difference: if dict_get(options, "sted_absolute")?.unwrap_or(false) {
-            EdgeDifference::Absolute
-        } else {
-            d.spatial_difference
-        },
+    let metric = MetricOptions {
+        sted_radius: dict_get(options, "sted_radius")?,
+        sted_dt: dict_get(options, "sted_dt")?,
+        sted_window: dict_get(options, "sted_window")?,
+        sted_c: dict_get(options, "sted_c")?,
+        sted_absolute: dict_get(options, "sted_absolute")?.unwrap_or(false),
+        skip_sted: !dict_get(options, "sted")?.unwrap_or(true),
+        skip_hausdorff: !dict_get(options, "hausdorff")?.unwrap_or(true),
     };
-    sted.validate().map_err(to_py)?;
-    Ok(EvalOptions {
-        sted,
-        compute_sted: dict_get(options, "sted")?.unwrap_or(true),
-        compute_hausdorff: dict_get(options, "hausdorff")?.unwrap_or(true),
-    })
+    metric.eval_options().map_err(to_py)
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -265,22 +244,10 @@ fn eval_options(options: Option<&Bound<'_, PyDict>>) -> PyResult<EvalOptions> {
 // hold before reading (`decode('/dev/zero')` is refused at its first bytes)
 
 /// The decoding limits of the command line's `--max-memory` and `--max-work` (`None`: their
-/// defaults, [`codec_core::limits::DEFAULT_MAX_MEMORY`] and `DEFAULT_MAX_WORK`).
+/// defaults, [`animcodec::core::limits::DEFAULT_MAX_MEMORY`] and `DEFAULT_MAX_WORK`), through
+/// the front door ([`front::limits`]: zero refused).
 fn limits_from(max_memory: Option<u64>, max_work: Option<u64>) -> PyResult<Limits> {
-    let mut limits = Limits::default();
-    if let Some(m) = max_memory {
-        if m == 0 {
-            return Err(to_py("max_memory must be at least 1 byte"));
-        }
-        limits.max_alloc_bytes = usize::try_from(m).unwrap_or(usize::MAX);
-    }
-    if let Some(w) = max_work {
-        if w == 0 {
-            return Err(to_py("max_work must be at least 1 operation"));
-        }
-        limits.max_work = w;
-    }
-    Ok(limits)
+    front::limits(max_memory, max_work).map_err(to_py)
 }
 
 /// A container given as bytes (already in memory) or as a path, which is read through the
@@ -306,17 +273,12 @@ impl<'a> Source<'a> {
     }
 
     /// Runs `read` on the bytes or on the opened file (buffered, seekable); errors name the file.
-    fn read<T>(&self, read: impl FnOnce(&mut dyn ReadSeek) -> codec_core::Result<T>) -> Result<T, BoxError> {
+    fn read<T>(&self, read: impl FnOnce(&mut dyn ReadSeek) -> animcodec::core::Result<T>) -> Result<T, BoxError> {
         match self {
             Source::Bytes(b) => Ok(read(&mut Cursor::new(*b))?),
             Source::Path(path) => {
                 let name = path.display().to_string();
-                let file =
-                    std::fs::File::open(path).map_err(|e| codec_core::Error::io(format!("cannot open {name}"), e))?;
-                if file.metadata().is_ok_and(|m| m.is_dir()) {
-                    return Err(format!("cannot read {name}: it is a directory").into());
-                }
-                read(&mut std::io::BufReader::new(file)).map_err(|e| {
+                read(&mut front::open_stream(path)?).map_err(|e| {
                     let text = message(&e);
                     if text.contains(&name) {
                         text.into()
@@ -336,8 +298,9 @@ impl<T: std::io::Read + std::io::Seek> ReadSeek for T {}
 // ---------------------------------------------------------------------------------------------
 // inputs
 
-/// Loads an input as the command line does: `synth:NAME[:SIZE]`, an `.anim` stream (decoded),
-/// or any animation file the formats module reads.
+/// Loads an input as the command line does, through the front door
+/// ([`front::resolve_input`]): `synth:NAME[:SIZE]` (or `synth:flag:COLSxROWSxFRAMES`), an
+/// `.anim` stream (decoded within `limits`), or any animation file the formats module reads.
 fn load_input(
     input: &str,
     topology: Option<PathBuf>,
@@ -345,28 +308,8 @@ fn load_input(
     animation: Option<String>,
     limits: Limits,
 ) -> Result<Animation, BoxError> {
-    if let Some(spec) = input.strip_prefix("synth:") {
-        let (name, size) = match spec.split_once(':') {
-            Some((name, size)) => (name, SynthSize::from_name(size)?),
-            None => (spec, SynthSize::Small),
-        };
-        let animation = gen::by_name(name, size)?;
-        return Ok(match fps {
-            Some(fps) => {
-                let (topology, positions, _) = animation.into_parts();
-                Animation::new(topology, positions, fps)?
-            }
-            None => animation,
-        });
-    }
-    let path = Path::new(input);
-    if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("anim")) {
-        let file = std::fs::File::open(path).map_err(|e| codec_core::Error::io(format!("cannot open {input}"), e))?;
-        let decoder = StreamDecoder::new(std::io::BufReader::new(file), registry(), limits)
-            .map_err(|e| format!("{input}: {}", message(&e)))?;
-        return Ok(decoder.decode_all().map_err(|e| format!("{input}: {}", message(&e)))?);
-    }
-    Ok(formats::read_animation(path, &ReadOptions { topology, frame_rate: fps, animation, object: None })?)
+    let read = ReadOptions { topology, frame_rate: fps, animation, object: None };
+    Ok(front::resolve_input(registry(), input, &read, limits, Streams::Decode)?.animation)
 }
 
 /// Sweep jobs on one worker reload the same few inputs over and over: the last ones loaded
@@ -443,7 +386,7 @@ fn encode<'py>(
     }
     let codec = registry.by_name(codec).map_err(to_py)?;
     let params = params_from(codec, params)?;
-    let bytes = py.detach(|| codec_core::encode_animation(codec, &params, &animation)).map_err(to_py)?;
+    let bytes = py.detach(|| animcodec::core::encode_animation(codec, &params, &animation)).map_err(to_py)?;
     Ok(PyBytes::new(py, &bytes))
 }
 
@@ -585,34 +528,8 @@ fn encode_to_target<'py>(
             (None, false) => harness::search_space_target_auto(&request, &all),
         }?)
     })?;
-    let value_of = |p: &harness::Point| target.metric.value(&p.report);
-    let p = &hit.point;
-    let summary = serde_json::json!({
-        "codec": p.codec,
-        "params": params_json(&p.params),
-        "target": { "metric": target.metric.name(), "value": target.value },
-        "reached": value_of(p),
-        "parts": p.report.parts,
-        "worst_part_kg": p.report.worst_part_kg(),
-        "bytes": p.bytes,
-        "bpvf": p.bpvf,
-        "linear_fallback": hit.linear_fallback,
-        "rejected": hit.rejected,
-        "tried": hit.tried.iter().map(|t| serde_json::json!({
-            "ladder_index": t.ladder_index,
-            "params": params_json(&t.params),
-            "bytes": t.bytes,
-            "bpvf": t.bpvf,
-            "value": value_of(t),
-        })).collect::<Vec<_>>(),
-        "other_codecs": others.iter().map(|h| serde_json::json!({
-            "codec": h.point.codec,
-            "params": params_json(&h.point.params),
-            "bytes": h.point.bytes,
-            "bpvf": h.point.bpvf,
-            "value": value_of(&h.point),
-        })).collect::<Vec<_>>(),
-    });
+    // The command line's `encode --target --json` summary, the same serde type.
+    let summary = serde_json::to_value(front::TargetSummary::new(target, &hit, &others)).map_err(to_py)?;
     Ok((PyBytes::new(py, &hit.stream), value_to_py(py, &summary)?))
 }
 
@@ -655,7 +572,7 @@ fn decode_frame<'py>(
     let limits = limits_from(max_memory, max_work)?;
     let source = Source::from_py(data)?;
     let frame = py
-        .detach(|| source.read(|mut src| codec_core::decode_frame(&mut src, registry(), limits, t)))
+        .detach(|| source.read(|mut src| animcodec::core::decode_frame(&mut src, registry(), limits, t)))
         .map_err(to_py)?;
     let v = frame.len() / 3;
     PyArray1::from_vec(py, frame).reshape([v, 3])
@@ -702,7 +619,7 @@ fn evaluate<'py>(
     let (report, seconds) = py
         .detach(|| {
             let start = Instant::now();
-            metrics::evaluate(&reference, &candidate, &options).map(|r| (r, start.elapsed().as_secs_f64()))
+            animcodec::metrics::evaluate(&reference, &candidate, &options).map(|r| (r, start.elapsed().as_secs_f64()))
         })
         .map_err(to_py)?;
     let mut value = harness::report_json(&report);
@@ -824,7 +741,7 @@ fn sweep_point<'py>(py: Python<'py>, job: SweepJob<'py>) -> PyResult<Py<PyAny>> 
     let list = PyList::new(py, [(codec, params)])?;
     let series = series_from(registry, &list)?;
     let options =
-        SweepOptions { points: None, jobs: Some(1), eval: eval_options(eval.as_ref())?, limits: Limits::default() };
+        SweepOptions { points: None, jobs: Some(1), eval: eval_options(eval.as_ref())?, ..SweepOptions::default() };
     let animation = match arrays {
         Some((positions, faces, fps)) => Arc::new(animation_from(&positions, &faces, fps)?),
         None => py.detach(|| load_cached(&input, topology, fps, gltf_animation)).map_err(to_py)?,
@@ -865,7 +782,7 @@ fn sweep_local<'py>(py: Python<'py>, sweep: LocalSweep<'py>) -> PyResult<Py<PyAn
         sweep;
     let registry = registry();
     let series = series_from(registry, &series)?;
-    let options = SweepOptions { points, jobs, eval: eval_options(eval.as_ref())?, limits: Limits::default() };
+    let options = SweepOptions { points, jobs, eval: eval_options(eval.as_ref())?, ..SweepOptions::default() };
     let total = harness::sweep_jobs(&series, options.points).len();
     let done = std::sync::atomic::AtomicUsize::new(0);
     // Called from the sweep's worker threads (the GIL released around the sweep), each taking
@@ -956,7 +873,7 @@ fn sweep_document<'py>(py: Python<'py>, gathered: GatheredSweep<'py>) -> PyResul
     let rows: Vec<Value> = rows.iter().map(|row| py_to_value(&row)).collect::<PyResult<_>>()?;
     let mut sweep = Sweep {
         points: harness::points_from_rows(registry, &rows, &eval, (vertices, frames)).map_err(to_py)?,
-        failures: Vec::new(),
+        ..Sweep::default()
     };
     for f in failures.iter() {
         let row: FailureRow = serde_json::from_value(py_to_value(&f)?)
@@ -987,10 +904,10 @@ fn sweep_document<'py>(py: Python<'py>, gathered: GatheredSweep<'py>) -> PyResul
 
 // ---------------------------------------------------------------------------------------------
 // distributed encode: independent temporal blocks coded on Dask workers
-// (`codec_core::blocks`), assembled on the client into the local encode's bytes
+// (`animcodec::core::blocks`), assembled on the client into the local encode's bytes
 
 /// Packets as Python tuples `(first_frame, frame_count, keyframe, data)`.
-fn packets_to_py<'py>(py: Python<'py>, packets: Vec<codec_core::Packet>) -> PyResult<Bound<'py, PyList>> {
+fn packets_to_py<'py>(py: Python<'py>, packets: Vec<animcodec::core::Packet>) -> PyResult<Bound<'py, PyList>> {
     let items: Vec<Bound<'py, PyTuple>> = packets
         .into_iter()
         .map(|p| (p.first_frame, p.frame_count, p.keyframe, PyBytes::new(py, &p.data)).into_pyobject(py))
@@ -1026,7 +943,8 @@ fn block_plan<'py>(
 ) -> PyResult<Py<PyAny>> {
     let codec = registry().by_name(codec).map_err(to_py)?;
     let params = params_from(codec, params)?;
-    let (params, plan) = codec_core::blocks::block_plan(codec, &params, vertices, frames, memory).map_err(to_py)?;
+    let (params, plan) =
+        animcodec::core::blocks::block_plan(codec, &params, vertices, frames, memory).map_err(to_py)?;
     let out = serde_json::json!({
         "params": params_json(&params),
         "block": plan.block_frames,
@@ -1065,7 +983,7 @@ fn encode_block<'py>(
     let codec = registry().by_name(codec).map_err(to_py)?;
     let params = params_from(codec, Some(params))?;
     let packets = py
-        .detach(|| codec_core::blocks::encode_block(codec, &params, &topology, frames, fps, index, &coords))
+        .detach(|| animcodec::core::blocks::encode_block(codec, &params, &topology, frames, fps, index, &coords))
         .map_err(to_py)?;
     packets_to_py(py, packets)
 }
@@ -1108,7 +1026,7 @@ fn encode_block_file<'py>(
         .detach(|| -> Result<_, BoxError> {
             let mut reader = formats::stream::CacheReader::open(&path, &options)?;
             let (v, f) = (reader.vertex_count(), reader.frame_count());
-            let (_, plan) = codec_core::blocks::block_plan(codec, &params, v, f, None)?;
+            let (_, plan) = animcodec::core::blocks::block_plan(codec, &params, v, f, None)?;
             if index >= plan.blocks {
                 return Err(format!("block {index} does not exist: {f} frames make {} blocks", plan.blocks).into());
             }
@@ -1117,7 +1035,15 @@ fn encode_block_file<'py>(
             let mut frames = Vec::new();
             reader.read_frames(range.len(), &mut frames)?;
             let topology = reader.topology().clone();
-            Ok(codec_core::blocks::encode_block(codec, &params, &topology, f, reader.frame_rate(), index, &frames)?)
+            Ok(animcodec::core::blocks::encode_block(
+                codec,
+                &params,
+                &topology,
+                f,
+                reader.frame_rate(),
+                index,
+                &frames,
+            )?)
         })
         .map_err(to_py)?;
     packets_to_py(py, packets)
@@ -1141,15 +1067,17 @@ fn assemble_blocks<'py>(
     let topology = topology_from(&faces, vertices)?;
     let codec = registry().by_name(codec).map_err(to_py)?;
     let params = params_from(codec, Some(params))?;
-    let packets: Vec<codec_core::Packet> = packets
+    let packets: Vec<animcodec::core::Packet> = packets
         .iter()
         .map(|item| {
             let (first_frame, frame_count, keyframe, data): (u32, u32, bool, Bound<'py, PyBytes>) = item.extract()?;
-            Ok(codec_core::Packet { first_frame, frame_count, keyframe, data: data.as_bytes().to_vec() })
+            Ok(animcodec::core::Packet { first_frame, frame_count, keyframe, data: data.as_bytes().to_vec() })
         })
         .collect::<PyResult<_>>()?;
     let bytes = py
-        .detach(|| codec_core::blocks::assemble_blocks(codec, &params, &topology, frames, fps, packets, Vec::new()))
+        .detach(|| {
+            animcodec::core::blocks::assemble_blocks(codec, &params, &topology, frames, fps, packets, Vec::new())
+        })
         .map_err(to_py)?;
     Ok(PyBytes::new(py, &bytes))
 }
@@ -1158,8 +1086,8 @@ fn assemble_blocks<'py>(
 #[pymodule]
 fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("AnimcodecError", m.py().get_type::<AnimcodecError>())?;
-    m.add("DEFAULT_MAX_MEMORY", codec_core::limits::DEFAULT_MAX_MEMORY)?;
-    m.add("DEFAULT_MAX_WORK", codec_core::limits::DEFAULT_MAX_WORK)?;
+    m.add("DEFAULT_MAX_MEMORY", animcodec::core::limits::DEFAULT_MAX_MEMORY)?;
+    m.add("DEFAULT_MAX_WORK", animcodec::core::limits::DEFAULT_MAX_WORK)?;
     m.add_function(wrap_pyfunction!(codecs, m)?)?;
     m.add_function(wrap_pyfunction!(encode, m)?)?;
     m.add_function(wrap_pyfunction!(encode_to_target, m)?)?;

@@ -185,12 +185,10 @@ def _two_animation_glb(path):
     base = np.stack([xs.ravel(), ys.ravel(), np.zeros(n * n)], axis=1).astype(np.float32)
     bump = np.zeros_like(base)
     bump[:, 2] = np.exp(-((base[:, 0] - 0.5) ** 2 + (base[:, 1] - 0.5) ** 2) * 8).astype(np.float32)
-    tris = []
-    for r in range(n - 1):
-        for c in range(n - 1):
-            v = r * n + c
-            tris += [[v, v + 1, v + n], [v + 1, v + n + 1, v + n]]
-    index = np.array(tris, dtype=np.uint32)
+    # Two triangles a grid cell, cells row by row.
+    v = (np.arange(n - 1)[:, None] * n + np.arange(n - 1)[None, :]).ravel()
+    cells = np.stack([np.stack([v, v + 1, v + n], axis=1), np.stack([v + 1, v + n + 1, v + n], axis=1)], axis=1)
+    index = cells.reshape(-1, 3).astype(np.uint32)
     rise_t = np.arange(4, dtype=np.float32)
     rise_w = np.linspace(0, 1, 4, dtype=np.float32)
     fall_t = np.arange(6, dtype=np.float32)

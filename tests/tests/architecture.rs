@@ -229,8 +229,8 @@ fn circles(graph: &BTreeMap<String, BTreeSet<String>>) -> Vec<Vec<String>> {
 }
 
 /// The module-import graph of one crate: an edge from each module to each other module whose
-/// items it names (a child naming its parent's items, or a parent its child's, is not a
-/// circle of separate rooms: only edges between modules neither of which contains the other).
+/// items it names, a parent naming its child's items included (a child naming its parent's
+/// items is not an edge, except to the crate root).
 fn module_graph(src: &Path) -> BTreeMap<String, BTreeSet<String>> {
     let mut files = Vec::new();
     rust_files(src, &mut files);
@@ -245,8 +245,10 @@ fn module_graph(src: &Path) -> BTreeMap<String, BTreeSet<String>> {
             let Some(target) = (1..=path.len()).rev().map(|k| path[..k].to_vec()).find(|p| modules.contains(p)) else {
                 continue;
             };
-            let nested = target.starts_with(&module) || module.starts_with(&target);
-            if !nested {
+            // A child naming its parent's items is inside that room; the crate root is not a
+            // parent to lean on (a module naming the root's items is an edge to it).
+            let inside_parent = !target.is_empty() && module.starts_with(&target);
+            if target != module && !inside_parent {
                 entry.insert(target.join("::"));
             }
         }
@@ -265,6 +267,57 @@ fn modules_import_each_other_without_circles() {
         }
     }
     assert!(problems.is_empty(), "modules importing each other:\n{}", problems.join("\n"));
+}
+
+/// The front ends (the command line and the Python extension) reach the library through the
+/// `animcodec` facade only: no direct dependency on a crate below it.
+#[test]
+fn front_ends_depend_on_the_facade_only() {
+    let root = workspace();
+    let members = fs::read_to_string(root.join("Cargo.toml")).unwrap();
+    let below: BTreeSet<String> =
+        floors(&members).into_iter().filter(|(_, _, floor)| *floor < 4).map(|(_, package, _)| package).collect();
+    let mut problems = Vec::new();
+    for front in ["cli", "python"] {
+        let manifest = fs::read_to_string(root.join(front).join("Cargo.toml")).unwrap();
+        let deps = normal_dependencies(&manifest);
+        assert!(deps.contains("animcodec"), "{front} does not depend on the facade: {deps:?}");
+        for dep in deps.intersection(&below) {
+            problems.push(format!("{front} depends on {dep} directly: use animcodec::… instead"));
+        }
+    }
+    assert!(problems.is_empty(), "{}", problems.join("\n"));
+}
+
+/// No module of a binary names an item of its root (`main.rs`): the root calls the modules,
+/// the modules own their arguments and never call back.
+#[test]
+fn binary_modules_do_not_import_their_root() {
+    let root = workspace();
+    let mut problems = Vec::new();
+    for folder in ["cli", "xtask"] {
+        let src = root.join(folder).join("src");
+        if !src.join("main.rs").is_file() {
+            continue;
+        }
+        let mut files = Vec::new();
+        rust_files(&src, &mut files);
+        let modules: BTreeSet<Vec<String>> = files.iter().map(|f| module_of(&src, f)).collect();
+        for file in &files {
+            let module = module_of(&src, file);
+            if module.is_empty() {
+                continue;
+            }
+            let text = fs::read_to_string(file).unwrap();
+            for path in named_paths(&text, &module) {
+                let target = (1..=path.len()).rev().map(|k| path[..k].to_vec()).find(|p| modules.contains(p));
+                if target.is_none_or(|t| t.is_empty()) {
+                    problems.push(format!("{folder}: {} names crate::{}", module.join("::"), path.join("::")));
+                }
+            }
+        }
+    }
+    assert!(problems.is_empty(), "modules of a binary importing its root:\n{}", problems.join("\n"));
 }
 
 #[test]

@@ -8,6 +8,20 @@ use animcodec::formats::{abc, gltf};
 use serde_json::json;
 
 use super::{emit, emit_json, CmdResult, WithContext};
+use clap::Args;
+use std::path::PathBuf;
+
+/// Arguments of `animcodec list-animations`.
+#[derive(Debug, Args)]
+pub struct ListAnimationsArgs {
+    /// A `.gltf`, `.glb` or `.abc` file.
+    #[arg(value_name = "FILE.glb")]
+    pub input: PathBuf,
+
+    /// Print JSON: {file, animations: [{index, name, channels, start, end, key_rate, properties}]}.
+    #[arg(long)]
+    pub json: bool,
+}
 
 /// Lists the animations of `path` (the meshes of an `.abc`), as text or JSON.
 pub fn run(path: &Path, as_json: bool) -> CmdResult {

@@ -1,27 +1,62 @@
 //! `animcodec decode`: `.anim` container → animation file.
 
 use std::fs::File;
-use std::io::BufReader;
 use std::path::Path;
 use std::time::Instant;
 
+use animcodec::core::{Limits, StreamDecoder};
 use animcodec::formats::stream::{self as cache_stream, CacheWriter};
 use animcodec::formats::{self, WriteOptions};
 use animcodec::output::OutputPolicy;
-use codec_core::{Limits, StreamDecoder};
-use serde_json::json;
+use serde::Serialize;
 
-use super::{emit, emit_json, CmdResult, WithContext};
-use crate::DecodeArgs;
+use super::{emit, emit_document, CmdResult, WithContext};
+use clap::Args;
+use std::path::PathBuf;
 
-/// Opens `path` for reading, naming it in the error.
-pub fn open(path: &Path) -> CmdResult<BufReader<File>> {
-    let file = File::open(path).map_err(|e| codec_core::Error::io(format!("cannot open {}", path.display()), e))?;
-    if file.metadata().is_ok_and(|m| m.is_dir()) {
-        return Err(format!("cannot read {}: it is a directory", path.display()).into());
-    }
-    Ok(BufReader::new(file))
+/// Arguments of `animcodec decode`.
+#[derive(Debug, Args)]
+pub struct DecodeArgs {
+    /// Input `.anim` container. Any other input (a .glb, .usda, .pc2, … not named .anim and not
+    /// starting with a container's magic bytes) is converted: read as
+    /// `encode` reads it with default options (the first glTF animation, the file's own frame
+    /// rate) and written.
+    #[arg(value_name = "IN.anim")]
+    pub input: PathBuf,
+
+    /// Output animation: .pc2, .mdd, .glb/.gltf, .usda/.usd (a USD text layer: one Mesh with
+    /// time-sampled points, timeCodesPerSecond = the frame rate), .usdc (the same as binary USD),
+    /// .abc (Alembic: one PolyMesh under an Xform, uniform time sampling at the frame rate), or an OBJ sequence: a directory (`DIR/frame_0000.obj`, …),
+    /// a path ending in .obj with `{}` (frame number, 4+ digits) or `###` (frame number padded
+    /// to the run) in the file name, or a plain `NAME.obj` (`NAME_0000.obj`, …). A sequence owns
+    /// only the files of its own name pattern: exactly its prefix (`frame_`, the text before
+    /// `{}`/`###`, or `NAME_`), a frame number of at least 4 digits (at least the run's length
+    /// for `###`) and its suffix (`.obj`), case included. Such files already there are an error
+    /// without --force; with it they are replaced, and those beyond the new frames removed. No
+    /// other file is touched: a directory holding any other .obj (which reading it back would
+    /// take as a frame) is refused. A .pc2/.mdd beside an existing STEM.obj of another mesh is
+    /// refused (reading the cache would pair that mesh's triangles): see --topology-obj.
+    #[arg(short, long, value_name = "OUT")]
+    pub output: PathBuf,
+
+    /// Replace existing output files (without it, an existing output is an error). An output
+    /// that is also an input is refused even with it.
+    #[arg(short, long)]
+    pub force: bool,
+
+    /// With a .pc2/.mdd output: also write `STEM.obj` beside it (frame 0 and the triangles), so
+    /// the cache can be read back without --topology (an existing STEM.obj needs --force).
+    /// Without it, an existing STEM.obj is left alone and must hold the decoded mesh (same
+    /// vertex count and triangles); otherwise the output is refused.
+    #[arg(long)]
+    pub topology_obj: bool,
+
+    /// Print JSON: {codec, frames, vertices, triangles, decode_seconds, …}.
+    #[arg(long)]
+    pub json: bool,
 }
+
+pub use animcodec::front::open_stream as open;
 
 /// Runs `decode`.
 pub fn run(args: &DecodeArgs, limits: Limits) -> CmdResult {
@@ -75,7 +110,7 @@ pub fn run(args: &DecodeArgs, limits: Limits) -> CmdResult {
 fn is_stream(path: &Path) -> bool {
     use std::io::Read as _;
     let mut magic = [0u8; 8];
-    File::open(path).and_then(|mut f| f.read_exact(&mut magic)).is_ok() && magic == codec_core::container::MAGIC
+    File::open(path).and_then(|mut f| f.read_exact(&mut magic)).is_ok() && magic == animcodec::core::container::MAGIC
 }
 
 /// `decode` of an input that is not a stream: read as `encode` reads it (defaults: the first
@@ -85,7 +120,9 @@ fn run_conversion(args: &DecodeArgs, options: &WriteOptions) -> CmdResult {
     let input = args.input.display().to_string();
     let stages = crate::progress::Stages::new("decode", 2, args.json);
     stages.stage(format!("reading {input} (not an animcodec stream: converting it)"));
-    let animation = super::load_animation(&input, &formats::ReadOptions::default())?;
+    let animation =
+        super::load(&input, &formats::ReadOptions::default(), Limits::default(), animcodec::front::Streams::Refuse)?
+            .animation;
     let decode_seconds = start.elapsed().as_secs_f64();
     let write_start = Instant::now();
     stages.stage(format!("writing {}", args.output.display()));
@@ -141,6 +178,31 @@ fn run_streaming(args: &DecodeArgs, limits: Limits, options: &WriteOptions) -> C
     report.emit(args, &written)
 }
 
+/// The document of `decode --json`.
+#[derive(Debug, Serialize)]
+pub struct DecodeDocument {
+    /// The stream's codec.
+    pub codec: &'static str,
+    /// The input file.
+    pub input: String,
+    /// The output named on the command line.
+    pub output: String,
+    /// Every file written.
+    pub files: Vec<String>,
+    /// Frames.
+    pub frames: usize,
+    /// Vertices per frame.
+    pub vertices: usize,
+    /// Triangles.
+    pub triangles: usize,
+    /// Frames per second.
+    pub frame_rate: f32,
+    /// Seconds decoding.
+    pub decode_seconds: f64,
+    /// Seconds writing.
+    pub write_seconds: f64,
+}
+
 /// What `decode` reports, by either path.
 struct Report {
     codec: &'static str,
@@ -158,18 +220,18 @@ impl Report {
     fn emit(&self, args: &DecodeArgs, written: &[std::path::PathBuf]) -> CmdResult {
         let Report { codec, frames, vertices, triangles, frame_rate, decode_seconds, write_seconds, how } = *self;
         if args.json {
-            return emit_json(&json!({
-                "codec": codec,
-                "input": args.input.display().to_string(),
-                "output": args.output.display().to_string(),
-                "files": written.iter().map(|f| f.display().to_string()).collect::<Vec<_>>(),
-                "frames": frames,
-                "vertices": vertices,
-                "triangles": triangles,
-                "frame_rate": frame_rate,
-                "decode_seconds": decode_seconds,
-                "write_seconds": write_seconds,
-            }));
+            return emit_document(&DecodeDocument {
+                codec,
+                input: args.input.display().to_string(),
+                output: args.output.display().to_string(),
+                files: written.iter().map(|f| f.display().to_string()).collect(),
+                frames,
+                vertices,
+                triangles,
+                frame_rate,
+                decode_seconds,
+                write_seconds,
+            });
         }
         emit(&format!(
             "{input}: {codec}, {frames} frames × {vertices} vertices, {triangles} triangles, {frame_rate} fps, \

@@ -5,13 +5,34 @@ use std::fmt::Write as _;
 use std::io::IsTerminal;
 use std::time::Instant;
 
+use animcodec::core::{encode_animation_fed, Animation, AnimationCodec, CodecRegistry, Limits, StreamDecoder};
 use animcodec::synth::{self, SynthSize};
-use codec_core::{encode_animation_fed, Animation, AnimationCodec, CodecRegistry, Limits, StreamDecoder};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use serde_json::{json, Value};
 
+use super::args::SizeArg;
 use super::{emit, emit_json, CmdResult};
-use crate::DemoArgs;
+use clap::Args;
+
+/// Arguments of `animcodec demo`.
+#[derive(Debug, Args)]
+pub struct DemoArgs {
+    /// Size of the synthetic animations (large takes minutes).
+    #[arg(long, value_enum, default_value_t = SizeArg::Medium)]
+    pub size: SizeArg,
+
+    /// Comma-separated codecs to run (default: every registered codec).
+    #[arg(long, value_name = "A,B", value_delimiter = ',')]
+    pub codecs: Vec<String>,
+
+    /// Comma-separated synthetic animations to run (default: all).
+    #[arg(long, value_name = "A,B", value_delimiter = ',')]
+    pub animations: Vec<String>,
+
+    /// Print JSON: an array of per-run results instead of the table.
+    #[arg(long)]
+    pub json: bool,
+}
 
 /// Frames handed to the encoder per call, small enough that multi-packet streaming is exercised.
 const FEED_FRAMES: usize = 16;
@@ -175,11 +196,12 @@ fn measure(
         .map_err(|e| format!("decoding failed: {e}"))?;
     run.decode_seconds = start.elapsed().as_secs_f64();
     run.stats = error_stats(animation.positions(), decoded.positions());
-    run.kg = metrics::kg_error(animation, &decoded).ok();
-    run.sted = metrics::sted(animation, &decoded, &metrics::StedParams::default()).ok().map(|s| s.sted);
+    run.kg = animcodec::metrics::kg_error(animation, &decoded).ok();
+    run.sted =
+        animcodec::metrics::sted(animation, &decoded, &animcodec::metrics::StedParams::default()).ok().map(|s| s.sted);
 
     let reconstruction = encoded.reconstruction.ok_or("the encoder returned no reconstruction")?;
-    if !codec_core::connectivity::same_triangles(decoded.topology(), animation.topology())
+    if !animcodec::core::connectivity::same_triangles(decoded.topology(), animation.topology())
         || decoded.frame_count() != animation.frame_count()
     {
         return Err("decoded topology or frame count differs from the input".into());
@@ -221,7 +243,7 @@ fn run_json(r: &Run) -> Value {
         "vertices": r.vertices,
         "frames": r.frames,
         "bytes": r.bytes,
-        "bpvf": metrics::bpvf(r.bytes, r.vertices, r.frames).ok(),
+        "bpvf": animcodec::metrics::bpvf(r.bytes, r.vertices, r.frames).ok(),
         "kg": r.kg,
         "sted": r.sted,
         "max_error": r.stats.max_vertex_error,
@@ -258,7 +280,7 @@ fn table(size: SynthSize, animations: &[(&str, usize, usize, f64)], runs: &[Run]
             r.animation,
             r.codec,
             r.bytes,
-            metrics::bpvf(r.bytes, r.vertices, r.frames).unwrap_or(f64::NAN),
+            animcodec::metrics::bpvf(r.bytes, r.vertices, r.frames).unwrap_or(f64::NAN),
             r.kg.map_or_else(|| "-".to_string(), |x| if x >= 0.01 { format!("{x:.4}") } else { format!("{x:.2e}") }),
             metric(r.sted),
             r.stats.max_vertex_error,

@@ -3,58 +3,180 @@
 use std::io::{IsTerminal, Write};
 use std::time::{Duration, Instant};
 
+use animcodec::core::{Animation, AnimationCodec, Limits, ParamSet, StreamDecoder, StreamEncoder, Topology};
 use animcodec::formats::stream::{self as cache_stream, CacheReader};
-use animcodec::formats::ReadOptions;
-use animcodec::harness::{self, SearchRequest, Target, TargetHit, TargetMetric};
+use animcodec::front::{self, EvaluationFields, Streams, TargetSummary};
+use animcodec::harness::{self, SearchRequest, Target, TargetMetric};
+use animcodec::metrics::{EvalOptions, MetricReport};
 use animcodec::output::{OutputPolicy, PendingFile};
 use animcodec::params::params_json;
 use animcodec::synth;
-use codec_core::params::find_spec;
-use codec_core::{Animation, AnimationCodec, Limits, ParamSet, StreamDecoder, StreamEncoder, Topology};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
-use metrics::{EvalOptions, MetricReport};
-use serde_json::{json, Value};
+use serde::Serialize;
+use serde_json::Value;
 
-use super::eval::sted_params;
-use super::{emit, emit_json, load_animation, raw_bytes, CmdResult, WithContext};
-use crate::EncodeArgs;
+use super::args::{ReadArgs, StedArgs};
+use super::{emit, emit_document, load, raw_bytes, CmdResult, WithContext};
+use clap::Args;
+use std::path::PathBuf;
 
-/// Builds the parameter set of `codec` from `key=value` strings (defaults for the rest).
-/// Errors name the codec and the key, and list valid keys or the allowed range.
-pub fn parse_params(codec: &dyn AnimationCodec, pairs: &[String]) -> CmdResult<ParamSet> {
-    let specs = codec.param_specs();
-    let mut params = codec.default_params();
-    let mut seen: Vec<&str> = Vec::new();
-    for pair in pairs {
-        let (key, value) = pair
-            .split_once('=')
-            .ok_or_else(|| format!("{}: parameter '{pair}' is not of the form key=value", codec.name()))?;
-        let spec = find_spec(codec.name(), &specs, key.trim())?;
-        if seen.contains(&spec.name) {
-            return Err(format!(
-                "{}: parameter '{}' is given more than once (-p {pair}); give each parameter once",
-                codec.name(),
-                spec.name
-            )
-            .into());
-        }
-        seen.push(spec.name);
-        let value = spec.parse(codec.name(), value)?;
-        params.set(&specs, spec.name, value)?;
-    }
-    codec.validate(&params)?;
-    Ok(params)
+/// Arguments of `animcodec encode`.
+#[derive(Debug, Args)]
+pub struct EncodeArgs {
+    /// Input animation: .pc2, .mdd, .gltf/.glb, an OBJ directory or pattern,
+    /// `synth:NAME[:small|medium|large]`, or `synth:flag:COLSxROWSxFRAMES` (a flag of any
+    /// length: its frames are generated one at a time while encoding, never all held; its mesh
+    /// is held, about 420 bytes a vertex, and refused when that exceeds --memory).
+    #[arg(value_name = "INPUT")]
+    pub input: String,
+
+    /// Codec name (see `animcodec list`), or `auto` (every codec searched for the smallest
+    /// stream meeting the target or the default quality).
+    #[arg(short, long, value_name = "CODEC")]
+    pub codec: String,
+
+    /// Codec parameter as key=value (repeatable; see `animcodec list` for keys and ranges).
+    #[arg(short = 'p', long = "param", value_name = "KEY=VALUE")]
+    pub params: Vec<String>,
+
+    /// Output `.anim` file, written under a temporary name and renamed into place when
+    /// complete (an interrupted or failed encode leaves no file and changes nothing).
+    #[arg(short, long, value_name = "OUT")]
+    pub output: PathBuf,
+
+    /// Replace existing output files (without it, an existing output is an error). An output
+    /// that is also an input is refused even with it.
+    #[arg(short, long)]
+    pub force: bool,
+
+    /// Frame rate to use when the input stores none (or to override a synthetic one).
+    #[arg(long, value_name = "F", value_parser = super::parse_fps, allow_negative_numbers = true)]
+    pub fps: Option<f32>,
+
+    /// Frames handed to the encoder per call (the output does not depend on it).
+    #[arg(long, value_name = "N", default_value_t = 32, value_parser = clap::value_parser!(u32).range(1..))]
+    pub feed: u32,
+
+    /// Memory budget of an encode with -p (bytes; K, M, G suffixes are powers of 1024), e.g.
+    /// 4G. A .pc2/.mdd input, an OBJ sequence (or synth:flag:CxRxF) is read frame by frame, so the encode holds
+    /// the mesh and what the codec buffers; a codec whose analysis holds a whole block of frames (hosvd with
+    /// block=0) chooses temporal blocks that fit the budget. The stream depends on the budget,
+    /// never on the machine. Default: none (hosvd decomposes the whole sequence at once).
+    /// Not with --target or the default-quality search, which hold the whole animation.
+    #[arg(long, value_name = "BYTES", value_parser = super::parse_bytes)]
+    pub memory: Option<u64>,
+
+    /// Search the codec's declared parameter space (its rate ladder on the configurations of
+    /// its secondary parameters meant for the metric's kind of error, positional or STED;
+    /// `animcodec list` shows each codec's parameters and ladder) for the smallest stream whose decoded error meets METRIC=VALUE (metrics: kg [%], sted, hausdorff, max_error, rmse; absolute
+    /// values in model units except kg). Parameters given with `-p` stay fixed. With `-c auto`,
+    /// every codec is searched and the smallest stream kept. Fails, stating the best error
+    /// reached, when no point meets the target. Without -p and without --target, encode aims
+    /// at the default quality, kg=0.5.
+    #[arg(long, value_name = "METRIC=VALUE", value_parser = super::args::parse_target)]
+    pub target: Option<animcodec::harness::Target>,
+
+    /// With --target: extra points bisecting the ladder parameter between the last step that
+    /// misses and the first that meets the target (ladders are coarse; integers stop when the
+    /// bracket closes). 0 keeps to the ladder's own steps.
+    #[arg(long, value_name = "N", default_value_t = 4, value_parser = clap::value_parser!(u32).range(0..=32))]
+    pub refine: u32,
+
+    /// With a target: search the codec's single rate ladder only (on the -p parameters), as
+    /// before the parameter-space search.
+    #[arg(long)]
+    pub ladder: bool,
+
+    /// After encoding, decode the written stream and measure it against the input: KG, STED,
+    /// Hausdorff, RMSE and max error are printed (and added to --json as `kg`, `sted` and the
+    /// full report under `metrics`).
+    #[arg(long)]
+    pub eval: bool,
+
+    /// STED options for `--eval` and `--target sted=…`.
+    #[command(flatten)]
+    pub sted: StedArgs,
+
+    /// Print JSON: {codec, params, bytes, bpvf, frames, vertices, triangles, encode_seconds, …}.
+    #[arg(long)]
+    pub json: bool,
+
+    /// How the input is read.
+    #[command(flatten)]
+    pub read: ReadArgs,
 }
 
-/// Adds `--eval`'s figures (KG, STED, every metric, its seconds) to an `encode --json` object.
-fn add_evaluation(out: &mut Value, evaluation: Option<&(MetricReport, f64)>) {
-    if let (Some((report, seconds)), Value::Object(map)) = (evaluation, out) {
-        map.insert("kg".into(), report.kg.into());
-        map.insert("worst_part_kg".into(), report.worst_part_kg().into());
-        map.insert("sted".into(), report.sted.into());
-        map.insert("metrics".into(), harness::report_json(report));
-        map.insert("eval_seconds".into(), (*seconds).into());
-    }
+/// The document of `encode --json` with fixed parameters.
+#[derive(Debug, Serialize)]
+pub struct EncodeDocument<'a> {
+    /// The codec.
+    pub codec: &'static str,
+    /// Its parameters.
+    pub params: Value,
+    /// The input as given.
+    pub input: &'a str,
+    /// The stream written.
+    pub output: String,
+    /// The stream's size.
+    pub bytes: u64,
+    /// Its bits per vertex per frame.
+    pub bpvf: f64,
+    /// Raw f32 size over the stream's.
+    pub ratio: f64,
+    /// Frames.
+    pub frames: usize,
+    /// Vertices per frame.
+    pub vertices: usize,
+    /// Triangles.
+    pub triangles: usize,
+    /// Frames per second.
+    pub frame_rate: f32,
+    /// Seconds reading the input.
+    pub read_seconds: f64,
+    /// Seconds encoding.
+    pub encode_seconds: f64,
+    /// The encoder's warnings.
+    pub notes: Vec<String>,
+    /// `--eval`'s figures.
+    #[serde(flatten)]
+    pub evaluation: Option<EvaluationFields>,
+}
+
+/// The document of `encode --json` with a target (or the default quality).
+#[derive(Debug, Serialize)]
+pub struct TargetEncodeDocument<'a> {
+    /// What the search found.
+    #[serde(flatten)]
+    pub summary: TargetSummary,
+    /// The input as given.
+    pub input: &'a str,
+    /// The stream written.
+    pub output: String,
+    /// Whether the target is the default quality (no -p, no --target).
+    pub default_target: bool,
+    /// `space` or `ladder`.
+    pub search: &'static str,
+    /// The chosen encode's warnings and remarks.
+    pub notes: Vec<String>,
+    /// Raw f32 size over the stream's.
+    pub ratio: f64,
+    /// Frames.
+    pub frames: usize,
+    /// Vertices per frame.
+    pub vertices: usize,
+    /// Triangles.
+    pub triangles: usize,
+    /// Frames per second.
+    pub frame_rate: f32,
+    /// Seconds reading the input.
+    pub read_seconds: f64,
+    /// Seconds searching.
+    pub search_seconds: f64,
+    /// Seconds encoding the chosen point.
+    pub encode_seconds: f64,
+    /// `--eval`'s figures.
+    #[serde(flatten)]
+    pub evaluation: Option<EvaluationFields>,
 }
 
 /// Why `--eval` refuses a streamed flag (checked before encoding starts).
@@ -64,9 +186,9 @@ const EVAL_NEEDS_MEMORY: &str = "--eval needs the input in memory, but synth:fla
 /// Runs `encode`.
 pub fn run(args: &EncodeArgs, limits: Limits) -> CmdResult {
     // Mistyped arguments first, then the output, all before anything long happens.
-    let streamed = parse_streamed_flag(&args.input)?.is_some();
+    let streamed = front::streamed_flag(&args.input)?.is_some();
     if args.eval {
-        sted_params(&args.sted)?;
+        args.sted.metric_options().sted_params()?;
         if streamed && !args.params.is_empty() && args.target.is_none() {
             return Err(EVAL_NEEDS_MEMORY.into());
         }
@@ -95,23 +217,18 @@ pub fn run(args: &EncodeArgs, limits: Limits) -> CmdResult {
     }
     let registry = animcodec::registry();
     let codec = registry.by_name(&args.codec)?;
-    let params = parse_params(codec, &args.params)?;
+    let params = front::params_from_text(codec, &args.params)?;
     policy.check(&args.output)?;
     animcodec::output::folder_exists(&args.output)?;
 
     let read_start = Instant::now();
-    let mut source = match parse_streamed_flag(&args.input)? {
+    let mut source = match front::streamed_flag(&args.input)? {
         Some((cols, rows, frames)) => {
             check_flag_memory(&args.input, cols, rows, args.memory)?;
             Source::Flag { cols, rows, frames }
         }
         None => {
-            let options = ReadOptions {
-                topology: args.topology.clone(),
-                frame_rate: args.fps,
-                animation: args.animation.clone(),
-                object: args.object.clone(),
-            };
+            let options = args.read.options(args.fps);
             // A PC2/MDD cache or an OBJ sequence is read frame by frame as the encoder takes it
             // (inputs may be larger than memory), unless --eval needs the whole input in memory
             // to measure it.
@@ -119,7 +236,7 @@ pub fn run(args: &EncodeArgs, limits: Limits) -> CmdResult {
             if !args.eval && cache_stream::is_streamable(path) {
                 Source::Cache(CacheReader::open(path, &options)?)
             } else {
-                Source::Whole(load_animation(&args.input, &options)?)
+                Source::Whole(load(&args.input, &options, limits, Streams::Refuse)?.animation)
             }
         }
     };
@@ -146,7 +263,7 @@ pub fn run(args: &EncodeArgs, limits: Limits) -> CmdResult {
     }
 
     let (v, f, t) = (topology.vertex_count(), frame_count, topology.triangle_count());
-    let rate = metrics::bpvf(bytes, v, f)?;
+    let rate = animcodec::metrics::bpvf(bytes, v, f)?;
     let ratio = raw_bytes(v, f) as f64 / bytes as f64;
     // --eval measures the stream as written, before it replaces anything: a failed measurement
     // leaves the old output untouched and no new file.
@@ -157,24 +274,23 @@ pub fn run(args: &EncodeArgs, limits: Limits) -> CmdResult {
     };
     file.commit()?;
     if args.json {
-        let mut out = json!({
-            "codec": codec.name(),
-            "params": params_json(&params),
-            "input": args.input,
-            "output": args.output.display().to_string(),
-            "bytes": bytes,
-            "bpvf": rate,
-            "ratio": ratio,
-            "frames": f,
-            "vertices": v,
-            "triangles": t,
-            "frame_rate": frame_rate,
-            "read_seconds": read_seconds,
-            "encode_seconds": encode_seconds,
-            "notes": notes,
+        return emit_document(&EncodeDocument {
+            codec: codec.name(),
+            params: params_json(&params),
+            input: &args.input,
+            output: args.output.display().to_string(),
+            bytes,
+            bpvf: rate,
+            ratio,
+            frames: f,
+            vertices: v,
+            triangles: t,
+            frame_rate,
+            read_seconds,
+            encode_seconds,
+            notes,
+            evaluation: evaluation.as_ref().map(|(r, s)| EvaluationFields::new(r, *s)),
         });
-        add_evaluation(&mut out, evaluation.as_ref());
-        return emit_json(&out);
     }
     // A streamed input is read while it is encoded: its read time is in the encode time.
     let read = match source {
@@ -227,8 +343,8 @@ fn evaluate_written(
     let decoded = StreamDecoder::new(super::decode::open(written)?, &registry, limits)
         .and_then(|d| d.decode_all())
         .context(|| format!("decoding {} to measure it", args.output.display()))?;
-    let options = EvalOptions { sted: sted_params(&args.sted)?, ..EvalOptions::default() };
-    let report = metrics::evaluate(input, &decoded, &options)
+    let options = args.sted.metric_options().eval_options()?;
+    let report = animcodec::metrics::evaluate(input, &decoded, &options)
         .context(|| format!("comparing {} with its decoded stream {}", args.input, args.output.display()))?;
     Ok((report, start.elapsed().as_secs_f64()))
 }
@@ -245,10 +361,10 @@ enum Source {
 impl Source {
     /// What the input said about its scene (up axis, units, time line); the stream keeps it.
     /// The streamed caches (PC2, MDD) and synthetic inputs say nothing.
-    fn metadata(&self) -> codec_core::SceneMetadata {
+    fn metadata(&self) -> animcodec::core::SceneMetadata {
         match self {
             Source::Whole(a) => *a.metadata(),
-            Source::Cache(_) | Source::Flag { .. } => codec_core::SceneMetadata::default(),
+            Source::Cache(_) | Source::Flag { .. } => animcodec::core::SceneMetadata::default(),
         }
     }
 
@@ -266,28 +382,6 @@ impl Source {
             Source::Cache(c) => (c.frame_count(), c.frame_rate()),
             Source::Flag { frames, .. } => (*frames, fps.unwrap_or(synth::FRAME_RATE)),
         }
-    }
-}
-
-/// Recognises `synth:flag:COLSxROWSxFRAMES`, the streamed form of the synthetic flag.
-pub(crate) fn parse_streamed_flag(input: &str) -> CmdResult<Option<(usize, usize, usize)>> {
-    let Some(dims) = input.strip_prefix("synth:flag:") else { return Ok(None) };
-    if !dims.contains('x') {
-        return Ok(None); // a size preset such as `synth:flag:small`
-    }
-    let parts: Vec<usize> = dims
-        .split('x')
-        .map(|p| p.trim().parse::<usize>())
-        .collect::<Result<_, _>>()
-        .map_err(|_| format!("'{input}': expected synth:flag:COLSxROWSxFRAMES with three positive integers"))?;
-    match parts[..] {
-        [c, r, f] if c >= 2 && r >= 2 && f >= 1 && c.checked_mul(r).is_some_and(|n| n <= u32::MAX as usize) => {
-            Ok(Some((c, r, f)))
-        }
-        _ => Err(format!(
-            "'{input}': expected synth:flag:COLSxROWSxFRAMES with COLS, ROWS ≥ 2, FRAMES ≥ 1 and COLS×ROWS < 2^32"
-        )
-        .into()),
     }
 }
 
@@ -323,7 +417,7 @@ fn output_policy(args: &EncodeArgs) -> OutputPolicy {
     if !args.input.starts_with("synth:") {
         policy = policy.with_input(&args.input);
     }
-    if let Some(t) = &args.topology {
+    if let Some(t) = &args.read.topology {
         policy = policy.with_input(t);
     }
     policy
@@ -331,7 +425,7 @@ fn output_policy(args: &EncodeArgs) -> OutputPolicy {
 
 /// Encodes `source` into `file`, feeding `feed` frames per call; returns the file (complete,
 /// not yet committed), the container size in bytes and the encoder's warnings
-/// ([`codec_core::FrameEncoder::notes`]).
+/// ([`animcodec::core::FrameEncoder::notes`]).
 fn encode_to_file(
     codec: &dyn AnimationCodec,
     params: &ParamSet,
@@ -412,7 +506,7 @@ fn run_target(args: &EncodeArgs, target: Target, by_default: bool, limits: Limit
         None
     } else {
         let codec = registry.by_name(&args.codec)?;
-        let params = parse_params(codec, &args.params)?;
+        let params = front::params_from_text(codec, &args.params)?;
         let ladder = codec.rate_ladder(&params);
         if let Some(p) = args.params.iter().find(|p| p.split_once('=').is_some_and(|(k, _)| k.trim() == ladder.param)) {
             return Err(format!(
@@ -423,27 +517,18 @@ fn run_target(args: &EncodeArgs, target: Target, by_default: bool, limits: Limit
         }
         Some((codec, params))
     };
-    let eval = EvalOptions { sted: sted_params(&args.sted)?, ..EvalOptions::default() };
+    // --eval's metrics: every one, with the STED options given (the search computes only its
+    // target's metric).
+    let measured = args.sted.metric_options().eval_options()?;
+    let eval = EvalOptions { sted: measured.sted, ..EvalOptions::default() };
     policy.check(&args.output)?;
     animcodec::output::folder_exists(&args.output)?;
 
     let read_start = Instant::now();
-    let animation = match parse_streamed_flag(&args.input)? {
-        // The search decodes and compares whole animations, so the flag is built in memory.
-        Some((cols, rows, frames)) => {
-            let (topology, positions, _) = synth::waving_flag(cols, rows, frames).into_parts();
-            Animation::new(topology, positions, args.fps.unwrap_or(synth::FRAME_RATE))?
-        }
-        None => {
-            let options = ReadOptions {
-                topology: args.topology.clone(),
-                frame_rate: args.fps,
-                animation: args.animation.clone(),
-                object: args.object.clone(),
-            };
-            load_animation(&args.input, &options)?
-        }
-    };
+    // The search decodes and compares whole animations, so a synth:flag:COLSxROWSxFRAMES is
+    // built in memory (within the memory limit).
+    let options = args.read.options(args.fps);
+    let animation = load(&args.input, &options, limits, Streams::Refuse)?.animation;
     // The files the read opened (a .gltf's buffers, …) are inputs too: refused before the work.
     policy.check(&args.output)?;
     let read_seconds = read_start.elapsed().as_secs_f64();
@@ -503,54 +588,34 @@ fn run_target(args: &EncodeArgs, target: Target, by_default: bool, limits: Limit
     file.write_all(&hit.stream).map_err(|e| file.error(e))?;
     let p = &hit.point;
     let reached = target.metric.value(&p.report).unwrap_or(f64::NAN);
-    let evaluation = if args.eval { Some(evaluate_written(args, &animation, file.finish()?, limits)?) } else { None };
+    // --eval: the search measured this very stream; its report is reused (the stream is not
+    // decoded again unless the search skipped a metric --eval reports).
+    let evaluation = if args.eval {
+        file.finish()?;
+        Some(front::evaluation_of(&registry, &hit, &animation, &measured, limits)?)
+    } else {
+        None
+    };
     file.commit()?;
     let (v, f) = (animation.vertex_count(), animation.frame_count());
     if args.json {
-        let summary = |h: &TargetHit| {
-            json!({
-                "codec": h.point.codec,
-                "params": params_json(&h.point.params),
-                "bytes": h.point.bytes,
-                "bpvf": h.point.bpvf,
-                "value": target.metric.value(&h.point.report),
-            })
-        };
-        let mut out = json!({
-            "codec": p.codec,
-            "params": params_json(&p.params),
-            "input": args.input,
-            "output": args.output.display().to_string(),
-            "target": { "metric": target.metric.name(), "value": target.value },
-            "default_target": by_default,
-            "search": if args.ladder { "ladder" } else { "space" },
-            "rejected": hit.rejected,
-            "notes": notes,
-            "reached": reached,
-            "parts": p.report.parts,
-            "worst_part_kg": p.report.worst_part_kg(),
-            "bytes": p.bytes,
-            "bpvf": p.bpvf,
-            "ratio": raw_bytes(v, f) as f64 / p.bytes as f64,
-            "frames": f,
-            "vertices": v,
-            "triangles": animation.topology().triangle_count(),
-            "frame_rate": animation.frame_rate(),
-            "read_seconds": read_seconds,
-            "search_seconds": search_seconds,
-            "encode_seconds": p.encode_seconds,
-            "linear_fallback": hit.linear_fallback,
-            "tried": hit.tried.iter().map(|t| json!({
-                "ladder_index": t.ladder_index,
-                "params": params_json(&t.params),
-                "bytes": t.bytes,
-                "bpvf": t.bpvf,
-                "value": target.metric.value(&t.report),
-            })).collect::<Vec<_>>(),
-            "other_codecs": others.iter().map(summary).collect::<Vec<_>>(),
+        return emit_document(&TargetEncodeDocument {
+            summary: TargetSummary::new(target, &hit, &others),
+            input: &args.input,
+            output: args.output.display().to_string(),
+            default_target: by_default,
+            search: if args.ladder { "ladder" } else { "space" },
+            notes,
+            ratio: raw_bytes(v, f) as f64 / p.bytes as f64,
+            frames: f,
+            vertices: v,
+            triangles: animation.topology().triangle_count(),
+            frame_rate: animation.frame_rate(),
+            read_seconds,
+            search_seconds,
+            encode_seconds: p.encode_seconds,
+            evaluation: evaluation.as_ref().map(|(r, s)| EvaluationFields::new(r, *s)),
         });
-        add_evaluation(&mut out, evaluation.as_ref());
-        return emit_json(&out);
     }
     let mut out = format!(
         "{input}: {f} frames × {v} vertices (read in {read_seconds:.2} s)\n\

@@ -1,74 +1,96 @@
 //! `animcodec eval`: every metric between a reference animation and a candidate.
 
-use std::path::Path;
 use std::time::Instant;
 
+use animcodec::core::Limits;
 use animcodec::formats::ReadOptions;
-use animcodec::harness::report_json;
-use codec_core::{Animation, Limits, StreamDecoder};
-use metrics::{EdgeDifference, EvalOptions, MetricReport, StedParams};
-use serde_json::Value;
+use animcodec::front::{Origin, Streams};
+use animcodec::metrics::{EdgeDifference, MetricReport};
+use serde::Serialize;
 
-use super::decode::open;
-use super::{emit, emit_json, load_animation, CmdResult, WithContext};
-use crate::{EvalArgs, MetricArgs, StedArgs};
+use super::args::MetricArgs;
+use super::{emit, emit_document, load, CmdResult, WithContext};
+use clap::Args;
+use std::path::PathBuf;
 
-/// STED parameters from the command line (defaults from [`StedParams::default`]), checked.
-pub fn sted_params(args: &StedArgs) -> CmdResult<StedParams> {
-    let d = StedParams::default();
-    let p = StedParams {
-        ring_radius: args.sted_radius.unwrap_or(d.ring_radius),
-        dt: args.sted_dt.unwrap_or(d.dt),
-        speed_window: args.sted_window.unwrap_or(d.speed_window),
-        c: args.sted_c.unwrap_or(d.c),
-        spatial_difference: if args.sted_absolute { EdgeDifference::Absolute } else { d.spatial_difference },
-    };
-    p.validate()?;
-    Ok(p)
-}
+/// Arguments of `animcodec eval`.
+#[derive(Debug, Args)]
+pub struct EvalArgs {
+    /// Reference animation (any input format, or an `.anim` container, which is decoded).
+    #[arg(value_name = "REFERENCE")]
+    pub reference: String,
 
-/// Loads an animation for comparison: an `.anim` container is decoded, anything else is read
-/// like an `encode` input.
-pub fn load_any(input: &str, options: &ReadOptions, limits: Limits) -> CmdResult<Animation> {
-    let path = Path::new(input);
-    if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("anim")) {
-        let registry = animcodec::registry();
-        let name = || input.to_string();
-        let decoder = StreamDecoder::new(open(path)?, &registry, limits).in_file(&name())?;
-        return decoder.decode_all().in_file(&name());
-    }
-    load_animation(input, options)
-}
+    /// Candidate animation (any input format, or an `.anim` container). Same vertex count,
+    /// frame count and triangles as the reference.
+    #[arg(value_name = "CANDIDATE")]
+    pub candidate: String,
 
-/// The metrics and STED options `eval` and `sweep` were asked for.
-pub fn eval_options(args: &MetricArgs) -> CmdResult<EvalOptions> {
-    Ok(EvalOptions {
-        sted: sted_params(&args.sted)?,
-        compute_sted: !args.no_sted,
-        compute_hausdorff: !args.no_hausdorff,
-    })
+    /// OBJ file giving the triangles of .pc2/.mdd inputs (default: the OBJ beside each).
+    #[arg(long, value_name = "OBJ")]
+    pub topology: Option<PathBuf>,
+
+    /// glTF input: the animation to play, by name or index (default: the first; `animcodec
+    /// list-animations FILE` lists them). Applies to the reference; a glTF candidate plays its first.
+    #[arg(long, value_name = "NAME|INDEX")]
+    pub animation: Option<String>,
+
+    /// Match the candidate's vertices to the reference's by trajectory (nearest over all
+    /// frames) before comparing: for a candidate that reorders, welds or splits vertices
+    /// (gltfpack, `animcodec export`, Draco-compressed glTF). The reference's triangles are used
+    /// for both; an ambiguous match, or a candidate vertex that follows no reference vertex, is
+    /// an error.
+    #[arg(long)]
+    pub match_vertices: bool,
+
+    /// Alembic input: the mesh object to read, by full path (`/root/char/body`), or an object
+    /// whose meshes are read (default: every mesh, merged; `animcodec list-animations FILE.abc`
+    /// lists them). Applies to the reference.
+    #[arg(long, value_name = "PATH")]
+    pub object: Option<String>,
+
+    /// Which metrics, and STED's options.
+    #[command(flatten)]
+    pub metrics: MetricArgs,
+
+    /// Print JSON with keys named after the metrics: kg, sted, sted_spatial, sted_temporal,
+    /// hausdorff, hausdorff_mean, hausdorff_relative, mse, rmse, rmse_relative, max_error,
+    /// sted_params, notes, ….
+    #[arg(long)]
+    pub json: bool,
 }
 
 /// Runs `eval`.
 pub fn run(args: &EvalArgs, limits: Limits) -> CmdResult {
-    let options = eval_options(&args.metrics)?;
+    let options = args.metrics.metric_options().eval_options()?;
     let read = ReadOptions {
         topology: args.topology.clone(),
         frame_rate: None,
         animation: args.animation.clone(),
         object: args.object.clone(),
     };
-    let reference = load_any(&args.reference, &read, limits)?;
+    let reference = load(&args.reference, &read, limits, Streams::Decode)?;
     // --animation chooses the reference's animation; a glTF candidate plays its first.
-    let mut candidate = load_any(&args.candidate, &ReadOptions { animation: None, ..read }, limits)?;
+    let mut candidate =
+        load(&args.candidate, &ReadOptions { animation: None, ..read }, limits, Streams::Decode)?.animation;
+    // A stream as the reference is decoded and measured against as it decodes: said, since the
+    // figures are then the candidate's distance from that decode, not from the original.
+    let reference_note = match reference.origin {
+        Origin::Stream { codec } => Some(format!(
+            "the reference {} is an .anim stream ({codec}): it was decoded, and the candidate is compared with \
+             the decoded animation (not with the animation that was encoded)",
+            args.reference
+        )),
+        _ => None,
+    };
+    let reference = reference.animation;
     let mut matched = None;
     if args.match_vertices {
         let context = || format!("matching the vertices of {} to {}", args.candidate, args.reference);
-        let m = metrics::match_vertices(&reference, &candidate).context(context)?;
+        let m = animcodec::metrics::match_vertices(&reference, &candidate).context(context)?;
         candidate = m.apply(&reference, &candidate).context(context)?;
         matched = Some(m);
     }
-    if let Err(e) = metrics::check_compatible(&reference, &candidate) {
+    if let Err(e) = animcodec::metrics::check_compatible(&reference, &candidate) {
         let gltf = std::path::Path::new(&args.candidate)
             .extension()
             .is_some_and(|x| x.eq_ignore_ascii_case("glb") || x.eq_ignore_ascii_case("gltf"));
@@ -85,8 +107,9 @@ pub fn run(args: &EvalArgs, limits: Limits) -> CmdResult {
         return Err(format!("comparing {} with {}: {e}{hint}", args.reference, args.candidate).into());
     }
     let start = Instant::now();
-    let mut report = metrics::evaluate(&reference, &candidate, &options)
+    let mut report = animcodec::metrics::evaluate(&reference, &candidate, &options)
         .context(|| format!("comparing {} with {}", args.reference, args.candidate))?;
+    report.notes.extend(reference_note);
     if let Some(m) = &matched {
         report.notes.push(format!(
             "vertices matched by trajectory (--match-vertices): worst RMS distance {:.6e} ({:.3e} of the diagonal), \
@@ -99,23 +122,48 @@ pub fn run(args: &EvalArgs, limits: Limits) -> CmdResult {
     }
     let seconds = start.elapsed().as_secs_f64();
     if args.json {
-        let mut value = report_json(&report);
-        if let Value::Object(map) = &mut value {
-            map.insert("reference".into(), args.reference.clone().into());
-            map.insert("candidate".into(), args.candidate.clone().into());
-            map.insert("eval_seconds".into(), seconds.into());
-            if let Some(m) = &matched {
-                map.insert(
-                    "vertex_match".into(),
-                    serde_json::json!({
-                        "worst_distance": m.worst_distance, "shared": m.shared, "unused": m.unused,
-                    }),
-                );
-            }
-        }
-        return emit_json(&value);
+        return emit_document(&EvalDocument {
+            report: &report,
+            reference: &args.reference,
+            candidate: &args.candidate,
+            eval_seconds: seconds,
+            vertex_match: matched.as_ref().map(|m| VertexMatch {
+                worst_distance: m.worst_distance,
+                shared: m.shared,
+                unused: m.unused,
+            }),
+        });
     }
     emit(&text(args, &report, seconds))
+}
+
+/// The document of `eval --json`: every metric (the report's keys), the two inputs, the
+/// seconds, and the vertex match when `--match-vertices` made one.
+#[derive(Debug, Serialize)]
+pub struct EvalDocument<'a> {
+    /// Every metric.
+    #[serde(flatten)]
+    pub report: &'a MetricReport,
+    /// The reference as given.
+    pub reference: &'a str,
+    /// The candidate as given.
+    pub candidate: &'a str,
+    /// Seconds measuring.
+    pub eval_seconds: f64,
+    /// The match `--match-vertices` made.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub vertex_match: Option<VertexMatch>,
+}
+
+/// How the candidate's vertices were matched to the reference's.
+#[derive(Debug, Serialize)]
+pub struct VertexMatch {
+    /// The worst RMS distance of a matched pair.
+    pub worst_distance: f64,
+    /// Candidate vertices shared by several reference vertices.
+    pub shared: usize,
+    /// Candidate vertices no reference vertex follows.
+    pub unused: usize,
 }
 
 fn num(v: Option<f64>) -> String {

@@ -3,13 +3,32 @@
 
 use std::fmt::Write as _;
 
+use animcodec::core::container;
+use animcodec::core::Limits;
 use animcodec::describe;
-use codec_core::container;
-use codec_core::Limits;
 
 use super::decode::open;
 use super::{emit, emit_json, CmdResult, WithContext};
-use crate::InfoArgs;
+use clap::Args;
+use std::path::PathBuf;
+
+/// Arguments of `animcodec info`.
+#[derive(Debug, Args)]
+pub struct InfoArgs {
+    /// Input `.anim` container (or a `.gltf`/`.glb` file: its animations are listed; an `.abc`
+    /// file: its mesh objects are listed).
+    #[arg(value_name = "IN.anim")]
+    pub input: PathBuf,
+
+    /// List every packet even when there are many (the text output otherwise shows the first 32).
+    #[arg(long)]
+    pub all_packets: bool,
+
+    /// Print JSON: {codec, fourcc, frames, vertices, triangles, bytes, bpvf, geometry_bpvf,
+    /// packets: [{first_frame, frame_count, keyframe, bytes}], …}.
+    #[arg(long)]
+    pub json: bool,
+}
 
 /// Packets listed by the text output unless `--all-packets` is given.
 const SHOWN_PACKETS: usize = 32;
@@ -45,8 +64,8 @@ pub fn run(args: &InfoArgs, limits: Limits) -> CmdResult {
     let codec = registry.by_fourcc(info.fourcc).ok().map(|c| c.name());
     let (v, f, t) = (info.vertex_count(), info.frame_count, info.topology.triangle_count());
     // `read_index` refuses containers without vertices or frames.
-    let rate = metrics::bpvf(total, v, f)?;
-    let geometry_rate = metrics::bpvf(payload_bytes, v, f)?;
+    let rate = animcodec::metrics::bpvf(total, v, f)?;
+    let geometry_rate = animcodec::metrics::bpvf(payload_bytes, v, f)?;
     let keyframes = index.iter().filter(|e| e.keyframe).count();
 
     if args.json {

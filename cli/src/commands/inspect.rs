@@ -6,17 +6,60 @@ use std::fmt::Write as _;
 use std::path::Path;
 use std::time::Instant;
 
-use animcodec::formats::ReadOptions;
+use animcodec::core::{Animation, ParamSet};
 use animcodec::output::{commit_all, OutputPolicy};
-use codec_core::{Animation, ParamSet};
-use codec_stseg::{segment_animation, BlockKind, Segment, Segmentation, StsegParams};
+use animcodec::stseg::{segment_animation, BlockKind, Segment, Segmentation, StsegParams};
 use serde_json::{json, Value};
 
-use super::encode::parse_params;
 use animcodec::params::params_json;
 
-use super::{emit, load_animation, CmdResult};
-use crate::InspectArgs;
+use super::args::ReadArgs;
+use super::{emit, load, CmdResult};
+use clap::Args;
+use std::path::PathBuf;
+
+/// Arguments of `animcodec inspect`.
+#[derive(Debug, Args)]
+pub struct InspectArgs {
+    /// Input animation: .pc2, .mdd, .gltf/.glb, an OBJ directory or pattern, or
+    /// `synth:NAME[:small|medium|large]`.
+    #[arg(value_name = "INPUT")]
+    pub input: String,
+
+    /// stseg parameter as key=value (repeatable; see `animcodec list`). Only the segmentation
+    /// parameters (omega_seg, w, gamma_init, gamma_max, lambda, cut_threshold, groups, rho)
+    /// change the result.
+    #[arg(short = 'p', long = "param", value_name = "KEY=VALUE")]
+    pub params: Vec<String>,
+
+    /// Write JSON to F (`-`: print it instead of the summary): {input, vertices, frames,
+    /// triangles, params, boundaries, detected_boundaries, segments: [{index, first_frame,
+    /// last_frame, frame_count, case, kind, detected_boundary, ends_at, window, group_count,
+    /// group_sizes, label_set}], label_sets: [[label per vertex], …]}. Segments sharing a
+    /// grouping share one label set.
+    #[arg(long, value_name = "F")]
+    pub json: Option<PathBuf>,
+
+    /// Write the mesh at `--frame` with each vertex coloured by its group label in the segment
+    /// containing that frame: `.ply` (ASCII, `red green blue` uchar vertex properties) or
+    /// `.obj` (`v x y z r g b`, colours 0..1). Colours: hue k·0.618… (golden-ratio steps) for
+    /// label k, so they are the same in every run.
+    #[arg(long, value_name = "F.ply|F.obj")]
+    pub mesh: Option<PathBuf>,
+
+    /// Replace existing output files (without it, an existing output is an error). An output
+    /// that is also an input is refused even with it.
+    #[arg(short, long)]
+    pub force: bool,
+
+    /// Frame shown by `--mesh` (0-based).
+    #[arg(long, value_name = "N", default_value_t = 0)]
+    pub frame: usize,
+
+    /// How the input is read.
+    #[command(flatten)]
+    pub read: ReadArgs,
+}
 
 /// Mesh formats `--mesh` writes, chosen by extension.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -49,7 +92,7 @@ pub fn run(args: &InspectArgs) -> CmdResult {
     // segmentation.
     let registry = animcodec::registry();
     let codec = registry.by_name("stseg")?;
-    let param_set = parse_params(codec, &args.params)?;
+    let param_set = animcodec::front::params_from_text(codec, &args.params)?;
     let params = StsegParams::from_param_set(&param_set)?;
     params.validate()?;
     let mesh_format = args.mesh.as_deref().map(MeshFormat::from_path).transpose()?;
@@ -57,20 +100,16 @@ pub fn run(args: &InspectArgs) -> CmdResult {
     if !args.input.starts_with("synth:") {
         policy = policy.with_input(&args.input);
     }
-    if let Some(t) = &args.topology {
+    if let Some(t) = &args.read.topology {
         policy = policy.with_input(t);
     }
     let json_file = args.json.as_deref().filter(|p| *p != Path::new("-"));
     let outputs: Vec<&Path> = [json_file, args.mesh.as_deref()].into_iter().flatten().collect();
     policy.check_all(&outputs)?;
 
-    let options = ReadOptions {
-        topology: args.topology.clone(),
-        frame_rate: None,
-        animation: args.animation.clone(),
-        object: args.object.clone(),
-    };
-    let animation = load_animation(&args.input, &options)?;
+    let options = args.read.options(None);
+    let animation =
+        load(&args.input, &options, animcodec::core::Limits::default(), animcodec::front::Streams::Refuse)?.animation;
     // The files the read opened (a .gltf's buffers, …) are inputs too: refused before the work.
     policy.check_all(&outputs)?;
     let frames = animation.frame_count();
@@ -382,7 +421,7 @@ mod tests {
 
     #[test]
     fn palette_is_distinct_and_stable() {
-        let colours: Vec<[u8; 3]> = (0..codec_stseg::MAX_GROUPS as u8).map(label_color).collect();
+        let colours: Vec<[u8; 3]> = (0..animcodec::stseg::MAX_GROUPS as u8).map(label_color).collect();
         assert_eq!(colours[0], [242, 61, 61], "label 0 is red (hue 0, s 0.75, v 0.95)");
         for i in 0..colours.len() {
             for j in i + 1..colours.len() {

@@ -2,12 +2,23 @@
 
 use std::fmt::Write as _;
 
+use animcodec::core::AnimationCodec;
 use animcodec::describe::codec_json;
-use codec_core::AnimationCodec;
 use serde_json::Value;
 
 use super::{emit, emit_json, CmdResult};
-use crate::ListArgs;
+use clap::Args;
+
+/// Arguments of `animcodec list`.
+#[derive(Debug, Args)]
+pub struct ListArgs {
+    /// Print JSON: an array of {name, fourcc, summary, params, rate_ladder}.
+    #[arg(long, conflicts_with = "markdown")]
+    pub json: bool,
+    /// Print the codec table of README.md and python/README.md (Markdown), made from the registry.
+    #[arg(long)]
+    pub markdown: bool,
+}
 
 /// Runs `list`.
 pub fn run(args: &ListArgs) -> CmdResult {

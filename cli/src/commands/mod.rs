@@ -1,7 +1,8 @@
 //! The subcommands, one module each, and what they share: error reporting, stdout output,
-//! input loading. (Parameters as JSON: `animcodec::params`; bpvf: `metrics::bpvf`.)
+//! input loading. (Parameters as JSON: `animcodec::params`; bpvf: `animcodec::metrics::bpvf`.)
 
 pub mod animations;
+pub mod args;
 pub mod decode;
 pub mod demo;
 pub mod encode;
@@ -14,22 +15,20 @@ pub mod sweep;
 pub mod synth;
 pub mod view;
 
+use animcodec::core::Limits;
+use animcodec::formats::{self, ReadOptions};
+use animcodec::front::{self, Resolved, Streams};
+use serde_json::Value;
 use std::error::Error as StdError;
 use std::io::Write;
-use std::path::Path;
-
-use animcodec::formats::{self, ReadOptions};
-use animcodec::synth::{self as gen, SynthSize};
-use codec_core::{Animation, Limits};
-use serde_json::Value;
 
 /// What every subcommand returns. Errors are codec-core errors, I/O errors, or plain messages.
 pub type CmdResult<T = ()> = Result<T, Box<dyn StdError + Send + Sync>>;
 
 /// Prints `error: <message>` followed by each `source()` not already part of the message,
-/// on one line ([`codec_core::error::message_with_sources`]).
+/// on one line ([`animcodec::core::error::message_with_sources`]).
 pub fn report_error(e: &(dyn StdError + 'static)) {
-    let message = codec_core::error::message_with_sources(e);
+    let message = animcodec::core::error::message_with_sources(e);
     let _ = writeln!(std::io::stderr(), "error: {}", terminal_safe(&message));
 }
 
@@ -117,7 +116,7 @@ impl<T, E: Into<Box<dyn StdError + Send + Sync>>> WithContext<T> for Result<T, E
     fn in_file(self, file: &str) -> CmdResult<T> {
         self.map_err(|e| {
             let e: Box<dyn StdError + Send + Sync> = e.into();
-            if codec_core::error::message_with_sources(e.as_ref()).contains(file) {
+            if animcodec::core::error::message_with_sources(e.as_ref()).contains(file) {
                 e
             } else {
                 Box::new(Context { context: file.to_owned(), source: e }) as _
@@ -156,6 +155,11 @@ pub fn emit_json(value: &Value) -> CmdResult {
     emit(&text)
 }
 
+/// Writes a document (a serde type) as pretty JSON: its keys sorted, as every document prints.
+pub fn emit_document<T: serde::Serialize>(document: &T) -> CmdResult {
+    emit_json(&serde_json::to_value(document)?)
+}
+
 /// Parses a byte count: a plain number or one with a K, M, G or T suffix (powers of 1024;
 /// `KB`/`KiB` spellings and lower case accepted).
 pub fn parse_bytes(text: &str) -> Result<u64, String> {
@@ -174,55 +178,10 @@ pub fn parse_bytes(text: &str) -> Result<u64, String> {
     number.checked_mul(1u64 << shift).filter(|&n| n > 0).ok_or_else(|| format!("'{text}' is out of range"))
 }
 
-/// Decoding limits, with `max_memory` (if given) as the bound on the total a decode holds and
-/// `max_work` (if given) as its work budget.
-pub fn limits(max_memory: Option<u64>, max_work: Option<u64>) -> Limits {
-    let mut limits = Limits::default();
-    if let Some(m) = max_memory {
-        limits.max_alloc_bytes = usize::try_from(m).unwrap_or(usize::MAX);
-    }
-    if let Some(w) = max_work {
-        limits.max_work = w;
-    }
-    limits
-}
-
-/// Loads an input animation: `synth:NAME[:SIZE]` builds a synthetic one (size default
-/// small), anything else goes through [`formats::read_animation`].
-pub fn load_animation(input: &str, options: &ReadOptions) -> CmdResult<Animation> {
-    if let Some(spec) = input.strip_prefix("synth:") {
-        let (name, size) = match spec.split_once(':') {
-            Some((name, size)) => (name, SynthSize::from_name(size)?),
-            None => (spec, SynthSize::Small),
-        };
-        let animation = gen::by_name(name, size)?;
-        return Ok(match options.frame_rate {
-            Some(fps) => {
-                let (topology, positions, _) = animation.into_parts();
-                Animation::new(topology, positions, fps)?
-            }
-            None => animation,
-        });
-    }
-    let path = Path::new(input);
-    if !input.contains(['*', '?', '{', '#']) {
-        if let Err(e) = std::fs::metadata(path) {
-            return Err(io_message(&format!("cannot read '{input}'"), &e).into());
-        }
-    }
-    Ok(formats::read_animation(path, options)?)
-}
-
-/// "CONTEXT: REASON" for an I/O error, the reason in plain words ("no such file or directory",
-/// "permission denied", …) instead of the OS text with its error number.
-pub fn io_message(context: &str, e: &std::io::Error) -> String {
-    use std::io::ErrorKind;
-    let reason = match e.kind() {
-        ErrorKind::NotFound => "no such file or directory".to_owned(),
-        ErrorKind::PermissionDenied => "permission denied".to_owned(),
-        _ => e.to_string(),
-    };
-    format!("{context}: {reason}")
+/// An input through the library's front door ([`front::resolve_input`]) with this program's
+/// codecs: `synth:…`, an animation file, or (with [`Streams::Decode`]) an `.anim` stream.
+pub fn load(input: &str, read: &ReadOptions, limits: Limits, streams: Streams) -> CmdResult<Resolved> {
+    front::resolve_input(&animcodec::registry(), input, read, limits, streams)
 }
 
 /// Bytes of the animation stored as raw `f32` coordinates.
@@ -263,17 +222,5 @@ mod tests {
         assert_eq!(parse_workers(&max_workers().to_string()), Ok(max_workers()));
         let e = parse_workers("65535").unwrap_err();
         assert!(e.contains("65535 threads") && e.contains("cores"), "{e}");
-    }
-
-    #[test]
-    fn synth_inputs_load_without_files() {
-        let a = load_animation("synth:tumble", &ReadOptions::default()).unwrap();
-        assert_eq!(a.frame_count(), SynthSize::Small.frames());
-        let opts = ReadOptions { frame_rate: Some(24.0), ..Default::default() };
-        assert_eq!(load_animation("synth:flag:small", &opts).unwrap().frame_rate(), 24.0);
-        assert!(load_animation("synth:flag:huge", &opts).unwrap_err().to_string().contains("small, medium, large"));
-        assert!(load_animation("synth:teapot", &opts).unwrap_err().to_string().contains("flag, cylinder"));
-        let e = load_animation("/nonexistent/x.pc2", &opts).unwrap_err().to_string();
-        assert!(e.contains("/nonexistent/x.pc2") && e.contains("no such file"), "{e}");
     }
 }

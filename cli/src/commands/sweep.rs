@@ -7,17 +7,104 @@ use std::path::Path;
 use std::time::Instant;
 
 use crate::viewer;
-use animcodec::formats::ReadOptions;
+use animcodec::core::{AnimationCodec, CodecRegistry, Limits};
 use animcodec::harness::{self, monotone_report, Point, Sweep, SweepDocument, SweepOptions, SweepSeries, TargetMetric};
 use animcodec::output::{commit_all, OutputPolicy};
 use animcodec::params::params_json;
-use codec_core::{AnimationCodec, CodecRegistry, Limits};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
-use super::encode::parse_params;
-use super::eval::{eval_options, load_any};
-use super::{emit, emit_json, CmdResult};
-use crate::SweepArgs;
+use super::args::{MetricArgs, ReadArgs};
+use super::{emit, emit_json, load, CmdResult};
+use clap::Args;
+use std::path::PathBuf;
+
+/// Arguments of `animcodec sweep`.
+#[derive(Debug, Args)]
+pub struct SweepArgs {
+    /// Input animation (any `encode` input, or an `.anim` container, decoded first). Default:
+    /// the built-in synthetic `synth:flag` (small); any `synth:NAME[:SIZE]` works.
+    #[arg(value_name = "INPUT")]
+    pub input: Option<String>,
+
+    /// Comma-separated codecs (default: every registered codec, unless --series is given).
+    #[arg(short, long = "codecs", value_name = "A,B", value_delimiter = ',')]
+    pub codecs: Vec<String>,
+
+    /// Parameter for the codecs of -c (repeatable), the base each ladder step starts from, e.g.
+    /// `-c pca-aoi -p mode=qaoi` (whose ladder then walks the error band). Setting the ladder's
+    /// own parameter is an error: the sweep walks it.
+    #[arg(short = 'p', long = "param", value_name = "KEY=VALUE")]
+    pub params: Vec<String>,
+
+    /// An extra curve: a codec and its base parameters (repeatable), e.g.
+    /// `--series pca-aoi:mode=baoi,tmax=2`. Curves are labelled `codec[key=value,…]` with the
+    /// parameters that differ from the defaults, so one codec can be compared with itself.
+    #[arg(long = "series", value_name = "CODEC:KEY=VALUE,...")]
+    pub series: Vec<String>,
+
+    /// Sweep only the single-axis rate ladders (each codec on its -p parameters) instead of
+    /// each codec's lower envelope over its declared parameter space (the default without
+    /// --series).
+    #[arg(long)]
+    pub ladder: bool,
+
+    /// Envelope sweep: ladder points measured on each configuration after the first (spread
+    /// over the part of the ladder where the first configuration reached KG 0.05–4 or STED
+    /// 0.01–0.2), then up to as many again next to its points on the envelope.
+    #[arg(long, value_name = "N", default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..=64))]
+    pub config_points: u32,
+
+    /// Ladder points per codec, spread evenly over its rate ladder, ends included (default:
+    /// every step).
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
+    pub points: Option<u32>,
+
+    /// Points measured at once (default: all cores via rayon; at most 4 × the cores, at least
+    /// 8). Use `--jobs 1` when the encode and decode times matter: parallel points compete for
+    /// the cores.
+    #[arg(long, value_name = "N", value_parser = super::parse_workers)]
+    pub jobs: Option<u32>,
+
+    /// Write JSON to F (`-`: print it instead of the table): {input, vertices, frames,
+    /// eval_options, rows: [{codec, params, ladder_param, ladder_index, bytes, bpvf, kg, sted,
+    /// sted_spatial, sted_temporal, hausdorff, hausdorff_relative, mse, rmse, max_error,
+    /// encode_seconds, decode_seconds}], failures, monotone, total_seconds, jobs}.
+    #[arg(long, value_name = "F")]
+    pub json: Option<PathBuf>,
+
+    /// Write the rows as CSV to F (same columns; params as key=value;key=value).
+    #[arg(long, value_name = "F")]
+    pub csv: Option<PathBuf>,
+
+    /// Write an SVG with two panels: bpvf vs KG (left) and bpvf vs STED (right), one curve per
+    /// codec, error axes in log scale.
+    #[arg(long, value_name = "F.svg")]
+    pub plot: Option<PathBuf>,
+
+    /// Replace existing output files (without it, an existing output is an error). An output
+    /// that is also an input is refused even with it.
+    #[arg(short, long)]
+    pub force: bool,
+
+    /// Write an HTML report: the interactive rate-distortion plot (hover a point for its
+    /// parameters, bytes and every metric), the table, and a viewer per `--view-points` point.
+    #[arg(long, value_name = "F.html")]
+    pub html: Option<PathBuf>,
+
+    /// With --html: points whose decoded animation is embedded as a viewer against the input,
+    /// as SERIES:LADDER_INDEX (e.g. `hosvd:3`, index 0 = the smallest stream; repeatable or
+    /// comma-separated).
+    #[arg(long, value_name = "SERIES:INDEX", value_delimiter = ',', requires = "html")]
+    pub view_points: Vec<String>,
+
+    /// Which metrics, and STED's options.
+    #[command(flatten)]
+    pub metrics: MetricArgs,
+
+    /// How the input is read.
+    #[command(flatten)]
+    pub read: ReadArgs,
+}
 
 /// Input swept when none is given.
 pub const DEFAULT_INPUT: &str = "synth:flag";
@@ -30,7 +117,7 @@ pub fn run(args: &SweepArgs, limits: Limits) -> CmdResult {
     if !input.starts_with("synth:") {
         policy = policy.with_input(input);
     }
-    if let Some(t) = &args.topology {
+    if let Some(t) = &args.read.topology {
         policy = policy.with_input(t);
     }
     let json_file = args.json.as_deref().filter(|p| p.as_os_str() != "-");
@@ -44,19 +131,20 @@ pub fn run(args: &SweepArgs, limits: Limits) -> CmdResult {
     let envelope_mode = !args.ladder && args.series.is_empty();
     // Checked before the (long) sweep: a typo should not cost it.
     let view_points = args.view_points.iter().map(|t| parse_view_point(t, &series)).collect::<CmdResult<Vec<_>>>()?;
-    let eval = eval_options(&args.metrics)?;
-    let read = ReadOptions {
-        topology: args.topology.clone(),
-        frame_rate: None,
-        animation: args.animation.clone(),
-        object: args.object.clone(),
-    };
-    let animation = load_any(input, &read, limits)?;
+    let eval = args.metrics.metric_options().eval_options()?;
+    let read = args.read.options(None);
+    let animation = load(input, &read, limits, animcodec::front::Streams::Decode)?.animation;
     // The files the read opened (a .gltf's buffers, …) are inputs too: refused before the work.
     policy.check_all(&outputs)?;
 
-    let options =
-        SweepOptions { points: args.points.map(|n| n as usize), jobs: args.jobs.map(|n| n as usize), eval, limits };
+    let options = SweepOptions {
+        points: args.points.map(|n| n as usize),
+        jobs: args.jobs.map(|n| n as usize),
+        eval,
+        limits,
+        // The --view-points' decoded animations are kept as the sweep measures them.
+        keep_decoded: view_points.clone(),
+    };
     let total = if envelope_mode { 0 } else { harness::sweep_jobs(&series, options.points).len() as u64 };
     let bar = if std::io::stderr().is_terminal() {
         let bar = ProgressBar::with_draw_target(Some(total), ProgressDrawTarget::stderr());
@@ -125,7 +213,7 @@ pub fn run(args: &SweepArgs, limits: Limits) -> CmdResult {
         stage(path, &animcodec::plot::rd_svg(&title, &result.points))?;
     }
     if let Some(path) = &args.html {
-        let page = html_report(&registry, input, &animation, &eval, &result, &view_points, limits)?;
+        let page = html_report(input, &animation, &eval, &result, &view_points)?;
         stage(path, &page)?;
     }
     commit_all(staged, &[])?;
@@ -155,16 +243,14 @@ fn parse_view_point(text: &str, series: &[SweepSeries<'_>]) -> CmdResult<(String
     Ok((name.to_string(), index))
 }
 
-/// The `--html` report: every row, the interactive plot, and a viewer per chosen point (its
-/// stream re-encoded from the same parameters, which gives the same bytes, and decoded).
+/// The `--html` report: every row, the interactive plot, and a viewer per chosen point (the
+/// decoded animation the sweep measured and kept: no point is encoded or decoded again).
 fn html_report(
-    registry: &CodecRegistry,
     input: &str,
-    animation: &codec_core::Animation,
-    eval: &metrics::EvalOptions,
+    animation: &animcodec::core::Animation,
+    eval: &animcodec::metrics::EvalOptions,
     sweep: &Sweep,
     view_points: &[(String, usize)],
-    limits: Limits,
 ) -> CmdResult<String> {
     let mut viewers = Vec::new();
     for (name, index) in view_points {
@@ -177,12 +263,15 @@ fn html_report(
                 measured.join(", ")
             )
         })?;
-        let codec = registry.by_name(point.codec)?;
-        let bytes = codec_core::encode_animation(codec, &point.params, animation)?;
-        let decoded = codec_core::StreamDecoder::new(bytes.as_slice(), registry, limits)?.decode_all()?;
+        let decoded = sweep
+            .decoded
+            .iter()
+            .find(|(series, step, _)| series == name && step == index)
+            .map(|(_, _, decoded)| decoded)
+            .ok_or_else(|| format!("--view-points '{name}:{index}': the sweep kept no decoded animation of it"))?;
         let candidate = viewer::Candidate {
             label: format!("{name}:{index}"),
-            animation: &decoded,
+            animation: decoded,
             info: serde_json::json!({
                 "codec": point.codec,
                 "params": params_json(&point.params),
@@ -209,7 +298,13 @@ fn num(v: Option<f64>) -> String {
     v.map_or_else(|| "n/a".to_string(), |x| format!("{x:.4e}"))
 }
 
-fn table(input: &str, animation: &codec_core::Animation, sweep: &Sweep, seconds: f64, envelope_only: bool) -> String {
+fn table(
+    input: &str,
+    animation: &animcodec::core::Animation,
+    sweep: &Sweep,
+    seconds: f64,
+    envelope_only: bool,
+) -> String {
     let mut out = String::new();
     let kg = harness::envelope(&sweep.points, TargetMetric::Kg);
     let sted = harness::envelope(&sweep.points, TargetMetric::Sted);
@@ -340,7 +435,7 @@ fn sweep_series<'r>(registry: &'r CodecRegistry, args: &SweepArgs) -> CmdResult<
 
 /// `codec` on the parameters `pairs`, refusing to set the parameter its ladder walks.
 fn series_on<'r>(codec: &'r dyn AnimationCodec, pairs: &[String]) -> CmdResult<SweepSeries<'r>> {
-    let base = parse_params(codec, pairs)?;
+    let base = animcodec::front::params_from_text(codec, pairs)?;
     let walked = codec.rate_ladder(&base).param;
     if let Some(p) = pairs.iter().find(|p| p.split_once('=').is_some_and(|(k, _)| k.trim() == walked)) {
         return Err(

@@ -5,17 +5,71 @@ use std::path::Path;
 use std::time::Instant;
 
 use crate::viewer::{self, Candidate, HeatMetric, ViewerOptions};
+use animcodec::core::{Animation, CodecRegistry, Limits, StreamDecoder};
 use animcodec::formats::ReadOptions;
+use animcodec::metrics::EvalOptions;
 use animcodec::output::OutputPolicy;
 use animcodec::params::params_json;
-use codec_core::{Animation, CodecRegistry, Limits, StreamDecoder};
-use metrics::EvalOptions;
 use serde_json::{json, Value};
 
-use super::encode::parse_params;
-use super::eval::{load_any, sted_params};
-use super::{emit, shown, CmdResult, WithContext};
-use crate::ViewArgs;
+use super::args::StedArgs;
+use super::{emit, load, shown, CmdResult, WithContext};
+use clap::Args;
+use std::path::PathBuf;
+
+/// Arguments of `animcodec view`.
+#[derive(Debug, Args)]
+pub struct ViewArgs {
+    /// Reference animation (any input format, or an `.anim` container, which is decoded).
+    #[arg(value_name = "REFERENCE")]
+    pub reference: String,
+
+    /// Candidates: animation files or `.anim` streams (decoded), or CODEC[:key=value,…] to
+    /// encode the reference with that codec on the spot (e.g. `hosvd:ss=0.9`).
+    #[arg(value_name = "CANDIDATE")]
+    pub candidates: Vec<String>,
+
+    /// Output HTML page (self-contained: opens without a network).
+    #[arg(short, long, value_name = "OUT.html")]
+    pub output: PathBuf,
+
+    /// Per-vertex error shown as the heat map: euclidean (distance in model units) or sted
+    /// (STED's local deviation of relative edge lengths).
+    #[arg(long, value_name = "METRIC", default_value = "euclidean", value_parser = parse_heat)]
+    pub heat: crate::viewer::HeatMetric,
+
+    /// Top of the colour bar (default: the 99.5th percentile of every candidate's per-vertex,
+    /// per-frame errors; larger errors get the top colour).
+    #[arg(long, value_name = "X")]
+    pub heat_max: Option<f64>,
+
+    /// Page title (default: the reference's name and size).
+    #[arg(long)]
+    pub title: Option<String>,
+
+    /// OBJ file giving the triangles of .pc2/.mdd inputs (default: the OBJ beside each).
+    #[arg(long, value_name = "OBJ")]
+    pub topology: Option<PathBuf>,
+
+    /// glTF input: the animation to play, by name or index (default: the first; `animcodec
+    /// list-animations FILE` lists them). Applies to the reference; a glTF candidate plays its first.
+    #[arg(long, value_name = "NAME|INDEX")]
+    pub animation: Option<String>,
+
+    /// Alembic input: the mesh object to read, by full path (`/root/char/body`), or an object
+    /// whose meshes are read (default: every mesh, merged; `animcodec list-animations FILE.abc`
+    /// lists them). Applies to the reference.
+    #[arg(long, value_name = "PATH")]
+    pub object: Option<String>,
+
+    /// STED options (header values and `--heat sted`).
+    #[command(flatten)]
+    pub sted: StedArgs,
+    /// Replace existing output files (without it, an existing output is an error). An output
+    /// that is also an input is refused even with it.
+    #[arg(short, long)]
+    pub force: bool,
+}
 
 /// A candidate as loaded: its label, the decoded animation and what the header shows.
 struct Loaded {
@@ -48,8 +102,8 @@ pub fn run(args: &ViewArgs, limits: Limits) -> CmdResult {
     // Stages: the reference, each candidate, the measurements, the page.
     let stages = crate::progress::Stages::new("view", 3 + args.candidates.len() as u64, false);
     stages.stage(format!("reading {}", shown(&args.reference)));
-    let reference = load_any(&args.reference, &read, limits)?;
-    let sted = sted_params(&args.sted)?;
+    let reference = load(&args.reference, &read, limits, animcodec::front::Streams::Decode)?.animation;
+    let sted = args.sted.metric_options().sted_params()?;
     let mut loaded = Vec::new();
     // --animation chooses the reference's animation; a glTF candidate plays its first.
     let read_candidate = ReadOptions { animation: None, ..read };
@@ -63,7 +117,7 @@ pub fn run(args: &ViewArgs, limits: Limits) -> CmdResult {
     stages.stage("measuring the candidates (KG, STED, Hausdorff, per-vertex errors)");
     let mut candidates = Vec::new();
     for c in &loaded {
-        let report = metrics::evaluate(&reference, &c.animation, &eval)
+        let report = animcodec::metrics::evaluate(&reference, &c.animation, &eval)
             .context(|| format!("comparing {} with {}", shown(&args.reference), shown(&c.label)))?;
         candidates.push(Candidate {
             label: c.label.clone(),
@@ -111,8 +165,8 @@ fn load_candidate(
     if !Path::new(spec).exists() {
         if let Ok(codec) = registry.by_name(name) {
             let pairs: Vec<String> = rest.split(',').filter(|p| !p.trim().is_empty()).map(str::to_string).collect();
-            let params = parse_params(codec, &pairs)?;
-            let bytes = codec_core::encode_animation(codec, &params, reference)?;
+            let params = animcodec::front::params_from_text(codec, &pairs)?;
+            let bytes = animcodec::core::encode_animation(codec, &params, reference)?;
             let animation = StreamDecoder::new(bytes.as_slice(), registry, limits)?.decode_all()?;
             let size = bytes.len() as u64;
             return Ok(Loaded {
@@ -121,7 +175,7 @@ fn load_candidate(
                     "codec": codec.name(),
                     "params": params_json(&params),
                     "bytes": size,
-                    "bpvf": metrics::bpvf(size, reference.vertex_count(), reference.frame_count())?,
+                    "bpvf": animcodec::metrics::bpvf(size, reference.vertex_count(), reference.frame_count())?,
                 }),
                 animation,
             });
@@ -138,11 +192,11 @@ fn load_candidate(
             "codec": codec,
             "params": "not stored in the stream",
             "bytes": size,
-            "bpvf": metrics::bpvf(size, animation.vertex_count(), animation.frame_count())?,
+            "bpvf": animcodec::metrics::bpvf(size, animation.vertex_count(), animation.frame_count())?,
         });
         (animation, info)
     } else {
-        (load_any(spec, read, limits)?, json!({}))
+        (load(spec, read, limits, animcodec::front::Streams::Decode)?.animation, json!({}))
     };
     let label = Path::new(spec).file_name().map_or_else(|| spec.to_string(), |f| f.to_string_lossy().into_owned());
     Ok(Loaded { label, animation, info })

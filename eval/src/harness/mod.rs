@@ -38,7 +38,7 @@ pub(crate) mod target;
 pub use curve::{envelope, monotone_report, Monotonicity};
 pub use default_quality::{search_default_quality, DEFAULT_QUALITY_BAND, DEFAULT_REFINE_BAND, DEFAULT_TARGET};
 pub use measured::Point;
-pub use point::{ladder_indices, ladder_params, measure_point};
+pub use point::{ladder_indices, ladder_params, measure_point, measure_point_keeping};
 pub use rows::{
     csv_columns, csv_text, points_from_rows, report_json, write_text, Envelopes, FailureRow, SweepDocument, SweepRow,
 };
@@ -137,7 +137,7 @@ mod tests {
         let back = points_from_rows(&registry, &rows, &options.eval, dims).unwrap();
         assert_eq!(back.iter().map(|p| SweepRow::from(p).to_json()).collect::<Vec<_>>(), rows);
         assert_eq!(csv_text(&back).unwrap(), csv_text(&swept.points).unwrap());
-        let rebuilt = Sweep { points: back, failures: Vec::new() };
+        let rebuilt = Sweep { points: back, ..Sweep::default() };
         assert_eq!(
             SweepDocument::new("x", dims, &options.eval, &rebuilt).to_json().unwrap(),
             SweepDocument::new("x", dims, &options.eval, &swept).to_json().unwrap()

@@ -54,11 +54,26 @@ pub fn measure_point(
     registry: &CodecRegistry,
     codec: &dyn AnimationCodec,
     params: &ParamSet,
-    (ladder_param, ladder_index): (&'static str, usize),
+    ladder: (&'static str, usize),
     animation: &Animation,
     eval: &EvalOptions,
     limits: Limits,
 ) -> Result<(Point, Vec<u8>)> {
+    measure_point_keeping(registry, codec, params, ladder, animation, eval, limits)
+        .map(|(point, bytes, _)| (point, bytes))
+}
+
+/// [`measure_point`], also returning the decoded animation it measured (for a caller that shows
+/// it, so the stream need not be encoded or decoded again).
+pub fn measure_point_keeping(
+    registry: &CodecRegistry,
+    codec: &dyn AnimationCodec,
+    params: &ParamSet,
+    (ladder_param, ladder_index): (&'static str, usize),
+    animation: &Animation,
+    eval: &EvalOptions,
+    limits: Limits,
+) -> Result<(Point, Vec<u8>, Animation)> {
     let start = Instant::now();
     let encoded = encode_animation_fed(codec, params, animation, false, animation.frame_count())?;
     let bytes = encoded.bytes;
@@ -88,5 +103,5 @@ pub fn measure_point(
         encode_seconds,
         decode_seconds,
     };
-    Ok((point, bytes))
+    Ok((point, bytes, decoded))
 }

@@ -9,7 +9,7 @@ use serde::Serialize;
 
 use super::curve::envelope;
 use super::measured::Point;
-use super::point::{ladder_indices, ladder_params, measure_point};
+use super::point::{ladder_indices, ladder_params, measure_point_keeping};
 use super::target::TargetMetric;
 use crate::error::{EvalError, Result};
 
@@ -25,6 +25,10 @@ pub struct SweepOptions {
     pub eval: EvalOptions,
     /// Decoder limits.
     pub limits: Limits,
+    /// Points (curve label, ladder position) whose decoded animation the sweep keeps
+    /// ([`Sweep::decoded`]), for a caller that shows them: they are neither encoded nor decoded
+    /// again.
+    pub keep_decoded: Vec<(String, usize)>,
 }
 
 /// A sweep point that failed, with the reason (in the sweep document as
@@ -50,6 +54,9 @@ pub struct Sweep {
     pub points: Vec<Point>,
     /// Points that could not be measured.
     pub failures: Vec<Failure>,
+    /// The decoded animations of the points [`SweepOptions::keep_decoded`] asked for, as
+    /// (curve label, ladder position, decoded animation), in the order of `points`.
+    pub decoded: Vec<(String, usize, Animation)>,
 }
 
 /// What [`sweep`] and [`envelope_sweep`] report while they run (from worker threads), for a
@@ -124,13 +131,14 @@ pub fn sweep(
     progress: &(dyn Fn(SweepEvent<'_>) + Sync),
 ) -> Result<Sweep> {
     let jobs = sweep_jobs(series, options.points);
-    let run = |&(c, step): &(usize, usize)| -> (usize, usize, Result<Point>) {
+    let run = |&(c, step): &(usize, usize)| -> (usize, usize, Result<KeptPoint>) {
         progress(SweepEvent::Started { series: &series[c].label, step });
-        let result = sweep_point(registry, &series[c], step, animation, options);
+        let keep = options.keep_decoded.iter().any(|(label, s)| *label == series[c].label && *s == step);
+        let result = sweep_point_keeping(registry, &series[c], step, animation, options, keep);
         progress(SweepEvent::Finished { series: &series[c].label, step });
         (c, step, result)
     };
-    let mut results: Vec<(usize, usize, Result<Point>)> = match options.jobs {
+    let mut results: Vec<(usize, usize, Result<KeptPoint>)> = match options.jobs {
         Some(1) => jobs.iter().map(run).collect(),
         None => jobs.par_iter().map(run).collect(),
         Some(n) => rayon::ThreadPoolBuilder::new()
@@ -144,7 +152,12 @@ pub fn sweep(
     let mut out = Sweep::default();
     for (c, step, r) in results {
         match r {
-            Ok(p) => out.points.push(p),
+            Ok((p, decoded)) => {
+                if let Some(decoded) = decoded {
+                    out.decoded.push((p.series.clone(), p.ladder_index, decoded));
+                }
+                out.points.push(p);
+            }
             Err(e) => out.failures.push(Failure {
                 codec: series[c].codec.name(),
                 series: series[c].label.clone(),
@@ -155,6 +168,9 @@ pub fn sweep(
     }
     Ok(out)
 }
+
+/// A measured point and, when it was asked for, its decoded animation.
+type KeptPoint = (Point, Option<Animation>);
 
 /// One sweep job: `entry` at step `step` of its rate ladder on `animation`, measured as
 /// [`sweep`] measures each of its points (it calls this). Exposed so that other schedulers
@@ -167,12 +183,31 @@ pub fn sweep_point(
     animation: &Animation,
     options: &SweepOptions,
 ) -> Result<Point> {
+    sweep_point_keeping(registry, entry, step, animation, options, false).map(|(point, _)| point)
+}
+
+/// [`sweep_point`], also returning the decoded animation when `keep` is set.
+fn sweep_point_keeping(
+    registry: &CodecRegistry,
+    entry: &SweepSeries<'_>,
+    step: usize,
+    animation: &Animation,
+    options: &SweepOptions,
+    keep: bool,
+) -> Result<KeptPoint> {
     let ladder = entry.ladder();
     let params = ladder_params(entry.codec, &entry.base, &ladder, step)?;
-    let (mut point, _) =
-        measure_point(registry, entry.codec, &params, (ladder.param, step), animation, &options.eval, options.limits)?;
+    let (mut point, _, decoded) = measure_point_keeping(
+        registry,
+        entry.codec,
+        &params,
+        (ladder.param, step),
+        animation,
+        &options.eval,
+        options.limits,
+    )?;
     point.series.clone_from(&entry.label);
-    Ok(point)
+    Ok((point, keep.then_some(decoded)))
 }
 
 /// The (series position, ladder step) pairs a sweep measures.
@@ -260,12 +295,14 @@ pub fn envelope_sweep<'a>(
     let more = sweep(registry, &second, animation, options, progress)?;
     result.points.extend(more.points);
     result.failures.extend(more.failures);
+    result.decoded.extend(more.decoded);
     let third = envelope_neighbours(&second, &result.points, per_config);
     if !third.is_empty() {
         progress(SweepEvent::Planned(sweep_jobs(&third, options.points).len()));
         let more = sweep(registry, &third, animation, options, progress)?;
         result.points.extend(more.points);
         result.failures.extend(more.failures);
+        result.decoded.extend(more.decoded);
     }
     Ok(result)
 }
