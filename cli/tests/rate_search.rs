@@ -30,7 +30,7 @@ fn space_search_chooses_the_same_stream_with_one_and_two_threads() {
     let codec = registry.by_name("hosvd").unwrap();
     let animation = small();
     let eval = EvalOptions::default();
-    for target in [Target { metric: TargetMetric::Kg, value: 0.5 }, Target { metric: TargetMetric::Sted, value: 0.05 }]
+    for target in [Target::new(TargetMetric::Kg, 0.5), Target::new(TargetMetric::Sted, 0.05)]
     {
         let run = |threads| {
             in_pool(threads, || {
@@ -49,13 +49,12 @@ fn space_search_chooses_the_same_stream_with_one_and_two_threads() {
         let measured =
             |h: &harness::TargetHit| h.tried.iter().map(|p| (p.params.to_string(), p.bytes)).collect::<Vec<_>>();
         assert_eq!(measured(&one), measured(&two));
-        let reached = target.metric.value(&one.point.report).unwrap();
-        assert!(reached <= target.value, "{target}: reached {reached}");
+        assert!(target.meets(&one.point.report), "{target}: reached {}", target.reached_text(&one.point.report, 6));
         // The answer is the smallest passing stream measured.
         let smallest = one
             .tried
             .iter()
-            .filter(|p| target.metric.value(&p.report).is_some_and(|v| v <= target.value))
+            .filter(|p| target.meets(&p.report))
             .map(|p| p.bytes)
             .min()
             .unwrap();
@@ -74,7 +73,7 @@ fn space_search_is_never_worse_than_the_ladder_alone() {
     let registry = animcodec::registry();
     let animation = small();
     let eval = EvalOptions::default();
-    let target = Target { metric: TargetMetric::Kg, value: 0.5 };
+    let target = Target::new(TargetMetric::Kg, 0.5);
     for name in ["hosvd", "pca-aoi"] {
         let codec = registry.by_name(name).unwrap();
         let base = codec.default_params();
@@ -92,7 +91,7 @@ fn fixed_parameters_are_not_searched() {
     let registry = animcodec::registry();
     let codec = registry.by_name("hosvd").unwrap();
     let base = codec.default_params().with(&codec.param_specs(), "rigid", ParamValue::Bool(false)).unwrap();
-    let target = Target { metric: TargetMetric::Kg, value: 1.0 };
+    let target = Target::new(TargetMetric::Kg, 1.0);
     let hit = search_space_target(
         &request(&registry, &small(), target, &EvalOptions::default(), 0),
         codec,
@@ -197,7 +196,7 @@ fn candidates_decoding_to_non_finite_coordinates_are_rejected() {
     let registry = CodecRegistry::new(vec![Box::new(Garbling)]).unwrap();
     let codec = registry.by_name("garbling").unwrap();
     for metric in [TargetMetric::Kg, TargetMetric::MaxError] {
-        let target = Target { metric, value: 1e-2 };
+        let target = Target::new(metric, 1e-2);
         let hit = search_space_target(
             &request(&registry, &small(), target, &EvalOptions::default(), 0),
             codec,
@@ -333,7 +332,7 @@ fn sted_search_finds_a_passing_smallest_step_past_failing_ones() {
     let report = metrics::evaluate(&animation, &still, &EvalOptions::default()).unwrap();
     let (still_sted, still_kg) = (report.sted.unwrap(), report.kg.unwrap());
     assert!(still_kg <= harness::DEGENERATE_KG, "test data: the still flag is degenerate (KG {still_kg})");
-    let target = Target { metric: TargetMetric::Sted, value: 1.05 * still_sted };
+    let target = Target::new(TargetMetric::Sted, 1.05 * still_sted);
     let hit = search_space_target(
         &request(&registry, &animation, target, &EvalOptions::default(), 0),
         codec,
@@ -350,11 +349,11 @@ fn sted_search_finds_a_passing_smallest_step_past_failing_ones() {
     );
     // Non-monotone: a larger step failed the target the still shape meets.
     assert!(
-        hit.tried.iter().any(|p| p.params.int("bits").unwrap() > 4 && p.report.sted.unwrap() > target.value),
+        hit.tried.iter().any(|p| p.params.int("bits").unwrap() > 4 && p.report.sted.unwrap() > target.level()),
         "the test lost its point: no failing larger step"
     );
     // A KG target brackets as before: the still shape (KG {still_kg}) is no answer there.
-    let kg = Target { metric: TargetMetric::Kg, value: 0.5 * still_kg };
+    let kg = Target::new(TargetMetric::Kg, 0.5 * still_kg);
     let hit = search_space_target(
         &request(&registry, &animation, kg, &EvalOptions::default(), 0),
         codec,
@@ -362,7 +361,7 @@ fn sted_search_finds_a_passing_smallest_step_past_failing_ones() {
         &[],
     )
     .unwrap();
-    assert!(hit.tried.iter().all(|p| p.params.int("bits").unwrap() != 4 || p.report.kg.unwrap() > kg.value));
+    assert!(hit.tried.iter().all(|p| p.params.int("bits").unwrap() != 4 || p.report.kg.unwrap() > kg.level()));
 }
 
 /// Each codec's envelope: sorted by bytes, its errors strictly fall.
@@ -430,9 +429,12 @@ fn encode_without_parameters_meets_the_default_quality() {
     for codec in ["hosvd", "quant-delta"] {
         let v = ok_json(&["encode", &pc2, "-c", codec, "-o", &anim, "-f", "--json", "--eval"]);
         assert_eq!(v["default_target"], true, "{v}");
-        assert_eq!(v["target"]["metric"], DEFAULT_TARGET.metric.name());
+        assert_eq!(v["target"], serde_json::json!({"kg": 0.5, "sted": 0.05}));
         let kg = v["kg"].as_f64().unwrap();
-        assert!(kg <= DEFAULT_TARGET.value, "{codec}: KG {kg}");
+        assert!(kg <= DEFAULT_TARGET.bound(TargetMetric::Kg).unwrap(), "{codec}: KG {kg}");
+        let sted = v["sted"].as_f64().unwrap();
+        assert!(sted <= DEFAULT_TARGET.bound(TargetMetric::Sted).unwrap(), "{codec}: STED {sted}");
+        assert_eq!(v["reached"]["kg"], v["kg"], "the search's measurement is the --eval one");
         assert_eq!(v["bytes"].as_u64().unwrap(), std::fs::metadata(&anim).unwrap().len());
     }
     let v = ok_json(&["encode", &pc2, "-c", "hosvd", "-p", "ss=0.9", "-o", &anim, "-f", "--json"]);
@@ -452,7 +454,8 @@ fn encode_without_parameters_meets_the_default_quality() {
 fn default_quality_lands_within_its_band_of_the_target() {
     let registry = animcodec::registry();
     let eval = EvalOptions::default();
-    let band = DEFAULT_TARGET.value / harness::DEFAULT_QUALITY_BAND;
+    // The default target is joint: its error is the binding bound's ratio value / bound.
+    let band = DEFAULT_TARGET.level() / harness::DEFAULT_QUALITY_BAND;
     // Few frames (hosvd's size model keeps too little), many, and a rigid tumble.
     let inputs = [
         ("flag-6", synth::waving_flag(12, 9, 6)),
@@ -464,8 +467,9 @@ fn default_quality_lands_within_its_band_of_the_target() {
         for (name, anim) in &inputs {
             let hit = harness::search_default_quality(&request(&registry, anim, DEFAULT_TARGET, &eval, 4), codec)
                 .unwrap_or_else(|e| panic!("{} on {name}: {e}", codec.name()));
-            let kg = hit.point.report.kg.unwrap();
-            assert!(kg <= DEFAULT_TARGET.value, "{} on {name}: KG {kg}", codec.name());
+            let reached = DEFAULT_TARGET.reached_text(&hit.point.report, 6);
+            assert!(DEFAULT_TARGET.meets(&hit.point.report), "{} on {name}: {reached}", codec.name());
+            let error = DEFAULT_TARGET.error(&hit.point.report).unwrap();
             // Below the band only at a cliff (a measured smaller stream misses the target) or at
             // the ladder's floor: its first step, or a smaller step measured that gives no
             // smaller stream (hosvd's smallest model that is not flat, `(v, f) = (3, 1)`, holds
@@ -473,14 +477,14 @@ fn default_quality_lands_within_its_band_of_the_target() {
             let cliff = hit
                 .tried
                 .iter()
-                .any(|p| p.bytes < hit.point.bytes && p.report.kg.is_some_and(|k| k > DEFAULT_TARGET.value));
+                .any(|p| p.bytes < hit.point.bytes && !DEFAULT_TARGET.meets(&p.report));
             let floor = hit.point.ladder_index == 0
                 || hit.tried.iter().any(|p| p.ladder_index < hit.point.ladder_index && p.bytes >= hit.point.bytes);
             assert!(
-                kg >= band || cliff || floor,
-                "{} on {name}: KG {kg} is below the band ({band}) with no cliff below it; tried {:?}",
+                error >= band || cliff || floor,
+                "{} on {name}: {reached} (error {error}) is below the band ({band}) with no cliff below it; tried {:?}",
                 codec.name(),
-                hit.tried.iter().map(|p| (p.ladder_index, p.bytes, p.report.kg)).collect::<Vec<_>>()
+                hit.tried.iter().map(|p| (p.ladder_index, p.bytes, p.report.kg, p.report.sted)).collect::<Vec<_>>()
             );
             if hit.tried.len() == 1 {
                 assert_eq!(hit.point.params, codec.default_params(), "{} on {name}", codec.name());
@@ -502,7 +506,7 @@ fn each_kind_of_target_searches_within_the_full_space() {
         let specs = codec.param_specs();
         let apply = |config: &[(&'static str, ParamValue)]| SearchSpace::apply(&base, &specs, config).unwrap();
         let full_sets: Vec<ParamSet> = full.configurations().iter().map(|c| apply(c)).collect();
-        for kind in [DistortionKind::Position, DistortionKind::Shape] {
+        for kind in [DistortionKind::Position, DistortionKind::Shape, DistortionKind::Both] {
             let part = codec.search_space_for(&base, kind);
             assert_eq!(part.primary, full.primary, "{}: {kind:?}", codec.name());
             for config in part.configurations() {
@@ -521,7 +525,7 @@ fn hosvd_target_searches_walk_the_half_of_the_space_for_their_error() {
     let codec = registry.by_name("hosvd").unwrap();
     let animation = small();
     let eval = EvalOptions::default();
-    let sted = Target { metric: TargetMetric::Sted, value: 0.05 };
+    let sted = Target::new(TargetMetric::Sted, 0.05);
     let hit = search_space_target(&request(&registry, &animation, sted, &eval, 2), codec, &codec.default_params(), &[])
         .unwrap();
     assert!(hit.tried.iter().all(|p| [0.012, 0.02].contains(&p.params.float("edge_noise").unwrap())
@@ -529,12 +533,23 @@ fn hosvd_target_searches_walk_the_half_of_the_space_for_their_error() {
     assert!(hit.tried.iter().any(|p| !p.params.bool("rigid").unwrap()));
     // hosvd's start for STED targets (`search_start`), not the default `ss`.
     assert_eq!(hit.tried[0].params.float("ss").unwrap(), 0.97);
-    let kg = Target { metric: TargetMetric::Kg, value: 0.5 };
+    let kg = Target::new(TargetMetric::Kg, 0.5);
     let hit = search_space_target(&request(&registry, &animation, kg, &eval, 2), codec, &codec.default_params(), &[])
         .unwrap();
     assert!(hit.tried.iter().all(|p| p.params.float("edge_noise").unwrap() == 0.0));
     assert_eq!(hit.tried[0].params.float("ss").unwrap(), 0.9, "KG targets start at the default");
     assert!(TargetMetric::Kg.value(&hit.point.report).unwrap() <= 0.5);
+    // A joint target walks both halves (the shape half's usual winner first) and meets both.
+    let joint: Target = "kg=0.5,sted=0.05".parse().unwrap();
+    let hit = search_space_target(&request(&registry, &animation, joint, &eval, 2), codec, &codec.default_params(), &[])
+        .unwrap();
+    assert!(joint.meets(&hit.point.report), "{}", joint.reached_text(&hit.point.report, 6));
+    assert_eq!(hit.tried[0].params.float("edge_noise").unwrap(), 0.012);
+    assert_eq!(hit.tried[0].params.float("ss").unwrap(), 0.97);
+    // Every configuration is measured at least once: both noise settings were tried.
+    let noise: std::collections::BTreeSet<String> =
+        hit.tried.iter().map(|p| p.params.float("edge_noise").unwrap().to_string()).collect();
+    assert_eq!(noise.into_iter().collect::<Vec<_>>(), ["0", "0.012"]);
 }
 
 /// A STED target met by a stream that does not follow the motion says so (stderr and `--json`

@@ -145,15 +145,25 @@ impl TypedCodec for Hosvd {
                 secondary.push(SearchAxis::over(HosvdParams::edge_noise, [0.012, 0.02]));
                 secondary.push(SearchAxis::over(HosvdParams::rigid, [false, true]));
             }
+            // A joint target's binding bound depends on the input (STED on horse-gallop, KG
+            // on the skinned characters): both halves' levers, the shape half's usual winner
+            // first.
+            DistortionKind::Both => {
+                if toolkit {
+                    secondary.push(SearchAxis::over(HosvdParams::edge_weight, [1.0, 0.0]));
+                }
+                secondary.push(SearchAxis::over(HosvdParams::edge_noise, [0.012, 0.0]));
+                secondary.push(SearchAxis::over(HosvdParams::rigid, [false, true]));
+            }
         }
         SearchSpace { primary: self.ladder(base), secondary }
     }
-    /// STED targets start at `ss = 0.97`: the dev animations meet STED ≤ 0.05–0.1 at `ss`
+    /// STED and joint targets start at `ss = 0.97`: the dev animations meet STED ≤ 0.05–0.1 at `ss`
     /// 0.92–0.99 (samba 0.96–0.99, horse-gallop 0.92–0.96, pcow 0.93–0.98, chicken-crossing
     /// 0.96–0.985), three to five ladder steps above the default 0.9 that KG targets start
     /// from. Saves two to three encodes per STED search on samba.
     fn start(&self, _base: &HosvdParams, kind: DistortionKind) -> Option<ParamValue> {
-        (kind == DistortionKind::Shape).then(|| HosvdParams::ss.value(0.97))
+        (kind != DistortionKind::Position).then(|| HosvdParams::ss.value(0.97))
     }
     /// Each temporal block is decomposed and coded on its own ([`HosvdEncoder`]: the
     /// block's frames, its length, and whether it is the whole animation); `block=0` is one

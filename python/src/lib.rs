@@ -504,21 +504,35 @@ impl Callback {
     }
 }
 
-/// A search's progress as Python calls: `callback({codec, params, bytes, bpvf, METRIC})` for
-/// every measured point (see [`Callback`]: an exception stops the search and is raised).
+/// A search's progress as Python calls: `callback({codec, params, bytes, bpvf, METRIC…})` (each
+/// bounded metric's value) for every measured point (see [`Callback`]: an exception stops the search and is raised).
 fn progress_reporter(callback: &Callback, target: Target) -> impl Fn(&harness::Point) + Sync + '_ {
     move |p: &harness::Point| {
-        callback.call(&serde_json::json!({
+        let mut point = serde_json::json!({
             "codec": p.codec,
             "params": params_json(&p.params),
             "bytes": p.bytes,
             "bpvf": p.bpvf,
-            target.metric.name(): target.metric.value(&p.report),
-        }));
+        });
+        if let (Value::Object(point), Value::Object(reached)) = (&mut point, reached_json(target, &p.report)) {
+            point.extend(reached);
+        }
+        callback.call(&point);
     }
 }
 
-/// What `encode_to_target` searches for, as a dict of every key: `target` (`"kg=0.5"`, …),
+/// A target's bounds as JSON: `{"kg": 0.5, "sted": 0.05}`.
+fn bounds_json(target: Target) -> Value {
+    Value::Object(target.bounds().map(|(m, v)| (m.name().to_owned(), serde_json::json!(v))).collect())
+}
+
+/// Each bounded metric's value in `report` (`null`: undefined): `{"kg": 0.43, "sted": 0.031}`.
+fn reached_json(target: Target, report: &metrics::MetricReport) -> Value {
+    Value::Object(target.reached(report).into_iter().map(|(m, v)| (m.name().to_owned(), serde_json::json!(v))).collect())
+}
+
+/// What `encode_to_target` searches for, as a dict of every key: `target` (`"kg=0.5"`,
+/// `"kg=0.5,sted=0.05"`, …),
 /// `refine` (extra points between ladder steps), `params` (fixed parameters, or `None`),
 /// `ladder` (the rate ladder alone instead of the declared search space), `progress` (a
 /// callable or `None`).
@@ -585,12 +599,12 @@ fn encode_to_target<'py>(
             (None, false) => harness::search_space_target_auto(&request, &all),
         }?)
     })?;
-    let value_of = |p: &harness::Point| target.metric.value(&p.report);
+    let value_of = |p: &harness::Point| reached_json(target, &p.report);
     let p = &hit.point;
     let summary = serde_json::json!({
         "codec": p.codec,
         "params": params_json(&p.params),
-        "target": { "metric": target.metric.name(), "value": target.value },
+        "target": bounds_json(target),
         "reached": value_of(p),
         "parts": p.report.parts,
         "worst_part_kg": p.report.worst_part_kg(),
@@ -603,14 +617,14 @@ fn encode_to_target<'py>(
             "params": params_json(&t.params),
             "bytes": t.bytes,
             "bpvf": t.bpvf,
-            "value": value_of(t),
+            "reached": value_of(t),
         })).collect::<Vec<_>>(),
         "other_codecs": others.iter().map(|h| serde_json::json!({
             "codec": h.point.codec,
             "params": params_json(&h.point.params),
             "bytes": h.point.bytes,
             "bpvf": h.point.bpvf,
-            "value": value_of(&h.point),
+            "reached": value_of(&h.point),
         })).collect::<Vec<_>>(),
     });
     Ok((PyBytes::new(py, &hit.stream), value_to_py(py, &summary)?))

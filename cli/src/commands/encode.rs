@@ -464,9 +464,8 @@ fn run_target(args: &EncodeArgs, target: Target, by_default: bool, limits: Limit
     };
     let progress = |p: &harness::Point| {
         bar.inc(1);
-        let value = target.metric.value(&p.report).map_or_else(|| "n/a".to_owned(), |v| format!("{v:.4}"));
         let knob = p.ladder_value().map_or_else(String::new, |v| format!("{}={v} ", p.ladder_param));
-        bar.set_message(format!("last: {} {knob}→ {}={value} at {:.3} bpvf", p.codec, target.metric.name(), p.bpvf));
+        bar.set_message(format!("last: {} {knob}→ {} at {:.3} bpvf", p.codec, target.reached_text(&p.report, 4), p.bpvf));
     };
     let fixed: Vec<&str> = args.params.iter().filter_map(|p| p.split_once('=').map(|(k, _)| k.trim())).collect();
     let request = SearchRequest {
@@ -502,7 +501,6 @@ fn run_target(args: &EncodeArgs, target: Target, by_default: bool, limits: Limit
     let mut file = policy.create(&args.output)?;
     file.write_all(&hit.stream).map_err(|e| file.error(e))?;
     let p = &hit.point;
-    let reached = target.metric.value(&p.report).unwrap_or(f64::NAN);
     let evaluation = if args.eval { Some(evaluate_written(args, &animation, file.finish()?, limits)?) } else { None };
     file.commit()?;
     let (v, f) = (animation.vertex_count(), animation.frame_count());
@@ -513,7 +511,7 @@ fn run_target(args: &EncodeArgs, target: Target, by_default: bool, limits: Limit
                 "params": params_json(&h.point.params),
                 "bytes": h.point.bytes,
                 "bpvf": h.point.bpvf,
-                "value": target.metric.value(&h.point.report),
+                "reached": reached_json(target, &h.point.report),
             })
         };
         let mut out = json!({
@@ -521,12 +519,12 @@ fn run_target(args: &EncodeArgs, target: Target, by_default: bool, limits: Limit
             "params": params_json(&p.params),
             "input": args.input,
             "output": args.output.display().to_string(),
-            "target": { "metric": target.metric.name(), "value": target.value },
+            "target": bounds_json(target),
             "default_target": by_default,
             "search": if args.ladder { "ladder" } else { "space" },
             "rejected": hit.rejected,
             "notes": notes,
-            "reached": reached,
+            "reached": reached_json(target, &p.report),
             "parts": p.report.parts,
             "worst_part_kg": p.report.worst_part_kg(),
             "bytes": p.bytes,
@@ -545,7 +543,7 @@ fn run_target(args: &EncodeArgs, target: Target, by_default: bool, limits: Limit
                 "params": params_json(&t.params),
                 "bytes": t.bytes,
                 "bpvf": t.bpvf,
-                "value": target.metric.value(&t.report),
+                "reached": reached_json(target, &t.report),
             })).collect::<Vec<_>>(),
             "other_codecs": others.iter().map(summary).collect::<Vec<_>>(),
         });
@@ -554,20 +552,20 @@ fn run_target(args: &EncodeArgs, target: Target, by_default: bool, limits: Limit
     }
     let mut out = format!(
         "{input}: {f} frames × {v} vertices (read in {read_seconds:.2} s)\n\
-         target {target}{default}: {codec} [{params}] reaches {metric}={reached:.6} → {output}\n\
+         target {target}{default}: {codec} [{params}] reaches {reached} → {output}\n\
          {parts}{bytes} bytes, {rate:.3} bits/vertex/frame; searched {n} points in {search_seconds:.2} s{fallback}\n",
         input = args.input,
         default = if by_default { " (the default quality; -p or --target for other choices)" } else { "" },
         codec = p.codec,
         params = p.params,
-        metric = target.metric.name(),
+        reached = target.reached_text(&p.report, 6),
         output = args.output.display(),
         bytes = p.bytes,
         rate = p.bpvf,
         n = hit.tried.len(),
         // A KG bound holds for every part; say which figure it was.
-        parts = match (&p.report.worst_part, target.metric) {
-            (Some(w), TargetMetric::Kg) if p.report.parts > 1 => format!(
+        parts = match (&p.report.worst_part, target.bound(TargetMetric::Kg)) {
+            (Some(w), Some(_)) if p.report.parts > 1 => format!(
                 "kg is the larger of the whole animation's ({}) and the worst of its {} parts' (part {}, {} vertices: {})\n",
                 p.report.kg.map_or_else(|| "n/a".to_string(), |x| format!("{x:.6}")),
                 p.report.parts,
@@ -603,6 +601,16 @@ fn run_target(args: &EncodeArgs, target: Target, by_default: bool, limits: Limit
     emit(&out)
 }
 
+/// A target's bounds as JSON: `{"kg": 0.5, "sted": 0.05}`.
+fn bounds_json(target: Target) -> Value {
+    Value::Object(target.bounds().map(|(m, v)| (m.name().to_owned(), json!(v))).collect())
+}
+
+/// Each bounded metric's value in `report` as JSON (`null`: undefined): `{"kg": 0.43, "sted": 0.031}`.
+fn reached_json(target: Target, report: &MetricReport) -> Value {
+    Value::Object(target.reached(report).into_iter().map(|(m, v)| (m.name().to_owned(), json!(v))).collect())
+}
+
 /// `--eval`'s line on the worst part: its KG against its own spread, beside the global figures
 /// (a large static part must not hide a destroyed small one); empty for a mesh of one part (its
 /// KG is the global one) or without triangles.
@@ -632,12 +640,13 @@ const STED_MOTION_NOTE_KG: f64 = 5.0;
 /// `(v, f) = (3, 1)` model at KG 19).
 fn sted_motion_note(target: Target, point: &harness::Point) -> Option<String> {
     let kg = point.report.kg?;
-    (target.metric == TargetMetric::Sted && kg > STED_MOTION_NOTE_KG).then(|| {
+    let sted = target.bound(TargetMetric::Sted).filter(|_| target.bound(TargetMetric::Kg).is_none())?;
+    (kg > STED_MOTION_NOTE_KG).then(|| {
         format!(
             "the stream meets STED <= {} at KG {kg:.1} %: STED sees edge lengths, hardly motion, so this stream \
              keeps the shape but not all of the motion; use --target kg=... (or both checks, --eval) when the motion \
              matters",
-            target.value
+            sted
         )
     })
 }

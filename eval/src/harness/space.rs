@@ -154,11 +154,11 @@ impl SpaceSearcher<'_> {
         c.outcome.as_ref().is_ok_and(|(p, _)| usable(p) && meets(self.target, p))
     }
 
-    /// The target metric's value of a usable measured candidate (`None` for a rejected or
+    /// The target's error ([`Target::error`]) of a usable measured candidate (`None` for a rejected or
     /// degenerate one, whose error says nothing about its neighbours).
     fn error(&self, c: &Candidate) -> Option<f64> {
         let (p, _) = c.outcome.as_ref().ok()?;
-        let v = self.target.metric.value(&p.report)?;
+        let v = self.target.error(&p.report)?;
         (usable(p) && v.is_finite() && v > 0.0).then_some(v)
     }
 
@@ -189,7 +189,7 @@ impl SpaceSearcher<'_> {
         if known.len() < 2 {
             return (None, None);
         }
-        let aim = (REFINE_AIM * self.target.value).ln();
+        let aim = (REFINE_AIM * self.target.level()).ln();
         known.sort_by(|a, b| (a.1 - aim).abs().total_cmp(&(b.1 - aim).abs()));
         // The pair nearest the target along which the error falls (errors are step functions
         // of some ladders, so two near points can share one value).
@@ -225,7 +225,7 @@ impl SpaceSearcher<'_> {
         let fractional = refine > 0 && numeric(&run.ladder);
         let specs = self.codec.param_specs();
         let max_points = 2 * n + refine;
-        let aim = REFINE_AIM * self.target.value;
+        let aim = REFINE_AIM * self.target.level();
         let mut next = start.clamp(0.0, last);
         let mut refined = 0;
         while run.candidates.len() < max_points {
@@ -271,7 +271,7 @@ impl SpaceSearcher<'_> {
             let error_slope = own_error_slope.or(prior.error_slope).unwrap_or(DEFAULT_ERROR_SLOPE);
             next = match (fail, pass) {
                 (Some(f), Some(p)) => {
-                    if fractional && self.error(p).is_some_and(|e| e >= REFINE_CLOSE * self.target.value) {
+                    if fractional && self.error(p).is_some_and(|e| e >= REFINE_CLOSE * self.target.level()) {
                         break;
                     }
                     let width = p.position - f.position;
@@ -304,7 +304,7 @@ impl SpaceSearcher<'_> {
                     }
                 }
                 (None, Some(p)) => {
-                    let close = self.error(p).is_some_and(|e| e >= REFINE_CLOSE * self.target.value);
+                    let close = self.error(p).is_some_and(|e| e >= REFINE_CLOSE * self.target.level());
                     if p.position <= 0.0 || fractional && close {
                         break;
                     }
@@ -409,7 +409,7 @@ pub fn search_space_target(
     fixed: &[&str],
 ) -> Result<TargetHit> {
     let target = request.target;
-    let space = codec.search_space_for(base, target.metric.distortion_kind()).without(fixed);
+    let space = codec.search_space_for(base, target.distortion_kind()).without(fixed);
     let specs = codec.param_specs();
     let mut runs: Vec<ConfigRun> = space
         .configurations()
@@ -428,7 +428,7 @@ pub fn search_space_target(
     let (first, others) = runs.split_first_mut().expect("checked non-empty");
     let cold = Prior { position: 0.0, error_slope: None, size_slope: None, best_bytes: None };
     // The codec's start for this kind of error, unless the user fixed the ladder parameter.
-    let start = match codec.search_start(base, target.metric.distortion_kind()) {
+    let start = match codec.search_start(base, target.distortion_kind()) {
         Some(value) if !fixed.contains(&first.ladder.param) => {
             let mut at = base.clone();
             at.set(&specs, first.ladder.param, value).map_err(EvalError::from)?;
@@ -448,7 +448,7 @@ pub fn search_space_target(
     // 0.998 STED 0.089 at 0.076 bits per vertex per frame, 0.99 STED 0.12 at 0.12). A search
     // that brackets the target assumes monotone errors and never looks there. One encode per
     // configuration, the cheapest of its ladder.
-    if target.metric.distortion_kind() == DistortionKind::Shape {
+    if target.distortion_kind() == DistortionKind::Shape {
         runs.par_iter_mut().map(|run| searcher.probe_smallest(run)).collect::<Result<Vec<()>>>()?;
     }
 
