@@ -114,7 +114,7 @@ fn default_encodes_hold_the_quality_on_every_part() {
             assert!(number(&e, "kg") <= kg, "{e}");
             // The encode's own figures are these.
             assert_eq!(number(&encoded, "worst_part_kg"), kg, "{name} -c {codec}: {encoded}");
-            assert_eq!(number(&encoded, "reached"), kg, "{name} -c {codec}: {encoded}");
+            assert_eq!(number(&encoded["reached"], "kg"), kg, "{name} -c {codec}: {encoded}");
         }
     }
 }

@@ -368,6 +368,19 @@ pub fn usable(p: &Point) -> bool {
     p.report.kg_bound().is_none_or(|kg| kg.is_finite() && kg <= DEGENERATE_KG)
 }
 
+/// A stream whose KG exceeds this (in %) is too far from every target a user sets (the joint
+/// targets bound KG at 2, 0.5 and 0.1) for its STED to be read as a result: STED is blind to a
+/// locally uniform scale and weighs motion by about 1e-4, so such a stream can score a STED
+/// below any good stream's (hosvd at KG 125, STED 7.6e-5). The sweep leaves these points off
+/// the STED envelope and the plot draws them open, off the line.
+pub const STED_DEGENERATE_KG: f64 = 10.0;
+
+/// Whether `p`'s STED says nothing about its quality: its KG (whole or worst part) exceeds
+/// [`STED_DEGENERATE_KG`], or is not finite.
+pub fn sted_degenerate(report: &MetricReport) -> bool {
+    report.kg_bound().is_some_and(|kg| !(kg.is_finite() && kg <= STED_DEGENERATE_KG))
+}
+
 pub(crate) fn meets(target: Target, p: &Point) -> bool {
     target.meets(&p.report)
 }
