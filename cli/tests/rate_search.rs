@@ -30,8 +30,7 @@ fn space_search_chooses_the_same_stream_with_one_and_two_threads() {
     let codec = registry.by_name("hosvd").unwrap();
     let animation = small();
     let eval = EvalOptions::default();
-    for target in [Target::new(TargetMetric::Kg, 0.5), Target::new(TargetMetric::Sted, 0.05)]
-    {
+    for target in [Target::new(TargetMetric::Kg, 0.5), Target::new(TargetMetric::Sted, 0.05)] {
         let run = |threads| {
             in_pool(threads, || {
                 search_space_target(
@@ -51,13 +50,7 @@ fn space_search_chooses_the_same_stream_with_one_and_two_threads() {
         assert_eq!(measured(&one), measured(&two));
         assert!(target.meets(&one.point.report), "{target}: reached {}", target.reached_text(&one.point.report, 6));
         // The answer is the smallest passing stream measured.
-        let smallest = one
-            .tried
-            .iter()
-            .filter(|p| target.meets(&p.report))
-            .map(|p| p.bytes)
-            .min()
-            .unwrap();
+        let smallest = one.tried.iter().filter(|p| target.meets(&p.report)).map(|p| p.bytes).min().unwrap();
         assert_eq!(one.point.bytes, smallest);
         // More than one configuration was tried.
         let configs: std::collections::BTreeSet<String> =
@@ -474,10 +467,7 @@ fn default_quality_lands_within_its_band_of_the_target() {
             // the ladder's floor: its first step, or a smaller step measured that gives no
             // smaller stream (hosvd's smallest model that is not flat, `(v, f) = (3, 1)`, holds
             // the rigid tumble exactly: KG 0.014 at every `ss` from 0.97 up).
-            let cliff = hit
-                .tried
-                .iter()
-                .any(|p| p.bytes < hit.point.bytes && !DEFAULT_TARGET.meets(&p.report));
+            let cliff = hit.tried.iter().any(|p| p.bytes < hit.point.bytes && !DEFAULT_TARGET.meets(&p.report));
             let floor = hit.point.ladder_index == 0
                 || hit.tried.iter().any(|p| p.ladder_index < hit.point.ladder_index && p.bytes >= hit.point.bytes);
             assert!(
@@ -541,8 +531,9 @@ fn hosvd_target_searches_walk_the_half_of_the_space_for_their_error() {
     assert!(TargetMetric::Kg.value(&hit.point.report).unwrap() <= 0.5);
     // A joint target walks both halves (the shape half's usual winner first) and meets both.
     let joint: Target = "kg=0.5,sted=0.05".parse().unwrap();
-    let hit = search_space_target(&request(&registry, &animation, joint, &eval, 2), codec, &codec.default_params(), &[])
-        .unwrap();
+    let hit =
+        search_space_target(&request(&registry, &animation, joint, &eval, 2), codec, &codec.default_params(), &[])
+            .unwrap();
     assert!(joint.meets(&hit.point.report), "{}", joint.reached_text(&hit.point.report, 6));
     assert_eq!(hit.tried[0].params.float("edge_noise").unwrap(), 0.012);
     assert_eq!(hit.tried[0].params.float("ss").unwrap(), 0.97);
@@ -567,4 +558,90 @@ fn a_sted_target_met_without_the_motion_says_so() {
     assert!(notes.iter().any(|n| n.contains("STED sees edge lengths") && n.contains("--target kg=")), "{notes:?}");
     let v = ok_json(&["encode", &pc2, "-c", "hosvd", "--target", "kg=1", "-o", &anim, "-f", "--json"]);
     assert!(v["notes"].as_array().unwrap().iter().all(|n| !n.as_str().unwrap().contains("STED")), "{v}");
+}
+
+/// Joint targets, as a property over synthetic inputs and random bounds: whatever the input,
+/// codec and pair of bounds, a search either returns a stream meeting **both** bounds — the
+/// smallest such stream it measured — or misses, and then no point it measured met both.
+#[test]
+fn joint_targets_are_met_on_every_bound_or_missed_honestly() {
+    let registry = animcodec::registry();
+    let eval = EvalOptions::default();
+    let inputs = [
+        ("flag", synth::waving_flag(12, 9, 12)),
+        ("cylinder", synth::bending_cylinder(8, 10, 16)),
+        ("tumble", synth::tumbling_body_sized(10, 6, 12)),
+    ];
+    // A fixed linear congruential sequence: the same bounds on every run, spread over two
+    // decades of KG and of STED (log-uniform).
+    let mut state: u64 = 0x2545_f491_4f6c_dd1d;
+    let mut uniform = || {
+        state = state.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1_442_695_040_888_963_407);
+        (state >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let (mut hits, mut misses) = (0, 0);
+    for (name, animation) in &inputs {
+        // Three random pairs, and one no codec can meet (a miss must say so, not pass).
+        for round in 0..4 {
+            let (kg, sted) =
+                if round < 3 { (0.03 * 100f64.powf(uniform()), 0.003 * 100f64.powf(uniform())) } else { (1e-9, 1e-9) };
+            let target = Target::new(TargetMetric::Kg, kg).and_bound(TargetMetric::Sted, sted);
+            for codec in ["quant-delta", "pca-aoi", "hosvd"] {
+                let codec = registry.by_name(codec).unwrap();
+                let request = request(&registry, animation, target, &eval, 2);
+                match search_space_target(&request, codec, &codec.default_params(), &[]) {
+                    Ok(hit) => {
+                        hits += 1;
+                        let r = &hit.point.report;
+                        assert!(
+                            r.kg_bound().unwrap() <= kg && r.sted.unwrap() <= sted,
+                            "{} on {name} at {target}: {}",
+                            codec.name(),
+                            target.reached_text(r, 6)
+                        );
+                        let smallest = hit.tried.iter().filter(|p| target.meets(&p.report)).map(|p| p.bytes).min();
+                        assert_eq!(smallest, Some(hit.point.bytes), "{} on {name} at {target}", codec.name());
+                        // The stream is what was measured: decoded again, the same errors.
+                        let decoded =
+                            codec_core::StreamDecoder::new(hit.stream.as_slice(), &registry, Limits::default())
+                                .unwrap()
+                                .decode_all()
+                                .unwrap();
+                        let again = metrics::evaluate(animation, &decoded, &target.eval_options(&eval)).unwrap();
+                        assert_eq!((again.kg_bound(), again.sted), (r.kg_bound(), r.sted));
+                    }
+                    Err(harness::EvalError::TargetMiss(miss)) => {
+                        misses += 1;
+                        let best = miss.best.as_ref().map(|p| target.meets(&p.report));
+                        assert_ne!(best, Some(true), "{} on {name} missed {target} with a passing point", codec.name());
+                    }
+                    Err(e) => panic!("{} on {name} at {target}: {e}", codec.name()),
+                }
+            }
+        }
+    }
+    // The property was exercised on both sides.
+    eprintln!("joint targets: {hits} hits, {misses} misses");
+    assert!(hits >= 10 && misses >= 3, "{hits} hits, {misses} misses");
+}
+
+/// `encode --target kg=…,sted=…` through the binary: the written stream meets both bounds as
+/// `eval` measures it, and `--json` reports both.
+#[test]
+fn encode_with_a_joint_target_writes_a_stream_meeting_both_bounds() {
+    let s = Scratch::new("joint-target");
+    let (pc2, anim) = (s.path("cyl.pc2"), s.path("cyl.anim"));
+    ok(&["synth", "cylinder", "-o", &pc2]);
+    let v = ok_json(&["encode", &pc2, "-c", "auto", "--target", "kg=0.3,sted=0.02", "-o", &anim, "-f", "--json"]);
+    assert_eq!(v["target"], serde_json::json!({"kg": 0.3, "sted": 0.02}));
+    let e = ok_json(&["eval", &pc2, &anim, "--json", "--no-hausdorff"]);
+    let worst = e["worst_part"]["kg"].as_f64().unwrap_or(e["kg"].as_f64().unwrap()).max(e["kg"].as_f64().unwrap());
+    assert!(worst <= 0.3, "{e}");
+    assert!(e["sted"].as_f64().unwrap() <= 0.02, "{e}");
+    assert_eq!(v["reached"]["sted"], e["sted"]);
+    let text = ok(&["encode", &pc2, "-c", "hosvd", "--target", "kg=0.3,sted=0.02", "-o", &anim, "-f"]);
+    assert!(text.contains("target kg=0.3,sted=0.02: hosvd") && text.contains("reaches kg="), "{text}");
+    let o = animcodec(&["encode", &pc2, "--target", "kg=0.3,kg=0.2", "-o", &anim, "-f"]);
+    assert_eq!(o.status.code(), Some(2), "a malformed --target is a usage error");
+    assert!(stderr(&o).contains("kg is bounded twice"), "{}", stderr(&o));
 }

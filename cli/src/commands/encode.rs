@@ -465,7 +465,12 @@ fn run_target(args: &EncodeArgs, target: Target, by_default: bool, limits: Limit
     let progress = |p: &harness::Point| {
         bar.inc(1);
         let knob = p.ladder_value().map_or_else(String::new, |v| format!("{}={v} ", p.ladder_param));
-        bar.set_message(format!("last: {} {knob}→ {} at {:.3} bpvf", p.codec, target.reached_text(&p.report, 4), p.bpvf));
+        bar.set_message(format!(
+            "last: {} {knob}→ {} at {:.3} bpvf",
+            p.codec,
+            target.reached_text(&p.report, 4),
+            p.bpvf
+        ));
     };
     let fixed: Vec<&str> = args.params.iter().filter_map(|p| p.split_once('=').map(|(k, _)| k.trim())).collect();
     let request = SearchRequest {

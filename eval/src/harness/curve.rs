@@ -67,9 +67,7 @@ pub fn envelope(points: &[Point], metric: TargetMetric) -> Vec<usize> {
     let mut order: Vec<usize> = (0..points.len())
         .filter(|&i| {
             let r = &points[i].report;
-            metric.value(r).is_some()
-                && usable(&points[i])
-                && !(metric == TargetMetric::Sted && sted_degenerate(r))
+            metric.value(r).is_some() && usable(&points[i]) && !(metric == TargetMetric::Sted && sted_degenerate(r))
         })
         .collect();
     order.sort_by_key(|&i| (points[i].codec, points[i].bytes, i));
@@ -107,11 +105,7 @@ pub fn joint_envelope(points: &[Point]) -> Vec<usize> {
         .iter()
         .filter(|(i, (b, k, s))| {
             !candidates.iter().any(|(j, (b2, k2, s2))| {
-                points[*j].codec == points[*i].codec
-                    && b2 <= b
-                    && k2 <= k
-                    && s2 <= s
-                    && (b2 < b || k2 < k || s2 < s)
+                points[*j].codec == points[*i].codec && b2 <= b && k2 <= k && s2 <= s && (b2 < b || k2 < k || s2 < s)
             })
         })
         .map(|(i, _)| *i)

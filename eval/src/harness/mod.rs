@@ -134,8 +134,12 @@ mod tests {
         let a = synth::tumbling_body_sized(8, 6, 4);
         let exact = metrics::evaluate(&a, &a, &metrics::EvalOptions::default()).unwrap();
         // No worst part: KG is the whole animation's.
-        let report =
-            |kg: f64, sted: Option<f64>| metrics::MetricReport { kg: Some(kg), sted, worst_part: None, ..exact.clone() };
+        let report = |kg: f64, sted: Option<f64>| metrics::MetricReport {
+            kg: Some(kg),
+            sted,
+            worst_part: None,
+            ..exact.clone()
+        };
         assert!(joint.meets(&report(0.5, Some(0.05))));
         assert!(!joint.meets(&report(0.4, Some(0.06))));
         assert!(!joint.meets(&report(0.6, Some(0.01))));
@@ -316,7 +320,11 @@ mod parts_tests {
                         let worst = r.worst_part.as_ref().expect("two parts");
                         assert_eq!(r.parts, 2);
                         assert_eq!(worst.first_vertex, 0, "the body is the worst part: {worst:?}");
-                        assert!(worst.kg.unwrap() <= DEFAULT_TARGET.bound(TargetMetric::Kg).unwrap(), "{}: {worst:?}", codec.name());
+                        assert!(
+                            worst.kg.unwrap() <= DEFAULT_TARGET.bound(TargetMetric::Kg).unwrap(),
+                            "{}: {worst:?}",
+                            codec.name()
+                        );
                         assert!(r.kg.unwrap() < worst.kg.unwrap(), "the scene's KG hides the body's");
                         // The report is the measurement of the stream itself.
                         let decoded = codec_core::StreamDecoder::new(

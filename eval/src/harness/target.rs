@@ -63,7 +63,6 @@ impl TargetMetric {
             }
         }
     }
-
 }
 
 /// An error target: one bound (`kg=0.5`) or several at once (`kg=0.5,sted=0.05`, a *joint*
@@ -221,11 +220,10 @@ impl FromStr for Target {
                 )
             })?;
             let key = key.trim().to_ascii_lowercase().replace('-', "_");
-            let metric = TargetMetric::ALL
-                .iter()
-                .find(|(_, n)| *n == key)
-                .map(|(m, _)| *m)
-                .ok_or_else(|| format!("target '{text}': unknown metric '{key}' (metrics: {})", names.join(", ")))?;
+            let metric =
+                TargetMetric::ALL.iter().find(|(_, n)| *n == key).map(|(m, _)| *m).ok_or_else(|| {
+                    format!("target '{text}': unknown metric '{key}' (metrics: {})", names.join(", "))
+                })?;
             let value: f64 =
                 value.trim().parse().map_err(|_| format!("target '{text}': '{}' is not a number", value.trim()))?;
             if !(value.is_finite() && value >= 0.0) {
