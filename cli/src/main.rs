@@ -374,13 +374,15 @@ pub struct EncodeArgs {
     pub memory: Option<u64>,
 
     /// Search the codec's declared parameter space (its rate ladder on the configurations of
-    /// its secondary parameters meant for the metric's kind of error, positional or STED;
-    /// `animcodec list` shows each codec's parameters and ladder) for the smallest stream whose decoded error meets METRIC=VALUE (metrics: kg [%], sted, hausdorff, max_error, rmse; absolute
-    /// values in model units except kg). Parameters given with `-p` stay fixed. With `-c auto`,
-    /// every codec is searched and the smallest stream kept. Fails, stating the best error
-    /// reached, when no point meets the target. Without -p and without --target, encode aims
-    /// at the default quality, kg=0.5.
-    #[arg(long, value_name = "METRIC=VALUE", value_parser = parse_target)]
+    /// its secondary parameters meant for the target's kind of error: positional, STED or
+    /// both; `animcodec list` shows each codec's parameters and ladder) for the smallest stream
+    /// whose decoded error meets METRIC=VALUE, or every bound of METRIC=VALUE,METRIC=VALUE…
+    /// (metrics: kg [%], sted, hausdorff, max_error, rmse; absolute values in model units
+    /// except kg). Parameters given with `-p` stay fixed. With `-c auto`, every codec is
+    /// searched and the smallest stream kept. Fails, stating the best errors reached, when no
+    /// point meets the target. Without -p and without --target, encode aims at the default
+    /// quality, kg=0.5,sted=0.05.
+    #[arg(long, value_name = "METRIC=VALUE[,…]", value_parser = parse_target)]
     pub target: Option<animcodec::harness::Target>,
 
     /// With --target: extra points bisecting the ladder parameter between the last step that

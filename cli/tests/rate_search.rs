@@ -529,18 +529,18 @@ fn hosvd_target_searches_walk_the_half_of_the_space_for_their_error() {
     assert!(hit.tried.iter().all(|p| p.params.float("edge_noise").unwrap() == 0.0));
     assert_eq!(hit.tried[0].params.float("ss").unwrap(), 0.9, "KG targets start at the default");
     assert!(TargetMetric::Kg.value(&hit.point.report).unwrap() <= 0.5);
-    // A joint target walks both halves (the shape half's usual winner first) and meets both.
+    // A joint target walks both edge weights without the noise cap, and meets both bounds.
     let joint: Target = "kg=0.5,sted=0.05".parse().unwrap();
     let hit =
         search_space_target(&request(&registry, &animation, joint, &eval, 2), codec, &codec.default_params(), &[])
             .unwrap();
     assert!(joint.meets(&hit.point.report), "{}", joint.reached_text(&hit.point.report, 6));
-    assert_eq!(hit.tried[0].params.float("edge_noise").unwrap(), 0.012);
-    assert_eq!(hit.tried[0].params.float("ss").unwrap(), 0.97);
-    // Every configuration is measured at least once: both noise settings were tried.
-    let noise: std::collections::BTreeSet<String> =
-        hit.tried.iter().map(|p| p.params.float("edge_noise").unwrap().to_string()).collect();
-    assert_eq!(noise.into_iter().collect::<Vec<_>>(), ["0", "0.012"]);
+    assert!(hit.tried.iter().all(|p| p.params.float("edge_noise").unwrap() == 0.0));
+    assert_eq!(hit.tried[0].params.float("ss").unwrap(), 0.9, "joint targets start at the default");
+    // Every configuration is measured at least once: both edge weights were tried.
+    let weights: std::collections::BTreeSet<String> =
+        hit.tried.iter().map(|p| p.params.float("edge_weight").unwrap().to_string()).collect();
+    assert_eq!(weights.into_iter().collect::<Vec<_>>(), ["0", "1"]);
 }
 
 /// A STED target met by a stream that does not follow the motion says so (stderr and `--json`
