@@ -313,10 +313,10 @@ pub struct TargetSummary {
     pub codec: &'static str,
     /// Its parameters.
     pub params: Value,
-    /// The target: `{metric, value}`.
+    /// The target's bounds, one per metric: `{"kg": 0.5, "sted": 0.05}`.
     pub target: Value,
-    /// The target metric's value reached.
-    pub reached: Option<f64>,
+    /// Each bounded metric's value reached (`null`: undefined).
+    pub reached: Value,
     /// Connected parts of the mesh.
     pub parts: usize,
     /// KG (%) of the worst part against its own spread.
@@ -346,8 +346,8 @@ pub struct TriedPoint {
     pub bytes: u64,
     /// Its bits per vertex per frame.
     pub bpvf: f64,
-    /// The target metric's value.
-    pub value: Option<f64>,
+    /// Each bounded metric's value.
+    pub reached: Value,
 }
 
 /// Another codec's answer to the same target.
@@ -361,19 +361,19 @@ pub struct OtherCodec {
     pub bytes: u64,
     /// Its bits per vertex per frame.
     pub bpvf: f64,
-    /// The target metric's value.
-    pub value: Option<f64>,
+    /// Each bounded metric's value.
+    pub reached: Value,
 }
 
 impl TargetSummary {
     /// The summary of `hit` (and `others`) for `target`.
     pub fn new(target: Target, hit: &TargetHit, others: &[TargetHit]) -> Self {
-        let value_of = |p: &animcodec_eval::harness::Point| target.metric.value(&p.report);
+        let value_of = |p: &animcodec_eval::harness::Point| reached_json(target, &p.report);
         let p = &hit.point;
         Self {
             codec: p.codec,
             params: params_json(&p.params),
-            target: serde_json::json!({ "metric": target.metric.name(), "value": target.value }),
+            target: bounds_json(target),
             reached: value_of(p),
             parts: p.report.parts,
             worst_part_kg: p.report.worst_part_kg(),
@@ -389,7 +389,7 @@ impl TargetSummary {
                     params: params_json(&t.params),
                     bytes: t.bytes,
                     bpvf: t.bpvf,
-                    value: value_of(t),
+                    reached: value_of(t),
                 })
                 .collect(),
             other_codecs: others
@@ -399,11 +399,23 @@ impl TargetSummary {
                     params: params_json(&h.point.params),
                     bytes: h.point.bytes,
                     bpvf: h.point.bpvf,
-                    value: value_of(&h.point),
+                    reached: value_of(&h.point),
                 })
                 .collect(),
         }
     }
+}
+
+/// A target's bounds as JSON: `{"kg": 0.5, "sted": 0.05}`.
+pub fn bounds_json(target: Target) -> Value {
+    Value::Object(target.bounds().map(|(m, v)| (m.name().to_owned(), serde_json::json!(v))).collect())
+}
+
+/// Each bounded metric's value in `report` as JSON (`null`: undefined): `{"kg": 0.43, "sted": 0.031}`.
+pub fn reached_json(target: Target, report: &MetricReport) -> Value {
+    Value::Object(
+        target.reached(report).into_iter().map(|(m, v)| (m.name().to_owned(), serde_json::json!(v))).collect(),
+    )
 }
 
 /// `--eval`'s figures in an `encode --json` document (and the Python summary's).

@@ -260,12 +260,12 @@ fn target_search_meets_the_target_and_the_next_smaller_point_does_not() {
         .collect();
     assert!(kg.windows(2).all(|w| w[1] < w[0]), "quant-delta's KG falls along its ladder: {kg:?}");
     for want in [1, kg.len() / 2, kg.len() - 1] {
-        let target = Target { metric: TargetMetric::Kg, value: (kg[want] + kg[want - 1]) / 2.0 };
+        let target = Target::new(TargetMetric::Kg, (kg[want] + kg[want - 1]) / 2.0);
         let hit =
             search_target(&request(&registry, &animation, target, &eval, 0), codec, &codec.default_params()).unwrap();
         assert_eq!(hit.point.ladder_index, want, "target {target}");
-        assert!(hit.point.report.kg.unwrap() <= target.value);
-        assert!(kg[want - 1] > target.value, "the next-smaller ladder point misses");
+        assert!(hit.point.report.kg.unwrap() <= target.level());
+        assert!(kg[want - 1] > target.level(), "the next-smaller ladder point misses");
         assert!(!hit.linear_fallback);
         // Top step + binary search + the check below the answer: fewer than the whole ladder.
         assert!(hit.tried.len() <= 2 + (ladder.steps.len() as f64).log2().ceil() as usize);
@@ -273,7 +273,7 @@ fn target_search_meets_the_target_and_the_next_smaller_point_does_not() {
         assert_eq!(hit.stream.len() as u64, hit.point.bytes);
     }
     // Exactly on a ladder point's value counts as meeting it.
-    let target = Target { metric: TargetMetric::Kg, value: kg[0] };
+    let target = Target::new(TargetMetric::Kg, kg[0]);
     let hit = search_target(&request(&registry, &animation, target, &eval, 0), codec, &codec.default_params()).unwrap();
     assert_eq!(hit.point.ladder_index, 0);
 }
@@ -283,17 +283,17 @@ fn encode_target_through_the_binary() {
     let s = Scratch::new("target");
     let out = s.path("t.anim");
     let v = ok_json(&["encode", "synth:flag", "-c", "quant-delta", "--target", "kg=0.5", "-o", &out, "--json"]);
-    assert!(f(&v["reached"]) <= 0.5, "{v}");
-    assert_eq!(v["target"]["metric"], "kg");
+    assert!(f(&v["reached"]["kg"]) <= 0.5, "{v}");
+    assert_eq!(v["target"], serde_json::json!({"kg": 0.5}));
     assert_eq!(v["bytes"].as_u64().unwrap(), std::fs::metadata(&out).unwrap().len());
     // The file on disk really has the reported error.
     let e = ok_json(&["eval", "synth:flag", &out, "--json", "--no-hausdorff"]);
-    assert_eq!(f(&e["kg"]), f(&v["reached"]));
+    assert_eq!(f(&e["kg"]), f(&v["reached"]["kg"]));
     // Every point tried below the chosen one missed (the binary search's neighbour check).
     let chosen = v["tried"].as_array().unwrap().iter().find(|t| t["bytes"] == v["bytes"]).unwrap().clone();
     for t in v["tried"].as_array().unwrap() {
         if t["ladder_index"].as_u64() < chosen["ladder_index"].as_u64() {
-            assert!(f(&t["value"]) > 0.5, "{t}");
+            assert!(f(&t["reached"]["kg"]) > 0.5, "{t}");
         }
     }
     let text = ok(&["encode", "synth:flag", "-c", "quant-delta", "--target", "max_error=0.01", "-f", "-o", &out]);
@@ -315,10 +315,10 @@ fn encode_target_auto_keeps_the_smallest_stream() {
     let out = s.path("auto.anim");
     let v =
         ok_json(&["encode", "synth:tumble", "-c", "auto", "--target", "max_error=0.05", "-f", "-o", &out, "--json"]);
-    assert!(f(&v["reached"]) <= 0.05);
+    assert!(f(&v["reached"]["max_error"]) <= 0.05);
     for o in v["other_codecs"].as_array().unwrap() {
         assert!(o["bytes"].as_u64() >= v["bytes"].as_u64(), "{o} is smaller than the chosen {v}");
-        assert!(f(&o["value"]) <= 0.05);
+        assert!(f(&o["reached"]["max_error"]) <= 0.05);
     }
 }
 
@@ -436,7 +436,7 @@ fn auto_search_keeps_the_smallest_stream_whatever_the_order() {
     let registry = wrapped_registry();
     let animation = small();
     let eval = EvalOptions::default();
-    let target = Target { metric: TargetMetric::MaxError, value: 1e-2 };
+    let target = Target::new(TargetMetric::MaxError, 1e-2);
     let padded = registry.by_name("padded").unwrap();
     let plain = registry.by_name("plain").unwrap();
     for order in [[padded, plain], [plain, padded]] {
@@ -446,7 +446,7 @@ fn auto_search_keeps_the_smallest_stream_whatever_the_order() {
         assert!(others[0].point.bytes > best.point.bytes);
     }
     // Nothing reachable: the error lists each codec's best.
-    let target = Target { metric: TargetMetric::MaxError, value: 0.0 };
+    let target = Target::new(TargetMetric::MaxError, 0.0);
     let e = search_target_auto(&request(&registry, &animation, target, &eval, 0), &[padded, plain])
         .unwrap_err()
         .to_string();
@@ -470,11 +470,11 @@ fn non_monotone_ladders_fall_back_to_a_linear_scan() {
         .collect();
     // A target met by bits 12 (step 3) but not by bits 10 (step 4): the binary search alone
     // settles on step 5 (bits 14); the check of step 3 reveals the kink and the scan finds it.
-    let target = Target { metric: TargetMetric::MaxError, value: (bytes_and_err[3].1 + bytes_and_err[4].1) / 2.0 };
-    assert!(bytes_and_err[4].1 > target.value && bytes_and_err[3].1 <= target.value);
+    let target = Target::new(TargetMetric::MaxError, (bytes_and_err[3].1 + bytes_and_err[4].1) / 2.0);
+    assert!(bytes_and_err[4].1 > target.level() && bytes_and_err[3].1 <= target.level());
     let hit = search_target(&request(&registry, &animation, target, &eval, 0), codec, &codec.default_params()).unwrap();
     // The smallest passing stream among all steps.
-    let best = bytes_and_err.iter().filter(|(_, e)| *e <= target.value).map(|(b, _)| *b).min().unwrap();
+    let best = bytes_and_err.iter().filter(|(_, e)| *e <= target.level()).map(|(b, _)| *b).min().unwrap();
     assert_eq!(hit.point.bytes, best);
     assert_eq!(hit.point.ladder_index, 3);
     assert!(hit.linear_fallback);
@@ -484,7 +484,7 @@ fn non_monotone_ladders_fall_back_to_a_linear_scan() {
 fn target_miss_names_the_best_point() {
     let registry = animcodec::registry();
     let codec = registry.by_name("quant-delta").unwrap();
-    let target = Target { metric: TargetMetric::Kg, value: 0.0 };
+    let target = Target::new(TargetMetric::Kg, 0.0);
     let e = search_target(
         &request(&registry, &small(), target, &EvalOptions::default(), 0),
         codec,
@@ -507,13 +507,13 @@ fn refinement_between_ladder_steps_finds_a_smaller_stream_that_meets_the_target(
     let with_bits = base.clone().with(&codec.param_specs(), "bits", ParamValue::Int(7)).unwrap();
     let (at7, _) =
         measure_point(&registry, codec, &with_bits, ("bits", 0), &animation, &eval, Limits::default()).unwrap();
-    let target = Target { metric: TargetMetric::Kg, value: at7.report.kg.unwrap() };
+    let target = Target::new(TargetMetric::Kg, at7.report.kg.unwrap());
     let coarse = search_target(&request(&registry, &animation, target, &eval, 0), codec, &base).unwrap();
     assert_eq!(coarse.point.params.int("bits").unwrap(), 8);
     let fine = search_target(&request(&registry, &animation, target, &eval, 3), codec, &base).unwrap();
     assert_eq!(fine.point.params.int("bits").unwrap(), 7, "the bisection between 6 (miss) and 8 finds 7");
     assert!(fine.point.bytes < coarse.point.bytes);
-    assert!(fine.point.report.kg.unwrap() <= target.value);
+    assert!(fine.point.report.kg.unwrap() <= target.level());
     // Between adjacent integers there is nothing left to try: one extra point, not three.
     assert_eq!(fine.tried.len(), coarse.tried.len() + 1);
     assert_eq!(fine.stream.len() as u64, fine.point.bytes);
@@ -524,7 +524,7 @@ fn progress_sees_every_point_the_target_search_measures() {
     let registry = animcodec::registry();
     let animation = small();
     let eval = EvalOptions { compute_sted: false, compute_hausdorff: false, ..Default::default() };
-    let target = Target { metric: TargetMetric::Kg, value: 1.0 };
+    let target = Target::new(TargetMetric::Kg, 1.0);
     let seen = std::sync::Mutex::new(Vec::new());
     let record = |p: &harness::Point| seen.lock().unwrap().push((p.codec, p.bytes));
 

@@ -2,7 +2,9 @@
 //! (issue 26): `harness::search_space_target`, the envelope sweep, and the default quality of
 //! `animcodec encode` without `-p`.
 
-use animcodec::harness::{self, search_space_target, search_target, Target, TargetMetric, DEFAULT_TARGET};
+use animcodec::harness::{
+    self, search_space_target, search_target, SearchRequest, Target, TargetMetric, DEFAULT_TARGET,
+};
 use animcodec::metrics::EvalOptions;
 use animcodec::synth;
 use codec_core::{
@@ -30,8 +32,7 @@ fn space_search_chooses_the_same_stream_with_one_and_two_threads() {
     let codec = registry.by_name("hosvd").unwrap();
     let animation = small();
     let eval = EvalOptions::default();
-    for target in [Target { metric: TargetMetric::Kg, value: 0.5 }, Target { metric: TargetMetric::Sted, value: 0.05 }]
-    {
+    for target in [Target::new(TargetMetric::Kg, 0.5), Target::new(TargetMetric::Sted, 0.05)] {
         let run = |threads| {
             in_pool(threads, || {
                 search_space_target(
@@ -49,16 +50,9 @@ fn space_search_chooses_the_same_stream_with_one_and_two_threads() {
         let measured =
             |h: &harness::TargetHit| h.tried.iter().map(|p| (p.params.to_string(), p.bytes)).collect::<Vec<_>>();
         assert_eq!(measured(&one), measured(&two));
-        let reached = target.metric.value(&one.point.report).unwrap();
-        assert!(reached <= target.value, "{target}: reached {reached}");
+        assert!(target.meets(&one.point.report), "{target}: reached {}", target.reached_text(&one.point.report, 6));
         // The answer is the smallest passing stream measured.
-        let smallest = one
-            .tried
-            .iter()
-            .filter(|p| target.metric.value(&p.report).is_some_and(|v| v <= target.value))
-            .map(|p| p.bytes)
-            .min()
-            .unwrap();
+        let smallest = one.tried.iter().filter(|p| target.meets(&p.report)).map(|p| p.bytes).min().unwrap();
         assert_eq!(one.point.bytes, smallest);
         // More than one configuration was tried.
         let configs: std::collections::BTreeSet<String> =
@@ -74,7 +68,7 @@ fn space_search_is_never_worse_than_the_ladder_alone() {
     let registry = animcodec::registry();
     let animation = small();
     let eval = EvalOptions::default();
-    let target = Target { metric: TargetMetric::Kg, value: 0.5 };
+    let target = Target::new(TargetMetric::Kg, 0.5);
     for name in ["hosvd", "pca-aoi"] {
         let codec = registry.by_name(name).unwrap();
         let base = codec.default_params();
@@ -92,7 +86,7 @@ fn fixed_parameters_are_not_searched() {
     let registry = animcodec::registry();
     let codec = registry.by_name("hosvd").unwrap();
     let base = codec.default_params().with(&codec.param_specs(), "rigid", ParamValue::Bool(false)).unwrap();
-    let target = Target { metric: TargetMetric::Kg, value: 1.0 };
+    let target = Target::new(TargetMetric::Kg, 1.0);
     let hit = search_space_target(
         &request(&registry, &small(), target, &EvalOptions::default(), 0),
         codec,
@@ -197,7 +191,7 @@ fn candidates_decoding_to_non_finite_coordinates_are_rejected() {
     let registry = CodecRegistry::new(vec![Box::new(Garbling)]).unwrap();
     let codec = registry.by_name("garbling").unwrap();
     for metric in [TargetMetric::Kg, TargetMetric::MaxError] {
-        let target = Target { metric, value: 1e-2 };
+        let target = Target::new(metric, 1e-2);
         let hit = search_space_target(
             &request(&registry, &small(), target, &EvalOptions::default(), 0),
             codec,
@@ -333,7 +327,7 @@ fn sted_search_finds_a_passing_smallest_step_past_failing_ones() {
     let report = animcodec::metrics::evaluate(&animation, &still, &EvalOptions::default()).unwrap();
     let (still_sted, still_kg) = (report.sted.unwrap(), report.kg.unwrap());
     assert!(still_kg <= harness::DEGENERATE_KG, "test data: the still flag is degenerate (KG {still_kg})");
-    let target = Target { metric: TargetMetric::Sted, value: 1.05 * still_sted };
+    let target = Target::new(TargetMetric::Sted, 1.05 * still_sted);
     let hit = search_space_target(
         &request(&registry, &animation, target, &EvalOptions::default(), 0),
         codec,
@@ -350,11 +344,11 @@ fn sted_search_finds_a_passing_smallest_step_past_failing_ones() {
     );
     // Non-monotone: a larger step failed the target the still shape meets.
     assert!(
-        hit.tried.iter().any(|p| p.params.int("bits").unwrap() > 4 && p.report.sted.unwrap() > target.value),
+        hit.tried.iter().any(|p| p.params.int("bits").unwrap() > 4 && p.report.sted.unwrap() > target.level()),
         "the test lost its point: no failing larger step"
     );
     // A KG target brackets as before: the still shape (KG {still_kg}) is no answer there.
-    let kg = Target { metric: TargetMetric::Kg, value: 0.5 * still_kg };
+    let kg = Target::new(TargetMetric::Kg, 0.5 * still_kg);
     let hit = search_space_target(
         &request(&registry, &animation, kg, &EvalOptions::default(), 0),
         codec,
@@ -362,7 +356,7 @@ fn sted_search_finds_a_passing_smallest_step_past_failing_ones() {
         &[],
     )
     .unwrap();
-    assert!(hit.tried.iter().all(|p| p.params.int("bits").unwrap() != 4 || p.report.kg.unwrap() > kg.value));
+    assert!(hit.tried.iter().all(|p| p.params.int("bits").unwrap() != 4 || p.report.kg.unwrap() > kg.level()));
 }
 
 /// Each codec's envelope: sorted by bytes, its errors strictly fall.
@@ -430,9 +424,12 @@ fn encode_without_parameters_meets_the_default_quality() {
     for codec in ["hosvd", "quant-delta"] {
         let v = ok_json(&["encode", &pc2, "-c", codec, "-o", &anim, "-f", "--json", "--eval"]);
         assert_eq!(v["default_target"], true, "{v}");
-        assert_eq!(v["target"]["metric"], DEFAULT_TARGET.metric.name());
+        assert_eq!(v["target"], serde_json::json!({"kg": 0.5, "sted": 0.05}));
         let kg = v["kg"].as_f64().unwrap();
-        assert!(kg <= DEFAULT_TARGET.value, "{codec}: KG {kg}");
+        assert!(kg <= DEFAULT_TARGET.bound(TargetMetric::Kg).unwrap(), "{codec}: KG {kg}");
+        let sted = v["sted"].as_f64().unwrap();
+        assert!(sted <= DEFAULT_TARGET.bound(TargetMetric::Sted).unwrap(), "{codec}: STED {sted}");
+        assert_eq!(v["reached"]["kg"], v["kg"], "the search's measurement is the --eval one");
         assert_eq!(v["bytes"].as_u64().unwrap(), std::fs::metadata(&anim).unwrap().len());
     }
     let v = ok_json(&["encode", &pc2, "-c", "hosvd", "-p", "ss=0.9", "-o", &anim, "-f", "--json"]);
@@ -452,7 +449,8 @@ fn encode_without_parameters_meets_the_default_quality() {
 fn default_quality_lands_within_its_band_of_the_target() {
     let registry = animcodec::registry();
     let eval = EvalOptions::default();
-    let band = DEFAULT_TARGET.value / harness::DEFAULT_QUALITY_BAND;
+    // The default target is joint: its error is the binding bound's ratio value / bound.
+    let band = DEFAULT_TARGET.level() / harness::DEFAULT_QUALITY_BAND;
     // Few frames (hosvd's size model keeps too little), many, and a rigid tumble.
     let inputs = [
         ("flag-6", synth::waving_flag(12, 9, 6)),
@@ -464,23 +462,21 @@ fn default_quality_lands_within_its_band_of_the_target() {
         for (name, anim) in &inputs {
             let hit = harness::search_default_quality(&request(&registry, anim, DEFAULT_TARGET, &eval, 4), codec)
                 .unwrap_or_else(|e| panic!("{} on {name}: {e}", codec.name()));
-            let kg = hit.point.report.kg.unwrap();
-            assert!(kg <= DEFAULT_TARGET.value, "{} on {name}: KG {kg}", codec.name());
+            let reached = DEFAULT_TARGET.reached_text(&hit.point.report, 6);
+            assert!(DEFAULT_TARGET.meets(&hit.point.report), "{} on {name}: {reached}", codec.name());
+            let error = DEFAULT_TARGET.error(&hit.point.report).unwrap();
             // Below the band only at a cliff (a measured smaller stream misses the target) or at
             // the ladder's floor: its first step, or a smaller step measured that gives no
             // smaller stream (hosvd's smallest model that is not flat, `(v, f) = (3, 1)`, holds
             // the rigid tumble exactly: KG 0.014 at every `ss` from 0.97 up).
-            let cliff = hit
-                .tried
-                .iter()
-                .any(|p| p.bytes < hit.point.bytes && p.report.kg.is_some_and(|k| k > DEFAULT_TARGET.value));
+            let cliff = hit.tried.iter().any(|p| p.bytes < hit.point.bytes && !DEFAULT_TARGET.meets(&p.report));
             let floor = hit.point.ladder_index == 0
                 || hit.tried.iter().any(|p| p.ladder_index < hit.point.ladder_index && p.bytes >= hit.point.bytes);
             assert!(
-                kg >= band || cliff || floor,
-                "{} on {name}: KG {kg} is below the band ({band}) with no cliff below it; tried {:?}",
+                error >= band || cliff || floor,
+                "{} on {name}: {reached} (error {error}) is below the band ({band}) with no cliff below it; tried {:?}",
                 codec.name(),
-                hit.tried.iter().map(|p| (p.ladder_index, p.bytes, p.report.kg)).collect::<Vec<_>>()
+                hit.tried.iter().map(|p| (p.ladder_index, p.bytes, p.report.kg, p.report.sted)).collect::<Vec<_>>()
             );
             if hit.tried.len() == 1 {
                 assert_eq!(hit.point.params, codec.default_params(), "{} on {name}", codec.name());
@@ -502,7 +498,7 @@ fn each_kind_of_target_searches_within_the_full_space() {
         let specs = codec.param_specs();
         let apply = |config: &[(&'static str, ParamValue)]| SearchSpace::apply(&base, &specs, config).unwrap();
         let full_sets: Vec<ParamSet> = full.configurations().iter().map(|c| apply(c)).collect();
-        for kind in [DistortionKind::Position, DistortionKind::Shape] {
+        for kind in [DistortionKind::Position, DistortionKind::Shape, DistortionKind::Both] {
             let part = codec.search_space_for(&base, kind);
             assert_eq!(part.primary, full.primary, "{}: {kind:?}", codec.name());
             for config in part.configurations() {
@@ -521,7 +517,7 @@ fn hosvd_target_searches_walk_the_half_of_the_space_for_their_error() {
     let codec = registry.by_name("hosvd").unwrap();
     let animation = small();
     let eval = EvalOptions::default();
-    let sted = Target { metric: TargetMetric::Sted, value: 0.05 };
+    let sted = Target::new(TargetMetric::Sted, 0.05);
     let hit = search_space_target(&request(&registry, &animation, sted, &eval, 2), codec, &codec.default_params(), &[])
         .unwrap();
     assert!(hit.tried.iter().all(|p| [0.012, 0.02].contains(&p.params.float("edge_noise").unwrap())
@@ -529,12 +525,24 @@ fn hosvd_target_searches_walk_the_half_of_the_space_for_their_error() {
     assert!(hit.tried.iter().any(|p| !p.params.bool("rigid").unwrap()));
     // hosvd's start for STED targets (`search_start`), not the default `ss`.
     assert_eq!(hit.tried[0].params.float("ss").unwrap(), 0.97);
-    let kg = Target { metric: TargetMetric::Kg, value: 0.5 };
+    let kg = Target::new(TargetMetric::Kg, 0.5);
     let hit = search_space_target(&request(&registry, &animation, kg, &eval, 2), codec, &codec.default_params(), &[])
         .unwrap();
     assert!(hit.tried.iter().all(|p| p.params.float("edge_noise").unwrap() == 0.0));
     assert_eq!(hit.tried[0].params.float("ss").unwrap(), 0.9, "KG targets start at the default");
     assert!(TargetMetric::Kg.value(&hit.point.report).unwrap() <= 0.5);
+    // A joint target walks both edge weights without the noise cap, and meets both bounds.
+    let joint: Target = "kg=0.5,sted=0.05".parse().unwrap();
+    let hit =
+        search_space_target(&request(&registry, &animation, joint, &eval, 2), codec, &codec.default_params(), &[])
+            .unwrap();
+    assert!(joint.meets(&hit.point.report), "{}", joint.reached_text(&hit.point.report, 6));
+    assert!(hit.tried.iter().all(|p| p.params.float("edge_noise").unwrap() == 0.0));
+    assert_eq!(hit.tried[0].params.float("ss").unwrap(), 0.9, "joint targets start at the default");
+    // Every configuration is measured at least once: both edge weights were tried.
+    let weights: std::collections::BTreeSet<String> =
+        hit.tried.iter().map(|p| p.params.float("edge_weight").unwrap().to_string()).collect();
+    assert_eq!(weights.into_iter().collect::<Vec<_>>(), ["0", "1"]);
 }
 
 /// A STED target met by a stream that does not follow the motion says so (stderr and `--json`
@@ -552,4 +560,121 @@ fn a_sted_target_met_without_the_motion_says_so() {
     assert!(notes.iter().any(|n| n.contains("STED sees edge lengths") && n.contains("--target kg=")), "{notes:?}");
     let v = ok_json(&["encode", &pc2, "-c", "hosvd", "--target", "kg=1", "-o", &anim, "-f", "--json"]);
     assert!(v["notes"].as_array().unwrap().iter().all(|n| !n.as_str().unwrap().contains("STED")), "{v}");
+}
+
+/// Joint targets, as a property over synthetic inputs and random bounds: whatever the input,
+/// codec and pair of bounds, a search either returns a stream meeting **both** bounds — the
+/// smallest such stream it measured — or misses, and then no point it measured met both.
+#[test]
+fn joint_targets_are_met_on_every_bound_or_missed_honestly() {
+    let registry = animcodec::registry();
+    let eval = EvalOptions::default();
+    let inputs = [
+        ("flag", synth::waving_flag(12, 9, 12)),
+        ("cylinder", synth::bending_cylinder(8, 10, 16)),
+        ("tumble", synth::tumbling_body_sized(10, 6, 12)),
+    ];
+    // A fixed linear congruential sequence: the same bounds on every run, spread over two
+    // decades of KG and of STED (log-uniform).
+    let mut state: u64 = 0x2545_f491_4f6c_dd1d;
+    let mut uniform = || {
+        state = state.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1_442_695_040_888_963_407);
+        (state >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let (mut hits, mut misses) = (0, 0);
+    for (name, animation) in &inputs {
+        // Three random pairs, and one no codec can meet (a miss must say so, not pass).
+        for round in 0..4 {
+            let (kg, sted) =
+                if round < 3 { (0.03 * 100f64.powf(uniform()), 0.003 * 100f64.powf(uniform())) } else { (1e-9, 1e-9) };
+            let target = Target::new(TargetMetric::Kg, kg).and_bound(TargetMetric::Sted, sted);
+            for codec in ["quant-delta", "pca-aoi", "hosvd"] {
+                let codec = registry.by_name(codec).unwrap();
+                let request = request(&registry, animation, target, &eval, 2);
+                match search_space_target(&request, codec, &codec.default_params(), &[]) {
+                    Ok(hit) => {
+                        hits += 1;
+                        let r = &hit.point.report;
+                        assert!(
+                            r.kg_bound().unwrap() <= kg && r.sted.unwrap() <= sted,
+                            "{} on {name} at {target}: {}",
+                            codec.name(),
+                            target.reached_text(r, 6)
+                        );
+                        let smallest = hit.tried.iter().filter(|p| target.meets(&p.report)).map(|p| p.bytes).min();
+                        assert_eq!(smallest, Some(hit.point.bytes), "{} on {name} at {target}", codec.name());
+                        // The stream is what was measured: decoded again, the same errors.
+                        let decoded =
+                            codec_core::StreamDecoder::new(hit.stream.as_slice(), &registry, Limits::default())
+                                .unwrap()
+                                .decode_all()
+                                .unwrap();
+                        let again =
+                            animcodec::metrics::evaluate(animation, &decoded, &target.eval_options(&eval)).unwrap();
+                        assert_eq!((again.kg_bound(), again.sted), (r.kg_bound(), r.sted));
+                    }
+                    Err(harness::EvalError::TargetMiss(miss)) => {
+                        misses += 1;
+                        let best = miss.best.as_ref().map(|p| target.meets(&p.report));
+                        assert_ne!(best, Some(true), "{} on {name} missed {target} with a passing point", codec.name());
+                    }
+                    Err(e) => panic!("{} on {name} at {target}: {e}", codec.name()),
+                }
+            }
+        }
+    }
+    // The property was exercised on both sides.
+    eprintln!("joint targets: {hits} hits, {misses} misses");
+    assert!(hits >= 10 && misses >= 3, "{hits} hits, {misses} misses");
+}
+
+/// `encode --target kg=…,sted=…` through the binary: the written stream meets both bounds as
+/// `eval` measures it, and `--json` reports both.
+#[test]
+fn encode_with_a_joint_target_writes_a_stream_meeting_both_bounds() {
+    let s = Scratch::new("joint-target");
+    let (pc2, anim) = (s.path("cyl.pc2"), s.path("cyl.anim"));
+    ok(&["synth", "cylinder", "-o", &pc2]);
+    let v = ok_json(&["encode", &pc2, "-c", "auto", "--target", "kg=0.3,sted=0.02", "-o", &anim, "-f", "--json"]);
+    assert_eq!(v["target"], serde_json::json!({"kg": 0.3, "sted": 0.02}));
+    let e = ok_json(&["eval", &pc2, &anim, "--json", "--no-hausdorff"]);
+    let worst = e["worst_part"]["kg"].as_f64().unwrap_or(e["kg"].as_f64().unwrap()).max(e["kg"].as_f64().unwrap());
+    assert!(worst <= 0.3, "{e}");
+    assert!(e["sted"].as_f64().unwrap() <= 0.02, "{e}");
+    assert_eq!(v["reached"]["sted"], e["sted"]);
+    let text = ok(&["encode", &pc2, "-c", "hosvd", "--target", "kg=0.3,sted=0.02", "-o", &anim, "-f"]);
+    assert!(text.contains("target kg=0.3,sted=0.02: hosvd") && text.contains("reaches kg="), "{text}");
+    let o = animcodec(&["encode", &pc2, "--target", "kg=0.3,kg=0.2", "-o", &anim, "-f"]);
+    assert_eq!(o.status.code(), Some(2), "a malformed --target is a usage error");
+    assert!(stderr(&o).contains("kg is bounded twice"), "{}", stderr(&o));
+}
+
+/// `-c auto`'s space search bounds each later codec by the smallest stream found so far: it
+/// finds the stream the codecs searched one by one find, with fewer encodes.
+#[test]
+fn auto_search_bounds_later_codecs_by_the_best_so_far() {
+    use std::sync::atomic::{AtomicUsize, Ordering};
+    let registry = animcodec::registry();
+    let animation = small();
+    let eval = EvalOptions::default();
+    let codecs: Vec<&dyn AnimationCodec> =
+        ["hosvd", "quant-delta", "sac"].into_iter().map(|n| registry.by_name(n).unwrap()).collect();
+    let count = AtomicUsize::new(0);
+    let progress = |_: &harness::Point| {
+        count.fetch_add(1, Ordering::Relaxed);
+    };
+    let counted = |target| SearchRequest { progress: &progress, ..request(&registry, &animation, target, &eval, 2) };
+    for target in [DEFAULT_TARGET, Target::new(TargetMetric::Kg, 0.5)] {
+        count.store(0, Ordering::Relaxed);
+        let (best, _) = harness::search_space_target_auto(&counted(target), &codecs).unwrap();
+        let bounded = count.swap(0, Ordering::Relaxed);
+        let alone: Vec<u64> = codecs
+            .iter()
+            .filter_map(|c| search_space_target(&counted(target), *c, &c.default_params(), &[]).ok())
+            .map(|h| h.point.bytes)
+            .collect();
+        let unbounded = count.load(Ordering::Relaxed);
+        assert_eq!(Some(best.point.bytes), alone.iter().copied().min(), "{target}");
+        assert!(bounded < unbounded, "{target}: {bounded} encodes bounded, {unbounded} one by one");
+    }
 }

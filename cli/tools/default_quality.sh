@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # What the plain `encode -c CODEC` gives on every animation in ../shared/data: bytes, bpvf, the
-# KG reached, encodes measured, and the default encode's wall time as a ratio to one encode at
+# KG and STED reached, encodes measured, and the default encode's wall time as a ratio to one encode at
 # the `ss` it chose (both timed here, one after the other, on the same machine).
 #   cli/tools/default_quality.sh [BINARY] [CODEC]   (default: target/release/animcodec hosvd)
 set -euo pipefail
@@ -24,7 +24,8 @@ run() { # label input [extra args]
   python3 - "$W/j.json" "$label" "$s" "$e" "$s2" "$e2" <<'PY'
 import json, sys
 d = json.load(open(sys.argv[1])); label = sys.argv[2]; s, e, s2, e2 = map(float, sys.argv[3:])
-print(f"{label}\t{d['frames']}x{d['vertices']}\tbytes {d['bytes']}\tbpvf {d['bpvf']:.4f}\tKG {d['reached']:.4f}"
+r = d['reached']
+print(f"{label}\t{d['frames']}x{d['vertices']}\tbytes {d['bytes']}\tbpvf {d['bpvf']:.4f}\tKG {r['kg']:.4f}\tSTED {r['sted']:.4f}"
       f"\tss {d['params']['ss']}\tencodes {len(d['tried'])}\tdefault {e - s:.2f} s\tone encode {e2 - s2:.2f} s"
       f"\tratio {(e - s) / (e2 - s2):.2f}")
 PY

@@ -278,6 +278,8 @@ pub enum DistortionKind {
     Position,
     /// Local shape: relative changes of edge lengths in space and time (STED).
     Shape,
+    /// Positions and local shape bounded together (a joint target such as KG and STED).
+    Both,
 }
 
 /// One secondary axis of a codec's rate search: a parameter and the values the search may

@@ -1,6 +1,8 @@
 //! The rate-distortion plot of a sweep as one self-contained SVG document: two panels side by
 //! side, bpvf vs KG error (left) and bpvf vs STED (right), one line per series, error axes in
-//! log₁₀ scale (points with a zero, missing or non-finite error are left out of a panel).
+//! log₁₀ scale (points with a zero, missing or non-finite error are left out of a panel). In
+//! the STED panel, points whose KG is too far from any target for their STED to mean anything
+//! ([`sted_degenerate`]) are drawn open and off the line.
 //!
 //! Written by hand rather than with a plotting crate: the document is a few dozen elements, its
 //! text is plain SVG `<text>` (no font files), and the Python package can draw it without
@@ -12,7 +14,7 @@ use std::path::Path;
 use metrics::MetricReport;
 
 use crate::error::Result;
-use crate::harness::{write_text, Point};
+use crate::harness::{sted_degenerate, write_text, Point, STED_DEGENERATE_KG};
 
 const WIDTH: f64 = 1200.0;
 const HEIGHT: f64 = 520.0;
@@ -45,7 +47,10 @@ pub fn rd_svg(title: &str, points: &[Point]) -> String {
         WIDTH / 2.0,
         escape(title)
     );
-    let panels = [("KG error (%)", panel_data(points, |r| r.kg)), ("STED", panel_data(points, |r| r.sted))];
+    let panels = [
+        ("KG error (%)", panel_data(points, |r| r.kg, |_| false)),
+        ("STED", panel_data(points, |r| r.sted, sted_degenerate)),
+    ];
     let panel_width = WIDTH / panels.len() as f64;
     for (i, (label, data)) in panels.iter().enumerate() {
         draw_panel(&mut svg, i as f64 * panel_width, panel_width, label, data);
@@ -54,19 +59,24 @@ pub fn rd_svg(title: &str, points: &[Point]) -> String {
     svg
 }
 
-/// Per series (in the order first met), its `(bpvf, log₁₀ error)` points.
-type PanelData = Vec<(String, Vec<(f64, f64)>)>;
+/// Per series (in the order first met), its `(bpvf, log₁₀ error, degenerate)` points.
+type PanelData = Vec<(String, Vec<(f64, f64, bool)>)>;
 
-fn panel_data(points: &[Point], metric: impl Fn(&MetricReport) -> Option<f64>) -> PanelData {
+fn panel_data(
+    points: &[Point],
+    metric: impl Fn(&MetricReport) -> Option<f64>,
+    degenerate: impl Fn(&MetricReport) -> bool,
+) -> PanelData {
     let mut out: PanelData = Vec::new();
     for p in points {
         let Some(y) = metric(&p.report).filter(|y| *y > 0.0 && y.is_finite()) else { continue };
         if !p.bpvf.is_finite() {
             continue;
         }
+        let point = (p.bpvf, y.log10(), degenerate(&p.report));
         match out.iter_mut().find(|(c, _)| *c == p.series) {
-            Some((_, v)) => v.push((p.bpvf, y.log10())),
-            None => out.push((p.series.clone(), vec![(p.bpvf, y.log10())])),
+            Some((_, v)) => v.push(point),
+            None => out.push((p.series.clone(), vec![point])),
         }
     }
     out
@@ -74,6 +84,7 @@ fn panel_data(points: &[Point], metric: impl Fn(&MetricReport) -> Option<f64>) -
 
 fn draw_panel(svg: &mut String, left: f64, width: f64, label: &str, data: &PanelData) {
     let (x0, x1) = padded_range(data.iter().flat_map(|(_, v)| v.iter().map(|p| p.0)), false);
+    let any_degenerate = data.iter().any(|(_, v)| v.iter().any(|p| p.2));
     let (y0, y1) = padded_range(data.iter().flat_map(|(_, v)| v.iter().map(|p| p.1)), true);
     let area = (left + MARGIN.0, TITLE_HEIGHT + MARGIN.2, left + width - MARGIN.1, HEIGHT - MARGIN.3);
     let sx = |x: f64| area.0 + (x - x0) / (x1 - x0) * (area.2 - area.0);
@@ -131,16 +142,34 @@ fn draw_panel(svg: &mut String, left: f64, width: f64, label: &str, data: &Panel
     // Curves, then the legend in the top-right corner of the plot area.
     for (i, (series, pts)) in data.iter().enumerate() {
         let colour = PALETTE[i % PALETTE.len()];
-        let path: Vec<String> = pts.iter().map(|&(x, y)| format!("{:.1},{:.1}", sx(x), sy(y))).collect();
+        let path: Vec<String> =
+            pts.iter().filter(|p| !p.2).map(|&(x, y, _)| format!("{:.1},{:.1}", sx(x), sy(y))).collect();
         let _ = writeln!(
             svg,
             r#"<polyline points="{}" fill="none" stroke="{colour}" stroke-width="2"><title>{}</title></polyline>"#,
             path.join(" "),
             escape(series)
         );
-        for &(x, y) in pts {
-            let _ = writeln!(svg, r#"<circle cx="{:.1}" cy="{:.1}" r="3" fill="{colour}"/>"#, sx(x), sy(y));
+        for &(x, y, degenerate) in pts {
+            if degenerate {
+                let _ = writeln!(
+                    svg,
+                    r#"<circle cx="{:.1}" cy="{:.1}" r="3.5" fill="white" stroke="{colour}" stroke-width="1.5"><title>KG above {STED_DEGENERATE_KG} %: this STED is no result</title></circle>"#,
+                    sx(x),
+                    sy(y)
+                );
+            } else {
+                let _ = writeln!(svg, r#"<circle cx="{:.1}" cy="{:.1}" r="3" fill="{colour}"/>"#, sx(x), sy(y));
+            }
         }
+    }
+    if any_degenerate {
+        let _ = writeln!(
+            svg,
+            r##"<text x="{:.1}" y="{:.1}" font-size="11" fill="#555">open: KG above {STED_DEGENERATE_KG} %, off the line (STED cannot judge them)</text>"##,
+            area.0 + 6.0,
+            area.3 - 8.0
+        );
     }
     if !data.is_empty() {
         let longest = data.iter().map(|(s, _)| s.chars().count()).max().unwrap_or(0) as f64;
@@ -232,6 +261,35 @@ mod tests {
         let t = ticks(-3.3, 0.7);
         assert!(t.iter().all(|v| (-3.3..=0.7).contains(v)) && t.len() >= 3, "{t:?}");
         assert_eq!(ticks(1.0, 1.0), vec![1.0]);
+    }
+
+    #[test]
+    fn points_too_far_for_sted_are_drawn_open_and_off_the_line() {
+        let a = animcodec_synth::tumbling_body_sized(8, 6, 4);
+        let exact = metrics::evaluate(&a, &a, &metrics::EvalOptions::default()).unwrap();
+        let point = |bpvf: f64, kg: f64, sted: f64| Point {
+            codec: "hosvd",
+            series: "hosvd".into(),
+            params: codec_core::ParamSet::defaults("hosvd", &[]),
+            ladder_param: "ss",
+            ladder_index: 0,
+            bytes: 100,
+            bpvf,
+            report: MetricReport { kg: Some(kg), sted: Some(sted), worst_part: None, ..exact.clone() },
+            encode_seconds: 0.0,
+            decode_seconds: 0.0,
+        };
+        // KG 125 at STED 7.6e-5: no result; the other two are.
+        let svg = rd_svg("t", &[point(0.156, 125.0, 7.6e-5), point(0.5, 2.0, 0.05), point(1.0, 0.4, 0.02)]);
+        assert_eq!(svg.matches(r#"fill="white" stroke="#).count(), 1, "one open point: {svg}");
+        assert!(svg.contains("open: KG above 10 %"));
+        // The STED polyline has the two good points only; the KG one has all three.
+        let lines: Vec<usize> = svg
+            .lines()
+            .filter(|l| l.starts_with("<polyline"))
+            .map(|l| l.split("points=\"").nth(1).unwrap().split('"').next().unwrap().split(' ').count())
+            .collect();
+        assert_eq!(lines, [3, 2]);
     }
 
     #[test]

@@ -31,7 +31,7 @@ class TargetEncoding:
     stream: bytes
     codec: str
     params: Dict[str, Any]
-    reached: Optional[float]
+    reached: Dict[str, Optional[float]]
     bpvf: float
     details: Dict[str, Any]
 

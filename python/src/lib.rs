@@ -447,21 +447,25 @@ impl Callback {
     }
 }
 
-/// A search's progress as Python calls: `callback({codec, params, bytes, bpvf, METRIC})` for
-/// every measured point (see [`Callback`]: an exception stops the search and is raised).
+/// A search's progress as Python calls: `callback({codec, params, bytes, bpvf, METRIC…})` (each
+/// bounded metric's value) for every measured point (see [`Callback`]: an exception stops the search and is raised).
 fn progress_reporter(callback: &Callback, target: Target) -> impl Fn(&harness::Point) + Sync + '_ {
     move |p: &harness::Point| {
-        callback.call(&serde_json::json!({
+        let mut point = serde_json::json!({
             "codec": p.codec,
             "params": params_json(&p.params),
             "bytes": p.bytes,
             "bpvf": p.bpvf,
-            target.metric.name(): target.metric.value(&p.report),
-        }));
+        });
+        if let (Value::Object(point), Value::Object(reached)) = (&mut point, front::reached_json(target, &p.report)) {
+            point.extend(reached);
+        }
+        callback.call(&point);
     }
 }
 
-/// What `encode_to_target` searches for, as a dict of every key: `target` (`"kg=0.5"`, …),
+/// What `encode_to_target` searches for, as a dict of every key: `target` (`"kg=0.5"`,
+/// `"kg=0.5,sted=0.05"`, …),
 /// `refine` (extra points between ladder steps), `params` (fixed parameters, or `None`),
 /// `ladder` (the rate ladder alone instead of the declared search space), `progress` (a
 /// callable or `None`).

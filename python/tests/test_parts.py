@@ -59,7 +59,7 @@ def test_default_encode_and_targets_hold_for_the_worst_part():
     assert found.details["parts"] == 2
     assert found.details["worst_part_kg"] <= 1.0
     # The bound is the worst part's: the reached value is its KG (it exceeds the scene's).
-    assert found.reached == found.details["worst_part_kg"]
+    assert found.reached["kg"] == found.details["worst_part_kg"]
 
 
 def test_sweep_rows_carry_the_worst_part():

@@ -127,10 +127,10 @@ pub fn run(args: &ExportArgs, limits: Limits) -> CmdResult {
     let name =
         Path::new(&args.input).file_stem().map_or_else(|| "animcodec".into(), |s| s.to_string_lossy().into_owned());
     let target_kg = match (&args.target, args.target_kg) {
-        (Some(t), _) if t.metric != TargetMetric::Kg => {
-            return Err(format!("--target {t}: export meets KG targets only (--target kg=T)").into())
-        }
-        (Some(t), _) => t.value,
+        (Some(t), _) => match t.single() {
+            Some((TargetMetric::Kg, kg)) => kg,
+            _ => return Err(format!("--target {t}: export meets KG targets only (--target kg=T)").into()),
+        },
         (None, Some(kg)) => kg,
         (None, None) => GltfOptions::default().target_kg,
     };

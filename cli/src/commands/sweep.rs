@@ -308,11 +308,12 @@ fn table(
     let mut out = String::new();
     let kg = harness::envelope(&sweep.points, TargetMetric::Kg);
     let sted = harness::envelope(&sweep.points, TargetMetric::Sted);
+    let joint = harness::joint_envelope(&sweep.points);
     let shown: Vec<&Point> = sweep
         .points
         .iter()
         .enumerate()
-        .filter(|(i, _)| !envelope_only || kg.contains(i) || sted.contains(i))
+        .filter(|(i, _)| !envelope_only || kg.contains(i) || sted.contains(i) || joint.contains(i))
         .map(|(_, p)| p)
         .collect();
     let width = sweep.points.iter().map(|p| p.series.chars().count()).max().unwrap_or(0).max(14);
@@ -353,12 +354,13 @@ fn table(
     if envelope_only {
         let _ = writeln!(
             out,
-            "lower envelope of each codec over its parameter space (by KG or STED): {} of {} points shown, every \
+            "lower envelope of each codec over its parameter space (by KG, STED or both): {} of {} points shown, every \
              point in --json; --ladder for the single-axis ladders",
             shown.len(),
             sweep.points.len()
         );
     }
+    let degenerate = shown.iter().any(|p| harness::sted_degenerate(&p.report));
     for p in shown {
         let knob = format!("{}={}", p.ladder_param, p.ladder_value().map(|v| v.to_string()).unwrap_or_default());
         let r = &p.report;
@@ -371,12 +373,19 @@ fn table(
             p.bpvf,
             num(r.kg),
             part_column(r.worst_part_kg()),
-            num(r.sted),
+            if harness::sted_degenerate(r) { format!("({})", num(r.sted)) } else { num(r.sted) },
             num(r.hausdorff),
             num(Some(r.mse)),
             p.encode_seconds,
             p.decode_seconds,
             w = width
+        );
+    }
+    if degenerate {
+        let _ = writeln!(
+            out,
+            "(sted): KG above {} %, too far from any target for its STED to be a result (off the STED envelope)",
+            harness::STED_DEGENERATE_KG
         );
     }
     for m in monotone_report(&sweep.points).into_iter().filter(|_| !envelope_only) {

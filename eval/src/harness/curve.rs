@@ -4,7 +4,7 @@
 use serde::Serialize;
 
 use super::measured::Point;
-use super::target::{usable, TargetMetric};
+use super::target::{sted_degenerate, usable, TargetMetric};
 
 /// Monotonicity of one codec's curve along its ladder.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -62,10 +62,14 @@ pub fn monotone_report(points: &[Point]) -> Vec<Monotonicity> {
 
 /// Positions in `points` of each codec's lower envelope by `metric`: sorted by bytes, the
 /// points whose error is below that of every smaller stream of the same codec (points that are
-/// not [`usable`] left out). In input order.
+/// not [`usable`] left out, and for STED the [`sted_degenerate`] ones too). In input order.
 pub fn envelope(points: &[Point], metric: TargetMetric) -> Vec<usize> {
-    let mut order: Vec<usize> =
-        (0..points.len()).filter(|&i| metric.value(&points[i].report).is_some() && usable(&points[i])).collect();
+    let mut order: Vec<usize> = (0..points.len())
+        .filter(|&i| {
+            let r = &points[i].report;
+            metric.value(r).is_some() && usable(&points[i]) && !(metric == TargetMetric::Sted && sted_degenerate(r))
+        })
+        .collect();
     order.sort_by_key(|&i| (points[i].codec, points[i].bytes, i));
     let mut keep = Vec::new();
     let mut last: Option<(&str, f64)> = None;
@@ -82,4 +86,28 @@ pub fn envelope(points: &[Point], metric: TargetMetric) -> Vec<usize> {
     }
     keep.sort_unstable();
     keep
+}
+
+/// Positions in `points` of each codec's joint envelope by KG and STED: the points no other
+/// point of the same codec beats on all three of bytes, KG (whole or worst part) and STED
+/// (fewer or equal everywhere, fewer somewhere) — the streams among which a joint target
+/// (`kg=0.5,sted=0.05`) finds its answer. Points not [`usable`], [`sted_degenerate`] or
+/// without both metrics are left out. In input order.
+pub fn joint_envelope(points: &[Point]) -> Vec<usize> {
+    let measured = |i: usize| {
+        let r = &points[i].report;
+        let (kg, sted) = (r.kg_bound()?, r.sted?);
+        (usable(&points[i]) && !sted_degenerate(r) && sted.is_finite()).then_some((points[i].bytes, kg, sted))
+    };
+    let candidates: Vec<(usize, (u64, f64, f64))> =
+        (0..points.len()).filter_map(|i| measured(i).map(|m| (i, m))).collect();
+    candidates
+        .iter()
+        .filter(|(i, (b, k, s))| {
+            !candidates.iter().any(|(j, (b2, k2, s2))| {
+                points[*j].codec == points[*i].codec && b2 <= b && k2 <= k && s2 <= s && (b2 < b || k2 < k || s2 < s)
+            })
+        })
+        .map(|(i, _)| *i)
+        .collect()
 }

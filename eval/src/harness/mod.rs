@@ -35,7 +35,7 @@ mod space;
 mod sweep;
 pub(crate) mod target;
 
-pub use curve::{envelope, monotone_report, Monotonicity};
+pub use curve::{envelope, joint_envelope, monotone_report, Monotonicity};
 pub use default_quality::{search_default_quality, DEFAULT_QUALITY_BAND, DEFAULT_REFINE_BAND, DEFAULT_TARGET};
 pub use measured::Point;
 pub use point::{ladder_indices, ladder_params, measure_point, measure_point_keeping};
@@ -47,7 +47,9 @@ pub use space::{search_space_target, search_space_target_auto};
 pub use sweep::{
     envelope_sweep, sweep, sweep_jobs, sweep_point, Failure, Sweep, SweepEvent, SweepOptions, SweepSeries,
 };
-pub use target::{usable, Target, TargetHit, TargetMetric, TargetMiss, DEGENERATE_KG};
+pub use target::{
+    sted_degenerate, usable, Target, TargetHit, TargetMetric, TargetMiss, DEGENERATE_KG, STED_DEGENERATE_KG,
+};
 
 /// What every harness function fails with (matched by variant: a search that found nothing is
 /// [`EvalError::TargetMiss`]).
@@ -102,14 +104,59 @@ mod tests {
 
     #[test]
     fn targets_parse() {
-        assert_eq!("kg=0.5".parse::<Target>().unwrap(), Target { metric: TargetMetric::Kg, value: 0.5 });
-        assert_eq!("max-error=1e-3".parse::<Target>().unwrap().metric, TargetMetric::MaxError);
-        assert_eq!("STED = 0.01".parse::<Target>().unwrap().metric, TargetMetric::Sted);
+        assert_eq!("kg=0.5".parse::<Target>().unwrap(), Target::new(TargetMetric::Kg, 0.5));
+        assert_eq!("max-error=1e-3".parse::<Target>().unwrap().single().unwrap().0, TargetMetric::MaxError);
+        assert_eq!("STED = 0.01".parse::<Target>().unwrap().bound(TargetMetric::Sted), Some(0.01));
         assert!("kg".parse::<Target>().unwrap_err().contains("METRIC=VALUE"));
         assert!("psnr=3".parse::<Target>().unwrap_err().contains("kg, sted, hausdorff"));
         assert!("kg=-1".parse::<Target>().is_err());
         assert!("kg=nan".parse::<Target>().is_err());
         assert!("kg=x".parse::<Target>().is_err());
+        // Joint targets: every bound, printed in a fixed order, each metric once.
+        let joint: Target = "sted=0.05, kg=0.5".parse().unwrap();
+        assert_eq!(joint, Target::new(TargetMetric::Kg, 0.5).and_bound(TargetMetric::Sted, 0.05));
+        assert_eq!(joint.to_string(), "kg=0.5,sted=0.05");
+        assert_eq!(joint.to_string().parse::<Target>().unwrap(), joint);
+        assert_eq!(joint.single(), None);
+        assert!("kg=0.5,kg=0.1".parse::<Target>().unwrap_err().contains("kg is bounded twice"));
+        assert!("kg=0.5,".parse::<Target>().is_err());
+        let kg: Target = "kg=0.5".parse().unwrap();
+        assert_eq!(kg.and("sted=0.05".parse().unwrap()).unwrap(), joint);
+        assert!(joint.and(kg).is_err());
+        assert_eq!(joint.distortion_kind(), codec_core::DistortionKind::Both);
+        assert_eq!(kg.distortion_kind(), codec_core::DistortionKind::Position);
+        assert_eq!("sted=1".parse::<Target>().unwrap().distortion_kind(), codec_core::DistortionKind::Shape);
+    }
+
+    #[test]
+    fn a_joint_target_is_met_only_when_every_bound_is_and_its_error_is_the_binding_ratio() {
+        let joint: Target = "kg=0.5,sted=0.05".parse().unwrap();
+        let a = synth::tumbling_body_sized(8, 6, 4);
+        let exact = metrics::evaluate(&a, &a, &metrics::EvalOptions::default()).unwrap();
+        // No worst part: KG is the whole animation's.
+        let report = |kg: f64, sted: Option<f64>| metrics::MetricReport {
+            kg: Some(kg),
+            sted,
+            worst_part: None,
+            ..exact.clone()
+        };
+        assert!(joint.meets(&report(0.5, Some(0.05))));
+        assert!(!joint.meets(&report(0.4, Some(0.06))));
+        assert!(!joint.meets(&report(0.6, Some(0.01))));
+        // STED not computed: not met (never assumed).
+        assert!(!joint.meets(&report(0.1, None)));
+        assert_eq!(joint.error(&report(0.1, None)), None);
+        // The binding bound's ratio: KG at 0.8 of its bound, STED at 1.2 of its bound.
+        let e = joint.error(&report(0.4, Some(0.06))).unwrap();
+        assert!((e - 1.2).abs() < 1e-12, "{e}");
+        assert_eq!(joint.level(), 1.0);
+        // One bound: the metric itself, so single-metric searches are unchanged.
+        let kg: Target = "kg=0.5".parse().unwrap();
+        assert_eq!(kg.error(&report(0.4, Some(0.06))), Some(0.4));
+        assert_eq!(kg.level(), 0.5);
+        assert!(joint.eval_options(&metrics::EvalOptions::default()).compute_sted);
+        assert!(!kg.eval_options(&metrics::EvalOptions::default()).compute_sted);
+        assert_eq!(joint.reached_text(&report(0.4, Some(0.06)), 2), "kg=0.40, sted=0.06");
     }
 
     #[test]
@@ -206,7 +253,7 @@ mod tests {
         let registry = test_registry();
         let codec = registry.by_name("quant-delta").unwrap();
         let a = synth::tumbling_body_sized(8, 6, 4);
-        let target = Target { metric: TargetMetric::MaxError, value: 0.0 };
+        let target = Target::new(TargetMetric::MaxError, 0.0);
         let e = search_target(&SearchRequest::new(&registry, &a, target), codec, &codec.default_params()).unwrap_err();
         let EvalError::TargetMiss(miss) = e else { panic!("expected a TargetMiss, got {e}") };
         let top = codec.rate_ladder(&codec.default_params()).steps.len() - 1;
@@ -273,7 +320,11 @@ mod parts_tests {
                         let worst = r.worst_part.as_ref().expect("two parts");
                         assert_eq!(r.parts, 2);
                         assert_eq!(worst.first_vertex, 0, "the body is the worst part: {worst:?}");
-                        assert!(worst.kg.unwrap() <= DEFAULT_TARGET.value, "{}: {worst:?}", codec.name());
+                        assert!(
+                            worst.kg.unwrap() <= DEFAULT_TARGET.bound(TargetMetric::Kg).unwrap(),
+                            "{}: {worst:?}",
+                            codec.name()
+                        );
                         assert!(r.kg.unwrap() < worst.kg.unwrap(), "the scene's KG hides the body's");
                         // The report is the measurement of the stream itself.
                         let decoded = codec_core::StreamDecoder::new(
@@ -303,10 +354,10 @@ mod parts_tests {
         let a = scene(8, 6, 1000.0, 0.0);
         let registry = registry();
         let codec = registry.by_name("quant-delta").unwrap();
-        let target = Target { metric: TargetMetric::Kg, value: 1.0 };
+        let target = Target::new(TargetMetric::Kg, 1.0);
         let hit = search_target(&SearchRequest::new(&registry, &a, target), codec, &codec.default_params()).unwrap();
         let r = &hit.point.report;
         assert!(r.worst_part_kg().unwrap() <= 1.0 && r.kg_bound() == r.worst_part_kg(), "{r:?}");
-        assert_eq!(target.metric.value(r), r.worst_part_kg());
+        assert_eq!(target.error(r), r.worst_part_kg());
     }
 }

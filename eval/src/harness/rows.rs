@@ -11,7 +11,7 @@ use serde::{Deserialize, Serialize};
 use serde_json::{Map, Value};
 
 use super::csv;
-use super::curve::{envelope, monotone_report, Monotonicity};
+use super::curve::{envelope, joint_envelope, monotone_report, Monotonicity};
 use super::measured::Point;
 use super::sweep::{Failure, Sweep};
 use super::target::TargetMetric;
@@ -286,13 +286,15 @@ impl FailureRow {
 }
 
 /// Row positions on each codec's lower envelope (sorted by bytes, error below every smaller
-/// stream of the codec), by KG and by STED.
+/// stream of the codec), by KG and by STED, and on its joint envelope by both.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Envelopes {
     /// By KG.
     pub kg: Vec<usize>,
-    /// By STED.
+    /// By STED (rows whose KG exceeds [`STED_DEGENERATE_KG`](super::STED_DEGENERATE_KG) left out).
     pub sted: Vec<usize>,
+    /// By KG and STED together ([`joint_envelope`](super::joint_envelope)).
+    pub joint: Vec<usize>,
 }
 
 /// The sweep document `sweep --json` writes (and the Python package returns): the input, its
@@ -338,6 +340,7 @@ impl SweepDocument {
             envelope: Envelopes {
                 kg: envelope(&sweep.points, TargetMetric::Kg),
                 sted: envelope(&sweep.points, TargetMetric::Sted),
+                joint: joint_envelope(&sweep.points),
             },
             total_seconds: None,
             jobs: None,

@@ -21,7 +21,7 @@ pub struct SearchRequest<'a> {
     /// The error to meet.
     pub target: Target,
     /// Metric options; a search computes only its target's metric (see
-    /// [`TargetMetric::eval_options`](super::TargetMetric::eval_options)), with these STED
+    /// [`Target::eval_options`]), with these STED
     /// parameters.
     pub eval: EvalOptions,
     /// Decoder limits.
@@ -49,9 +49,9 @@ impl<'a> SearchRequest<'a> {
         }
     }
 
-    /// The metric options a candidate is measured with: the target's metric only.
+    /// The metric options a candidate is measured with: the target's metrics only.
     pub(crate) fn metric_options(&self) -> EvalOptions {
-        self.target.metric.eval_options(&self.eval)
+        self.target.eval_options(&self.eval)
     }
 }
 
@@ -100,7 +100,7 @@ pub fn search_target(request: &SearchRequest<'_>, codec: &dyn AnimationCodec, ba
         let best = measured
             .iter()
             .flatten()
-            .filter_map(|(p, _)| target.metric.value(&p.report).map(|v| (v, p)))
+            .filter_map(|(p, _)| target.error(&p.report).map(|v| (v, p)))
             .min_by(|a, b| a.0.total_cmp(&b.0))
             .map(|(_, p)| p.clone());
         TargetMiss { codec: codec.name(), target, best, refused: Vec::new() }.into()
@@ -127,7 +127,7 @@ pub fn search_target(request: &SearchRequest<'_>, codec: &dyn AnimationCodec, ba
         measure(k - 2, &mut measured)?;
     }
     let values: Vec<f64> =
-        measured.iter().flatten().map(|(p, _)| target.metric.value(&p.report).unwrap_or(f64::INFINITY)).collect();
+        measured.iter().flatten().map(|(p, _)| target.error(&p.report).unwrap_or(f64::INFINITY)).collect();
     let monotone = values.windows(2).all(|w| w[1] <= w[0] + 1e-9 * w[0].abs().max(w[1].abs()) || w[0].is_infinite());
     if !monotone {
         for i in 0..k {

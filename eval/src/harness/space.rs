@@ -154,11 +154,11 @@ impl SpaceSearcher<'_> {
         c.outcome.as_ref().is_ok_and(|(p, _)| usable(p) && meets(self.target, p))
     }
 
-    /// The target metric's value of a usable measured candidate (`None` for a rejected or
+    /// The target's error ([`Target::error`]) of a usable measured candidate (`None` for a rejected or
     /// degenerate one, whose error says nothing about its neighbours).
     fn error(&self, c: &Candidate) -> Option<f64> {
         let (p, _) = c.outcome.as_ref().ok()?;
-        let v = self.target.metric.value(&p.report)?;
+        let v = self.target.error(&p.report)?;
         (usable(p) && v.is_finite() && v > 0.0).then_some(v)
     }
 
@@ -189,7 +189,7 @@ impl SpaceSearcher<'_> {
         if known.len() < 2 {
             return (None, None);
         }
-        let aim = (REFINE_AIM * self.target.value).ln();
+        let aim = (REFINE_AIM * self.target.level()).ln();
         known.sort_by(|a, b| (a.1 - aim).abs().total_cmp(&(b.1 - aim).abs()));
         // The pair nearest the target along which the error falls (errors are step functions
         // of some ladders, so two near points can share one value).
@@ -225,7 +225,7 @@ impl SpaceSearcher<'_> {
         let fractional = refine > 0 && numeric(&run.ladder);
         let specs = self.codec.param_specs();
         let max_points = 2 * n + refine;
-        let aim = REFINE_AIM * self.target.value;
+        let aim = REFINE_AIM * self.target.level();
         let mut next = start.clamp(0.0, last);
         let mut refined = 0;
         while run.candidates.len() < max_points {
@@ -271,7 +271,7 @@ impl SpaceSearcher<'_> {
             let error_slope = own_error_slope.or(prior.error_slope).unwrap_or(DEFAULT_ERROR_SLOPE);
             next = match (fail, pass) {
                 (Some(f), Some(p)) => {
-                    if fractional && self.error(p).is_some_and(|e| e >= REFINE_CLOSE * self.target.value) {
+                    if fractional && self.error(p).is_some_and(|e| e >= REFINE_CLOSE * self.target.level()) {
                         break;
                     }
                     let width = p.position - f.position;
@@ -304,7 +304,7 @@ impl SpaceSearcher<'_> {
                     }
                 }
                 (None, Some(p)) => {
-                    let close = self.error(p).is_some_and(|e| e >= REFINE_CLOSE * self.target.value);
+                    let close = self.error(p).is_some_and(|e| e >= REFINE_CLOSE * self.target.level());
                     if p.position <= 0.0 || fractional && close {
                         break;
                     }
@@ -408,8 +408,21 @@ pub fn search_space_target(
     base: &ParamSet,
     fixed: &[&str],
 ) -> Result<TargetHit> {
+    search_space_target_below(request, codec, base, fixed, None)
+}
+
+/// [`search_space_target`], abandoning every configuration (the first one too) by the rules
+/// of a warm-started one once it cannot beat `bound` bytes: a failing stream already as large,
+/// or a predicted stream at the target larger by the abandon margin. `None`: no bound.
+fn search_space_target_below(
+    request: &SearchRequest<'_>,
+    codec: &dyn AnimationCodec,
+    base: &ParamSet,
+    fixed: &[&str],
+    bound: Option<u64>,
+) -> Result<TargetHit> {
     let target = request.target;
-    let space = codec.search_space_for(base, target.metric.distortion_kind()).without(fixed);
+    let space = codec.search_space_for(base, target.distortion_kind()).without(fixed);
     let specs = codec.param_specs();
     let mut runs: Vec<ConfigRun> = space
         .configurations()
@@ -426,9 +439,9 @@ pub fn search_space_target(
     }
     let searcher = SpaceSearcher { request, codec, target, eval: request.metric_options() };
     let (first, others) = runs.split_first_mut().expect("checked non-empty");
-    let cold = Prior { position: 0.0, error_slope: None, size_slope: None, best_bytes: None };
+    let cold = Prior { position: 0.0, error_slope: None, size_slope: None, best_bytes: bound };
     // The codec's start for this kind of error, unless the user fixed the ladder parameter.
-    let start = match codec.search_start(base, target.metric.distortion_kind()) {
+    let start = match codec.search_start(base, target.distortion_kind()) {
         Some(value) if !fixed.contains(&first.ladder.param) => {
             let mut at = base.clone();
             at.set(&specs, first.ladder.param, value).map_err(EvalError::from)?;
@@ -437,7 +450,11 @@ pub fn search_space_target(
         _ => start_position(&first.ladder, base),
     };
     searcher.search(first, start, &cold)?;
-    let prior = searcher.prior(first);
+    let mut prior = searcher.prior(first);
+    prior.best_bytes = match (prior.best_bytes, bound) {
+        (Some(a), Some(b)) => Some(a.min(b)),
+        (a, b) => a.or(b),
+    };
     others.par_iter_mut().map(|run| searcher.search(run, prior.position, &prior)).collect::<Result<Vec<()>>>()?;
     // STED targets: every configuration's smallest step too. A shape error need not grow
     // toward the small end of a ladder: the smallest model that is not flat (hosvd's
@@ -448,7 +465,7 @@ pub fn search_space_target(
     // 0.998 STED 0.089 at 0.076 bits per vertex per frame, 0.99 STED 0.12 at 0.12). A search
     // that brackets the target assumes monotone errors and never looks there. One encode per
     // configuration, the cheapest of its ladder.
-    if target.metric.distortion_kind() == DistortionKind::Shape {
+    if target.distortion_kind() == DistortionKind::Shape {
         runs.par_iter_mut().map(|run| searcher.probe_smallest(run)).collect::<Result<Vec<()>>>()?;
     }
 
@@ -478,12 +495,22 @@ pub fn search_space_target(
 /// [`search_space_target`] for every codec in `codecs` (each on its defaults, nothing fixed),
 /// keeping the smallest stream (ties: the earlier codec). Codecs that cannot meet the target
 /// are skipped; if none can, the error lists each codec's best. Other failures are errors.
+///
+/// Once a codec has met the target, each later codec is searched below that stream's size:
+/// its configurations are abandoned as soon as they cannot beat it (a failing stream already
+/// as large, or a predicted stream at the target larger by the abandon margin), so a codec far
+/// behind costs an encode or two instead of its whole search. Such a codec is listed among the
+/// other codecs only when it met the target before being abandoned. Sequential over codecs:
+/// the same answer at any thread count.
 pub fn search_space_target_auto(
     request: &SearchRequest<'_>,
     codecs: &[&dyn AnimationCodec],
 ) -> Result<(TargetHit, Vec<TargetHit>)> {
+    let best = std::cell::Cell::new(None::<u64>);
     smallest_over_codecs(codecs, request.target, |codec| {
-        search_space_target(request, codec, &codec.default_params(), &[])
+        let hit = search_space_target_below(request, codec, &codec.default_params(), &[], best.get())?;
+        best.set(Some(best.get().map_or(hit.point.bytes, |b| b.min(hit.point.bytes))));
+        Ok(hit)
     })
 }
 
