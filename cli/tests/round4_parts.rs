@@ -1,4 +1,4 @@
-//! Issue 41, adversarial round 4, the findings on parts and points:
+//! Parts and points (the reproducers of `../shared/probe-round4`, built here):
 //!
 //! * `small-object-destroyed`: a deforming 1 × 1 plane beside a static 1000 × 1000 floor, a
 //!   static triangle at x = 1e5 or a far copy: every default encode exited 0 at a scene KG
@@ -88,8 +88,7 @@ fn number(v: &Value, key: &str) -> f64 {
 
 /// The probe: every default encode (each codec and `-c auto`) of the three scenes either meets
 /// the default quality on the body (measured by `eval` of the written stream, the body alone)
-/// or fails with a clear message. Before issue 41 all but sac exited 0 with the body at KG
-/// 18–5200 %.
+/// or fails with a clear message: a scene KG can hide a small part at KG 18–5200 %.
 #[test]
 fn default_encodes_hold_the_quality_on_every_part() {
     let s = Scratch::new("round4-parts-default");
