@@ -1092,6 +1092,7 @@ pub fn corrupt_config_and_version_never_panic(registry: &CodecRegistry) -> Failu
         configs.push(("config of 4096 0xFF bytes".into(), vec![0xFF; 4096]));
         let version = h.info.codec_version;
         for (what, config) in configs {
+            f.count(1);
             match rebuild(h, &config, version, None, None, &parts.packets) {
                 Err(e) => f.push(codec.name(), format!("{label}: {what}: rebuild failed: {e}")),
                 Ok(b) => {
@@ -1102,6 +1103,7 @@ pub fn corrupt_config_and_version_never_panic(registry: &CodecRegistry) -> Failu
             }
         }
         for v in [0, codec.stream_version() + 1, u16::MAX] {
+            f.count(1);
             let b = rebuild(h, &h.config, v, None, None, &parts.packets).expect("rebuild");
             match decode_guarded(&b, registry, judge.limits) {
                 Ok(out) if out.result.is_err() => {}
@@ -1110,6 +1112,7 @@ pub fn corrupt_config_and_version_never_panic(registry: &CodecRegistry) -> Failu
             }
         }
         for v in 1..codec.stream_version() {
+            f.count(1);
             let b = rebuild(h, &h.config, v, None, None, &parts.packets).expect("rebuild");
             if let Some(m) = judge.judge(&format!("{label}: older version {v}"), &b) {
                 f.push(codec.name(), m);
