@@ -238,7 +238,7 @@ fn streamed_flag_encodes_to_the_same_bytes_as_the_whole_flag() {
 
 /// Encoder notes (`FrameEncoder::notes`) reach the user: `warning:` lines in the text output,
 /// a `notes` array with `--json` (empty when there is nothing to say). sac's error guard at a
-/// tiny `max_error` refreshes one P-frame (its cap) and repairs the others, and says so (issue 14).
+/// tiny `max_error` refreshes one P-frame (its cap) and repairs the others, and says so.
 #[test]
 fn encode_prints_the_encoders_warnings() {
     let s = Scratch::new("encode-notes");

@@ -1,4 +1,4 @@
-//! Issue 29 part 1: our default GLB export against `gltfpack -cc` (meshoptimizer's packer, npm
+//! Our default GLB export against `gltfpack -cc` (meshoptimizer's packer, npm
 //! `gltfpack` 1.3.0, pinned in `tests/gltf/package.json`) on the same frames, at the error
 //! three.js plays back. gltfpack packs our exact `--layout frames --no-compress` export; both
 //! files are read back with our glTF reader (which agrees with three.js's playback of either to
@@ -22,7 +22,7 @@ use codec_core::testing::skip;
 use codec_core::Animation;
 use common::{node_packages, shared_data, Scratch};
 
-/// The size ratio the issue asks for.
+/// The size ratio our export must reach against gltfpack's: 0.7× its bytes at no more KG.
 const RATIO: f64 = 0.7;
 
 /// Runs `gltfpack -cc` on `input` (keys at `fps`): at a rate other than its default 30 Hz,
@@ -161,7 +161,7 @@ fn compare(tools: &Path, s: &Scratch, name: &str, a: &Animation) -> Row {
     row
 }
 
-/// Asserts the issue's bar on `row`: KG ≤ gltfpack's and bytes ≤ 0.7× gltfpack's.
+/// Asserts the bar on `row`: KG ≤ gltfpack's and bytes ≤ 0.7× gltfpack's.
 fn assert_beats(row: &Row) {
     assert!(row.ours_kg <= row.gltfpack_kg, "{}: our KG {} > gltfpack's {}", row.name, row.ours_kg, row.gltfpack_kg);
     assert!(
@@ -187,7 +187,7 @@ fn our_glb_beats_gltfpack_on_a_synthetic_animation() {
     assert_beats(&compare(&tools, &s, "flag", &a));
 }
 
-/// The issue's Done-when: samba, chicken-crossing and three RobotExpressive animations.
+/// The real animations the comparison is made on: samba, chicken-crossing and three RobotExpressive animations.
 #[test]
 fn our_glb_beats_gltfpack_on_the_real_animations() {
     let test = "our_glb_beats_gltfpack_on_the_real_animations";

@@ -95,7 +95,8 @@ fn encode_eval_reports_the_metrics_of_the_written_stream() {
     fails(&["encode", "synth:flag:8x8x10", "-c", "quant-delta", "-o", &anim, "-f", "--eval"], &["--eval", "in memory"]);
 }
 
-/// `animcodec eval` prints the STED of the metric author's tool within 1% on every pair of
+/// `animcodec eval` prints the STED of the metric author's tool within 5e-4 (relative; the
+/// worst pair measured 3.06e-4, see `metrics/tests/sted_oracle.rs`) on every pair of
 /// `../shared/sted-oracle` (a visible skip when it is absent, a failure under CI's
 /// `ANIMCODEC_REQUIRE_ALL=1`).
 #[test]
@@ -117,7 +118,7 @@ fn eval_reproduces_the_sted_oracle() {
         let (reference, candidate, topology) = (path("reference"), path("candidate"), path("topology"));
         let v = ok_json(&["eval", &reference, &candidate, "--topology", &topology, "--json", "--no-hausdorff"]);
         let (ours, tool) = (f(&v["sted"]), pair["sted"].as_f64().unwrap());
-        assert!((ours / tool - 1.0).abs() < 0.01, "{candidate}: tool {tool}, animcodec eval {ours}");
+        assert!((ours / tool - 1.0).abs() <= 5e-4, "{candidate}: tool {tool}, animcodec eval {ours}");
     }
 }
 
@@ -573,19 +574,19 @@ fn export_writes_gltf_that_plays_back_at_the_reported_error() {
     assert_eq!(v["layout"], "basis");
     let k = v["targets"].as_u64().unwrap();
     assert!((1..40).contains(&k), "{v}");
-    assert!(f(&v["kg"]) <= 0.05 * 1.05, "{v}");
+    assert!(f(&v["kg"]) <= 0.05, "{v}");
     // `eval` reads the GLB with the same reader and gets the same KG, on a file that keeps the
     // input's vertices (the default export welds and reorders them as gltfpack does, and
     // measures its KG through the vertex map).
     let kept_glb = s.path("kept.glb");
     let kept = ok_json(&["export", &pc2, "-o", &kept_glb, "--json", "--keep-vertices"]);
-    assert!(f(&kept["kg"]) <= 0.05 * 1.05, "{kept}");
+    assert!(f(&kept["kg"]) <= 0.05, "{kept}");
     let e = ok_json(&["eval", &pc2, &kept_glb, "--json", "--no-hausdorff"]);
     assert_eq!(f(&e["kg"]), f(&kept["kg"]));
     // The welded, reordered default export is not compared vertex by vertex: `eval` says why.
     fails(&["eval", &pc2, &glb], &["topology differs", "--keep-vertices"]);
     let loose = ok_json(&["export", &pc2, "-o", &glb, "-f", "--json", "--target-kg", "1"]);
-    assert!(loose["targets"].as_u64().unwrap() < k && f(&loose["kg"]) <= 1.05, "{loose}");
+    assert!(loose["targets"].as_u64().unwrap() < k && f(&loose["kg"]) <= 1.0, "{loose}");
     let gltf = s.path("flag.gltf");
     let exact = ok_json(&["export", &pc2, "-o", &gltf, "--json", "--layout", "frames", "--no-compress"]);
     assert_eq!(exact["targets"].as_u64(), Some(39));
@@ -602,13 +603,13 @@ fn export_writes_gltf_that_plays_back_at_the_reported_error() {
     let out = s.path("decoded.glb");
     ok(&["decode", &anim, "-o", &out]);
     let e = ok_json(&["eval", &anim, &out, "--json", "--no-hausdorff"]);
-    assert!(f(&e["kg"]) <= 0.05 * 1.05, "{e}");
+    assert!(f(&e["kg"]) <= 0.05, "{e}");
     fails(&["export", &pc2, "-o", &glb, "-f", "--layout", "rows"], &["rows", "basis or frames"]);
     fails(&["export", &pc2, "-o", &glb], &["already exists", "--force"]);
     fails(&["export", &glb, "-o", &glb, "-f"], &["also an input"]);
     fails(&["export", &pc2, "-o", &s.path("flag.fbx")], &[".glb or .gltf"]);
     fails(&["export", &pc2, "-o", &glb, "-f", "--target-kg", "0"], &["target_kg"]);
-    // The spelling, --target kg=T, is the same request; other metrics are refused.
+    // The general spelling, --target kg=T, is the same request; other metrics are refused.
     let same = ok_json(&["export", &pc2, "-o", &glb, "-f", "--json", "--target", "kg=1"]);
     assert_eq!((same["targets"].clone(), same["bytes"].clone()), (loose["targets"].clone(), loose["bytes"].clone()));
     fails(&["export", &pc2, "-o", &glb, "-f", "--target", "sted=0.1"], &["kg=T"]);

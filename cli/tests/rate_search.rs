@@ -1,5 +1,5 @@
-//! Tests of quality-targeted rate control over each codec's declared parameter space
-//! (issue 26): `harness::search_space_target`, the envelope sweep, and the default quality of
+//! Tests of quality-targeted rate control over each codec's declared parameter space:
+//! `harness::search_space_target`, the envelope sweep, and the default quality of
 //! `animcodec encode` without `-p`.
 
 use animcodec::harness::{
@@ -209,8 +209,8 @@ fn candidates_decoding_to_non_finite_coordinates_are_rejected() {
 // A codec whose smallest step is a still shape: quant-delta that, at `bits = 4` (its ladder's
 // first step), codes frame 0 for every frame (at 14 bits). STED, which sees edge lengths only,
 // scores that still shape better than the next steps' quantization noise: a shape error that is
-// not monotone at the small end of the ladder (hosvd's `(v, f) = (3, 1)` on chicken-crossing,
-// issue 26, seventh session).
+// not monotone at the small end of the ladder (as hosvd's `(v, f) = (3, 1)` is on
+// chicken-crossing).
 
 struct Freezing;
 

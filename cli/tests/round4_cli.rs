@@ -1,4 +1,4 @@
-//! Issue 41, adversarial round 4, the command line's part (`docs/notes/issue-41-cli.md`): worker
+//! The command line on the reproducers of `../shared/probe-round4` (`docs/notes/issue-41-cli.md`): worker
 //! counts bounded (`jobs-threads`), the interrupt message true after an OBJ sequence's commit
 //! (`sigint-seq`), and the smaller findings of `misc`: export/view refuse a missing folder
 //! before the work, `export --targets K` writes K targets and refuses `--target-kg` beside it,

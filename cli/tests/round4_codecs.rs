@@ -1,4 +1,4 @@
-//! Issue 41, adversarial round 4: the decoder findings, as the probe scripts of
+//! Hostile streams for the decoders, as the probe scripts of
 //! `../shared/probe-round4/` ran them (`forged-vertex-count`, `hosvd-work`, `sac-config`, the
 //! forged frame rate of `misc`). Every input is built here: streams encoded from `synth:`
 //! inputs by the binary, then forged (header fields changed, the header CRC recomputed), or

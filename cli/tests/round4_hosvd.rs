@@ -1,4 +1,4 @@
-//! Issue 41, adversarial round 4 (`../shared/probe-round4/`), the hosvd encoder's findings:
+//! The hosvd encoder on the reproducers of `../shared/probe-round4/`:
 //!
 //! - `hosvd-offset`: the same animation translated by 1e4 / 1e5 / 1e6 encoded with
 //!   `-p ss=0.95` at KG 3.3 / 19.8 / 103 %, exit 0 (stream version 6 centres every packet

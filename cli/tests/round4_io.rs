@@ -1,5 +1,5 @@
-//! Issue 41, adversarial round 4, the input/output findings (one test per probe of
-//! ../shared/probe-round4, its inputs built here):
+//! Input and output safety, one test per reproducer of ../shared/probe-round4 (its inputs
+//! built here):
 //! - gltf-buffer-overwrite: every file a command reads (a `.gltf`'s external buffer, in any
 //!   spelling) is one of its inputs, which no output replaces, even with `--force`;
 //! - misc (synth): `synth -o a.mdd -f` does not replace an `a.obj` that is not its own;
@@ -122,7 +122,7 @@ fn synth_force_never_replaces_another_caches_obj() {
     ok(&["synth", "flag", "--size", "medium", "-o", &s.path("c.pc2"), "-f"]);
     let back = animcodec::formats::read_animation(Path::new(&s.path("c.pc2")), &Default::default()).unwrap();
     assert_eq!(back.vertex_count(), synth::by_name("flag", SynthSize::Medium).unwrap().vertex_count());
-    // decode --topology-obj asks for the companion by name: --force replaces it (issue 27).
+    // decode --topology-obj asks for the companion by name: --force replaces it.
     let anim = s.path("a.anim");
     ok(&["encode", "synth:flag", "-c", "quant-delta", "-o", &anim]);
     ok(&["decode", &anim, "-o", &s.path("b.pc2"), "--topology-obj", "-f"]);

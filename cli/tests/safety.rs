@@ -1,7 +1,6 @@
-//! Issue 16: output safety (temporary file + rename, `--force`, inputs never overwritten,
+//! Output safety (temporary file + rename, `--force`, inputs never overwritten,
 //! OBJ-sequence folders, placeholders), error messages (no panic text, no Debug values, the
-//! right words), and `info` verifying checksums. One test per reproducer of the issue.
-//! Issue 27 ("Files lost", "Other"): an OBJ sequence touches only its own name pattern, outputs
+//! right words), and `info` verifying checksums. An OBJ sequence touches only its own name pattern, outputs
 //! are validated before they replace anything and committed together, two outputs on one path
 //! and `-` as a file are refused, a cache is never paired with another mesh's OBJ, and metric
 //! parameters giving NaN or infinity are refused.
@@ -138,7 +137,7 @@ fn decode_writes_the_topology_obj_only_when_asked() {
     ok(&["encode", "synth:flag", "-c", "quant-delta", "-o", &anim]);
     let obj = s.path("e.obj");
     std::fs::write(&obj, "v 0 0 0\n").unwrap();
-    // e.obj is not the decoded mesh, and a later read of e.pc2 would pair it: refused (issue 27).
+    // e.obj is not the decoded mesh, and a later read of e.pc2 would pair it: refused.
     fails(&["decode", &anim, "-o", &s.path("e.pc2"), "-f"], &["e.pc2", "e.obj", "--topology-obj"]);
     assert!(!Path::new(&s.path("e.pc2")).exists());
     assert_eq!(std::fs::read_to_string(&obj).unwrap(), "v 0 0 0\n", "e.obj was never named: untouched");
@@ -226,7 +225,7 @@ fn repeated_parameters_and_auto_with_parameters_are_explained() {
         &["'bits'", "more than once"],
     );
     fails(&["inspect", "synth:flag", "-p", "w=3", "-p", "w=4"], &["'w'", "more than once"]);
-    // Without a target, -c auto aims at the default quality (issue 26); it takes no -p.
+    // Without a target, -c auto aims at the default quality; it takes no -p.
     fails(&["encode", "synth:flag", "-c", "auto", "-p", "bits=8", "-o", &out], &["auto", "-p"]);
     assert!(!Path::new(&out).exists());
 }
@@ -236,8 +235,8 @@ fn limit_errors_name_bytes_not_frames() {
     let s = Scratch::new("limits");
     let out = s.path("t.anim");
     ok(&["encode", "synth:flag", "-c", "quant-delta", "-o", &out]);
-    // A whole-animation decode (to OBJ) is charged the whole animation; a streamed one (to PC2,
-    // issue 30) one packet at a time, so it needs a smaller budget to fail.
+    // A whole-animation decode (to OBJ) is charged the whole animation; a streamed one (to PC2)
+    // one packet at a time, so it needs a smaller budget to fail.
     let e = fails(&["--max-memory", "100K", "decode", &out, "-o", &s.path("t.obj")], &["bytes", "102400", "limit"]);
     assert!(!e.contains("frame_count"), "{e}");
     let e = fails(&["--max-memory", "4K", "decode", &out, "-o", &s.path("t.pc2")], &["bytes", "4096", "limit"]);
@@ -381,7 +380,7 @@ fn assert_clean_error(o: &std::process::Output, needles: &[&str]) {
     }
 }
 
-/// Issue 27, files lost 1: `decode a.anim -o ./ -f` deleted every `*.obj` of the folder.
+/// `decode a.anim -o ./ -f` must not delete the folder's other `*.obj` files.
 #[test]
 fn an_obj_sequence_never_touches_files_outside_its_name_pattern() {
     let s = Scratch::new("obj-pattern");
@@ -432,7 +431,7 @@ fn an_obj_sequence_never_touches_files_outside_its_name_pattern() {
     assert!(!has_temporary(&s.0));
 }
 
-/// Issue 27, files lost 2: a failed command had already replaced its output.
+/// A failed command leaves its output as it was (nothing is replaced before the work succeeds).
 #[test]
 fn a_failed_command_leaves_the_old_output_and_no_new_file() {
     let s = Scratch::new("validated");
@@ -478,7 +477,7 @@ fn a_failed_command_leaves_the_old_output_and_no_new_file() {
     assert!(!has_temporary(&s.0));
 }
 
-/// Issue 27, files lost 3: one command's outputs are replaced together or not at all.
+/// One command's outputs are replaced together or not at all.
 #[test]
 fn a_commands_outputs_are_committed_together_or_not_at_all() {
     let s = Scratch::new("together");
@@ -502,7 +501,8 @@ fn a_commands_outputs_are_committed_together_or_not_at_all() {
     assert!(std::fs::read_to_string(&csv).unwrap().starts_with("codec,"));
 }
 
-/// Issue 27, files lost 3: `sweep … --json o.txt --csv o.txt` kept only the CSV.
+/// Two outputs on one path (`sweep … --json o.txt --csv o.txt`) are refused: one would
+/// silently replace the other.
 #[test]
 fn two_outputs_on_one_path_are_refused_in_any_spelling() {
     let s = Scratch::new("one-path");
@@ -536,7 +536,7 @@ fn two_outputs_on_one_path_are_refused_in_any_spelling() {
     assert_eq!(names(&s.0), ["hard.txt", "link.txt", "o.txt", "sub"]);
 }
 
-/// Issue 27, other: `--csv -` wrote a file named `-`. `-` is stdout where the help says so
+/// `--csv -` must not write a file named `-`: `-` is stdout where the help says so
 /// (`--json -`), and refused as a file name everywhere else.
 #[test]
 fn a_dash_is_stdout_or_refused_never_a_file() {
@@ -557,8 +557,8 @@ fn a_dash_is_stdout_or_refused_never_a_file() {
     assert_eq!(names(&s.0), ["a.anim"], "no file named '-'");
 }
 
-/// Issue 27, other: `decode -o X.pc2` beside a stale `X.obj` of another mesh with the same
-/// vertex count paired the wrong triangles later, silently.
+/// `decode -o X.pc2` beside a stale `X.obj` of another mesh with the same vertex count must
+/// not let a later read pair the wrong triangles silently.
 #[test]
 fn a_cache_is_never_paired_with_another_meshs_obj() {
     let s = Scratch::new("pairing");
@@ -587,7 +587,8 @@ fn a_cache_is_never_paired_with_another_meshs_obj() {
     assert_eq!(back.triangles(), flag.triangles());
 }
 
-/// Issue 27, other: `eval --sted-dt 1e-300` gave STED NaN and `--sted-c 1e300` infinity.
+/// Metric parameters that would give STED NaN (`eval --sted-dt 1e-300`) or infinity
+/// (`--sted-c 1e300`) are refused.
 #[test]
 fn metric_parameters_giving_nan_or_infinity_are_refused_everywhere() {
     let s = Scratch::new("sted-params");

@@ -1,4 +1,4 @@
-//! Issue 30: PC2/MDD and OBJ-sequence encodes read frame by frame, decodes to PC2/MDD written
+//! Streaming: PC2/MDD and OBJ-sequence encodes read frame by frame, decodes to PC2/MDD written
 //! frame by frame, `synth flag:CxRxF` written frame by frame, and `encode --memory`. The streamed
 //! paths must give the same bytes as the in-memory ones; memory itself is measured by
 //! `bench/scale.sh`.
@@ -52,7 +52,7 @@ fn streamed_encodes_equal_the_in_memory_encodes_for_every_codec() {
     }
 }
 
-/// Issue 30: an OBJ sequence (a directory or a file-name pattern) is read one file per frame,
+/// An OBJ sequence (a directory or a file-name pattern) is read one file per frame,
 /// and gives the bytes of the whole read (`--eval`) and of the PC2 of the same frames.
 #[test]
 fn an_obj_sequence_streams_to_the_bytes_of_the_whole_read_and_of_its_pc2() {

@@ -115,7 +115,7 @@ impl Animation {
         if positions.is_empty() {
             return Err(Error::InvalidAnimation("the animation has no frames".into()));
         }
-        if positions.len() % floats_per_frame != 0 {
+        if !positions.len().is_multiple_of(floats_per_frame) {
             return Err(Error::InvalidAnimation(format!(
                 "{} coordinates is not a whole number of frames of {} vertices",
                 positions.len(),
@@ -221,7 +221,7 @@ impl Animation {
 /// path that takes frames in chunks (the stream encoder, the streaming cache writer).
 pub fn whole_frames(coordinates: usize, vertex_count: usize) -> Result<usize> {
     let per_frame = vertex_count * 3;
-    if per_frame == 0 || coordinates % per_frame != 0 {
+    if per_frame == 0 || !coordinates.is_multiple_of(per_frame) {
         return Err(Error::InvalidAnimation(format!(
             "{coordinates} coordinates is not a whole number of frames of {vertex_count} vertices"
         )));

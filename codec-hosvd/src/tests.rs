@@ -653,7 +653,7 @@ fn column_modes_decode_to_the_encoder_reconstruction() {
     assert!(n < b2.payload.len(), "{n} vs {}", b2.payload.len());
 }
 
-/// Issue 26: a codec forced into the divergent mode. With version 4's unguarded regression
+/// A codec forced into the divergent mode. With version 4's unguarded regression
 /// forced on every `U1` column, the spheres-like character (tiny rigid parts whose decoded
 /// leads are flat up to rounding) makes a column's closed loop fail; the encoder re-codes it
 /// with the mesh predictor, says so in its notes, and the stream it writes decodes to what it
@@ -717,7 +717,8 @@ fn spheres_like_character_needs_no_fallback_by_default() {
     assert_eq!(dec.positions(), enc.reconstruction.unwrap().positions());
 }
 
-/// Issue 28: specs, parsing and printing of every parameter agree (one declaration each).
+/// Specs, parsing and printing of every parameter agree (one declaration each), so a
+/// parameter cannot be documented with one range and parsed with another.
 #[test]
 fn parameter_declaration_agrees_with_specs_parsing_and_printing() {
     codec_core::testing::check_declared_params::<HosvdParams>();
@@ -728,9 +729,9 @@ fn parameter_declaration_agrees_with_specs_parsing_and_printing() {
     assert!(!HosvdParams::from_param_set(&hooked.to_param_set().unwrap()).unwrap().force_unguarded_regression);
 }
 
-/// Issue 41 (`../shared/probe-round4/hosvd-offset`): the same animation translated far from the
-/// origin keeps its error. Before stream version 6 (centring) the Gram route lost the motion
-/// under the offset: the probe's plane at 1e5 decoded at KG 20 % (3 % at 1e4, 103 % at 1e6).
+/// The same animation translated far from the origin keeps its error: the encoder centres it
+/// (stream version 6) because the uncentred Gram route loses the motion under the offset (a
+/// plane at 1e5 decoded at KG 20 %, 3 % at 1e4, 103 % at 1e6).
 #[test]
 fn a_translated_animation_keeps_its_error_and_stores_its_centre() {
     let anim = flag(12, 9, 30, 1.0, 0.0);
@@ -765,7 +766,7 @@ fn a_translated_animation_keeps_its_error_and_stores_its_centre() {
     }
 }
 
-/// Issue 41: the encoder refuses a reconstruction far beyond what its ranks and steps promise
+/// The encoder refuses a reconstruction far beyond what its ranks and steps promise
 /// (here a forged one), and accepts one within it plus the output's f32 rounding.
 #[test]
 fn the_precision_check_refuses_a_reconstruction_beyond_its_promise() {

@@ -338,18 +338,50 @@ fn encode_coded(
     } else {
         None
     };
-    let skip = op.as_ref().map(|_| operator::anchor_positions(graph, p.spacing as usize));
-    let anchor_chain = op.as_ref().map(|op| CausalGraph::chain(op.anchors().len(), false));
+    let decoded_coeffs =
+        code_coefficients(&mut enc, graph, op.as_ref(), p.spacing as usize, &coeffs, rank, (s, anchor_step));
+    let decoded = Decoded { avg, centroid, basis, coeffs: decoded_coeffs };
+    let out = decoded.frames(v, f);
+    if out.iter().any(|x| !x.is_finite()) {
+        return Ok(None);
+    }
+    let header =
+        Header { laplacian: op.is_some(), spacing: p.spacing as usize, step: s, mean_step, anchor_step, basis_steps };
+    let mut w = ByteWriter::new();
+    w.u8(MODE_CODED);
+    header.write(&mut w);
+    w.bytes(&enc.finish());
+    Ok(Some(Coded { bytes: w.into_vec(), frames: out }))
+}
+
+/// Codes the `rank` coefficient fields (`coeffs`, column-major `V × rank`) at step `s`: as
+/// cotangent-Laplacian deltas with anchors coded apart at `anchor_step` when `op` is given
+/// (anchors every `spacing` positions along the coding order), else directly along the coding
+/// order with the parallelogram predictor. Returns the fields as the decoder reconstructs them.
+fn code_coefficients(
+    enc: &mut AdaptiveEncoder,
+    graph: &CausalGraph,
+    op: Option<&Operator>,
+    spacing: usize,
+    coeffs: &[f64],
+    rank: usize,
+    (s, anchor_step): (f64, f64),
+) -> Vec<f64> {
+    let v = graph.len();
+    let order = graph.order();
+    let (mut codes, mut recon) = (Vec::new(), Vec::new());
+    let skip = op.map(|_| operator::anchor_positions(graph, spacing));
+    let anchor_chain = op.map(|op| CausalGraph::chain(op.anchors().len(), false));
     let mut decoded_coeffs = vec![0.0; v * rank];
     let inv = 1.0 / s;
     for j in 0..rank {
         let field = &coeffs[j * v..(j + 1) * v];
         let out = &mut decoded_coeffs[j * v..(j + 1) * v];
-        match (&op, &skip, &anchor_chain) {
+        match (op, &skip, &anchor_chain) {
             (Some(op), Some(skip), Some(anchor_chain)) => {
                 let values: Vec<f64> = op.anchors().iter().map(|&a| field[a as usize]).collect();
                 predict::quantize(anchor_chain, Predictor::Previous, &values, anchor_step, 0.0, &mut codes, &mut recon);
-                emit(&mut enc, CLASS_ANCHOR, anchor_chain, &codes, None);
+                emit(enc, CLASS_ANCHOR, anchor_chain, &codes, None);
                 let anchors = recon.clone();
                 let delta = op.delta(field, &anchors);
                 let mut pos_codes = vec![0i32; v];
@@ -363,31 +395,20 @@ fn encode_coded(
                         delta_hat.push(r);
                     }
                 }
-                emit(&mut enc, field_class(j), graph, &pos_codes, Some(skip));
+                emit(enc, field_class(j), graph, &pos_codes, Some(skip));
                 out.copy_from_slice(&op.solve(&delta_hat, &anchors));
             }
             _ => {
                 let values: Vec<f64> = order.iter().map(|&i| field[i as usize]).collect();
                 predict::quantize(graph, Predictor::Parallelogram, &values, s, 0.0, &mut codes, &mut recon);
-                emit(&mut enc, field_class(j), graph, &codes, None);
+                emit(enc, field_class(j), graph, &codes, None);
                 for (pos, &i) in order.iter().enumerate() {
                     out[i as usize] = recon[pos];
                 }
             }
         }
     }
-    let decoded = Decoded { avg, centroid, basis, coeffs: decoded_coeffs };
-    let out = decoded.frames(v, f);
-    if out.iter().any(|x| !x.is_finite()) {
-        return Ok(None);
-    }
-    let header =
-        Header { laplacian: op.is_some(), spacing: p.spacing as usize, step: s, mean_step, anchor_step, basis_steps };
-    let mut w = ByteWriter::new();
-    w.u8(MODE_CODED);
-    header.write(&mut w);
-    w.bytes(&enc.finish());
-    Ok(Some(Coded { bytes: w.into_vec(), frames: out }))
+    decoded_coeffs
 }
 
 /// `C = XB · G⁻¹` for the small symmetric `G = B̂ᵀB̂` (dense Cholesky, plain loops), column-major

@@ -382,7 +382,7 @@ fn paper_coding_reproduces_the_version_1_golden_packets_byte_for_byte() {
     }
 }
 
-/// Review finding (session 3): a tiny config must not make the decoder build one cluster (and
+/// A tiny config must not make the decoder build one cluster (and
 /// one coding order) per vertex, and a toolkit packet longer than any block the encoder writes
 /// is refused before decoding (it would bound nothing on the rank and the work per value).
 #[test]
@@ -407,7 +407,8 @@ fn cluster_count_and_packet_length_are_bounded_by_the_encoders_ranges() {
     assert!(e.contains("packet.frame_count") && e.contains("4096"), "{e}");
 }
 
-/// Issue 28: specs, parsing and printing of every parameter agree (one declaration each).
+/// Specs, parsing and printing of every parameter agree (one declaration each), so a
+/// parameter cannot be documented with one range and parsed with another.
 #[test]
 fn parameter_declaration_agrees_with_specs_parsing_and_printing() {
     codec_core::testing::check_declared_params::<PcaAoiParams>();

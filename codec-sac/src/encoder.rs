@@ -266,7 +266,7 @@ impl SacEncoder {
         let t = self.next_frame;
         self.next_frame += 1;
         let k = self.params.keyframe_interval;
-        let key = self.gop.is_none() || (k > 0 && t % k == 0);
+        let key = self.gop.is_none() || (k > 0 && t.is_multiple_of(k));
         let (data, rec) = if key { self.encode_key(frame)? } else { self.encode_p(frame)? };
         let packet = Packet { first_frame: t, frame_count: 1, keyframe: key, data };
         Ok(EncodedPacket { packet, reconstruction: self.want_reconstruction.then_some(rec) })

@@ -426,7 +426,7 @@ impl Shared {
                     // The schedule depends only on the P-frames both sides have accepted, so
                     // an encoder attempt that ends in a refresh frame changes nothing.
                     // (A failed factorization leaves none, and the next attempt is fresh again.)
-                    let fresh = gop.p_count % every == 0 || work.previous_factor.is_none();
+                    let fresh = gop.p_count.is_multiple_of(every) || work.previous_factor.is_none();
                     if fresh {
                         work.previous_factor = Some(rp.factor(&gop.prev, scratch, work.previous_factor.take())?);
                     }

@@ -152,7 +152,7 @@ fn error_guard_repairs_or_refreshes_and_says_so() {
     assert!(rel_rms(&anim, &rec) <= bound);
 }
 
-/// Issue 14, item 5: with `basis = stream` every keyframe names the first frame's position
+/// With `basis = stream` every keyframe names the first frame's position
 /// block and reuses its basis (the encoder computes it once); a decoder starting at any
 /// keyframe derives the identical basis from that block alone. `basis = keyframe` (the paper)
 /// names none and recomputes.
@@ -238,7 +238,7 @@ fn awkward_meshes_give_finite_output_within_the_bound() {
 #[test]
 fn corrupt_streams_fail_cleanly() {
     let anim = synth::waving_flag(6, 5, 5);
-    // Without and with the residual layer (issue 14).
+    // Without and with the residual layer (its packets carry a second, coded residual).
     for residual in [0.0, 0.001] {
         let ps = params(SacParams { bases: 8, residual, ..Default::default() });
         let setup = EncoderSetup {
@@ -320,7 +320,7 @@ fn bytes_do_not_depend_on_the_thread_count() {
 }
 
 /// The decoder derives the basis from the stream alone, so it must be bit-for-bit the same
-/// whatever the thread count (issue 14, item 4): the harmonics of a disconnected mesh (one
+/// whatever the thread count: the harmonics of a disconnected mesh (one
 /// Krylov component, several dense ones) and a whole decode, in pools of 1 and 3 threads.
 #[test]
 fn basis_and_decode_do_not_depend_on_the_thread_count() {
@@ -401,7 +401,7 @@ fn packets_version(anim: &Animation, p: SacParams, version: u16) -> (Vec<u8>, Ve
     (config, enc.push_frames(anim.positions()).unwrap())
 }
 
-/// Issue 14 bumped the stream version to 2 (per-component harmonics). A version-1 stream of a
+/// Stream version 2 computes the harmonics per connected component. A version-1 stream of a
 /// disconnected mesh must still decode to exactly what its encoder reconstructed, which needs
 /// version 1's basis: decoding the same packets as version 2 gives different frames.
 #[test]
@@ -443,7 +443,7 @@ fn version_1_streams_still_decode_with_the_version_1_basis() {
     assert_eq!(Some(&dec), enc.reconstruction.as_ref());
 }
 
-/// Issue 14: the residual layer removes the error floor of the paper's method. On a bending
+/// The residual layer removes the error floor of the paper's method. On a bending
 /// cylinder, finer residual steps lower KG step by step below the paper's method at the same
 /// 4 bases, the decoder reproduces the encoder's closed loop exactly, and every frame but
 /// the first is still a P-frame.
@@ -470,7 +470,7 @@ fn residual_layer_lowers_the_error_below_the_paper_floor() {
     assert!(kinds(&pk)[1..].iter().all(|&k| k == KIND_P), "{:?}", kinds(&pk));
 }
 
-/// Issue 14, item 3: a closed mesh under large elastic deformation (stretch to 1.8× with
+/// A closed mesh under large elastic deformation (stretch to 1.8× with
 /// volume-preserving squash, plus a twist of up to ±1.2 rad along the axis). Walking the rate
 /// ladder, the stream grows and KG falls at every step, down to the residual presets.
 #[test]
@@ -566,7 +566,7 @@ fn grid_topology(cols: usize, rows: usize) -> Vec<[usize; 3]> {
     tris
 }
 
-/// Issue 14 (session-2 review): the decoder checks the Poisson system's sparse Cholesky fill
+/// The decoder checks the Poisson system's sparse Cholesky fill
 /// against its `Limits` right after the symbolic factorization, before any numeric factor or
 /// scratch is allocated. A crafted expander-like topology of 3000 vertices (≈ 24 MB of factor and scratch)
 /// is refused with an error naming the Poisson factor under an 8 MiB limit, in every stream
@@ -652,7 +652,8 @@ fn eigensolver_allocations_are_checked_against_the_limits() {
     assert!(harmonics::harmonics_within(&pos, &tris, 120, &tight(8 << 20)).is_ok());
 }
 
-/// Issue 28: specs, parsing and printing of every parameter agree (one declaration each).
+/// Specs, parsing and printing of every parameter agree (one declaration each), so a
+/// parameter cannot be documented with one range and parsed with another.
 #[test]
 fn parameter_declaration_agrees_with_specs_parsing_and_printing() {
     codec_core::testing::check_declared_params::<SacParams>();

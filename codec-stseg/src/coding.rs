@@ -605,30 +605,16 @@ pub(crate) fn reconstruction_work(frames: usize, n: usize, k: usize) -> u64 {
     coords.saturating_mul(k as u64).saturating_add(coords.saturating_mul(codec_core::limits::WORK_PER_COORDINATE))
 }
 
-/// Decodes a toolkit-coded packet of `frames` frames (after the case byte was checked).
-#[allow(clippy::too_many_arguments)]
-pub(crate) fn decode_segment(
+/// Reads a toolkit packet's per-group component counts (each at most `min(frames, 3·v)`) and
+/// the quantization steps of every coded field (the means', then each component's `b` and `a`),
+/// each finite and non-negative.
+fn read_ranks_and_steps(
     r: &mut ByteReader<'_>,
     frames: usize,
     v: usize,
     centering: Centering,
-    pr: Predictors,
-    graphs: &mut Graphs,
-    limits: &mut Limits,
     group_count: usize,
-) -> Result<Vec<f32>> {
-    use codec_core::limits::WORK_PER_CODED_VALUE;
-    // Work amplification guard: a component whose steps are zero costs the stream almost
-    // nothing, yet reconstruction costs frames·3·n·k multiply-adds. Packets never hold more
-    // frames than `gamma_max` allows, so refusing longer ones bounds k, and with it the work
-    // per decoded value, by `MAX_SEGMENT_FRAMES`.
-    if frames > MAX_SEGMENT_FRAMES {
-        return Err(Error::malformed(
-            NAME,
-            "packet frames",
-            format!("{frames} exceeds the longest segment the encoder writes ({MAX_SEGMENT_FRAMES})"),
-        ));
-    }
+) -> Result<(Vec<usize>, Vec<f32>)> {
     let max_k = frames.min(3 * v) as u64;
     let mut ks = Vec::with_capacity(group_count);
     for _ in 0..group_count {
@@ -654,13 +640,23 @@ pub(crate) fn decode_segment(
         }
         steps.push(s);
     }
-    let bytes = r.take(r.remaining(), "codes")?;
-    let mut dec = AdaptiveDecoder::new(bytes, CLASSES, NAME, "codes")?;
-    // Labels along the mesh order.
+    Ok((ks, steps))
+}
+
+/// Decodes the group label of each of the `v` vertices (mesh order; all zero when there is one
+/// group): each label is coded as the difference from its first earlier neighbour's on the
+/// full mesh's causal graph, and must name one of the `group_count` groups.
+fn decode_labels(
+    dec: &mut AdaptiveDecoder,
+    graphs: &mut Graphs,
+    limits: &mut Limits,
+    v: usize,
+    group_count: usize,
+) -> Result<Vec<u8>> {
     let mut labels = vec![0u8; v];
     if group_count > 1 {
         // Every decoded value is charged before decoding (`--max-work`).
-        *limits = limits.spend(NAME, "labels", (v as u64).saturating_mul(WORK_PER_CODED_VALUE))?;
+        *limits = limits.spend(NAME, "labels", (v as u64).saturating_mul(codec_core::limits::WORK_PER_CODED_VALUE))?;
         let full = graphs.full(limits)?;
         let order = full.order();
         let mut codes = vec![0i32; v];
@@ -679,6 +675,38 @@ pub(crate) fn decode_segment(
             labels[order[p] as usize] = l as u8;
         }
     }
+    Ok(labels)
+}
+
+/// Decodes a toolkit-coded packet of `frames` frames (after the case byte was checked).
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn decode_segment(
+    r: &mut ByteReader<'_>,
+    frames: usize,
+    v: usize,
+    centering: Centering,
+    pr: Predictors,
+    graphs: &mut Graphs,
+    limits: &mut Limits,
+    group_count: usize,
+) -> Result<Vec<f32>> {
+    use codec_core::limits::WORK_PER_CODED_VALUE;
+    // Work amplification guard: a component whose steps are zero costs the stream almost
+    // nothing, yet reconstruction costs frames·3·n·k multiply-adds. Packets never hold more
+    // frames than `gamma_max` allows, so refusing longer ones bounds k, and with it the work
+    // per decoded value, by `MAX_SEGMENT_FRAMES`.
+    if frames > MAX_SEGMENT_FRAMES {
+        return Err(Error::malformed(
+            NAME,
+            "packet frames",
+            format!("{frames} exceeds the longest segment the encoder writes ({MAX_SEGMENT_FRAMES})"),
+        ));
+    }
+    let (ks, steps) = read_ranks_and_steps(r, frames, v, centering, group_count)?;
+    let n_mean = mean_layout(centering, 0, 0).0;
+    let bytes = r.take(r.remaining(), "codes")?;
+    let mut dec = AdaptiveDecoder::new(bytes, CLASSES, NAME, "codes")?;
+    let labels = decode_labels(&mut dec, graphs, limits, v, group_count)?;
     let members: Vec<Vec<u32>> = {
         let mut m = vec![Vec::new(); group_count];
         for (i, &l) in labels.iter().enumerate() {

@@ -259,7 +259,7 @@ fn every_centering_round_trips_within_bound() {
     assert!(Stseg.new_decoder(&info, &[12, 12], &Limits::default()).is_err());
 }
 
-/// Issue 13 (b): with the shape left in the PCA (per-frame centring, the paper's Eq. 5/8
+/// With the shape left in the PCA (per-frame centring, the paper's Eq. 5/8
 /// reading) ω is a share of a much larger energy, so fewer components are kept than with the
 /// mean shape removed; and Eq. 8's Q is exactly 32·Σ(3|V_j|k + k|τ| + mean size).
 #[test]
@@ -292,7 +292,7 @@ fn frame_centring_keeps_fewer_components_and_eq8_counts_them() {
     }
 }
 
-/// Issue 13 point 3: with the scanning detector (`detector = scan`, beyond the paper), every
+/// With the scanning detector (`detector = scan`, beyond the paper), every
 /// change of `synth:phases` has a detected boundary within `w` frames at every size, and no
 /// segment but the last is shorter than `w`.
 #[test]
@@ -317,7 +317,7 @@ fn scanning_detector_finds_every_phase_change_at_every_size() {
     }
 }
 
-/// Issue 15: at equal segmentation and ω the toolkit coding (prediction along the group's
+/// At equal segmentation and ω the toolkit coding (prediction along the group's
 /// mesh and in time, RD steps, adaptive arithmetic coding) needs fewer bytes than the paper
 /// coding for no more than 10% more error, and the paper coding stays reachable by parameter.
 #[test]
@@ -365,7 +365,7 @@ fn paper_coding_reproduces_the_version_2_golden_output() {
     assert_eq!(format!("{h:016x}"), "5d097985a4c57b14");
 }
 
-/// Review finding (session 3): zero-step components cost a toolkit packet almost nothing, so
+/// Zero-step components cost a toolkit packet almost nothing, so
 /// the decoder refuses packets longer than any segment the encoder writes (bounding k and the
 /// reconstruction work per value), and real packets damaged past the container's checksum
 /// error or decode to finite values, never panic.
@@ -406,7 +406,8 @@ fn toolkit_decoder_refuses_overlong_packets_and_survives_damaged_payloads() {
     }
 }
 
-/// Issue 28: specs, parsing and printing of every parameter agree (one declaration each).
+/// Specs, parsing and printing of every parameter agree (one declaration each), so a
+/// parameter cannot be documented with one range and parsed with another.
 #[test]
 fn parameter_declaration_agrees_with_specs_parsing_and_printing() {
     codec_core::testing::check_declared_params::<StsegParams>();

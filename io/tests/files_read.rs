@@ -1,4 +1,4 @@
-//! Issue 41 (gltf-buffer-overwrite): once a program asks for it
+//! Once a program asks for it
 //! ([`output::protect_files_read`]), every file a reader opened is an input that no output
 //! replaces, in any spelling, whatever the policy's `overwrite` says. Its own test binary: the
 //! record is process-wide, and the unit tests of the crate run without it.

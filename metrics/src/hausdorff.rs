@@ -77,7 +77,7 @@ pub fn hausdorff(reference: &Animation, candidate: &Animation) -> Result<Hausdor
 /// `to`. Useful for heatmaps of one frame and for checking against brute force.
 pub fn vertex_to_surface_distances(from: &[f32], to: &[f32], triangles: &[[u32; 3]]) -> Result<Vec<f64>> {
     let n = to.len() / 3;
-    if from.len() != to.len() || to.len() % 3 != 0 || n == 0 {
+    if from.len() != to.len() || !to.len().is_multiple_of(3) || n == 0 {
         return Err(codec_core::Error::InvalidAnimation(format!(
             "{}: frames of {} and {} coordinates cannot be compared vertex to surface",
             crate::common::CTX,

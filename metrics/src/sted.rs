@@ -2,7 +2,7 @@
 //! comparison method for dynamic meshes", IEEE TVCG 17(2), 2011 — computed as the STED tool
 //! published by the metric's first author computes it (`../shared/sted-oracle/ALGORITHM.md`),
 //! with the tool's defaults. `metrics/README.md` states the equations and the evidence; the
-//! oracle test (`tests/sted_oracle.rs`) reproduces every reference value of the tool within 1%.
+//! oracle test (`tests/sted_oracle.rs`) reproduces every reference value of the tool within 5e-4 (relative).
 //!
 //! * **Spatial part `S`.** For frame `f` and mesh edge `e = {a, b}`: `L = ‖P_a − P_b‖`
 //!   (reference), `L' = ‖Q_a − Q_b‖` (candidate), `d_e = (L − L')/L` (0 when `L = 0`). `R(v)` is

@@ -1,6 +1,6 @@
 //! STED against the metric author's tool: every (reference, candidate) pair in
-//! `../shared/sted-oracle/sted-oracle.json` must be reproduced within 1% with the default
-//! parameters (the tool's). Without `../shared`: a visible skip, a failure under `ANIMCODEC_REQUIRE_ALL=1`.
+//! `../shared/sted-oracle/sted-oracle.json` must be reproduced within [`RELATIVE_TOLERANCE`]
+//! with the default parameters (the tool's). Without `../shared`: a visible skip, a failure under `ANIMCODEC_REQUIRE_ALL=1`.
 
 #[path = "../examples/support/readers.rs"]
 mod readers;
@@ -20,15 +20,17 @@ fn load(pc2: &Path, obj: &Path) -> Animation {
     Animation::from_parts(v, tris, p, 30.0).unwrap()
 }
 
+/// The largest relative difference allowed from the tool's STED. Measured worst: 3.06e-4, on
+/// chicken-crossing's per-frame rotation, the smallest STED of the set (4.9e-5, where the
+/// tool's and our rounding weigh most); every other pair agrees within 1e-6.
+const RELATIVE_TOLERANCE: f64 = 5e-4;
+
 #[test]
-fn reproduces_the_authors_tool_within_one_percent() {
+fn reproduces_the_authors_tool() {
     let root = shared();
     let oracle = root.join("sted-oracle/sted-oracle.json");
     if !oracle.exists() {
-        return codec_core::testing::skip(
-            "reproduces_the_authors_tool_within_one_percent",
-            &format!("{} not found", oracle.display()),
-        );
+        return codec_core::testing::skip("reproduces_the_authors_tool", &format!("{} not found", oracle.display()));
     }
     let pairs: serde_json::Value = serde_json::from_slice(&std::fs::read(&oracle).unwrap()).unwrap();
     let pairs = pairs.as_array().expect("the oracle is a JSON array");
@@ -49,7 +51,13 @@ fn reproduces_the_authors_tool_within_one_percent() {
             ours.spatial,
             ours.temporal
         );
-        assert!((ratio - 1.0).abs() < 0.01, "{}: tool {tool}, ours {}", pair["candidate"], ours.sted);
+        assert!(
+            (ratio - 1.0).abs() <= RELATIVE_TOLERANCE,
+            "{}: tool {tool}, ours {} (relative difference {:.3e})",
+            pair["candidate"],
+            ours.sted,
+            (ratio - 1.0).abs()
+        );
         worst = worst.max((ratio - 1.0).abs());
     }
     println!("largest relative difference {worst:.3e}");

@@ -318,7 +318,7 @@ impl SeedDifference {
 }
 
 /// Whether this CPU makes every seed exactly as committed: x86-64 with AVX2 and FMA (x86-64-v3
-/// and up), the level the seeds are written at. Measured under `qemu-x86_64 -cpu` (issue 31):
+/// and up), the level the seeds are written at. Measured under `qemu-x86_64 -cpu`:
 /// AVX-512 and Haswell (AVX2 + FMA) make every seed alike; Nehalem (SSE only) makes one sac
 /// seed (`codec_sac/seed-flag-low`) differently, because faer's SIMD paths round differently
 /// (the decoders agree: `tests/tests/simd_levels.rs`). Elsewhere [`seed_differences`] only
@@ -483,7 +483,7 @@ pub fn seeds() -> Vec<(String, String, Vec<u8>)> {
     out.push(("read_gltf".into(), "morph-triangle".into(), seed_gltf()));
     // glTF as animcodec's writer makes it (KHR_mesh_quantization, EXT_meshopt_compression
     // ATTRIBUTES/TRIANGLES, morph targets; rigid motion as node animation): the reader's
-    // meshopt, quantization and accessor-layout checks (issue 27).
+    // meshopt, quantization and accessor-layout checks.
     let flag = synth::waving_flag(4, 3, 5);
     let writer = animcodec::formats::gltf_out::GltfOptions::default();
     let rigid = animcodec::formats::gltf_out::GltfOptions { rigid: Some(true), ..writer.clone() };

@@ -252,7 +252,7 @@ pub fn check_bound(bound: &ErrorBound, measured: &Measured) -> Result<(), String
 
 /// Tight decoding limits for a stream of `anim`: the exact vertex, frame and triangle counts
 /// and `max_alloc_bytes` of 8 MiB in total (or the decoded size if that is larger — it never is
-/// for the animations of this suite). `max_alloc_bytes` bounds the whole decode (issue 27): a
+/// for the animations of this suite). `max_alloc_bytes` bounds the whole decode: a
 /// sac decode of this suite's 240-vertex, 40-frame flag holds 6.2 MB at peak (its eigensolver's
 /// workspaces), more than the 4 MiB this was when it bounded each allocation.
 pub fn tight_limits(anim: &Animation) -> Limits {
@@ -353,9 +353,12 @@ impl Failures {
         self.list.iter().any(|m| m.starts_with(&prefix) && m.contains(needle))
     }
 
-    /// Panics with every failure, one per line, if any; otherwise prints the case count.
+    /// Panics with every failure, one per line, if any, and when no case was counted (a check
+    /// that ran nothing must not pass); otherwise prints the case count.
     pub fn assert_none(&self, what: &str) {
-        if self.list.is_empty() {
+        if self.list.is_empty() && self.cases == 0 {
+            panic!("{what}: no case was checked");
+        } else if self.list.is_empty() {
             eprintln!("{what}: {} case(s) checked, no failure", self.cases);
         } else {
             panic!(
@@ -437,7 +440,7 @@ thread_local! {
 /// buffer is reserved, not written (only the pages a product packs into are touched), and its
 /// size depends on the CPU, not on the stream; counted against the first decode on a thread it
 /// made the fuzz corpus replay fail on a 300 MiB-L3 machine only, and only when no earlier
-/// encode had run on the thread (issue 27, `docs/notes/issue-27-simd-limits.md`). The decoder
+/// encode had run on the thread (`docs/notes/issue-27-simd-limits.md`). The decoder
 /// checks bound what a decode allocates from the stream's sizes, so they measure after it.
 pub fn warm_up_numeric_caches() {
     if NUMERIC_CACHES_WARM.with(|w| w.replace(true)) {

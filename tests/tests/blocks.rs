@@ -1,4 +1,4 @@
-//! Issue 30: an animation encoded block by block ([`codec_core::blocks`], what the Python
+//! An animation encoded block by block ([`codec_core::blocks`], what the Python
 //! package's Dask encode runs on its workers) and assembled gives the local encode's bytes.
 
 use animcodec::registry;

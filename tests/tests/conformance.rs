@@ -23,8 +23,9 @@ fn edge_case_animations_round_trip_or_error() {
         .assert_none("edge_case_animations_round_trip_or_error");
 }
 
-/// Issue 16: 1-frame and 2-frame inputs and a single triangle: refused with a message, or
-/// within the declared bound and the bound declared on the long animation they were cut from.
+/// 1-frame and 2-frame inputs and a single triangle: refused as the codec's entry of
+/// `suite::EXPECTED_REFUSALS` says, or within the declared bound and the bound declared on the
+/// long animation they were cut from.
 #[test]
 fn short_animations_meet_the_long_animations_bound() {
     suite::short_animations_meet_the_long_animations_bound(&codecs_under_test())
@@ -93,21 +94,21 @@ fn unknown_fourcc_and_default_limits() {
     suite::unknown_fourcc_and_default_limits(&codecs_under_test()).assert_none("unknown_fourcc_and_default_limits");
 }
 
-/// Issue 41 (round 4): every stream of every codec whose header claims twice its vertices is
+/// Every stream of every codec whose header claims twice its vertices is
 /// refused (no decoder runs past its payload).
 #[test]
 fn forged_vertex_count_is_refused() {
     suite::forged_vertex_count_is_refused(&codecs_under_test()).assert_none("forged_vertex_count_is_refused");
 }
 
-/// Issue 41 (round 4): `--max-work` binds every codec: one operation below what a stream needs
+/// `--max-work` binds every codec: one operation below what a stream needs
 /// is refused with the work-limit error, and each codec counts its own work.
 #[test]
 fn work_budget_is_honoured() {
     suite::work_budget_is_honoured(&codecs_under_test()).assert_none("work_budget_is_honoured");
 }
 
-/// Issue 41 (round 4): frame rates the file readers would refuse are refused by the container.
+/// Frame rates the file readers would refuse are refused by the container.
 #[test]
 fn forged_frame_rates_are_refused() {
     suite::forged_frame_rates_are_refused(&codecs_under_test()).assert_none("forged_frame_rates_are_refused");

@@ -57,6 +57,7 @@ fn every_corpus_file_passes_its_target() {
         eprintln!("{target}: {} corpus files", files.len());
         total += files.len();
     }
+    assert!(total > 0, "no fuzz target found under {}", root.display());
     eprintln!("{total} corpus files replayed");
 }
 
@@ -73,7 +74,7 @@ fn records_round_trip() {
 }
 
 /// The corpus file that failed a fresh clone's `cargo test` on a machine reporting 300 MiB of
-/// L3 (issue 27: "held 629183233 bytes at peak"), replayed on a new thread where no faer cache
+/// L3 ("held 629183233 bytes at peak"), replayed on a new thread where no faer cache
 /// exists yet: the peak must count what the decode allocates, not `private-gemm-x86`'s
 /// per-thread packing buffer (2 × the L3 size; see `conformance_tests::warm_up_numeric_caches`).
 #[test]

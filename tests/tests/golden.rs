@@ -1,4 +1,4 @@
-//! Golden streams (issue 16): `tests/golden/` holds one small stream per codec and stream
+//! Golden streams: `tests/golden/` holds one small stream per codec and stream
 //! version, made by that version of the codec, with the hash of its decoded frames in
 //! `tests/golden/hashes.txt`. Every one must still decode to exactly those frames: a codec that
 //! changes its bitstream bumps its stream version (`AnimationCodec::stream_version`) and keeps
@@ -335,7 +335,7 @@ fn hosvd_v4_column_modes_golden() {
     hosvd_column_modes_golden(4);
 }
 
-/// Version 5's guarded regression (issue 26), on the same input as version 4's: pins the
+/// Version 5's guarded regression, on the same input as version 4's: pins the
 /// absolute ridge and the clamp of the prediction.
 #[test]
 fn hosvd_v5_column_modes_golden() {

@@ -1,5 +1,5 @@
-//! Streams that ask for too much memory or work are refused before it is spent (issue 27,
-//! item 2): `Limits::max_alloc_bytes` bounds the total a decode holds, `Limits::max_work` the
+//! Streams that ask for too much memory or work are refused before it is spent:
+//! `Limits::max_alloc_bytes` bounds the total a decode holds, `Limits::max_work` the
 //! operations it computes. Each crafted input of `../shared/probe-round3/` has an equivalent
 //! made here (so these always run); the probe files themselves are decoded too when `../shared`
 //! is there. Every refusal must be a clear error within seconds and well under 1 GB.
@@ -160,8 +160,8 @@ fn probe_round3_streams_are_refused() {
     }
 }
 
-/// A stream of a few hundred bytes whose topology claims 2²⁴ vertices (the issue's 700-byte
-/// stream): every codec's tiny stream with its topology swapped. Coding order graphs and
+/// A stream of a few hundred bytes whose topology claims 2²⁴ vertices (as a 700-byte
+/// probe stream did): every codec's tiny stream with its topology swapped. Coding order graphs and
 /// decoded frames for that many vertices exceed the default total budget, so each is refused
 /// before they are built, within seconds and under 1 GB.
 #[test]
@@ -193,11 +193,11 @@ fn a_tiny_stream_claiming_16m_vertices_is_refused_early() {
     }
 }
 
-/// Issue 41 (round 4, `sac-config`): a sac stream coded with 32 bases whose config byte says
-/// 544 (header CRC valid). The decoder used to compute the 544-vector basis (a dense 900 × 900
-/// eigenproblem here, 13 MB; 27 s and 560 MB on horse-gallop) before finding the P-frames'
-/// descriptors malformed. The basis now waits for the interval's first P-frame, whose
-/// descriptors are decoded at the basis's size first: the refusal holds a fraction of that.
+/// A sac stream coded with 32 bases whose config byte says 544 (header CRC valid). Computing
+/// the 544-vector basis first would cost a dense 900 × 900 eigenproblem here (13 MB; 27 s and
+/// 560 MB on horse-gallop) before the P-frames' descriptors show the stream malformed, so the
+/// basis waits for the interval's first P-frame, whose descriptors are decoded at the basis's
+/// size first: the refusal holds a fraction of that.
 #[test]
 fn a_sac_config_asking_for_more_bases_is_refused_before_the_basis() {
     let registry = registry();
@@ -249,7 +249,7 @@ fn hosvd_bomb(k: usize, frames: usize, v_rank: u64, f_rank: u64, zero_bytes: usi
     c.finish().unwrap()
 }
 
-/// Issue 41 (round 4, `hosvd-work`): the probe's 171-byte streams (40 s and 1 GB each before).
+/// The `hosvd-work` probe's 171-byte streams (40 s and 1 GB each without the work budget).
 /// The larger declares 2.7·10^11 operations, over the default budget: refused from its sizes.
 /// The smaller (10^11) is within it but is refused by a budget of 10^10 the same way; under
 /// the default budget its 8 bytes of codes run out long before its 8 million values.

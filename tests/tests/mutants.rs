@@ -26,9 +26,10 @@ enum Fault {
     PanicOnEmptyConfig,
     PanicOnSingleFrame,
     GreedyEncoder,
+    RefusesShortInput,
 }
 
-const FAULTS: [(Fault, &str); 13] = [
+const FAULTS: [(Fault, &str); 14] = [
     (Fault::None, "mutant-none"),
     (Fault::LyingBound, "mutant-lying-bound"),
     (Fault::ReconstructionMismatch, "mutant-reconstruction"),
@@ -42,6 +43,7 @@ const FAULTS: [(Fault, &str); 13] = [
     (Fault::PanicOnEmptyConfig, "mutant-empty-config"),
     (Fault::PanicOnSingleFrame, "mutant-single-frame"),
     (Fault::GreedyEncoder, "mutant-greedy-encoder"),
+    (Fault::RefusesShortInput, "mutant-refuses-short"),
 ];
 
 /// `quant-delta` with one fault injected.
@@ -107,6 +109,10 @@ impl AnimationCodec for Mutant {
         let mut inner = self.inner_params(params)?;
         if self.0 == Fault::ThreadDependent && rayon::current_num_threads() == 1 {
             inner = inner.with(&QuantDelta.param_specs(), "block", ParamValue::Int(8))?;
+        }
+        if self.0 == Fault::RefusesShortInput && setup.frame_count < 3 {
+            // A plausible, worded refusal of a valid input: only the refusal table can tell.
+            return Err(codec_core::Error::InvalidAnimation("mutant: fewer than 3 frames".into()));
         }
         if self.0 == Fault::GreedyEncoder {
             // Sized from the declared frame count, capped so the test cannot exhaust memory.
@@ -314,4 +320,16 @@ fn encoder_panic_on_edge_case_is_caught() {
 #[test]
 fn greedy_encoder_is_caught() {
     expect_caught(Fault::GreedyEncoder, &[("encoder_input", suite::encoder_rejects_bad_input)], "peak");
+}
+
+#[test]
+fn refusing_valid_short_input_is_caught() {
+    expect_caught(
+        Fault::RefusesShortInput,
+        &[
+            ("edge_cases", suite::edge_case_animations_round_trip_or_error),
+            ("short", suite::short_animations_meet_the_long_animations_bound),
+        ],
+        "expects a round trip",
+    );
 }

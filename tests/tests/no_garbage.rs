@@ -1,4 +1,5 @@
-//! Issue 26, item 1: no garbage stream, ever.
+//! No garbage stream, ever: an encode either writes a stream that decodes within its bound or
+//! fails.
 //!
 //! - A property test over generated skinned characters (disconnected meshes, tiny rigid
 //!   parts, duplicated seam vertices, 10–30 frames, bone-driven linear-blend motion;

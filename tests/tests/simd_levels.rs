@@ -1,4 +1,4 @@
-//! Decodes are bit-identical whatever SIMD level the CPU has (issue 27, item 1).
+//! Decodes are bit-identical whatever SIMD level the CPU has.
 //!
 //! faer (and the `private-gemm-x86`, `nano-gemm` and `pulp` kernels under it) picks its SIMD
 //! code at run time from what the CPU reports, with no setting to hold it to one level. So the
@@ -142,7 +142,7 @@ fn streams(larger: Vec<(String, Vec<u8>)>) -> Vec<(String, Vec<u8>)> {
 /// The CPU models the child runs on: (level, QEMU model, features it must see, the streams
 /// known to decode differently there).
 ///
-/// Known difference (issue 27, open): without AVX2 + FMA, faer's kernels round differently
+/// Known difference (open): without AVX2 + FMA, faer's kernels round differently
 /// (separate multiply and add instead of fused), and sac's decode of a mesh past the dense
 /// eigensolver's size (the Krylov–Schur basis and the supernodal Poisson factor) changes in the
 /// last bits; the golden streams (48 vertices, dense path) and every other codec's decode are

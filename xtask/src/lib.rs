@@ -329,7 +329,7 @@ pub fn new_codec(root: &Path, names: &CodecNames) -> Result<Vec<String>, String>
     edit_file(
         "animcodec/src/lib.rs",
         vec![
-            format!("// {name}: made by cargo xtask new-codec; say what it is (method, paper, issue)"),
+            format!("// {name}: made by cargo xtask new-codec; say what it is (method, paper)"),
             format!("Box::new(codec_{}::{}),", names.snake, names.camel),
         ],
     )?;

@@ -264,7 +264,7 @@ pub struct RanPastEnd;
 impl CheckedWords {
     /// The words of `bytes` (little-endian 32-bit words; a whole number of them).
     pub fn from_le_bytes(bytes: &[u8], context: &'static str, field: &'static str) -> Result<Self> {
-        if bytes.len() % 4 != 0 {
+        if !bytes.len().is_multiple_of(4) {
             return Err(corrupt(context, field, "arithmetic-coded block is not a whole number of 32-bit words"));
         }
         let words = bytes.chunks_exact(4).map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect();

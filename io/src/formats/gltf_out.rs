@@ -223,7 +223,7 @@ enum Stream {
 }
 
 fn align4(bytes: &mut Vec<u8>) {
-    while bytes.len() % 4 != 0 {
+    while !bytes.len().is_multiple_of(4) {
         bytes.push(0);
     }
 }
@@ -397,14 +397,14 @@ impl Buffer {
             // One frame's weights per record; the exponent bytes are constant down a column.
             let words = gltf_out_rd::exponential_words(data, k);
             let raw: Vec<u8> = words.iter().flat_map(|w| w.to_le_bytes()).collect();
-            let per_record = (1..=k.min(64)).rev().find(|d| k % d == 0).unwrap_or(1);
+            let per_record = (1..=k.min(64)).rev().find(|d| k.is_multiple_of(*d)).unwrap_or(1);
             let view = self.filtered_view(&raw, 4 * per_record, "EXPONENTIAL")?;
             self.accessors
                 .push(json!({"bufferView": view, "componentType": 5126, "count": data.len(), "type": "SCALAR"}));
             return Ok(self.accessors.len() - 1);
         }
         let raw: Vec<u8> = data.iter().flat_map(|x| x.to_le_bytes()).collect();
-        let per_record = (1..=k.min(64)).rev().find(|d| k % d == 0).unwrap_or(1);
+        let per_record = (1..=k.min(64)).rev().find(|d| k.is_multiple_of(*d)).unwrap_or(1);
         let view = self.view(&raw, Stream::Attributes { stride: 4 * per_record, vertex_stride: false }, None)?;
         self.accessors.push(json!({"bufferView": view, "componentType": 5126, "count": data.len(), "type": "SCALAR"}));
         Ok(self.accessors.len() - 1)
@@ -1024,7 +1024,7 @@ fn glb_bytes(root: &Value, bin: &[u8]) -> Result<Vec<u8>> {
         json_chunk.push(b' ');
     }
     let mut bin_chunk = bin.to_vec();
-    while bin_chunk.len() % 4 != 0 {
+    while !bin_chunk.len().is_multiple_of(4) {
         bin_chunk.push(0);
     }
     let total = 12 + 8 + json_chunk.len() + 8 + bin_chunk.len();
@@ -1120,7 +1120,7 @@ mod tests {
                 let (bytes, s) = encode_gltf(&a, &opts, true).unwrap();
                 assert!(s.targets > 1, "{s:?}");
                 let kg = metrics::kg_error(&a, &read_back(&bytes, a.frame_rate())).unwrap();
-                assert!(kg <= 0.01 * 1.05 + 1e-4, "{compression:?} {rigid:?}: KG {kg}");
+                assert!(kg <= 0.01, "{compression:?} {rigid:?}: KG {kg}");
                 kgs.push(kg);
                 if compression.meshopt() {
                     continue;
@@ -1160,7 +1160,7 @@ mod tests {
             let b = read_back(&bytes, a.frame_rate());
             assert_eq!(b.frame_count(), a.frame_count());
             let kg = metrics::kg_error(&a, &b).unwrap();
-            assert!(s.basis_kg <= t && kg <= t * 1.05 + 1e-4, "target {t}: basis {} played {kg}", s.basis_kg);
+            assert!(s.basis_kg <= t && kg <= t, "target {t}: basis {} played {kg}", s.basis_kg);
             assert!(s.targets >= last);
             last = s.targets;
         }
@@ -1187,7 +1187,7 @@ mod tests {
         assert!(bytes.len() < plain.len());
         let b = read_back(&bytes, a.frame_rate());
         let kg = metrics::kg_error(&a, &b).unwrap();
-        assert!(kg <= 0.5 * 1.05, "played back KG {kg}");
+        assert!(kg <= 0.5, "played back KG {kg}");
         let text = String::from_utf8_lossy(&bytes);
         assert!(text.contains("\"rotation\"") && text.contains("\"translation\""));
     }

@@ -382,7 +382,7 @@ fn load_mesh(
             (Some(count), None) => collect_exact(file, "indices", reader.read_indices().map(|i| i.into_u32()), count)?,
             (None, None) => (0..n as u32).collect(),
         };
-        if flat.len() % 3 != 0 {
+        if !flat.len().is_multiple_of(3) {
             return Err(bad(
                 file,
                 "indices",

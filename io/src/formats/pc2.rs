@@ -253,8 +253,7 @@ mod tests {
     fn reads_samba_when_present() {
         let cache = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/samba/samba.pc2");
         if !cache.is_file() {
-            println!("SKIP reads_samba_when_present: {} not found", cache.display());
-            return;
+            return codec_core::testing::skip("reads_samba_when_present", &format!("{} not found", cache.display()));
         }
         let anim = read_animation(&cache, &ReadOptions::default()).unwrap();
         assert_eq!((anim.vertex_count(), anim.frame_count(), anim.topology().triangle_count()), (9971, 175, 19938));

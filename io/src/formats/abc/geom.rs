@@ -75,7 +75,7 @@ impl Op {
     fn default_channel(self, k: usize) -> f64 {
         match self {
             Op::Scale => 1.0,
-            Op::Matrix if k % 5 == 0 => 1.0,
+            Op::Matrix if k.is_multiple_of(5) => 1.0,
             _ => 0.0,
         }
     }

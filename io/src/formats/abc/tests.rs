@@ -164,7 +164,7 @@ fn hostile_structures_fail_fast_with_clear_errors() {
     assert_fails(&many, &["more than the file"]);
 }
 
-/// Issue: every P sample pointing at one shared block must not amplify the work past the
+/// Every P sample pointing at one shared block must not amplify the work past the
 /// budget; the memory budget bounds the frames × points.
 #[test]
 fn the_budget_bounds_the_read() {

@@ -55,7 +55,7 @@ impl Builder {
     }
 
     fn align(&mut self) -> u64 {
-        while self.out.len() % 8 != 0 {
+        while !self.out.len().is_multiple_of(8) {
             self.out.push(0);
         }
         self.out.len() as u64
