@@ -1135,6 +1135,42 @@ mod tests {
         a.positions().iter().zip(b.positions()).map(|(x, y)| (x - y).abs()).fold(0.0, f32::max)
     }
 
+    /// A +Z-up centimetre source is written under a root node that turns it +Y up in metres:
+    /// read back, it plays where `as_shown` places it (exactly up to f32 rounding in the frames
+    /// layout, within the KG target in the compressed basis, .glb and .gltf alike); a source
+    /// without metadata gets no such node.
+    #[test]
+    fn a_z_up_centimetre_source_plays_upright_in_metres() {
+        let plain = synth::by_name("flag", synth::SynthSize::Small).unwrap();
+        let meta = SceneMetadata { up_axis: Some(UpAxis::Z), meters_per_unit: Some(0.01), ..Default::default() };
+        let a = plain.clone().with_metadata(meta).unwrap();
+        let shown = as_shown(&a).unwrap().unwrap();
+        let p = a.frame(3)[..3].to_vec();
+        let q = &shown.frame(3)[..3];
+        assert!((q[0] - p[0] * 0.01).abs() <= 1e-6 && (q[1] - p[2] * 0.01).abs() <= 1e-6, "{p:?} -> {q:?}");
+        assert!((q[2] + p[1] * 0.01).abs() <= 1e-6, "{p:?} -> {q:?}");
+        let diagonal = shown.bounding_box_diagonal() as f32;
+        for (layout, compression, glb) in
+            [(GltfLayout::Frames, GltfCompression::None, true), (GltfLayout::Basis, GltfCompression::Meshopt, false)]
+        {
+            let opts = GltfOptions { layout, compression, target_kg: 0.5, ..Default::default() };
+            let (bytes, _) = encode_gltf(&a, &opts, glb).unwrap();
+            let played = read_back(&bytes, a.frame_rate());
+            if layout == GltfLayout::Frames {
+                assert!(max_diff(&shown, &played) <= 1e-6 * diagonal, "{}", max_diff(&shown, &played));
+            } else {
+                let kg = gltf_out_rd::kg_between(&shown, &played);
+                assert!(kg <= 0.5 * 1.001, "KG {kg} against the source shown");
+            }
+            let (bytes, _) = encode_gltf(&plain, &opts, glb).unwrap();
+            let text = String::from_utf8_lossy(&bytes);
+            assert!(!text.contains("\"matrix\""), "a source without metadata got a root node");
+        }
+        let huge = plain.with_metadata(SceneMetadata { meters_per_unit: Some(1e300), ..Default::default() }).unwrap();
+        let e = encode_gltf(&huge, &GltfOptions::default(), true).unwrap_err().to_string();
+        assert!(e.contains("metersPerUnit"), "{e}");
+    }
+
     /// Frames layout: our reader plays back every frame to f32 rounding of the differences;
     /// compressed, to the 16-bit quantization: at most half a step of the base and of the
     /// (rescaled) target, 3 · half-extent / 65534 per axis, below 2.5e-5 × the diagonal.
