@@ -733,6 +733,9 @@ fn z_up_centimetre_usd_exports_upright_in_metres() {
     println!("default export: reported KG {reported:.6}, measured against the source shown {kg:.6}");
     assert!((kg - reported).abs() <= 1e-3 * reported.max(1e-6), "reported {reported}, measured {kg}");
     assert!(reported <= GltfOptions::default().target_kg, "{report}");
+    // `eval` compares the source with the file where the file shows it.
+    let e = ok_json(&["eval", &source, &exact, "--json", "--no-hausdorff"]);
+    assert!(e["kg"].as_f64().unwrap() <= 1e-4, "eval of the exact export: {e}");
     // Through a stream: the metadata travels and the decoded GLB is upright in metres too.
     let anim = s.path("x.anim");
     ok(&["encode", &source, "-c", "quant-delta", "-p", "bits=16", "-o", &anim]);
