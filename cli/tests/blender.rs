@@ -190,3 +190,39 @@ fn blender_gltf_importer_plays_our_exported_glb() {
         assert!(why.contains("EXT_meshopt_compression is not available"), "{why}");
     }
 }
+
+/// A +Z-up layer in centimetres (usd-core-written) exported to glTF plays in Blender 5 upright
+/// and at its size, as our glTF reader plays it: Blender applies the file's root node (its
+/// importer then turns glTF's +Y up into its own +Z up, undone by evaluate.py). Exactly
+/// exported (frames, f32) it equals usd-core's points turned +Y up in metres within 1e-6 ×
+/// diagonal; the DCC form (`--compression quantized`) plays as our reader does.
+#[test]
+fn blender_plays_a_z_up_centimetre_export_upright_in_metres() {
+    const NAME: &str = "blender_plays_a_z_up_centimetre_export_upright_in_metres";
+    if let Err(why) = common::blender5() {
+        return skip(NAME, &why);
+    }
+    if let Err(why) = common::usd_core() {
+        return skip(NAME, &why);
+    }
+    let dir = Scratch::new("blender-z-up");
+    let (source, want) = common::z_up_centimetre_layer(&dir);
+    for (layout, compression) in [("frames", "none"), ("basis", "quantized")] {
+        let glb = dir.path(&format!("{layout}-{compression}.glb"));
+        ok(&["export", &source, "-o", &glb, "--layout", layout, "--compression", compression]);
+        let ours = read_animation(Path::new(&glb), &ReadOptions::default()).unwrap();
+        let frames: Vec<usize> = (0..ours.frame_count()).collect();
+        let out = dir.path(&format!("{layout}-{compression}.f32"));
+        let (report, theirs) = evaluate("glb", &glb, "", ours.frame_rate(), &frames, &out);
+        let w_ours = worst(&ours, &frames, &theirs);
+        let w_source = worst(&want, &frames, &theirs);
+        eprintln!(
+            "blender glb z-up cm {layout} {compression}: {w_ours:.3e} × diagonal from our reader, {w_source:.3e} \
+             from usd-core's points in +Y-up metres ({report})"
+        );
+        assert!(w_ours <= 1e-5, "{layout} {compression}: Blender plays it {w_ours:e} × diagonal from our reader");
+        if compression == "none" {
+            assert!(w_source <= 1e-6, "{layout}: Blender plays it {w_source:e} × diagonal from the source shown");
+        }
+    }
+}

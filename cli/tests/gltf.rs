@@ -694,3 +694,93 @@ fn what_gltfpack_writes_is_read_like_three_js_plays_it() {
     let worst = (0..3).map(|c| (b0.0[c] - b1.0[c]).abs().max((b0.1[c] - b1.1[c]).abs())).fold(0f32, f32::max);
     println!("bounding box of the packed synthetic flag against the unpacked one: {:.3e} × diagonal", worst / diagonal);
 }
+
+/// A +Z-up layer in centimetres (usd-core-written, animated xformOps) exported to glTF, which
+/// is +Y up in metres, shows upright and at its size: the file's root node turns and scales it.
+/// Exported exactly (frames layout, f32), our reader and three.js play usd-core's world points
+/// turned +Y up and scaled to metres within 1e-6 × diagonal; the default (compressed) export
+/// plays at the KG it reported; a stream decoded to `.glb` keeps the conversion.
+#[test]
+fn z_up_centimetre_usd_exports_upright_in_metres() {
+    use animcodec::formats::gltf_out::as_shown;
+    use common::{ok, ok_json, worst_over_diagonal, z_up_centimetre_layer};
+    const NAME: &str = "z_up_centimetre_usd_exports_upright_in_metres";
+    if let Err(why) = common::usd_core() {
+        return skip(NAME, &why);
+    }
+    let s = Scratch::new("gltf-z-up");
+    let (source, want) = z_up_centimetre_layer(&s);
+    let input = read_animation(Path::new(&source), &ReadOptions::default()).unwrap();
+    let shown = as_shown(&input).unwrap().expect("a +Z-up centimetre source needs a root node");
+    // What the writer measures against is usd-core's points converted.
+    let w = worst_over_diagonal(&want, &shown);
+    assert!(w <= 1e-6, "as_shown differs from usd-core's points turned +Y up in metres by {w:e} × diagonal");
+    let exact = s.path("exact.glb");
+    ok(&["export", &source, "-o", &exact, "--layout", "frames", "--compression", "none"]);
+    let compressed = s.path("default.glb");
+    let report = ok_json(&["export", &source, "-o", &compressed, "--json"]);
+    let glb = std::fs::read(&exact).unwrap();
+    let (json, _) = split_glb(&glb);
+    let root = json["scenes"][0]["nodes"][0].as_u64().unwrap() as usize;
+    assert_eq!(
+        json["nodes"][root]["matrix"],
+        serde_json::json!([0.01, 0, 0, 0, 0, 0, -0.01, 0, 0, 0.01, 0, 0, 0, 0, 0, 1])
+    );
+    let played = read_animation(Path::new(&exact), &ReadOptions::default()).unwrap();
+    let w = worst_over_diagonal(&want, &played);
+    println!("exact export of a +Z-up cm layer, our reader: {w:.3e} × diagonal from usd-core's points in +Y-up metres");
+    assert!(w <= 1e-6, "our reader plays the export {w:e} × diagonal from the source shown +Y up in metres");
+    // The compressed export: measured where it shows, the KG it reported.
+    let played = read_animation(Path::new(&compressed), &ReadOptions::default()).unwrap();
+    let eval = animcodec::metrics::EvalOptions { compute_sted: false, compute_hausdorff: false, ..Default::default() };
+    let kg = animcodec::metrics::evaluate(&shown, &played, &eval).unwrap().kg.unwrap();
+    let reported = report["kg"].as_f64().unwrap();
+    println!("default export: reported KG {reported:.6}, measured against the source shown {kg:.6}");
+    assert!((kg - reported).abs() <= 1e-3 * reported.max(1e-6), "reported {reported}, measured {kg}");
+    assert!(reported <= GltfOptions::default().target_kg, "{report}");
+    // `eval` compares the source with the file where the file shows it.
+    let e = ok_json(&["eval", &source, &exact, "--json", "--no-hausdorff"]);
+    assert!(e["kg"].as_f64().unwrap() <= 1e-4, "eval of the exact export: {e}");
+    // Through a stream: the metadata travels and the decoded GLB is upright in metres too.
+    let anim = s.path("x.anim");
+    ok(&["encode", &source, "-c", "quant-delta", "-p", "bits=16", "-o", &anim]);
+    let (usdc, decoded_glb) = (s.path("decoded.usdc"), s.path("decoded.glb"));
+    ok(&["decode", &anim, "-o", &usdc]);
+    ok(&["decode", &anim, "-o", &decoded_glb]);
+    let decoded = read_animation(Path::new(&usdc), &ReadOptions::default()).unwrap();
+    let decoded_shown = as_shown(&decoded).unwrap().expect("the stream kept the metadata");
+    let played = read_animation(Path::new(&decoded_glb), &ReadOptions::default()).unwrap();
+    let kg = animcodec::metrics::evaluate(&decoded_shown, &played, &eval).unwrap().kg.unwrap();
+    assert!(kg <= GltfOptions::default().target_kg * 1.01, "decoded GLB: KG {kg} against the decode shown");
+    let tools = match node_packages(&["three", "gltf-validator"]) {
+        Ok(t) => t,
+        Err(why) => return skip(&format!("{NAME} (three.js part)"), &why),
+    };
+    let files = [PathBuf::from(&exact), PathBuf::from(&compressed), PathBuf::from(&decoded_glb)];
+    for report in validate(&tools, &files) {
+        assert_eq!(report["errors"], 0, "{report}");
+    }
+    for (file, reference, tolerance) in [(&files[0], &want, 1e-6), (&files[1], &shown, 1e-5)] {
+        let ours = read_animation(file, &ReadOptions::default()).unwrap();
+        let fps = ours.frame_rate() as f64;
+        let theirs = three_play(
+            &tools,
+            file,
+            Sampling { index: 0, t0: start_of(file, 0), fps, frames: ours.frame_count() },
+            &s.0.join("t.f32"),
+        );
+        let against_ours = relative_max_error(&ours, &theirs);
+        let three =
+            Animation::from_parts(reference.vertex_count(), Vec::new(), theirs, reference.frame_rate()).unwrap();
+        let against_source = worst_over_diagonal(reference, &three);
+        println!(
+            "three.js plays {}: {against_ours:.3e} × diagonal from our reader, {against_source:.3e} from the source shown",
+            file.display()
+        );
+        assert!(against_ours <= 1e-5, "{}: {against_ours:e}", file.display());
+        // The exact export equals the source shown; the compressed one is within its KG.
+        if tolerance <= 1e-6 {
+            assert!(against_source <= tolerance, "{}: {against_source:e}", file.display());
+        }
+    }
+}

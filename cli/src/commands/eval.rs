@@ -3,6 +3,7 @@
 use std::time::Instant;
 
 use animcodec::core::Limits;
+use animcodec::formats::gltf_out::as_shown;
 use animcodec::formats::ReadOptions;
 use animcodec::front::{Origin, Streams};
 use animcodec::metrics::{EdgeDifference, MetricReport};
@@ -82,7 +83,19 @@ pub fn run(args: &EvalArgs, limits: Limits) -> CmdResult {
         )),
         _ => None,
     };
-    let reference = reference.animation;
+    let mut reference = reference.animation;
+    // A glTF shows a +Z-up or non-metre source turned +Y up in metres (the root node our
+    // writers add): the other side is compared where the glTF shows it.
+    let is_gltf = |p: &str| {
+        std::path::Path::new(p)
+            .extension()
+            .is_some_and(|x| x.eq_ignore_ascii_case("glb") || x.eq_ignore_ascii_case("gltf"))
+    };
+    if is_gltf(&args.candidate) && !is_gltf(&args.reference) {
+        reference = as_shown(&reference)?.unwrap_or(reference);
+    } else if is_gltf(&args.reference) && !is_gltf(&args.candidate) {
+        candidate = as_shown(&candidate)?.unwrap_or(candidate);
+    }
     let mut matched = None;
     if args.match_vertices {
         let context = || format!("matching the vertices of {} to {}", args.candidate, args.reference);

@@ -6,7 +6,7 @@ use std::time::Instant;
 
 use animcodec::core::Limits;
 use animcodec::formats::gltf;
-use animcodec::formats::gltf_out::{encode_gltf, restore_vertices, GltfCompression, GltfLayout, GltfOptions};
+use animcodec::formats::gltf_out::{as_shown, encode_gltf, restore_vertices, GltfCompression, GltfLayout, GltfOptions};
 use animcodec::harness::{self, TargetMetric};
 use animcodec::metrics::EvalOptions;
 use animcodec::output::OutputPolicy;
@@ -171,7 +171,9 @@ pub fn run(args: &ExportArgs, limits: Limits) -> CmdResult {
     if let Some(map) = &summary.vertex_map {
         played = restore_vertices(&played, map, animation.triangles())?;
     }
-    let report = animcodec::metrics::evaluate(&animation, &played, &eval)
+    // A +Z-up or centimetre source plays through the file's root node: compared where it shows.
+    let shown_input = as_shown(&animation)?;
+    let report = animcodec::metrics::evaluate(shown_input.as_ref().unwrap_or(&animation), &played, &eval)
         .context(|| format!("comparing {} with {} as played back", shown(&args.input), shown(&args.output)))?;
     stages.stage(format!("writing {}", shown(&args.output)));
     policy.write(&args.output, &bytes)?;

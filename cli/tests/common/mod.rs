@@ -228,3 +228,27 @@ pub fn awkward_animation() -> Animation {
     let tris: Vec<[u32; 3]> = (0..7).map(|v| [v, v + 1, v + 2]).collect();
     Animation::from_parts(9, tris, positions, 29.97).unwrap()
 }
+
+/// A usd-core-written layer as pipelines author it (`cli/tests/usd/usd_check.py write`:
+/// `case-xforms-usdc.usdc`, +Z up, `metersPerUnit` 0.01, animated xformOps; needs
+/// [`usd_core`]) and usd-core's world-space points of every frame turned into what glTF shows
+/// (+Y up in metres: `(x, y, z) → (x, z, −y) × 0.01`, in `f64`, rounded once), as an animation
+/// without triangles.
+pub fn z_up_centimetre_layer(dir: &Scratch) -> (String, Animation) {
+    let script = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/usd/usd_check.py");
+    let o = Command::new("python3").arg(script).arg("write").arg(&dir.0).output().expect("python3 runs");
+    assert!(o.status.success(), "usd_check.py write failed: {}", String::from_utf8_lossy(&o.stderr));
+    let source = dir.path("case-xforms-usdc.usdc");
+    let info: Value = serde_json::from_slice(&std::fs::read(dir.path("case-xforms-usdc.json")).unwrap()).unwrap();
+    let points: Vec<f32> = std::fs::read(dir.path("case-xforms-usdc.f32"))
+        .unwrap()
+        .chunks_exact(4)
+        .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+        .collect();
+    let shown = points
+        .chunks_exact(3)
+        .flat_map(|p| [p[0] as f64 * 0.01, p[2] as f64 * 0.01, -(p[1] as f64) * 0.01].map(|x| x as f32))
+        .collect();
+    let vertices = info["vertices"].as_u64().unwrap() as usize;
+    (source, Animation::from_parts(vertices, Vec::new(), shown, info["fps"].as_f64().unwrap() as f32).unwrap())
+}

@@ -13,13 +13,19 @@
 //! - [`GltfLayout::Frames`]: frame 0 as the base mesh and one morph target per later frame
 //!   (its difference from frame 0), `STEP` weights selecting one target per frame: exact, large.
 //!
+//! A source that is not +Y up in metres (its [`SceneMetadata`]: a +Z-up USD layer in
+//! centimetres) gets a root node above everything whose `matrix` turns it +Y up and scales it
+//! to metres, as glTF's coordinate system requires (glTF 2.0 §3.4 "Coordinate System and
+//! Units"): the coded positions stay as the source stored them and a viewer shows the model
+//! upright and at its size ([`scene_root`], [`as_shown`]).
+//!
 //! The frame rate travels in the animation's `extras` (`{"animcodec": {"fps": …}}`, glTF has no
 //! field for it), keys sit at `frame / fps` seconds. A `.glb` holds the JSON and one binary
 //! chunk; a `.gltf` embeds its buffer as a base64 `data:` URI, so either is one self-contained
 //! file.
 
 use base64::Engine as _;
-use codec_core::{Animation, Error, Result};
+use codec_core::{Animation, Error, Result, SceneMetadata, UpAxis};
 
 use super::gltf_out_rd::{self, QBasis};
 use faer::Mat;
@@ -699,7 +705,11 @@ pub fn encode_gltf(animation: &Animation, options: &GltfOptions, glb: bool) -> R
         ),
         other => other,
     })?;
+    let root = scene_root(animation.metadata())?;
     if options.reorder && animation.frame_count() > 0 && !animation.triangles().is_empty() {
+        // Played back through the root node, the file shows the input as `as_shown` places it.
+        let shown = as_shown(animation)?;
+        let reference = shown.as_ref().unwrap_or(animation);
         let (map, count, triangles) = weld_map(animation);
         let moved = welded(animation, &map, count, triangles)?;
         // KG on the welded vertices counts each trajectory once, on the input's as often as it
@@ -711,10 +721,10 @@ pub fn encode_gltf(animation: &Animation, options: &GltfOptions, glb: bool) -> R
         let mut best: Option<(Vec<u8>, GltfSummary, f64)> = None;
         let (mut met_aim, mut missed_aim) = (None::<f64>, None::<f64>);
         for _ in 0..5 {
-            let (bytes, mut summary) = encode_inner(&moved, &inner, glb, true)?;
+            let (bytes, mut summary) = encode_inner(&moved, &inner, glb, true, root)?;
             let played = super::gltf::parse_gltf(&bytes, None, "glTF export", animation.frame_rate())?;
             let played = restore_vertices(&played, &map, animation.triangles())?;
-            let kg = gltf_out_rd::kg_between(animation, &played);
+            let kg = gltf_out_rd::kg_between(reference, &played);
             summary.basis_kg = kg;
             let fixed = options.layout == GltfLayout::Frames || options.targets.is_some();
             let met = kg <= options.target_kg || fixed;
@@ -752,13 +762,65 @@ pub fn encode_gltf(animation: &Animation, options: &GltfOptions, glb: bool) -> R
         summary.vertex_map = Some(map);
         return Ok((bytes, summary));
     }
-    encode_inner(animation, options, glb, false)
+    encode_inner(animation, options, glb, false, root)
 }
 
-/// [`encode_gltf`] after the checks and the welding; `rotate`: see [`Buffer::rotate`].
-fn encode_inner(full: &Animation, options: &GltfOptions, glb: bool, rotate: bool) -> Result<(Vec<u8>, GltfSummary)> {
+/// The `matrix` (column-major) of the root node a source with `metadata` needs in glTF, which
+/// is +Y up in metres (glTF 2.0 §3.4): a +Z-up source turned by −90° about X, `(x, y, z) →
+/// (x, z, −y)` (exact; a rotation keeps the triangles' winding), then scaled by its metres per
+/// unit. `None` when the source is +Y up in metres or said nothing (glTF's own convention is
+/// assumed); an error when the scale has no `f32` form.
+pub fn scene_root(metadata: &SceneMetadata) -> Result<Option<[f32; 16]>> {
+    let z_up = metadata.up_axis == Some(UpAxis::Z);
+    let meters = metadata.meters_per_unit.unwrap_or(1.0);
+    if !z_up && meters == 1.0 {
+        return Ok(None);
+    }
+    let s = meters as f32;
+    if !(s.is_normal() && s > 0.0) {
+        return Err(Error::parameter(
+            "glTF export",
+            "metersPerUnit",
+            format!("{meters} has no single-precision scale for the glTF root node"),
+        ));
+    }
+    Ok(Some(if z_up {
+        // Columns: the images of x, y, z: x → x, y → −z, z → y.
+        [s, 0., 0., 0., 0., 0., -s, 0., 0., s, 0., 0., 0., 0., 0., 1.]
+    } else {
+        [s, 0., 0., 0., 0., s, 0., 0., 0., 0., s, 0., 0., 0., 0., 1.]
+    }))
+}
+
+/// `animation` where a glTF viewer shows it once written: through [`scene_root`]'s matrix, in
+/// `f64` and rounded to `f32` as a glTF reader places a vertex, with its metadata then saying
+/// +Y up in metres; `None` when no root node is written (the positions are shown as they are).
+/// What the written file is measured against.
+pub fn as_shown(animation: &Animation) -> Result<Option<Animation>> {
+    let Some(m) = scene_root(animation.metadata())? else {
+        return Ok(None);
+    };
+    let m = m.map(f64::from);
+    let positions = animation
+        .positions()
+        .chunks_exact(3)
+        .flat_map(|p| super::gltf_anim::transform_point(&m, [p[0] as f64, p[1] as f64, p[2] as f64]).map(|x| x as f32))
+        .collect();
+    let metadata = SceneMetadata { up_axis: Some(UpAxis::Y), meters_per_unit: Some(1.0), ..*animation.metadata() };
+    Animation::new(animation.topology().clone(), positions, animation.frame_rate())?.with_metadata(metadata).map(Some)
+}
+
+/// [`encode_gltf`] after the checks and the welding; `rotate`: see [`Buffer::rotate`]; `root`:
+/// the [`scene_root`] matrix.
+fn encode_inner(
+    full: &Animation,
+    options: &GltfOptions,
+    glb: bool,
+    rotate: bool,
+    root: Option<[f32; 16]>,
+) -> Result<(Vec<u8>, GltfSummary)> {
     if options.layout == GltfLayout::Frames {
-        return finish(full, Geometry::Float(frame_morphs(full)), None, options, glb, rotate);
+        return finish(full, Geometry::Float(frame_morphs(full)), None, options, (glb, rotate), root);
     }
     // Basis: the rigid motion split off or not (`rigid`; both when `None`), and each space's
     // candidate geometries; the smallest file is kept (with `targets` given: the smallest KG).
@@ -775,7 +837,7 @@ fn encode_inner(full: &Animation, options: &GltfOptions, glb: bool, rotate: bool
         let candidates = basis_geometry(&space, options)?;
         for geometry in candidates {
             let kg = geometry.basis_kg();
-            let written = finish(&space, geometry, motion.clone(), options, glb, rotate)?;
+            let written = finish(&space, geometry, motion.clone(), options, (glb, rotate), root)?;
             let better = best.as_ref().is_none_or(|(b, b_kg)| match options.targets {
                 None => written.0.len() < b.0.len(),
                 Some(_) => kg < *b_kg,
@@ -852,15 +914,17 @@ fn basis_geometry(a: &Animation, options: &GltfOptions) -> Result<Vec<Geometry>>
 }
 
 /// Writes the file: `animation` (already without the rigid motion when `motion` is given) as
-/// `geometry`, the motion as a parent node's animation.
+/// `geometry`, the motion as a parent node's animation, everything under a node with the
+/// `root` matrix when given ([`scene_root`]); `form`: `(glb, rotate)`.
 fn finish(
     animation: &Animation,
     geometry: Geometry,
     motion: Option<RigidMotion>,
     options: &GltfOptions,
-    glb: bool,
-    rotate: bool,
+    form: (bool, bool),
+    root_matrix: Option<[f32; 16]>,
 ) -> Result<(Vec<u8>, GltfSummary)> {
+    let (glb, rotate) = form;
     let frames = animation.frame_count();
     // With rigid motion: node 0 carries it, its child node 1 the mesh.
     let mesh_node = if motion.is_some() { 1 } else { 0 };
@@ -936,6 +1000,21 @@ fn finish(
         let parent = json!({"name": format!("{} motion", options.name), "children": [1],
             "translation": shortest(&m.translations[..3]), "rotation": shortest(&m.rotations[..4])});
         root["nodes"] = json!([parent, root["nodes"][0].clone()]);
+    }
+    if let Some(matrix) = root_matrix {
+        // Last, so the animation channels keep their node indices.
+        if let Some(nodes) = root["nodes"].as_array_mut() {
+            let last = nodes.len();
+            // Whole numbers as integers (`0`, not `0.0`).
+            let matrix: Vec<Value> = matrix
+                .iter()
+                .zip(shortest(&matrix).as_array().into_iter().flatten())
+                .map(|(&x, short)| if x.fract() == 0.0 { json!(x as i32) } else { short.clone() })
+                .collect();
+            nodes.push(json!({"name": format!("{} +Y up, metres", options.name), "matrix": matrix,
+                "children": [0]}));
+            root["scenes"] = json!([{"nodes": [last]}]);
+        }
     }
     let (mut channels, mut samplers) = (Vec::new(), Vec::new());
     let times: Vec<f32> = (0..frames).map(|f| f as f32 / fps).collect();
@@ -1054,6 +1133,42 @@ mod tests {
 
     fn max_diff(a: &Animation, b: &Animation) -> f32 {
         a.positions().iter().zip(b.positions()).map(|(x, y)| (x - y).abs()).fold(0.0, f32::max)
+    }
+
+    /// A +Z-up centimetre source is written under a root node that turns it +Y up in metres:
+    /// read back, it plays where `as_shown` places it (exactly up to f32 rounding in the frames
+    /// layout, within the KG target in the compressed basis, .glb and .gltf alike); a source
+    /// without metadata gets no such node.
+    #[test]
+    fn a_z_up_centimetre_source_plays_upright_in_metres() {
+        let plain = synth::by_name("flag", synth::SynthSize::Small).unwrap();
+        let meta = SceneMetadata { up_axis: Some(UpAxis::Z), meters_per_unit: Some(0.01), ..Default::default() };
+        let a = plain.clone().with_metadata(meta).unwrap();
+        let shown = as_shown(&a).unwrap().unwrap();
+        let p = a.frame(3)[..3].to_vec();
+        let q = &shown.frame(3)[..3];
+        assert!((q[0] - p[0] * 0.01).abs() <= 1e-6 && (q[1] - p[2] * 0.01).abs() <= 1e-6, "{p:?} -> {q:?}");
+        assert!((q[2] + p[1] * 0.01).abs() <= 1e-6, "{p:?} -> {q:?}");
+        let diagonal = shown.bounding_box_diagonal() as f32;
+        for (layout, compression, glb) in
+            [(GltfLayout::Frames, GltfCompression::None, true), (GltfLayout::Basis, GltfCompression::Meshopt, false)]
+        {
+            let opts = GltfOptions { layout, compression, target_kg: 0.5, ..Default::default() };
+            let (bytes, _) = encode_gltf(&a, &opts, glb).unwrap();
+            let played = read_back(&bytes, a.frame_rate());
+            if layout == GltfLayout::Frames {
+                assert!(max_diff(&shown, &played) <= 1e-6 * diagonal, "{}", max_diff(&shown, &played));
+            } else {
+                let kg = gltf_out_rd::kg_between(&shown, &played);
+                assert!(kg <= 0.5 * 1.001, "KG {kg} against the source shown");
+            }
+            let (bytes, _) = encode_gltf(&plain, &opts, glb).unwrap();
+            let text = String::from_utf8_lossy(&bytes);
+            assert!(!text.contains("\"matrix\""), "a source without metadata got a root node");
+        }
+        let huge = plain.with_metadata(SceneMetadata { meters_per_unit: Some(1e300), ..Default::default() }).unwrap();
+        let e = encode_gltf(&huge, &GltfOptions::default(), true).unwrap_err().to_string();
+        assert!(e.contains("metersPerUnit"), "{e}");
     }
 
     /// Frames layout: our reader plays back every frame to f32 rounding of the differences;
