@@ -145,4 +145,16 @@ fn a_target_search_measurement_is_reused_by_eval() {
     assert!(report.sted.is_some() && report.hausdorff.is_some());
     assert_eq!(report.kg, hit.point.report.kg);
     assert_eq!((encodes.load(Ordering::SeqCst), decodes.load(Ordering::SeqCst)), (tried, tried + 1));
+
+    // `encode --target --eval`: the search measures every metric, so the chosen stream's report
+    // is its evaluation — each stream encoded and decoded once, nothing measured again.
+    encodes.store(0, Ordering::SeqCst);
+    decodes.store(0, Ordering::SeqCst);
+    let request = SearchRequest { measure_every_metric: true, ..request };
+    let hit = harness::search_target(&request, codec, &codec.default_params()).unwrap();
+    let tried = hit.tried.len();
+    let (report, _) =
+        front::evaluation_of(&registry, &hit, &animation, &EvalOptions::default(), Limits::default()).unwrap();
+    assert!(report.sted.is_some() && report.hausdorff.is_some());
+    assert_eq!((encodes.load(Ordering::SeqCst), decodes.load(Ordering::SeqCst)), (tried, tried));
 }

@@ -22,6 +22,20 @@ fn install(test: &str) -> Option<(tempdir::Dir, PathBuf)> {
             return None;
         }
     }
+    // `cargo test` builds the crate as a Rust library for the tests only: the C libraries
+    // (`cdylib`, `staticlib`) come from a `cargo build` of the package into the same target
+    // directory and profile (cargo holds no lock while tests run).
+    let library = common::library_dir();
+    let mut build = Command::new(env!("CARGO"));
+    build.current_dir(common::workspace()).args(["build", "-q", "-p", "animcodec-capi", "--lib"]);
+    if let Some(target) = library.parent() {
+        build.env("CARGO_TARGET_DIR", target);
+    }
+    if library.file_name().is_some_and(|p| p == "release") {
+        build.arg("--release");
+    }
+    let built = build.status().expect("cargo");
+    assert!(built.success(), "cargo build -p animcodec-capi failed");
     let dir = tempdir::Dir::new(test);
     let prefix = dir.path().join("prefix");
     let status = Command::new("sh")

@@ -519,10 +519,11 @@ fn run_target(args: &EncodeArgs, target: Target, by_default: bool, limits: Limit
         }
         Some((codec, params))
     };
-    // --eval's metrics: every one, with the STED options given (the search computes only its
-    // target's metric).
+    // --eval's metrics: every one, with the STED options given. With --eval the search measures
+    // every candidate with them, so the chosen stream's report is its evaluation (encoded and
+    // decoded once); without, only the target's metrics.
     let measured = args.sted.metric_options().eval_options()?;
-    let eval = EvalOptions { sted: measured.sted, ..EvalOptions::default() };
+    let eval = if args.eval { measured } else { EvalOptions { sted: measured.sted, ..EvalOptions::default() } };
     policy.check(&args.output)?;
     animcodec::output::folder_exists(&args.output)?;
 
@@ -565,6 +566,7 @@ fn run_target(args: &EncodeArgs, target: Target, by_default: bool, limits: Limit
         limits,
         refine: args.refine as usize,
         progress: &progress,
+        measure_every_metric: args.eval,
         ..SearchRequest::new(&registry, &animation, target)
     };
     let every_codec: Vec<&dyn AnimationCodec> = registry.iter().collect();

@@ -32,6 +32,10 @@ pub struct SearchRequest<'a> {
     /// minutes; the command line shows the latest point). Searches over a space call it from
     /// several threads.
     pub progress: &'a (dyn Fn(&Point) + Sync),
+    /// Measure every point with all of `eval`'s metrics, not only the target's: the chosen
+    /// point's report is then a full evaluation of its stream (`encode --target --eval`), at
+    /// the cost of those metrics on every candidate.
+    pub measure_every_metric: bool,
 }
 
 impl<'a> SearchRequest<'a> {
@@ -46,12 +50,23 @@ impl<'a> SearchRequest<'a> {
             limits: Limits::default(),
             refine: 0,
             progress: &|_| {},
+            measure_every_metric: false,
         }
     }
 
-    /// The metric options a candidate is measured with: the target's metrics only.
+    /// The metric options a candidate is measured with: the target's metrics only, or with
+    /// [`Self::measure_every_metric`] those of `eval` as well.
     pub(crate) fn metric_options(&self) -> EvalOptions {
-        self.target.eval_options(&self.eval)
+        let target = self.target.eval_options(&self.eval);
+        if self.measure_every_metric {
+            EvalOptions {
+                compute_sted: target.compute_sted || self.eval.compute_sted,
+                compute_hausdorff: target.compute_hausdorff || self.eval.compute_hausdorff,
+                ..target
+            }
+        } else {
+            target
+        }
     }
 }
 
