@@ -22,6 +22,8 @@ mod gltf_buffers;
 mod gltf_draco;
 mod gltf_meshopt;
 pub mod gltf_out;
+mod gltf_out_buffer;
+mod gltf_out_morphs;
 mod gltf_out_rd;
 mod gltf_scene;
 pub mod mdd;
