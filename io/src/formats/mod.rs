@@ -26,6 +26,8 @@ mod gltf_out_buffer;
 mod gltf_out_morphs;
 mod gltf_out_rd;
 mod gltf_scene;
+mod gltf_scene_channels;
+mod gltf_scene_mesh;
 pub mod mdd;
 pub mod obj;
 pub mod pc2;
