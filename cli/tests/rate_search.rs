@@ -648,33 +648,3 @@ fn encode_with_a_joint_target_writes_a_stream_meeting_both_bounds() {
     assert_eq!(o.status.code(), Some(2), "a malformed --target is a usage error");
     assert!(stderr(&o).contains("kg is bounded twice"), "{}", stderr(&o));
 }
-
-/// `-c auto`'s space search bounds each later codec by the smallest stream found so far: it
-/// finds the stream the codecs searched one by one find, with fewer encodes.
-#[test]
-fn auto_search_bounds_later_codecs_by_the_best_so_far() {
-    use std::sync::atomic::{AtomicUsize, Ordering};
-    let registry = animcodec::registry();
-    let animation = small();
-    let eval = EvalOptions::default();
-    let codecs: Vec<&dyn AnimationCodec> =
-        ["hosvd", "quant-delta", "sac"].into_iter().map(|n| registry.by_name(n).unwrap()).collect();
-    let count = AtomicUsize::new(0);
-    let progress = |_: &harness::Point| {
-        count.fetch_add(1, Ordering::Relaxed);
-    };
-    let counted = |target| SearchRequest { progress: &progress, ..request(&registry, &animation, target, &eval, 2) };
-    for target in [DEFAULT_TARGET, Target::new(TargetMetric::Kg, 0.5)] {
-        count.store(0, Ordering::Relaxed);
-        let (best, _) = harness::search_space_target_auto(&counted(target), &codecs).unwrap();
-        let bounded = count.swap(0, Ordering::Relaxed);
-        let alone: Vec<u64> = codecs
-            .iter()
-            .filter_map(|c| search_space_target(&counted(target), *c, &c.default_params(), &[]).ok())
-            .map(|h| h.point.bytes)
-            .collect();
-        let unbounded = count.load(Ordering::Relaxed);
-        assert_eq!(Some(best.point.bytes), alone.iter().copied().min(), "{target}");
-        assert!(bounded < unbounded, "{target}: {bounded} encodes bounded, {unbounded} one by one");
-    }
-}
