@@ -2,9 +2,7 @@
 //! `harness::search_space_target`, the envelope sweep, and the default quality of
 //! `animcodec encode` without `-p`.
 
-use animcodec::harness::{
-    self, search_space_target, search_target, SearchRequest, Target, TargetMetric, DEFAULT_TARGET,
-};
+use animcodec::harness::{self, search_space_target, search_target, Target, TargetMetric, DEFAULT_TARGET};
 use animcodec::metrics::EvalOptions;
 use animcodec::synth;
 use codec_core::{
