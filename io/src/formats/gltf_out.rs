@@ -430,7 +430,7 @@ fn basis_geometry(a: &Animation, options: &GltfOptions) -> Result<Vec<Geometry>>
         }
         Ok(out)
     } else {
-        Ok(vec![Geometry::Float(basis_morphs(a, options)?)])
+        Ok(vec![Geometry::Float(basis_morphs(a, options.targets, options.target_kg)?)])
     }
 }
 

@@ -6,7 +6,6 @@
 use codec_core::{Animation, Error, Result};
 use faer::Mat;
 
-use super::gltf_out::GltfOptions;
 use super::gltf_out_rd;
 
 /// Base mesh, morph targets (each `3V` values) and per-frame weights (`F × k`, frame-major).
@@ -18,8 +17,9 @@ pub(super) struct Morphs {
 }
 
 /// Mean + the leading principal components of the frames, from the eigen-decomposition of the
-/// `F × F` Gram matrix of the centred frames (cheaper than the `3V × 3V` covariance).
-pub(super) fn basis_morphs(a: &Animation, options: &GltfOptions) -> Result<Morphs> {
+/// `F × F` Gram matrix of the centred frames (cheaper than the `3V × 3V` covariance): `targets`
+/// of them, or (`None`) the fewest whose KG is at most `target_kg`.
+pub(super) fn basis_morphs(a: &Animation, targets: Option<usize>, target_kg: f64) -> Result<Morphs> {
     let (frames, n) = (a.frame_count(), a.vertex_count() * 3);
     let gltf_out_rd::FrameEigen { mean, centred, values: lambda, vectors } = gltf_out_rd::frame_eigen(a)?;
     let energy = gltf_out_rd::kg_energy(a);
@@ -32,9 +32,9 @@ pub(super) fn basis_morphs(a: &Animation, options: &GltfOptions) -> Result<Morph
         }
     };
     let rank = lambda.iter().filter(|&&l| l > 1e-12 * lambda[0].max(f64::MIN_POSITIVE)).count();
-    let k = match options.targets {
+    let k = match targets {
         Some(k) => k.min(rank),
-        None => (0..=rank).find(|&k| kg_with(k) <= options.target_kg).unwrap_or(rank),
+        None => (0..=rank).find(|&k| kg_with(k) <= target_kg).unwrap_or(rank),
     };
     let mut base = mean;
     let mut targets = Vec::with_capacity(k);

@@ -66,7 +66,7 @@ pub(super) fn kg_between(a: &Animation, played: &Animation) -> f64 {
 
 /// The frames' mean, the centred frames (`F × 3V`) and the eigen-decomposition of their
 /// `F × F` Gram matrix (descending eigenvalues, clamped at zero; eigenvectors as columns):
-/// what [`pca`] and the uncompressed basis export (`gltf_out::basis_morphs`) start from.
+/// what [`pca`] and the uncompressed basis export (`gltf_out_morphs::basis_morphs`) start from.
 pub(super) struct FrameEigen {
     pub mean: Vec<f64>,
     pub centred: Mat<f64>,

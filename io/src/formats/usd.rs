@@ -58,13 +58,11 @@ use super::usd_assemble::assemble;
 pub use super::usd_layer::USD_DEFAULT_TIME_CODES_PER_SECOND;
 use super::usd_layer::{unsupported, Layer, StageTimeLine};
 use super::usd_lexer::Lexer;
-use super::usd_text::Parser;
+use super::usd_text::{Parser, USDA_MAGIC};
 use super::{name, read_file};
 
 pub use super::usd_layer::MAX_DEPTH;
 
-/// The USDA header every text layer starts with.
-pub(super) const USDA_MAGIC: &[u8] = b"#usda ";
 /// The first bytes of a binary crate file.
 pub(super) const USDC_MAGIC: &[u8] = b"PXR-USDC";
 /// The first bytes of a zip archive (a `.usdz` package).

@@ -6,12 +6,14 @@
 use codec_core::{Error, Result};
 
 use super::gltf_buffers::Budget;
-use super::usd::USDA_MAGIC;
 use super::usd_layer::{
     is_kept_attribute, is_kept_relationship, shown, unsupported, Attribute, Layer, Prim, Relationship, Value,
     FLATTEN_ADVICE, MAX_DEPTH,
 };
 use super::usd_lexer::{describe, Lexer, Tok};
+
+/// The USDA header every text layer starts with.
+pub(super) const USDA_MAGIC: &[u8] = b"#usda ";
 
 /// A value as far as this reader needs it.
 #[derive(Debug, Clone, PartialEq)]
