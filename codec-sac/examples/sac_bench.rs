@@ -28,7 +28,8 @@ use std::path::Path;
 use std::time::Instant;
 
 use codec_core::{Animation, AnimationCodec, EncoderSetup, Limits, StreamInfo};
-use codec_sac::geometry::{self, PoissonSystem, Svd3};
+use codec_sac::geometry::{self, Svd3};
+use codec_sac::poisson::PoissonSystem;
 use codec_sac::{coding, harmonics, Sac, SacParams};
 
 #[path = "support/data.rs"]

@@ -22,8 +22,9 @@
 use std::time::Instant;
 
 use codec_core::{Animation, AnimationCodec, EncoderSetup};
-use codec_sac::geometry::{self, PoissonSystem, Svd3, M3, V3};
+use codec_sac::geometry::{self, Svd3, M3, V3};
 use codec_sac::harmonics::{self, Transfer};
+use codec_sac::poisson::PoissonSystem;
 use codec_sac::{coding, Sac, SacParams};
 use faer::Mat;
 

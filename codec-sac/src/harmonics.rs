@@ -15,7 +15,8 @@ use faer::{Accum, Col, Conj, Mat, MatMut, MatRef, Par, Side};
 
 use codec_core::{Error, Limits, Result};
 
-use crate::geometry::{cholesky_work, corners, cross, dot, norm, sub, V3};
+use crate::geometry::{corners, cross, dot, norm, sub, V3};
+use crate::poisson::cholesky_work;
 use crate::NAME;
 
 fn numerical(step: &'static str, detail: impl Into<String>) -> Error {

@@ -32,6 +32,7 @@ mod encoder;
 pub mod geometry;
 pub mod harmonics;
 mod params;
+pub mod poisson;
 mod state;
 
 use codec_core::{
@@ -53,7 +54,7 @@ pub(crate) const UNLIMITED: Limits = Limits::UNLIMITED;
 /// ([`harmonics::harmonics_by_component`]) and adds the residual layer to P-frames; version 1
 /// solved the whole mesh at once. Version 3 computes the basis once per
 /// stream from a rest pose every keyframe names (`basis = stream`), solves the Poisson system
-/// over the vertices only, re-factored every `refactor` P-frames ([`geometry::ReducedPoisson`]),
+/// over the vertices only, re-factored every `refactor` P-frames ([`poisson::ReducedPoisson`]),
 /// synthesizes through the vertex basis, and lets the error guard repair a P-frame with a
 /// coarse residual before falling back to a refresh frame. The decoder still decodes versions
 /// 1 and 2 exactly as they were.

@@ -61,7 +61,7 @@ codec_core::declare_params! {
         ),
         /// Poisson factorization schedule, 0..=255: the system is factored at the
         /// previous reconstruction every `refactor` P-frames of an interval and reused in between
-        /// (the targets are carried to the factor's reference, see [`crate::geometry::ReducedPoisson`]);
+        /// (the targets are carried to the factor's reference, see [`crate::poisson::ReducedPoisson`]);
         /// 1 = every frame, exactly the paper's solve; 0 = never, the rest pose's factor. Default 8
         /// (measured: KG +5 % against 1 on horse-gallop and samba at 100 bases; samba decodes in
         /// 0.49× the time of the stream version 2 decoder, against 0.54× with 4; 0 costs +60–80 % KG;

@@ -12,8 +12,9 @@ use faer::linalg::matmul::matmul;
 use faer::{Accum, Mat, Par};
 
 use crate::coding::{self, Contexts};
-use crate::geometry::{self, PoissonFactor, PoissonScratch, PoissonSystem, ReducedPoisson, M3, V3};
+use crate::geometry::{self, M3, V3};
 use crate::harmonics::{self, Transfer};
+use crate::poisson::{PoissonFactor, PoissonScratch, PoissonSystem, ReducedPoisson};
 use crate::NAME;
 
 /// What the decoder must know (stored in the stream config).
