@@ -17,6 +17,7 @@
 //! rate estimate, Eq. 8–9), `memory` (the encoder's memory model) and `linalg`.
 
 mod bound;
+mod clustering;
 mod coding;
 mod decoder;
 mod encoder;
