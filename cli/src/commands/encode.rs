@@ -6,7 +6,7 @@ use std::time::{Duration, Instant};
 use animcodec::core::{Animation, AnimationCodec, Limits, ParamSet, StreamDecoder, StreamEncoder, Topology};
 use animcodec::formats::stream::{self as cache_stream, CacheReader};
 use animcodec::front::{self, EvaluationFields, Streams, TargetSummary};
-use animcodec::harness::{self, SearchRequest, Target, TargetMetric};
+use animcodec::harness::{self, CacheSource, FrameRead, InputSource, SearchRequest, StreamedInput, Target, TargetMetric};
 use animcodec::metrics::{EvalOptions, MetricReport};
 use animcodec::output::{OutputPolicy, PendingFile};
 use animcodec::params::params_json;
@@ -57,12 +57,16 @@ pub struct EncodeArgs {
     #[arg(long, value_name = "N", default_value_t = 32, value_parser = clap::value_parser!(u32).range(1..))]
     pub feed: u32,
 
-    /// Memory budget of an encode with -p (bytes; K, M, G suffixes are powers of 1024), e.g.
-    /// 4G. A .pc2/.mdd input, an OBJ sequence (or synth:flag:CxRxF) is read frame by frame, so the encode holds
-    /// the mesh and what the codec buffers; a codec whose analysis holds a whole block of frames (hosvd with
-    /// block=0) chooses temporal blocks that fit the budget. The stream depends on the budget,
-    /// never on the machine. Default: none (hosvd decomposes the whole sequence at once).
-    /// Not with --target or the default-quality search, which hold the whole animation.
+    /// Memory budget (bytes; K, M, G suffixes are powers of 1024), e.g. 4G. A .pc2/.mdd input,
+    /// an OBJ sequence (or synth:flag:CxRxF) is read frame by frame, so an encode with -p holds
+    /// the mesh and what the codec buffers; a codec whose analysis holds a whole block of frames
+    /// (hosvd with block=0) chooses temporal blocks that fit the budget. The stream depends on
+    /// the budget, never on the machine. The searches (no -p, --target, -c auto) hold the whole
+    /// input while that fits the budget; beyond it they stream: each candidate is encoded from
+    /// the input as it is read and measured against a second read (a quarter of the budget is
+    /// kept for candidate streams, the codec's blocks are fitted to the rest). A codec whose
+    /// encoder holds the whole input (sac, stseg) is refused beyond it. Default: none for -p
+    /// (hosvd decomposes the whole sequence at once); for the searches, half the machine's RAM.
     #[arg(long, value_name = "BYTES", value_parser = super::parse_bytes)]
     pub memory: Option<u64>,
 
@@ -160,6 +164,14 @@ pub struct TargetEncodeDocument<'a> {
     pub search: &'static str,
     /// The chosen encode's warnings and remarks.
     pub notes: Vec<String>,
+    /// How the search read the input: `whole` (the animation in memory) or `streamed` (each
+    /// candidate encoded from the input as it is read and measured against a second read).
+    pub search_input: &'static str,
+    /// The memory budget the search kept to (bytes): `--memory`, or the default share of the
+    /// machine's RAM; `null` when none applies.
+    pub memory_budget: Option<u64>,
+    /// Whether `memory_budget` is the default (no `--memory`).
+    pub memory_budget_default: bool,
     /// Raw f32 size over the stream's.
     pub ratio: f64,
     /// Frames.
@@ -196,12 +208,6 @@ pub fn run(args: &EncodeArgs, limits: Limits) -> CmdResult {
         }
     }
     let policy = output_policy(args);
-    if args.memory.is_some() && (args.target.is_some() || args.params.is_empty()) {
-        return Err("--memory bounds an encode with fixed parameters (-p KEY=VALUE): --target and the \
-                    default-quality search (no -p) decode and compare whole animations, so they hold the \
-                    whole input in memory"
-            .into());
-    }
     if let Some(target) = args.target {
         return run_target(args, target, false, limits, &policy);
     }
@@ -494,6 +500,151 @@ impl<W: Write> Write for CountingWriter<W> {
     }
 }
 
+/// What a search reads: the whole animation, or a source read frame by frame.
+enum SearchSource {
+    Whole(Animation),
+    Streamed(Box<dyn InputSource>),
+}
+
+/// A search's input and its memory budget, and the note saying why it streams.
+struct PreparedInput {
+    input: SearchSource,
+    budget: Option<u64>,
+    note: Option<String>,
+}
+
+/// Reads (or opens) a search's input under the memory budget: `--memory`, else
+/// [`front::default_memory_budget`]. An input that can be read frame by frame (PC2, MDD, an
+/// OBJ sequence, `synth:flag:COLSxROWSxFRAMES`) is searched whole while the whole-array search
+/// fits the budget by [`harness::whole_search_need`] (the largest over `codecs`), and streamed
+/// beyond it, with a note saying so. Any other input is read whole; beyond an explicit
+/// `--memory` it is refused.
+fn prepare_search_input(
+    args: &EncodeArgs,
+    codecs: &[&dyn AnimationCodec],
+    eval: &EvalOptions,
+    limits: Limits,
+) -> CmdResult<PreparedInput> {
+    let (budget, given) = match args.memory {
+        Some(m) => (Some(m), true),
+        None => (front::default_memory_budget(), false),
+    };
+    let options = args.read.options(args.fps);
+    let need = |v: usize, f: usize| codecs.iter().map(|c| harness::whole_search_need(*c, v, f)).max().unwrap_or(0);
+    let path = std::path::Path::new(&args.input);
+    let source: Option<Box<dyn InputSource>> = match front::streamed_flag(&args.input)? {
+        Some((cols, rows, frames)) => {
+            check_flag_memory(&args.input, cols, rows, args.memory)?;
+            Some(Box::new(FlagSource::new(&args.input, cols, rows, frames, args.fps)))
+        }
+        None if cache_stream::is_streamable(path) => Some(Box::new(CacheSource::open(path, &options)?)),
+        None => None,
+    };
+    let Some(source) = source else {
+        let animation = load(&args.input, &options, limits, Streams::Refuse)?.animation;
+        let whole = need(animation.vertex_count(), animation.frame_count());
+        if let (Some(b), true) = (budget, given) {
+            if whole > b {
+                return Err(format!(
+                    "{}: a search over this input holds it whole (only .pc2/.mdd caches, OBJ sequences and \
+                     synth:flag:COLSxROWSxFRAMES are read frame by frame), about {} MiB, more than --memory {} MiB; \
+                     convert it to a PC2 cache (animcodec export) or give a larger --memory",
+                    args.input,
+                    whole >> 20,
+                    b >> 20
+                )
+                .into());
+            }
+        }
+        return Ok(PreparedInput { input: SearchSource::Whole(animation), budget, note: None });
+    };
+    let (v, f) = (source.topology().vertex_count(), source.frame_count());
+    let whole = need(v, f);
+    match budget {
+        Some(b) if whole > b => {
+            let whose = if given {
+                format!("--memory {} MiB", b >> 20)
+            } else {
+                format!(
+                    "the default memory budget, {} MiB ({} of this machine's RAM; --memory sets it, and the \
+                     codec's blocks may depend on it)",
+                    b >> 20,
+                    if front::DEFAULT_MEMORY_SHARE == (1, 2) { "half".to_owned() } else { format!("{:?}", front::DEFAULT_MEMORY_SHARE) }
+                )
+            };
+            let note = format!(
+                "a search over the whole of {} would hold about {} MiB, more than {whose}: it streams instead \
+                 (each candidate is encoded from the input as it is read and measured against a second read)",
+                args.input,
+                whole >> 20
+            );
+            let _ = eval;
+            Ok(PreparedInput { input: SearchSource::Streamed(source), budget, note: Some(note) })
+        }
+        _ => {
+            drop(source);
+            let animation = load(&args.input, &options, limits, Streams::Refuse)?.animation;
+            Ok(PreparedInput { input: SearchSource::Whole(animation), budget, note: None })
+        }
+    }
+}
+
+/// `synth:flag:COLSxROWSxFRAMES` as a [`InputSource`]: its frames generated one at a time for
+/// every read, its mesh held.
+struct FlagSource {
+    name: String,
+    cols: usize,
+    rows: usize,
+    frames: usize,
+    frame_rate: f32,
+    topology: Topology,
+}
+
+impl FlagSource {
+    fn new(name: &str, cols: usize, rows: usize, frames: usize, fps: Option<f32>) -> Self {
+        let topology = synth::flag_topology(cols, rows);
+        Self { name: name.to_owned(), cols, rows, frames, frame_rate: fps.unwrap_or(synth::FRAME_RATE), topology }
+    }
+}
+
+/// A read of a [`FlagSource`]: the next frame to generate.
+struct FlagReader<'a> {
+    flag: &'a FlagSource,
+    next: usize,
+    frame: Vec<f32>,
+}
+
+impl FrameRead for FlagReader<'_> {
+    fn read_frames(&mut self, frames: usize, out: &mut Vec<f32>) -> animcodec::core::Result<usize> {
+        out.clear();
+        let n = frames.min(self.flag.frames - self.next);
+        for t in self.next..self.next + n {
+            synth::flag_frame(self.flag.cols, self.flag.rows, t, self.flag.frames, &mut self.frame);
+            out.extend_from_slice(&self.frame);
+        }
+        self.next += n;
+        Ok(n)
+    }
+}
+
+impl InputSource for FlagSource {
+    fn topology(&self) -> &Topology {
+        &self.topology
+    }
+    fn frame_count(&self) -> usize {
+        self.frames
+    }
+    fn frame_rate(&self) -> f32 {
+        self.frame_rate
+    }
+    fn open(&self) -> harness::Result<Box<dyn FrameRead + '_>> {
+        Ok(Box::new(FlagReader { flag: self, next: 0, frame: Vec::new() }))
+    }
+    fn name(&self) -> String {
+        self.name.clone()
+    }
+}
+
 /// `encode --target` (or the default quality target, `by_default`): searches the codec's
 /// declared parameter space (see [`harness::search_space_target`]; with `--ladder` its rate
 /// ladder alone, [`harness::search_target`]) and writes the smallest stream that meets the
@@ -528,13 +679,63 @@ fn run_target(args: &EncodeArgs, target: Target, by_default: bool, limits: Limit
     animcodec::output::folder_exists(&args.output)?;
 
     let read_start = Instant::now();
-    // The search decodes and compares whole animations, so a synth:flag:COLSxROWSxFRAMES is
-    // built in memory (within the memory limit).
-    let options = args.read.options(args.fps);
-    let animation = load(&args.input, &options, limits, Streams::Refuse)?.animation;
+    let registry_codecs: Vec<&dyn AnimationCodec> = registry.iter().collect();
+    let searched: Vec<&dyn AnimationCodec> = match &chosen {
+        Some((codec, _)) => vec![*codec],
+        None => registry_codecs.clone(),
+    };
+    // The whole animation in memory while the search fits the memory budget; beyond it (and
+    // for an input read frame by frame) the streamed search.
+    let prepared = prepare_search_input(args, &searched, &eval, limits)?;
     // The files the read opened (a .gltf's buffers, …) are inputs too: refused before the work.
     policy.check(&args.output)?;
     let read_seconds = read_start.elapsed().as_secs_f64();
+    let streamed_input = match &prepared.input {
+        SearchSource::Streamed(source) => Some(StreamedInput::new(
+            source.as_ref(),
+            prepared.budget.expect("a streamed search has a budget"),
+            args.feed as usize,
+            &eval,
+        )?),
+        SearchSource::Whole(_) => None,
+    };
+    let mut notes: Vec<String> = prepared.note.iter().cloned().collect();
+    for n in &notes {
+        eprintln!("animcodec: {n}");
+    }
+    // On a streamed input, a codec whose encoder holds the whole input cannot stream: refused
+    // (a named codec) or left out (-c auto), naming the budget.
+    let mut every_codec: Vec<&dyn AnimationCodec> = registry_codecs.clone();
+    if let Some(streamed) = &streamed_input {
+        let (v, f) = (streamed.source().topology().vertex_count(), streamed.source().frame_count());
+        let refusal = |codec: &dyn AnimationCodec, params: &ParamSet| -> Option<String> {
+            codec.fit_memory(params, v, f, streamed.work_budget()).err().map(|e| {
+                format!(
+                    "{}: its encoder cannot stream {} within --memory {} MiB (the streamed search gives the codec \
+                     {} MiB, three quarters of the budget; a quarter is kept for candidate streams): {e}",
+                    codec.name(),
+                    args.input,
+                    streamed.budget() >> 20,
+                    streamed.work_budget() >> 20,
+                )
+            })
+        };
+        match &chosen {
+            Some((codec, params)) => {
+                if let Some(why) = refusal(*codec, params) {
+                    return Err(why.into());
+                }
+            }
+            None => every_codec.retain(|codec| match refusal(*codec, &codec.default_params()) {
+                Some(why) => {
+                    eprintln!("animcodec: left out of -c auto: {why}");
+                    notes.push(format!("left out of -c auto: {why}"));
+                    false
+                }
+                None => true,
+            }),
+        }
+    }
 
     let start = Instant::now();
     // Each point is a full encode + decode + evaluation (minutes in all on real data): on a
@@ -561,15 +762,19 @@ fn run_target(args: &EncodeArgs, target: Target, by_default: bool, limits: Limit
         ));
     };
     let fixed: Vec<&str> = args.params.iter().filter_map(|p| p.split_once('=').map(|(k, _)| k.trim())).collect();
+    let input = match (&prepared.input, &streamed_input) {
+        (_, Some(streamed)) => harness::SearchInput::Streamed(streamed),
+        (SearchSource::Whole(animation), None) => harness::SearchInput::Whole(animation),
+        (SearchSource::Streamed(_), None) => unreachable!("a streamed source has its streamed input"),
+    };
     let request = SearchRequest {
         eval,
         limits,
         refine: args.refine as usize,
         progress: &progress,
         measure_every_metric: args.eval,
-        ..SearchRequest::new(&registry, &animation, target)
+        ..SearchRequest::on(&registry, input, target)
     };
-    let every_codec: Vec<&dyn AnimationCodec> = registry.iter().collect();
     let found = match (chosen, args.ladder) {
         (Some((codec, _)), false) if by_default => {
             harness::search_default_quality(&request, codec).map(|hit| (hit, Vec::new()))
@@ -585,11 +790,15 @@ fn run_target(args: &EncodeArgs, target: Target, by_default: bool, limits: Limit
     let (hit, others) = found?;
     let search_seconds = start.elapsed().as_secs_f64();
     // The chosen encode's warnings, as a plain encode prints them (stderr, `--json` "notes").
-    let mut notes: Vec<String> =
+    let mut warnings: Vec<String> =
         hit.point.report.notes.iter().filter_map(|n| n.strip_prefix("encoder: ")).map(str::to_owned).collect();
-    notes.extend(sted_motion_note(target, &hit.point));
-    for n in &notes {
+    warnings.extend(sted_motion_note(target, &hit.point));
+    for n in &warnings {
         eprintln!("animcodec: warning: {n}");
+    }
+    notes.extend(warnings);
+    if hit.stream.is_empty() {
+        return Err("internal error: the search chose a stream it did not keep".into());
     }
     // Written under a temporary name and measured (--eval) before it replaces anything.
     let mut file = policy.create(&args.output)?;
@@ -599,12 +808,29 @@ fn run_target(args: &EncodeArgs, target: Target, by_default: bool, limits: Limit
     // decoded again unless the search skipped a metric --eval reports).
     let evaluation = if args.eval {
         file.finish()?;
-        Some(front::evaluation_of(&registry, &hit, &animation, &measured, limits)?)
+        Some(match &input {
+            harness::SearchInput::Whole(animation) => {
+                front::evaluation_of(&registry, &hit, animation, &measured, limits)?
+            }
+            harness::SearchInput::Streamed(streamed) => match front::search_evaluation(&hit, &measured) {
+                Some(found) => found,
+                None => {
+                    let start = Instant::now();
+                    let (report, _) =
+                        harness::measure_stream_against(&registry, &hit.stream, streamed.source(), &measured, limits)?;
+                    (report, start.elapsed().as_secs_f64())
+                }
+            },
+        })
     } else {
         None
     };
     file.commit()?;
-    let (v, f) = (animation.vertex_count(), animation.frame_count());
+    let (v, f) = (input.vertex_count(), input.frame_count());
+    let (triangles, frame_rate) = match &prepared.input {
+        SearchSource::Whole(a) => (a.topology().triangle_count(), a.frame_rate()),
+        SearchSource::Streamed(source) => (source.topology().triangle_count(), source.frame_rate()),
+    };
     if args.json {
         return emit_document(&TargetEncodeDocument {
             summary: TargetSummary::new(target, &hit, &others),
@@ -613,11 +839,14 @@ fn run_target(args: &EncodeArgs, target: Target, by_default: bool, limits: Limit
             default_target: by_default,
             search: if args.ladder { "ladder" } else { "space" },
             notes,
+            search_input: if streamed_input.is_some() { "streamed" } else { "whole" },
+            memory_budget: prepared.budget,
+            memory_budget_default: args.memory.is_none() && prepared.budget.is_some(),
             ratio: raw_bytes(v, f) as f64 / p.bytes as f64,
             frames: f,
             vertices: v,
-            triangles: animation.topology().triangle_count(),
-            frame_rate: animation.frame_rate(),
+            triangles,
+            frame_rate,
             read_seconds,
             search_seconds,
             encode_seconds: p.encode_seconds,
@@ -625,10 +854,15 @@ fn run_target(args: &EncodeArgs, target: Target, by_default: bool, limits: Limit
         });
     }
     let mut out = format!(
-        "{input}: {f} frames × {v} vertices (read in {read_seconds:.2} s)\n\
+        "{input}: {f} frames × {v} vertices ({read})\n\
          target {target}{default}: {codec} [{params}] reaches {reached} → {output}\n\
          {parts}{bytes} bytes, {rate:.3} bits/vertex/frame; searched {n} points in {search_seconds:.2} s{fallback}\n",
         input = args.input,
+        read = if streamed_input.is_some() {
+            "streamed: read twice per candidate".to_owned()
+        } else {
+            format!("read in {read_seconds:.2} s")
+        },
         default = if by_default { " (the default quality; -p or --target for other choices)" } else { "" },
         codec = p.codec,
         params = p.params,

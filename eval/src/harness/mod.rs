@@ -23,6 +23,9 @@
 //! * `space`: [`search_space_target`] over a codec's declared search space
 //!   ([`search_space_target_auto`]).
 //! * `default_quality`: [`search_default_quality`], the default encode's short search.
+//! * `input`: what a search measures against ([`SearchInput`]): the whole animation, or a
+//!   [`InputSource`] read frame by frame within a memory budget ([`StreamedInput`],
+//!   [`measure_point_streamed`]).
 
 mod csv;
 mod curve;
@@ -32,6 +35,7 @@ mod point;
 mod rows;
 mod search;
 mod space;
+mod input;
 mod sweep;
 pub(crate) mod target;
 
@@ -44,6 +48,10 @@ pub use rows::{
 };
 pub use search::{search_target, search_target_auto, SearchRequest};
 pub use space::{search_space_target, search_space_target_auto};
+pub use input::{
+    encoder_need, evaluator_bytes, measure_point_streamed, measure_stream_against, whole_search_need, CacheSource,
+    FrameRead, InputSource, SearchInput, StreamedInput, STREAM_SHARE_DIVISOR,
+};
 pub use sweep::{
     envelope_sweep, sweep, sweep_jobs, sweep_point, Failure, Sweep, SweepEvent, SweepOptions, SweepSeries,
 };
