@@ -25,7 +25,7 @@ pub mod sted;
 pub mod streaming;
 
 pub use bpvf::{bpvf, geometry_bpvf};
-pub use common::check_compatible;
+pub use common::{check_compatible, check_compatible_shapes};
 pub use displacement::{displacement_stats, kg_error, per_vertex_displacement, DisplacementStats, VertexDisplacement};
 pub use hausdorff::{
     hausdorff, isolated_vertex_count, point_triangle_distance, vertex_to_surface_distances, HausdorffMode,

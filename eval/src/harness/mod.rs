@@ -23,6 +23,9 @@
 //! * `space`: [`search_space_target`] over a codec's declared search space
 //!   ([`search_space_target_auto`]).
 //! * `default_quality`: [`search_default_quality`], the default encode's short search.
+//! * `streamed`: [`measure_stream`] measures an `.anim` stream packet by packet against a
+//!   reference read frame by frame ([`FrameSource`]), [`measure_sources`] two sides read so,
+//!   in the bounded memory of [`metrics::StreamingEvaluator`].
 
 mod csv;
 mod curve;
@@ -32,6 +35,7 @@ mod point;
 mod rows;
 mod search;
 mod space;
+mod streamed;
 mod sweep;
 pub(crate) mod target;
 
@@ -44,6 +48,7 @@ pub use rows::{
 };
 pub use search::{search_target, search_target_auto, SearchRequest};
 pub use space::{search_space_target, search_space_target_auto};
+pub use streamed::{chunk_frames, measure_bytes_held, measure_sources, measure_stream, FrameSource, CHUNK_BYTES};
 pub use sweep::{
     envelope_sweep, sweep, sweep_jobs, sweep_point, Failure, Sweep, SweepEvent, SweepOptions, SweepSeries,
 };
