@@ -12,10 +12,11 @@ use std::time::Instant;
 use animcodec_io::formats::stream::CacheReader;
 use animcodec_io::formats::ReadOptions;
 use codec_core::memory::{MIB, PROCESS_BYTES};
-use codec_core::{Animation, AnimationCodec, CodecRegistry, Limits, ParamSet, SceneMetadata, StreamDecoder, Topology};
+use codec_core::{Animation, AnimationCodec, CodecRegistry, Limits, ParamSet, SceneMetadata, Topology};
 use metrics::EvalOptions;
 
 use super::measured::Point;
+use super::streamed::{measure_bytes_held, measure_stream, FrameSource};
 use crate::error::{EvalError, Result};
 
 /// Frames read in order: [`FrameRead::read_frames`] clears `out`, fills it with the next
@@ -147,6 +148,10 @@ impl SearchInput<'_> {
 /// fitted to it, [`AnimationCodec::fit_memory`]), then in turn the decoder's and the metrics'.
 pub const STREAM_SHARE_DIVISOR: u64 = 4;
 
+/// Frames of one decoded packet [`StreamedInput::least_budget`] leaves room for (the
+/// codecs' packets are 8 frames or longer when their blocks are fitted to a budget).
+const MIN_PACKET_FRAMES: u64 = 8;
+
 /// A streamed search's input: the source, the memory budget and how it is shared, and the
 /// smallest passing stream measured so far (streams larger than it are never chosen, so they
 /// are not kept).
@@ -166,8 +171,8 @@ impl<'a> StreamedInput<'a> {
         if budget < least {
             return Err(EvalError::Message(format!(
                 "{}: --memory {} MiB is too small for a streamed search: it needs at least {} MiB (a quarter \
-                 of the budget for candidate streams; the rest for the program ({} MiB), the metrics' state for \
-                 {} vertices and the codec); give --memory {}M or more",
+                 of the budget for candidate streams; the rest for the program ({} MiB), the metrics' window and \
+                 frames of {} vertices, and the codec); give --memory {}M or more",
                 source.name(),
                 budget / MIB,
                 least.div_ceil(MIB),
@@ -180,11 +185,11 @@ impl<'a> StreamedInput<'a> {
     }
 
     /// The least budget a streamed search can run in: its work share must hold the program,
-    /// the metrics' state ([`evaluator_bytes`]) and two frames (the reference frame and the
-    /// decoded one), twice over for the codec; the stream share comes on top.
+    /// the measurement's window and frames ([`measure_bytes_held`](super::measure_bytes_held))
+    /// and a decoded packet of a few frames; the stream share comes on top.
     pub fn least_budget(topology: &Topology, eval: &EvalOptions) -> u64 {
-        let frame = topology.vertex_count() as u64 * 12;
-        let work = PROCESS_BYTES + 2 * (evaluator_bytes(topology, eval) + 2 * frame);
+        let frames = topology.vertex_count() as u64 * 12 * MIN_PACKET_FRAMES;
+        let work = PROCESS_BYTES + measure_bytes_held(topology, eval) + frames;
         work.saturating_mul(STREAM_SHARE_DIVISOR).div_ceil(STREAM_SHARE_DIVISOR - 1)
     }
 
@@ -226,15 +231,6 @@ impl<'a> StreamedInput<'a> {
             }
         }
     }
-}
-
-/// Bytes the streamed metrics hold for a mesh of `topology` with `options`.
-pub fn evaluator_bytes(topology: &Topology, options: &EvalOptions) -> u64 {
-    // Until the streaming evaluator lands: its documented state is the window of frames STED
-    // needs plus per-vertex accumulators; bounded here by the window's frames twice over.
-    let frame = topology.vertex_count() as u64 * 12;
-    let window = if options.compute_sted { options.sted.speed_window as u64 + 2 } else { 1 };
-    2 * window * frame + topology.vertex_count() as u64 * 64 + topology.triangle_count() as u64 * 48
 }
 
 /// The least budget at which `codec` encodes `vertices × frames` at `params` unchanged (its
@@ -351,8 +347,9 @@ pub fn measure_point_streamed(
     Ok((point, bytes))
 }
 
-/// Decodes `stream` packet by packet and measures it frame by frame against a fresh read of
-/// `source`; returns the report and the seconds spent decoding.
+/// Decodes `stream` packet by packet and measures it against a fresh read of `source`
+/// ([`measure_stream`](super::measure_stream)); returns the report and the seconds the decode
+/// and the measurement took.
 pub fn measure_stream_against(
     registry: &CodecRegistry,
     stream: &[u8],
@@ -360,70 +357,15 @@ pub fn measure_stream_against(
     eval: &EvalOptions,
     limits: Limits,
 ) -> Result<(metrics::MetricReport, f64)> {
-    let topology = source.topology();
-    let mut decoder = StreamDecoder::new_streaming(stream, registry, limits)?;
-    let codec = decoder.codec_name();
-    let mut evaluator = stand_in::StreamingEvaluator::new(topology, source.frame_count(), source.frame_rate(), eval)?;
+    let start = Instant::now();
     let mut reader = source.open()?;
-    let mut reference = Vec::new();
-    let per_frame = topology.vertex_count() * 3;
-    let mut decode_seconds = 0.0;
-    loop {
-        let start = Instant::now();
-        let Some(packet) = decoder.next_packet() else { break };
-        let packet = packet?;
-        decode_seconds += start.elapsed().as_secs_f64();
-        if packet.positions.iter().any(|x| !x.is_finite()) {
-            return Err(EvalError::NonFiniteDecode { codec });
-        }
-        for frame in packet.positions.chunks_exact(per_frame.max(1)) {
-            if reader.read_frames(1, &mut reference)? != 1 {
-                return Err(EvalError::Message(format!(
-                    "{}: the stream has more frames than the input",
-                    source.name()
-                )));
-            }
-            evaluator.push(&reference, frame)?;
-        }
-    }
-    Ok((evaluator.finish()?, decode_seconds))
-}
-
-/// A stand-in for the streaming evaluator (same interface): holds both sequences and
-/// measures them whole at the end.
-mod stand_in {
-    use codec_core::{Animation, Topology};
-    use metrics::{EvalOptions, MetricReport};
-
-    use crate::error::Result;
-
-    pub struct StreamingEvaluator {
-        topology: Topology,
-        frame_rate: f32,
-        options: EvalOptions,
-        reference: Vec<f32>,
-        candidate: Vec<f32>,
-    }
-
-    impl StreamingEvaluator {
-        pub fn new(topology: &Topology, _frames: usize, frame_rate: f32, options: &EvalOptions) -> Result<Self> {
-            Ok(Self {
-                topology: topology.clone(),
-                frame_rate,
-                options: *options,
-                reference: Vec::new(),
-                candidate: Vec::new(),
-            })
-        }
-        pub fn push(&mut self, reference: &[f32], candidate: &[f32]) -> Result<()> {
-            self.reference.extend_from_slice(reference);
-            self.candidate.extend_from_slice(candidate);
-            Ok(())
-        }
-        pub fn finish(self) -> Result<MetricReport> {
-            let r = Animation::new(self.topology.clone(), self.reference, self.frame_rate)?;
-            let c = Animation::new(self.topology, self.candidate, self.frame_rate)?;
-            Ok(metrics::evaluate(&r, &c, &self.options)?)
-        }
-    }
+    let mut read = |n: usize, out: &mut Vec<f32>| reader.read_frames(n, out);
+    let reference = FrameSource {
+        topology: source.topology(),
+        frame_count: source.frame_count(),
+        frame_rate: source.frame_rate(),
+        read: &mut read,
+    };
+    let report = measure_stream(registry, stream, reference, eval, limits)?;
+    Ok((report, start.elapsed().as_secs_f64()))
 }
