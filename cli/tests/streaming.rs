@@ -170,8 +170,11 @@ fn a_memory_budget_chooses_hosvd_blocks_and_refuses_what_cannot_fit() {
         &["hosvd", "block", "budget"],
     );
     assert!(!std::path::Path::new(&none).exists());
-    // Without -p (the default-quality search) a budget cannot be honoured: refused.
-    fails(&["encode", &pc2, "-c", "hosvd", "--memory", "4G", "-o", &none], &["--memory", "-p"]);
+    // Without -p the default-quality search keeps to the budget too: this input's whole-array
+    // search fits 4G, so it is searched whole.
+    let j = ok_json(&["encode", &pc2, "-c", "hosvd", "--memory", "4G", "-o", &none, "--json"]);
+    assert_eq!(j["search_input"], "whole", "{j}");
+    assert_eq!(j["memory_budget"].as_u64(), Some(4 << 30), "{j}");
 }
 
 /// The smallest budget (whole MiB) for which hosvd's `fit_memory` blocks `frames` frames of

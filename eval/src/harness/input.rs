@@ -369,3 +369,119 @@ pub fn measure_stream_against(
     let report = measure_stream(registry, stream, reference, eval, limits)?;
     Ok((report, start.elapsed().as_secs_f64()))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::harness::{search_default_quality, search_space_target, SearchRequest, Target, TargetMetric};
+
+    /// An animation in memory served frame by frame, as a file would be.
+    struct InMemory(Animation);
+
+    struct InMemoryReader<'a> {
+        animation: &'a Animation,
+        next: usize,
+    }
+
+    impl FrameRead for InMemoryReader<'_> {
+        fn read_frames(&mut self, frames: usize, out: &mut Vec<f32>) -> codec_core::Result<usize> {
+            out.clear();
+            let n = frames.min(self.animation.frame_count() - self.next);
+            let per_frame = self.animation.vertex_count() * 3;
+            out.extend_from_slice(&self.animation.positions()[self.next * per_frame..(self.next + n) * per_frame]);
+            self.next += n;
+            Ok(n)
+        }
+    }
+
+    impl InputSource for InMemory {
+        fn topology(&self) -> &Topology {
+            self.0.topology()
+        }
+        fn frame_count(&self) -> usize {
+            self.0.frame_count()
+        }
+        fn frame_rate(&self) -> f32 {
+            self.0.frame_rate()
+        }
+        fn metadata(&self) -> SceneMetadata {
+            *self.0.metadata()
+        }
+        fn open(&self) -> Result<Box<dyn FrameRead + '_>> {
+            Ok(Box::new(InMemoryReader { animation: &self.0, next: 0 }))
+        }
+        fn name(&self) -> String {
+            "in memory".into()
+        }
+    }
+
+    fn registry() -> CodecRegistry {
+        CodecRegistry::new(vec![Box::new(codec_quant_delta::QuantDelta), Box::new(codec_pca_aoi::PcaAoi)]).unwrap()
+    }
+
+    /// The same search on the whole animation and on it streamed (a budget that changes no
+    /// parameter): same points tried, same metrics, same chosen stream, byte for byte.
+    #[test]
+    fn streamed_searches_choose_what_whole_ones_do() {
+        let registry = registry();
+        let animation = animcodec_synth::tumbling_body_sized(10, 8, 24);
+        let source = InMemory(animation.clone());
+        let eval = EvalOptions::default();
+        let kg: Target = Target::new(TargetMetric::Kg, 0.3);
+        for codec in registry.iter() {
+            for (target, space) in [(crate::harness::DEFAULT_TARGET, false), (kg, true)] {
+                let streamed = StreamedInput::new(&source, 1 << 40, 5, &eval).unwrap();
+                let whole_request = SearchRequest { refine: 2, ..SearchRequest::new(&registry, &animation, target) };
+                let streamed_request =
+                    SearchRequest { refine: 2, ..SearchRequest::streamed(&registry, &streamed, target) };
+                let run = |request: &SearchRequest<'_>| {
+                    if space {
+                        search_space_target(request, codec, &codec.default_params(), &[])
+                    } else {
+                        search_default_quality(request, codec)
+                    }
+                };
+                let (w, s) = (run(&whole_request).unwrap(), run(&streamed_request).unwrap());
+                let view = |hit: &crate::harness::TargetHit| {
+                    hit.tried.iter().map(|p| (p.params.to_string(), p.bytes, p.report.kg, p.report.sted)).collect::<Vec<_>>()
+                };
+                assert_eq!(view(&s), view(&w), "{} {target}", codec.name());
+                assert_eq!(s.point.params, w.point.params);
+                assert_eq!(s.point.report, w.point.report);
+                assert!(!s.stream.is_empty());
+                assert_eq!(s.stream, w.stream, "{} {target}", codec.name());
+            }
+        }
+    }
+
+    #[test]
+    fn only_a_stream_that_can_still_be_chosen_is_kept() {
+        let animation = animcodec_synth::tumbling_body_sized(6, 4, 4);
+        let source = InMemory(animation);
+        let input = StreamedInput::new(&source, 1 << 30, 1, &EvalOptions::default()).unwrap();
+        assert!(!input.keep(100, false), "a failing stream");
+        assert!(input.keep(100, true));
+        assert!(!input.keep(101, true), "larger than a passing one before");
+        assert!(input.keep(100, true), "a tie goes to the earlier, but the later is kept too");
+        assert!(input.keep(90, true));
+    }
+
+    #[test]
+    fn a_budget_below_the_least_is_refused_naming_both() {
+        let source = InMemory(animcodec_synth::tumbling_body_sized(6, 4, 4));
+        let eval = EvalOptions::default();
+        let least = StreamedInput::least_budget(source.topology(), &eval);
+        let e = StreamedInput::new(&source, least - 1, 1, &eval).err().unwrap().to_string();
+        assert!(e.contains("too small") && e.contains(&format!("{}M", least.div_ceil(MIB))), "{e}");
+        assert!(StreamedInput::new(&source, least, 1, &eval).is_ok());
+    }
+
+    #[test]
+    fn the_encoder_need_is_where_fit_memory_stops_changing_the_parameters() {
+        let codec = codec_pca_aoi::PcaAoi;
+        let params = codec.default_params();
+        let need = encoder_need(&codec, &params, 50_000, 400).unwrap();
+        assert_eq!(codec.fit_memory(&params, 50_000, 400, need).unwrap(), params);
+        assert_ne!(codec.fit_memory(&params, 50_000, 400, need - 2 * MIB).ok(), Some(params));
+    }
+}
