@@ -20,8 +20,12 @@ fn flag_cache(s: &Scratch) -> String {
 /// What the two paths must agree on: the chosen parameters and size, and every point tried
 /// (parameters, size, errors reached).
 fn choice(j: &Value) -> Value {
-    let tried: Vec<Value> =
-        j["tried"].as_array().unwrap().iter().map(|t| serde_json::json!([t["params"], t["bytes"], t["reached"]])).collect();
+    let tried: Vec<Value> = j["tried"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|t| serde_json::json!([t["params"], t["bytes"], t["reached"]]))
+        .collect();
     serde_json::json!({"params": j["params"], "bytes": j["bytes"], "reached": j["reached"], "tried": tried})
 }
 
@@ -40,7 +44,10 @@ fn a_streamed_search_chooses_what_the_whole_array_search_chooses_byte_for_byte()
         assert_eq!(st["search_input"], "streamed", "{st}");
         assert_eq!(st["memory_budget"].as_u64(), Some(180 << 20));
         assert_eq!(st["memory_budget_default"], false);
-        assert!(st["notes"].as_array().unwrap().iter().any(|n| n.as_str().unwrap().contains("streams instead")), "{st}");
+        assert!(
+            st["notes"].as_array().unwrap().iter().any(|n| n.as_str().unwrap().contains("streams instead")),
+            "{st}"
+        );
         assert_eq!(choice(&st), choice(&w), "{extra:?}");
         assert_eq!(std::fs::read(&whole).unwrap(), std::fs::read(&streamed).unwrap(), "{extra:?}");
     }
@@ -52,8 +59,14 @@ fn a_budget_too_small_or_a_codec_that_holds_the_input_is_refused_naming_the_budg
     let pc2 = flag_cache(&s);
     let out = s.path("x.anim");
     // Below the streamed search's least budget: the message gives the least one.
-    fails(&["encode", &pc2, "-c", "quant-delta", "--memory", "40M", "-o", &out], &["--memory 40 MiB", "too small", "give --memory"]);
+    fails(
+        &["encode", &pc2, "-c", "quant-delta", "--memory", "40M", "-o", &out],
+        &["--memory 40 MiB", "too small", "give --memory"],
+    );
     // sac's encoder holds the whole input: refused by name within the budget.
-    fails(&["encode", &pc2, "-c", "sac", "--memory", "180M", "-o", &out], &["sac", "--memory 180 MiB", "cannot stream"]);
+    fails(
+        &["encode", &pc2, "-c", "sac", "--memory", "180M", "-o", &out],
+        &["sac", "--memory 180 MiB", "cannot stream"],
+    );
     assert!(!std::path::Path::new(&out).exists());
 }

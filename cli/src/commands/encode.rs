@@ -6,7 +6,9 @@ use std::time::{Duration, Instant};
 use animcodec::core::{Animation, AnimationCodec, Limits, ParamSet, StreamDecoder, StreamEncoder, Topology};
 use animcodec::formats::stream::{self as cache_stream, CacheReader};
 use animcodec::front::{self, EvaluationFields, Streams, TargetSummary};
-use animcodec::harness::{self, CacheSource, FrameRead, InputSource, SearchRequest, StreamedInput, Target, TargetMetric};
+use animcodec::harness::{
+    self, CacheSource, FrameRead, InputSource, SearchRequest, StreamedInput, Target, TargetMetric,
+};
 use animcodec::metrics::{EvalOptions, MetricReport};
 use animcodec::output::{OutputPolicy, PendingFile};
 use animcodec::params::params_json;
@@ -569,7 +571,11 @@ fn prepare_search_input(
                     "the default memory budget, {} MiB ({} of this machine's RAM; --memory sets it, and the \
                      codec's blocks may depend on it)",
                     b >> 20,
-                    if front::DEFAULT_MEMORY_SHARE == (1, 2) { "half".to_owned() } else { format!("{:?}", front::DEFAULT_MEMORY_SHARE) }
+                    if front::DEFAULT_MEMORY_SHARE == (1, 2) {
+                        "half".to_owned()
+                    } else {
+                        format!("{:?}", front::DEFAULT_MEMORY_SHARE)
+                    }
                 )
             };
             let note = format!(
@@ -700,9 +706,6 @@ fn run_target(args: &EncodeArgs, target: Target, by_default: bool, limits: Limit
         SearchSource::Whole(_) => None,
     };
     let mut notes: Vec<String> = prepared.note.iter().cloned().collect();
-    for n in &notes {
-        eprintln!("animcodec: {n}");
-    }
     // On a streamed input, a codec whose encoder holds the whole input cannot stream: refused
     // (a named codec) or left out (-c auto), naming the budget.
     let mut every_codec: Vec<&dyn AnimationCodec> = registry_codecs.clone();
@@ -735,6 +738,10 @@ fn run_target(args: &EncodeArgs, target: Target, by_default: bool, limits: Limit
                 None => true,
             }),
         }
+    }
+    // Said once the search is sure to run (a refusal above is the one message).
+    for n in prepared.note.iter() {
+        eprintln!("animcodec: {n}");
     }
 
     let start = Instant::now();

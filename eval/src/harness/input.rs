@@ -443,7 +443,10 @@ mod tests {
                 };
                 let (w, s) = (run(&whole_request).unwrap(), run(&streamed_request).unwrap());
                 let view = |hit: &crate::harness::TargetHit| {
-                    hit.tried.iter().map(|p| (p.params.to_string(), p.bytes, p.report.kg, p.report.sted)).collect::<Vec<_>>()
+                    hit.tried
+                        .iter()
+                        .map(|p| (p.params.to_string(), p.bytes, p.report.kg, p.report.sted))
+                        .collect::<Vec<_>>()
                 };
                 assert_eq!(view(&s), view(&w), "{} {target}", codec.name());
                 assert_eq!(s.point.params, w.point.params);

@@ -33,18 +33,22 @@
 mod csv;
 mod curve;
 mod default_quality;
+mod input;
 mod measured;
 mod point;
 mod rows;
 mod search;
 mod space;
 mod streamed;
-mod input;
 mod sweep;
 pub(crate) mod target;
 
 pub use curve::{envelope, joint_envelope, monotone_report, Monotonicity};
 pub use default_quality::{search_default_quality, DEFAULT_QUALITY_BAND, DEFAULT_REFINE_BAND, DEFAULT_TARGET};
+pub use input::{
+    encoder_need, measure_point_streamed, measure_stream_against, whole_search_need, CacheSource, FrameRead,
+    InputSource, SearchInput, StreamedInput, STREAM_SHARE_DIVISOR,
+};
 pub use measured::Point;
 pub use point::{ladder_indices, ladder_params, measure_point, measure_point_keeping};
 pub use rows::{
@@ -53,10 +57,6 @@ pub use rows::{
 pub use search::{search_target, search_target_auto, SearchRequest};
 pub use space::{search_space_target, search_space_target_auto};
 pub use streamed::{chunk_frames, measure_bytes_held, measure_sources, measure_stream, FrameSource, CHUNK_BYTES};
-pub use input::{
-    encoder_need, measure_point_streamed, measure_stream_against, whole_search_need, CacheSource,
-    FrameRead, InputSource, SearchInput, StreamedInput, STREAM_SHARE_DIVISOR,
-};
 pub use sweep::{
     envelope_sweep, sweep, sweep_jobs, sweep_point, Failure, Sweep, SweepEvent, SweepOptions, SweepSeries,
 };

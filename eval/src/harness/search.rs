@@ -5,9 +5,9 @@
 use codec_core::{Animation, AnimationCodec, CodecRegistry, Limits, ParamSet, ParamValue};
 use metrics::EvalOptions;
 
+use super::input::{measure_point_streamed, SearchInput, StreamedInput};
 use super::measured::Point;
 use super::point::{ladder_params, measure_point};
-use super::input::{measure_point_streamed, SearchInput, StreamedInput};
 use super::target::{meets, usable, Target, TargetHit, TargetMiss};
 use crate::error::{EvalError, Result};
 
