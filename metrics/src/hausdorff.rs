@@ -105,15 +105,16 @@ impl FrameSurface {
     }
 
     /// Bytes held for `n` vertices and `t` triangles (an upper bound: the searched list adds
-    /// at most one point per vertex), and the transient bytes of one [`Self::distance`] call.
+    /// at most one point per vertex, and median splits down to leaves of 2 to 4 triangles make
+    /// at most one node per triangle), and the transient bytes of one [`Self::distance`] call.
     pub(crate) fn bytes(n: usize, t: usize) -> (u64, u64) {
         let (n, tris) = (n as u64, (t + n) as u64);
         // Triangles 12 B, incidence 4 B per corner + 4 B per vertex, tree shape 8 B per node
-        // (at most 2 per triangle) + 4 B per triangle.
-        let held = tris * 12 + (3 * tris + n + 1) * 4 + tris * (2 * 8 + 4);
+        // + 4 B per triangle.
+        let held = tris * 12 + (3 * tris + n + 1) * 4 + tris * (8 + 4);
         // A refitted tree (72 B of corners per triangle, 56 B per node) and the visit order
         // (16 B per vertex), for one direction at a time.
-        let transient = tris * (72 + 2 * 56) + n * 16;
+        let transient = tris * (72 + 56) + n * 16;
         (held, transient)
     }
 }

@@ -97,7 +97,9 @@ pub struct EncodeArgs {
 
     /// After encoding, decode the written stream and measure it against the input: KG, STED,
     /// Hausdorff, RMSE and max error are printed (and added to --json as `kg`, `sted` and the
-    /// full report under `metrics`).
+    /// full report under `metrics`). With -p, an input read frame by frame (.pc2, .mdd, an OBJ
+    /// sequence, synth:flag:CxRxF) is measured frame by frame too: the input is read (or
+    /// generated) again beside the stream decoded packet by packet, within --memory.
     #[arg(long)]
     pub eval: bool,
 
@@ -195,19 +197,12 @@ pub struct TargetEncodeDocument<'a> {
     pub evaluation: Option<EvaluationFields>,
 }
 
-/// Why `--eval` refuses a streamed flag (checked before encoding starts).
-const EVAL_NEEDS_MEMORY: &str = "--eval needs the input in memory, but synth:flag:COLSxROWSxFRAMES is generated \
-                                 frame by frame; write it to a file first (animcodec synth) or drop --eval";
-
 /// Runs `encode`.
 pub fn run(args: &EncodeArgs, limits: Limits) -> CmdResult {
     // Mistyped arguments first, then the output, all before anything long happens.
     let streamed = front::streamed_flag(&args.input)?.is_some();
     if args.eval {
         args.sted.metric_options().sted_params()?;
-        if streamed && !args.params.is_empty() && args.target.is_none() {
-            return Err(EVAL_NEEDS_MEMORY.into());
-        }
     }
     let policy = output_policy(args);
     if let Some(target) = args.target {
@@ -240,10 +235,9 @@ pub fn run(args: &EncodeArgs, limits: Limits) -> CmdResult {
         None => {
             let options = args.read.options(args.fps);
             // A PC2/MDD cache or an OBJ sequence is read frame by frame as the encoder takes it
-            // (inputs may be larger than memory), unless --eval needs the whole input in memory
-            // to measure it.
+            // (inputs may be larger than memory); --eval reads it again, frame by frame.
             let path = std::path::Path::new(&args.input);
-            if !args.eval && cache_stream::is_streamable(path) {
+            if cache_stream::is_streamable(path) {
                 Source::Cache(CacheReader::open(path, &options)?)
             } else {
                 Source::Whole(load(&args.input, &options, limits, Streams::Refuse)?.animation)
@@ -253,6 +247,10 @@ pub fn run(args: &EncodeArgs, limits: Limits) -> CmdResult {
     let topology = source.topology();
     let (frame_count, frame_rate) = source.frames_and_rate(args.fps);
     let read_seconds = read_start.elapsed().as_secs_f64();
+    if args.eval && !matches!(source, Source::Whole(_)) {
+        // --eval's frame-by-frame measurement must fit --memory: refused before encoding.
+        streamed_eval_limits(&args.input, &topology, &args.sted.metric_options().eval_options()?, args.memory, limits)?;
+    }
     // A codec with a whole-block analysis chooses its blocks by the memory budget.
     let params = match args.memory {
         Some(budget) => codec.fit_memory(&params, topology.vertex_count(), frame_count, budget)?,
@@ -277,10 +275,9 @@ pub fn run(args: &EncodeArgs, limits: Limits) -> CmdResult {
     let ratio = raw_bytes(v, f) as f64 / bytes as f64;
     // --eval measures the stream as written, before it replaces anything: a failed measurement
     // leaves the old output untouched and no new file.
-    let evaluation = match (&source, args.eval) {
-        (_, false) => None,
-        (Source::Whole(input), true) => Some(evaluate_written(args, input, file.finish()?, limits)?),
-        (Source::Flag { .. } | Source::Cache(_), true) => return Err(EVAL_NEEDS_MEMORY.into()),
+    let evaluation = match args.eval {
+        false => None,
+        true => Some(evaluate_written(args, &source, file.finish()?, limits)?),
     };
     file.commit()?;
     if args.json {
@@ -341,22 +338,84 @@ pub fn run(args: &EncodeArgs, limits: Limits) -> CmdResult {
 }
 
 /// `--eval`: decodes the stream just written (from its file `written`, as any user would) and
-/// measures it against the input; returns the report and the seconds it took.
+/// measures it against the input; returns the report and the seconds it took. An input held
+/// whole is compared with the whole decoded animation; one read frame by frame (a cache, an
+/// OBJ sequence, a generated flag) is read again frame by frame and compared with the stream
+/// as it decodes packet by packet ([`harness::measure_stream`]): the same report, in the
+/// memory of the metrics' window, one packet and a chunk of frames, checked against --memory.
 fn evaluate_written(
     args: &EncodeArgs,
-    input: &Animation,
+    source: &Source,
     written: &std::path::Path,
     limits: Limits,
 ) -> CmdResult<(MetricReport, f64)> {
     let start = Instant::now();
     let registry = animcodec::registry();
-    let decoded = StreamDecoder::new(super::decode::open(written)?, &registry, limits)
-        .and_then(|d| d.decode_all())
-        .context(|| format!("decoding {} to measure it", args.output.display()))?;
     let options = args.sted.metric_options().eval_options()?;
-    let report = animcodec::metrics::evaluate(input, &decoded, &options)
-        .context(|| format!("comparing {} with its decoded stream {}", args.input, args.output.display()))?;
-    Ok((report, start.elapsed().as_secs_f64()))
+    let comparing = || format!("comparing {} with its decoded stream {}", args.input, args.output.display());
+    if let Source::Whole(input) = source {
+        let decoded = StreamDecoder::new(super::decode::open(written)?, &registry, limits)
+            .and_then(|d| d.decode_all())
+            .context(|| format!("decoding {} to measure it", args.output.display()))?;
+        let report = animcodec::metrics::evaluate(input, &decoded, &options).context(comparing)?;
+        return Ok((report, start.elapsed().as_secs_f64()));
+    }
+    let topology = source.topology();
+    let (frame_count, frame_rate) = source.frames_and_rate(args.fps);
+    let limits = streamed_eval_limits(&args.input, &topology, &options, args.memory, limits)?;
+    let stream = super::decode::open(written)?;
+    let report = match source {
+        Source::Cache(_) => {
+            let path = std::path::Path::new(&args.input);
+            let mut reader = CacheReader::open(path, &args.read.options(args.fps))?;
+            let mut read = |n: usize, out: &mut Vec<f32>| reader.read_frames(n, out);
+            let reference = harness::FrameSource { topology: &topology, frame_count, frame_rate, read: &mut read };
+            harness::measure_stream(&registry, stream, reference, &options, limits)
+        }
+        Source::Flag { cols, rows, frames } => {
+            let (cols, rows, frames) = (*cols, *rows, *frames);
+            let (mut next, mut frame) = (0, Vec::new());
+            let mut read = |n: usize, out: &mut Vec<f32>| {
+                out.clear();
+                let n = n.min(frames - next);
+                for t in next..next + n {
+                    synth::flag_frame(cols, rows, t, frames, &mut frame);
+                    out.extend_from_slice(&frame);
+                }
+                next += n;
+                Ok(n)
+            };
+            let reference = harness::FrameSource { topology: &topology, frame_count, frame_rate, read: &mut read };
+            harness::measure_stream(&registry, stream, reference, &options, limits)
+        }
+        Source::Whole(_) => unreachable!("measured in memory above"),
+    };
+    Ok((report.context(comparing)?, start.elapsed().as_secs_f64()))
+}
+
+/// The limits of `--eval`'s streamed measurement: the decode keeps `limits`; with `--memory`,
+/// the metrics' window and frames ([`harness::measure_bytes_held`]) must fit in it, and the
+/// decode gets what is left (the encoder has finished and freed its memory by then).
+fn streamed_eval_limits(
+    input: &str,
+    topology: &Topology,
+    options: &EvalOptions,
+    memory: Option<u64>,
+    limits: Limits,
+) -> CmdResult<Limits> {
+    let Some(budget) = memory else { return Ok(limits) };
+    let held = harness::measure_bytes_held(topology, options);
+    let Some(left) = budget.checked_sub(held) else {
+        return Err(format!(
+            "{input}: --eval measures frame by frame holding up to {} MiB for {} vertices (the metrics' window and \
+             two chunks of frames), more than --memory {} MiB; raise --memory, or leave out --eval",
+            held >> 20,
+            topology.vertex_count(),
+            budget >> 20
+        )
+        .into());
+    };
+    Ok(Limits { max_alloc_bytes: limits.max_alloc_bytes.min(usize::try_from(left).unwrap_or(usize::MAX)), ..limits })
 }
 
 /// Where the frames come from: a loaded animation, a PC2/MDD cache or an OBJ sequence read frame

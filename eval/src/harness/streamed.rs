@@ -26,12 +26,15 @@ pub struct FrameSource<'a> {
     pub read: &'a mut dyn FnMut(usize, &mut Vec<f32>) -> codec_core::Result<usize>,
 }
 
-/// Bytes of frames read and pushed at a time (at least one frame).
-pub const CHUNK_BYTES: u64 = 32 << 20;
+/// Bytes of frames read and pushed at a time (but at least one frame per worker thread, which
+/// the metrics measure in parallel).
+pub const CHUNK_BYTES: u64 = 8 << 20;
 
-/// Frames of `vertex_count` vertices in one [`CHUNK_BYTES`] chunk (at least 1).
+/// Frames of `vertex_count` vertices in one chunk: [`CHUNK_BYTES`] of them, at least one per
+/// worker thread.
 pub fn chunk_frames(vertex_count: usize) -> usize {
-    (CHUNK_BYTES / (12 * vertex_count.max(1) as u64)).max(1) as usize
+    let threads = rayon::current_num_threads().max(1) as u64;
+    (CHUNK_BYTES / (12 * vertex_count.max(1) as u64)).max(threads) as usize
 }
 
 /// Bytes [`measure_stream`] and [`measure_sources`] hold besides the codec's decoder and one
@@ -59,10 +62,10 @@ fn read_exact_frames(source: &mut FrameSource, side: &str, first: usize, n: usiz
 
 /// Measures the `.anim` stream read from `stream` against `reference`, decoding packet by
 /// packet: every metric of [`metrics::evaluate`] on (reference, decoded stream). `limits`
-/// bound the decode as `decode` to a cache file does (one packet at a time) after the
-/// evaluator's window and the reference chunk are reserved from them. Fails on a stream that
-/// does not decode, a shape that differs from the reference's (vertices, frames, triangles), or
-/// a reference that ends early.
+/// bound the decode as `decode` to a cache file does (one packet at a time); what the
+/// measurement holds besides is [`measure_bytes_held`], for the caller to budget. Fails on a
+/// stream that does not decode, a shape that differs from the reference's (vertices, frames,
+/// triangles), or a reference that ends early.
 pub fn measure_stream<R: Read>(
     registry: &CodecRegistry,
     stream: R,
@@ -70,8 +73,6 @@ pub fn measure_stream<R: Read>(
     options: &EvalOptions,
     limits: Limits,
 ) -> Result<MetricReport> {
-    let held = measure_bytes_held(reference.topology, options);
-    let limits = limits.reserve("eval", "the streaming metrics' window and frames", held)?;
     let mut decoder = StreamDecoder::new_streaming(stream, registry, limits)?;
     let info = decoder.header().info.clone();
     check_compatible_shapes((reference.topology, reference.frame_count), (&info.topology, info.frame_count))?;
