@@ -4,7 +4,9 @@
 # streamed encode (PC2 → .anim, fixed parameters, --memory budget) and the streamed decode
 # (.anim → PC2): wall time, peak RSS (/usr/bin/time), throughput in vertex-frames per second and
 # as a ratio to reading the raw file (`cat FILE > /dev/null`, same page cache state: the file was
-# just written). Prints one Markdown table row per codec and size.
+# just written). Prints one Markdown table row per codec and size. Then a second table: the
+# default command (no -p: the default-quality search, --eval) within the same --memory, per codec
+# and size (DEFAULT_ROWS=0 skips it; DEFAULT_ONLY=1 runs only it).
 #
 #   cargo build -p animcodec-cli --release
 #   bench/scale.sh 100x100x1000 400x250x1000 1000x1000x1000
@@ -20,6 +22,7 @@ CODECS=${CODECS:-"quant-delta pca-aoi hosvd"}
 MEMORY=${MEMORY:-4G}
 KEEP_FREE_GB=${KEEP_FREE_GB:-15}
 mkdir -p "$DIR"
+rm -f "$DIR/default-rows.md"
 
 # Fixed parameters equal to each codec's defaults: with -p the encode streams (without it, encode
 # searches for the default quality, which holds the whole animation). PARAMS_<CODEC> (codec name
@@ -70,15 +73,44 @@ for size in "$@"; do
   # Every codec encodes first; the input is deleted before the decodes, so the disk holds the
   # input or one decoded PC2 (plus the streams), never both.
   declare -A enc_s enc_kb bpvf
-  for codec in $CODECS; do
+  for codec in $( [[ "${DEFAULT_ONLY:-0}" == 1 ]] || echo $CODECS ); do
     anim="$DIR/flag-$size.$codec.anim"
     mapfile -t pargs < <(param_args "$codec")
     read -r enc_s[$codec] enc_kb[$codec] < <(measure "$BIN" encode "$pc2" -c "$codec" "${pargs[@]}" --memory "$MEMORY" -o "$anim" -f --json)
     bpvf[$codec]=$(python3 -c 'import json,sys; print("%.3f" % json.load(open(sys.argv[1]))["bpvf"])' "$DIR/out.txt" 2>/dev/null || echo nan)
     echo "encoded $size $codec: ${enc_s[$codec]} s, ${enc_kb[$codec]} KB" >&2
   done
+  # The default commands (no -p: the default-quality search) within --memory, with --eval:
+  # peak RSS (also as a multiple of the raw size), wall, the parameters chosen, the KG reached,
+  # and which path the search took (whole or streamed). DEFAULT_ROWS=0 skips them.
+  if [[ "${DEFAULT_ROWS:-1}" != 0 ]]; then
+    for codec in $CODECS; do
+      anim="$DIR/flag-$size.$codec.default.anim"
+      read -r def_s def_kb < <(measure "$BIN" encode "$pc2" -c "$codec" --memory "$MEMORY" --eval -o "$anim" -f --json)
+      python3 - "$v" "$frames" "$codec" "$def_s" "$def_kb" "$DIR/out.txt" "$MEMORY" >> "$DIR/default-rows.md" <<'PY'
+import json, sys
+v, f, codec, s, kb, out, memory = sys.argv[1:]
+v, f = int(v), int(f)
+raw_mb = v * f * 12 / 2**20
+try:
+    d = json.load(open(out))
+    params = " ".join(f"{k}={d['params'][k]}" for k in ("bits", "kg", "ss", "block") if k in d["params"])
+    kg = d.get("kg")
+    kg = "n/a" if kg is None else f"{kg:.3f}"
+    sted = d.get("sted")
+    sted = "n/a" if sted is None else f"{sted:.4f}"
+    path, bpvf, n = d["search_input"], f"{d['bpvf']:.3f}", len(d["tried"])
+except Exception:
+    params, kg, sted, path, bpvf, n = "FAILED", "", "", "", "", ""
+mb = float(kb) / 1024 if kb != "nan" else float("nan")
+print(f"| {v:,} × {f:,} | {codec} | {memory} | {path} | {float(s):.0f} | {mb:.0f} | {mb / raw_mb:.2f} | {params} | {n} | {bpvf} | {kg} | {sted} |")
+PY
+      echo "default $size $codec: $def_s s, $def_kb KB" >&2
+      rm -f "$anim"
+    done
+  fi
   rm -f "$pc2"
-  for codec in $CODECS; do
+  for codec in $( [[ "${DEFAULT_ONLY:-0}" == 1 ]] || echo $CODECS ); do
     anim="$DIR/flag-$size.$codec.anim"
     out="$DIR/flag-$size.$codec.decoded.pc2"
     read -r dec_s dec_kb < <(measure "$BIN" decode "$anim" -o "$out" -f)
@@ -99,4 +131,10 @@ PY
   unset enc_s enc_kb bpvf
   rm -f "${pc2%.pc2}.obj"
 done
-rm -f "$DIR/time.txt" "$DIR/out.txt" "$DIR/err.txt"
+if [[ -s "$DIR/default-rows.md" ]]; then
+  echo
+  echo "| vertices × frames | codec (default command, --eval) | --memory | search | wall s | peak RSS MB | × raw | chosen | points | bpvf | KG % | STED |"
+  echo "|---|---|---|---|---|---|---|---|---|---|---|---|"
+  cat "$DIR/default-rows.md"
+fi
+rm -f "$DIR/time.txt" "$DIR/out.txt" "$DIR/err.txt" "$DIR/default-rows.md"

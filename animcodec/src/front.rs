@@ -53,6 +53,34 @@ pub fn limits(max_memory: Option<u64>, max_work: Option<u64>) -> FrontResult<Lim
     Ok(limits)
 }
 
+/// The share of the machine's RAM a command may hold when no `--memory` is given, as
+/// (numerator, denominator) of `MemTotal`: a half. Half, because the machine runs other
+/// programs too (the other half is theirs and the system's), and a search that would need more
+/// than half the RAM over the whole input is better streamed than swapped. `MemTotal`, not
+/// `MemAvailable`: the budget chooses between the whole-array and the streamed search and may
+/// fit a codec's blocks ([`AnimationCodec::fit_memory`]), so it must not change from one run
+/// to the next with what else happens to be running.
+pub const DEFAULT_MEMORY_SHARE: (u64, u64) = (1, 2);
+
+/// The memory budget of a command given no `--memory`: [`DEFAULT_MEMORY_SHARE`] of the
+/// machine's RAM (`MemTotal` in `/proc/meminfo`); `None` where that cannot be read (no
+/// `/proc`, or a line that does not parse), when no budget applies.
+pub fn default_memory_budget() -> Option<u64> {
+    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
+    mem_total(&text).map(|total| total / DEFAULT_MEMORY_SHARE.1 * DEFAULT_MEMORY_SHARE.0)
+}
+
+/// `MemTotal` in bytes from the text of `/proc/meminfo` (`MemTotal:   23456789 kB`).
+fn mem_total(meminfo: &str) -> Option<u64> {
+    let line = meminfo.lines().find(|l| l.starts_with("MemTotal:"))?;
+    let mut words = line["MemTotal:".len()..].split_whitespace();
+    let kib: u64 = words.next()?.parse().ok()?;
+    match words.next() {
+        Some("kB") => kib.checked_mul(1024),
+        _ => None,
+    }
+}
+
 /// Whether an `.anim` stream is taken as an input (decoded) or read as any other file (which no
 /// reader takes: an `encode` of a stream is refused by the readers as an unknown format).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -288,20 +316,29 @@ pub fn evaluation_of(
     options: &EvalOptions,
     limits: Limits,
 ) -> FrontResult<(MetricReport, f64)> {
-    let report = &hit.point.report;
-    let complete = (!options.compute_sted || report.sted.is_some())
-        && (!options.compute_hausdorff || report.hausdorff.is_some())
-        && report.sted_params == options.sted;
-    if complete {
-        let mut report = report.clone();
-        report.notes.retain(|n| !n.starts_with("encoder: "));
-        return Ok((report, hit.point.decode_seconds));
+    if let Some(found) = search_evaluation(hit, options) {
+        return Ok(found);
     }
     let start = Instant::now();
     MEASURE_DECODES.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
     let decoded = StreamDecoder::new(hit.stream.as_slice(), registry, limits)?.decode_all()?;
     let report = metrics::evaluate(input, &decoded, options)?;
     Ok((report, start.elapsed().as_secs_f64()))
+}
+
+/// The search's own report of its chosen point when it holds every metric `options` asks for
+/// (with the same STED parameters), without the encoder's notes, and the seconds it took;
+/// `None` when the search skipped one (it computes only its target's metrics).
+pub fn search_evaluation(hit: &TargetHit, options: &EvalOptions) -> Option<(MetricReport, f64)> {
+    let report = &hit.point.report;
+    let complete = (!options.compute_sted || report.sted.is_some())
+        && (!options.compute_hausdorff || report.hausdorff.is_some())
+        && report.sted_params == options.sted;
+    complete.then(|| {
+        let mut report = report.clone();
+        report.notes.retain(|n| !n.starts_with("encoder: "));
+        (report, hit.point.decode_seconds)
+    })
 }
 
 /// What a target search found, as every front end reports it (`encode --target --json` and
@@ -498,5 +535,20 @@ mod tests {
             MetricOptions { skip_hausdorff: true, sted_absolute: true, ..Default::default() }.eval_options().unwrap();
         assert!(o.compute_sted && !o.compute_hausdorff);
         assert_eq!(o.sted.spatial_difference, EdgeDifference::Absolute);
+    }
+}
+
+#[cfg(test)]
+mod memory_tests {
+    use super::*;
+
+    #[test]
+    fn mem_total_reads_kib_and_refuses_what_it_does_not_know() {
+        let text = "MemFree:  10 kB\nMemTotal:       23456 kB\nMemAvailable: 5 kB\n";
+        assert_eq!(mem_total(text), Some(23456 * 1024));
+        assert_eq!(mem_total("MemTotal: 12 MB\n"), None);
+        assert_eq!(mem_total("MemTotal: x kB\n"), None);
+        assert_eq!(mem_total("MemFree: 1 kB\n"), None);
+        assert_eq!(mem_total("MemTotal: 99999999999999999999 kB\n"), None);
     }
 }

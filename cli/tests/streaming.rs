@@ -43,17 +43,26 @@ fn streamed_encodes_equal_the_in_memory_encodes_for_every_codec() {
             _ => "level=3",
         };
         for input in [&pc2, &mdd] {
-            // --eval loads the whole input (the in-memory path); without it the cache streams.
-            let (streamed, whole) = (s.path("s.anim"), s.path("w.anim"));
+            // The cache streams; the whole read encodes in memory.
+            let streamed = s.path("s.anim");
             ok(&["encode", input, "-c", codec, "-p", p, "--feed", "7", "-o", &streamed, "-f"]);
-            ok(&["encode", input, "-c", codec, "-p", p, "--eval", "-o", &whole, "-f"]);
-            assert_eq!(std::fs::read(&streamed).unwrap(), std::fs::read(&whole).unwrap(), "{codec} on {input}");
+            assert_eq!(std::fs::read(&streamed).unwrap(), whole_encode(input, codec, p), "{codec} on {input}");
         }
     }
 }
 
+/// The stream of `input` read whole and encoded in memory with `-p param` (what `encode` does
+/// with a file it does not read frame by frame).
+fn whole_encode(input: &str, codec: &str, param: &str) -> Vec<u8> {
+    let animation = animcodec::formats::read_animation(input.as_ref(), &Default::default()).unwrap();
+    let registry = animcodec::registry();
+    let codec = registry.by_name(codec).unwrap();
+    let params = animcodec::front::params_from_text(codec, &[param.to_owned()]).unwrap();
+    animcodec::core::encode_animation(codec, &params, &animation).unwrap()
+}
+
 /// An OBJ sequence (a directory or a file-name pattern) is read one file per frame,
-/// and gives the bytes of the whole read (`--eval`) and of the PC2 of the same frames.
+/// and gives the bytes of the whole read and of the PC2 of the same frames.
 #[test]
 fn an_obj_sequence_streams_to_the_bytes_of_the_whole_read_and_of_its_pc2() {
     let s = Scratch::new("stream-obj");
@@ -64,18 +73,18 @@ fn an_obj_sequence_streams_to_the_bytes_of_the_whole_read_and_of_its_pc2() {
     let (dir, same) = (s.path("frames/"), s.path("same.pc2"));
     ok(&["decode", &lossless, "-o", &dir]);
     ok(&["decode", &lossless, "-o", &same, "--topology-obj"]);
-    let (from_pc2, streamed, whole) = (s.path("p.anim"), s.path("s.anim"), s.path("w.anim"));
+    let (from_pc2, streamed) = (s.path("p.anim"), s.path("s.anim"));
     let args = ["-c", "quant-delta", "-p", "bits=12"];
     ok(&[&["encode", &same][..], &args, &["-o", &from_pc2]].concat());
     let pattern = s.path("frames/frame_{}.obj");
     for input in [&dir, &pattern] {
-        // Only the streamed path reads while it encodes (and says so); --eval reads it whole.
+        // The streamed path reads while it encodes (and says so), --eval too.
         let text = ok(&[&["encode", input][..], &args, &["--feed", "3", "-o", &streamed, "-f"]].concat());
         assert!(text.contains("40 frames") && text.contains("read frame by frame while encoding"), "{text}");
-        let text = ok(&[&["encode", input][..], &args, &["--eval", "-o", &whole, "-f"]].concat());
-        assert!(text.contains("40 frames") && text.contains("(read in "), "{text}");
+        let text = ok(&[&["encode", input][..], &args, &["--eval", "-o", &streamed, "-f"]].concat());
+        assert!(text.contains("read frame by frame while encoding") && text.contains("decoded vs input: KG"), "{text}");
         let bytes = std::fs::read(&streamed).unwrap();
-        assert_eq!(bytes, std::fs::read(&whole).unwrap(), "{input}: streamed vs whole");
+        assert_eq!(bytes, whole_encode(input, "quant-delta", "bits=12"), "{input}: streamed vs whole");
         assert_eq!(bytes, std::fs::read(&from_pc2).unwrap(), "{input}: OBJ sequence vs PC2");
     }
     // A later frame whose mesh differs fails when it is read, with the whole read's message,
@@ -86,8 +95,9 @@ fn an_obj_sequence_streams_to_the_bytes_of_the_whole_read_and_of_its_pc2() {
     std::fs::write(&frame, cut).unwrap();
     let out = s.path("bad.anim");
     let streamed = fails(&[&["encode", &dir][..], &args, &["-o", &out]].concat(), &["frame_0031.obj", "triangles"]);
-    let whole = fails(&[&["encode", &dir][..], &args, &["--eval", "-o", &out]].concat(), &["frame_0031.obj"]);
-    assert_eq!(streamed, whole);
+    let whole = animcodec::formats::read_animation(dir.as_ref(), &Default::default()).unwrap_err().to_string();
+    assert!(whole.contains("frame_0031.obj") && streamed.contains("frame_0031.obj"), "{streamed} vs {whole}");
+    fails(&[&["encode", &dir][..], &args, &["--eval", "-o", &out]].concat(), &["frame_0031.obj", "triangles"]);
     assert!(!std::path::Path::new(&out).exists());
     // An empty directory: the whole read's error.
     let empty = s.path("empty/");
@@ -170,8 +180,11 @@ fn a_memory_budget_chooses_hosvd_blocks_and_refuses_what_cannot_fit() {
         &["hosvd", "block", "budget"],
     );
     assert!(!std::path::Path::new(&none).exists());
-    // Without -p (the default-quality search) a budget cannot be honoured: refused.
-    fails(&["encode", &pc2, "-c", "hosvd", "--memory", "4G", "-o", &none], &["--memory", "-p"]);
+    // Without -p the default-quality search keeps to the budget too: this input's whole-array
+    // search fits 4G, so it is searched whole.
+    let j = ok_json(&["encode", &pc2, "-c", "hosvd", "--memory", "4G", "-o", &none, "--json"]);
+    assert_eq!(j["search_input"], "whole", "{j}");
+    assert_eq!(j["memory_budget"].as_u64(), Some(4 << 30), "{j}");
 }
 
 /// The smallest budget (whole MiB) for which hosvd's `fit_memory` blocks `frames` frames of

@@ -1,6 +1,6 @@
 //! Checks shared by every metric and small geometric helpers.
 
-use codec_core::{Animation, Error, Result};
+use codec_core::{Animation, Error, Result, Topology};
 
 /// Context string used in error messages.
 pub(crate) const CTX: &str = "metrics";
@@ -8,21 +8,29 @@ pub(crate) const CTX: &str = "metrics";
 /// Fails unless `reference` and `candidate` have the same vertex count, frame count and
 /// triangle list: every metric here compares vertex `v` of frame `t` with vertex `v` of frame `t`.
 pub fn check_compatible(reference: &Animation, candidate: &Animation) -> Result<()> {
-    if reference.vertex_count() != candidate.vertex_count() {
+    check_compatible_shapes(
+        (reference.topology(), reference.frame_count()),
+        (candidate.topology(), candidate.frame_count()),
+    )
+}
+
+/// [`check_compatible`] on what two animations are made of, `(topology, frame count)` each:
+/// for sides that are read frame by frame and never held whole.
+pub fn check_compatible_shapes(reference: (&Topology, usize), candidate: (&Topology, usize)) -> Result<()> {
+    let ((rtop, rframes), (ctop, cframes)) = (reference, candidate);
+    if rtop.vertex_count() != ctop.vertex_count() {
         return Err(Error::InvalidAnimation(format!(
             "{CTX}: reference has {} vertices but candidate has {}",
-            reference.vertex_count(),
-            candidate.vertex_count()
+            rtop.vertex_count(),
+            ctop.vertex_count()
         )));
     }
-    if reference.frame_count() != candidate.frame_count() {
+    if rframes != cframes {
         return Err(Error::InvalidAnimation(format!(
-            "{CTX}: reference has {} frames but candidate has {}",
-            reference.frame_count(),
-            candidate.frame_count()
+            "{CTX}: reference has {rframes} frames but candidate has {cframes}"
         )));
     }
-    let (rt, ct) = (reference.triangles(), candidate.triangles());
+    let (rt, ct) = (rtop.triangles(), ctop.triangles());
     if rt.len() != ct.len() {
         return Err(Error::InvalidAnimation(format!(
             "{CTX}: reference has {} triangles but candidate has {}",
@@ -32,11 +40,9 @@ pub fn check_compatible(reference: &Animation, candidate: &Animation) -> Result<
     }
     // A decoded stream keeps every oriented triangle but stores them in canonical order
     // (`codec_core::connectivity`), so the comparison is of the triangle sets.
-    if rt != ct && !codec_core::connectivity::same_triangles(reference.topology(), candidate.topology()) {
-        let (rc, cc) = (
-            codec_core::connectivity::canonical_order(reference.topology()),
-            codec_core::connectivity::canonical_order(candidate.topology()),
-        );
+    if rt != ct && !codec_core::connectivity::same_triangles(rtop, ctop) {
+        let (rc, cc) =
+            (codec_core::connectivity::canonical_order(rtop), codec_core::connectivity::canonical_order(ctop));
         let i = rc.triangles().iter().zip(cc.triangles()).position(|(a, b)| a != b).unwrap_or(0);
         return Err(Error::InvalidAnimation(format!(
             "{CTX}: topology differs at triangle {i} in canonical order (smallest index first, sorted): \

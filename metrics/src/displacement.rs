@@ -22,31 +22,39 @@ use crate::common::{check_compatible, point, vertex_dist2, CTX};
 /// reference frame collapses to a single point, so the ratio is undefined).
 pub fn kg_error(reference: &Animation, candidate: &Animation) -> Result<f64> {
     check_compatible(reference, candidate)?;
-    let n = reference.vertex_count();
     let per_frame: Vec<(f64, f64)> = (0..reference.frame_count())
         .into_par_iter()
-        .map(|t| {
-            let (a, b) = (reference.frame(t), candidate.frame(t));
-            let mut c = [0.0f64; 3];
-            for v in 0..n {
-                let p = point(a, v);
-                for k in 0..3 {
-                    c[k] += p[k];
-                }
-            }
-            for ck in &mut c {
-                *ck /= n as f64;
-            }
-            let (mut num, mut den) = (0.0, 0.0);
-            for v in 0..n {
-                num += vertex_dist2(a, b, v);
-                let p = point(a, v);
-                den += (p[0] - c[0]).powi(2) + (p[1] - c[1]).powi(2) + (p[2] - c[2]).powi(2);
-            }
-            (num, den)
-        })
+        .map(|t| kg_frame(reference.frame(t), candidate.frame(t)))
         .collect();
     let (num, den) = per_frame.iter().fold((0.0, 0.0), |(n, d), &(a, b)| (n + a, d + b));
+    kg_from_sums(num, den)
+}
+
+/// One frame's KG sums `(‖a − b‖², ‖a − E(a)‖²)` (reference `a`, candidate `b`, interleaved xyz):
+/// the terms [`kg_error`] and the streaming evaluator add in frame order.
+pub(crate) fn kg_frame(a: &[f32], b: &[f32]) -> (f64, f64) {
+    let n = a.len() / 3;
+    let mut c = [0.0f64; 3];
+    for v in 0..n {
+        let p = point(a, v);
+        for k in 0..3 {
+            c[k] += p[k];
+        }
+    }
+    for ck in &mut c {
+        *ck /= n as f64;
+    }
+    let (mut num, mut den) = (0.0, 0.0);
+    for v in 0..n {
+        num += vertex_dist2(a, b, v);
+        let p = point(a, v);
+        den += (p[0] - c[0]).powi(2) + (p[1] - c[1]).powi(2) + (p[2] - c[2]).powi(2);
+    }
+    (num, den)
+}
+
+/// The KG error from the sums of every frame, or the error saying it is undefined.
+pub(crate) fn kg_from_sums(num: f64, den: f64) -> Result<f64> {
     if den <= 0.0 {
         return Err(Error::InvalidAnimation(format!(
             "{CTX}: KG error is undefined: every reference frame is a single point (‖A − E(A)‖ = 0)"
@@ -84,19 +92,7 @@ pub fn displacement_stats(reference: &Animation, candidate: &Animation) -> Resul
     // Per frame: (sum of squared displacements, largest squared displacement, its vertex).
     let per_frame: Vec<(f64, f64, usize)> = (0..reference.frame_count())
         .into_par_iter()
-        .map(|t| {
-            let (a, b) = (reference.frame(t), candidate.frame(t));
-            let (mut sum, mut max, mut at) = (0.0, -1.0, 0);
-            for v in 0..n {
-                let d2 = vertex_dist2(a, b, v);
-                sum += d2;
-                if d2 > max {
-                    max = d2;
-                    at = v;
-                }
-            }
-            (sum, max, at)
-        })
+        .map(|t| displacement_frame(reference.frame(t), candidate.frame(t)))
         .collect();
     let mut sum = 0.0;
     let (mut max, mut at) = (-1.0, (0, 0));
@@ -107,21 +103,49 @@ pub fn displacement_stats(reference: &Animation, candidate: &Animation) -> Resul
             at = (t, v);
         }
     }
-    let count = (n * reference.frame_count()) as f64;
-    let mse = sum / count;
+    let frame_rmse = per_frame.iter().map(|&(s, _, _)| (s / n as f64).sqrt()).collect();
+    Ok(summarize_displacement(sum, max, at, n * reference.frame_count(), reference.bounding_box_diagonal(), frame_rmse))
+}
+
+/// [`DisplacementStats`] from the sums over every vertex-frame: `sum` of squared
+/// displacements over `count` vertex-frames, the largest squared one `max2` at `at`, and the
+/// reference's bounding-box diagonal `diag`.
+pub(crate) fn summarize_displacement(
+    sum: f64,
+    max2: f64,
+    at: (usize, usize),
+    count: usize,
+    diag: f64,
+    frame_rmse: Vec<f64>,
+) -> DisplacementStats {
+    let mse = sum / count as f64;
     let rmse = mse.sqrt();
-    let diag = reference.bounding_box_diagonal();
     let rel = |x: f64, p: i32| (diag > 0.0).then(|| x / diag.powi(p));
-    Ok(DisplacementStats {
+    DisplacementStats {
         mse,
         rmse,
         mse_relative: rel(mse, 2),
         rmse_relative: rel(rmse, 1),
-        max_error: max.max(0.0).sqrt(),
+        max_error: max2.max(0.0).sqrt(),
         max_error_at: at,
-        frame_rmse: per_frame.iter().map(|&(s, _, _)| (s / n as f64).sqrt()).collect(),
+        frame_rmse,
         bbox_diagonal: diag,
-    })
+    }
+}
+
+/// One frame's displacement terms: (sum of squared displacements, largest squared
+/// displacement or −1 for an empty frame, its first vertex).
+pub(crate) fn displacement_frame(a: &[f32], b: &[f32]) -> (f64, f64, usize) {
+    let (mut sum, mut max, mut at) = (0.0, -1.0, 0);
+    for v in 0..a.len() / 3 {
+        let d2 = vertex_dist2(a, b, v);
+        sum += d2;
+        if d2 > max {
+            max = d2;
+            at = v;
+        }
+    }
+    (sum, max, at)
 }
 
 /// Per-vertex displacement fields over the whole animation, for heatmaps.

@@ -53,23 +53,70 @@ pub struct HausdorffStats {
 /// Computes [`HausdorffStats`]; fails if the animations do not match.
 pub fn hausdorff(reference: &Animation, candidate: &Animation) -> Result<HausdorffStats> {
     check_compatible(reference, candidate)?;
-    let n = reference.vertex_count();
-    let (triangles, mode) = surface_triangles(reference.triangles(), n);
-    let incidence = Incidence::new(&triangles, n);
-    let shape = BvhShape::build(reference.frame(0), &triangles);
+    let surface = FrameSurface::new(reference.triangles(), reference.frame(0));
     let per_frame: Vec<f64> = (0..reference.frame_count())
         .into_par_iter()
-        .map(|t| {
-            let (a, b) = (reference.frame(t), candidate.frame(t));
-            let ab = directed_max2(a, b, &triangles, &incidence, &shape, 0.0);
-            directed_max2(b, a, &triangles, &incidence, &shape, ab).sqrt()
-        })
+        .map(|t| surface.distance(reference.frame(t), candidate.frame(t)))
         .collect();
     let max = per_frame.iter().copied().fold(0.0, f64::max);
     let mean = per_frame.iter().sum::<f64>() / per_frame.len() as f64;
-    let diag = reference.bounding_box_diagonal();
+    Ok(summarize_hausdorff(max, mean, reference.bounding_box_diagonal(), surface.mode, per_frame))
+}
+
+/// [`HausdorffStats`] from the largest and the mean per-frame distance and the reference's
+/// bounding-box diagonal `diag`.
+pub(crate) fn summarize_hausdorff(
+    max: f64,
+    mean: f64,
+    diag: f64,
+    mode: HausdorffMode,
+    per_frame: Vec<f64>,
+) -> HausdorffStats {
     let rel = |x: f64| (diag > 0.0).then(|| x / diag);
-    Ok(HausdorffStats { max, mean, max_relative: rel(max), mean_relative: rel(mean), per_frame, mode })
+    HausdorffStats { max, mean, max_relative: rel(max), mean_relative: rel(mean), per_frame, mode }
+}
+
+/// What the per-frame distance needs of the shared connectivity: the searched triangles, the
+/// triangles incident to every vertex and the tree shape (built on the reference's first
+/// frame). `O(T + V)` memory, the same for every frame.
+pub(crate) struct FrameSurface {
+    triangles: Vec<[u32; 3]>,
+    incidence: Incidence,
+    shape: BvhShape,
+    /// Distance used.
+    pub(crate) mode: HausdorffMode,
+}
+
+impl FrameSurface {
+    /// The search structures for `triangles` (indices checked by the topology), the tree shaped
+    /// on `first_frame` (interleaved xyz of every vertex).
+    pub(crate) fn new(triangles: &[[u32; 3]], first_frame: &[f32]) -> Self {
+        let n = first_frame.len() / 3;
+        let (triangles, mode) = surface_triangles(triangles, n);
+        let incidence = Incidence::new(&triangles, n);
+        let shape = BvhShape::build(first_frame, &triangles);
+        Self { triangles, incidence, shape, mode }
+    }
+
+    /// The symmetric distance between reference frame `a` and candidate frame `b`.
+    pub(crate) fn distance(&self, a: &[f32], b: &[f32]) -> f64 {
+        let ab = directed_max2(a, b, &self.triangles, &self.incidence, &self.shape, 0.0);
+        directed_max2(b, a, &self.triangles, &self.incidence, &self.shape, ab).sqrt()
+    }
+
+    /// Bytes held for `n` vertices and `t` triangles (an upper bound: the searched list adds
+    /// at most one point per vertex, and median splits down to leaves of 2 to 4 triangles make
+    /// at most one node per triangle), and the transient bytes of one [`Self::distance`] call.
+    pub(crate) fn bytes(n: usize, t: usize) -> (u64, u64) {
+        let (n, tris) = (n as u64, (t + n) as u64);
+        // Triangles 12 B, incidence 4 B per corner + 4 B per vertex, tree shape 8 B per node
+        // + 4 B per triangle.
+        let held = tris * 12 + (3 * tris + n + 1) * 4 + tris * (8 + 4);
+        // A refitted tree (72 B of corners per triangle, 56 B per node) and the visit order
+        // (16 B per vertex), for one direction at a time.
+        let transient = tris * (72 + 56) + n * 16;
+        (held, transient)
+    }
 }
 
 /// Distance from every vertex of `from` to the surface `(to, triangles)` (one frame each,

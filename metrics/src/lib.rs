@@ -11,7 +11,8 @@
 //! * [`per_vertex_displacement`], [`sted_with_fields`] — per-vertex fields for heatmaps,
 //! * [`bpvf()`] / [`geometry_bpvf`] — bits per vertex per frame from byte counts,
 //! * [`part_errors`] — the KG error of every connected part against its own spread,
-//! * [`evaluate`] — everything at once as a serializable [`MetricReport`].
+//! * [`evaluate`] — everything at once as a serializable [`MetricReport`],
+//! * [`StreamingEvaluator`] — the same report over frames as they arrive, in bounded memory.
 
 pub mod bpvf;
 pub mod common;
@@ -21,9 +22,10 @@ pub mod matching;
 pub mod parts;
 pub mod report;
 pub mod sted;
+pub mod streaming;
 
 pub use bpvf::{bpvf, geometry_bpvf};
-pub use common::check_compatible;
+pub use common::{check_compatible, check_compatible_shapes};
 pub use displacement::{displacement_stats, kg_error, per_vertex_displacement, DisplacementStats, VertexDisplacement};
 pub use hausdorff::{
     hausdorff, isolated_vertex_count, point_triangle_distance, vertex_to_surface_distances, HausdorffMode,
@@ -35,3 +37,4 @@ pub use parts::{
 };
 pub use report::{evaluate, EvalOptions, MetricReport};
 pub use sted::{diameter, sted, sted_local_deviations, sted_with_fields, EdgeDifference, StedParams, StedResult};
+pub use streaming::StreamingEvaluator;

@@ -82,7 +82,7 @@ pub fn connected_parts(vertex_count: usize, triangles: &[[u32; 3]]) -> Parts {
 
 /// [`connected_parts`] of `triangles`, an iterator (so seams can join it without a copy of the
 /// triangle list).
-fn joined_parts<'a>(vertex_count: usize, triangles: impl Iterator<Item = &'a [u32; 3]>) -> Parts {
+pub(crate) fn joined_parts<'a>(vertex_count: usize, triangles: impl Iterator<Item = &'a [u32; 3]>) -> Parts {
     let mut parent: Vec<u32> = (0..vertex_count as u32).collect();
     let mut used = vec![false; vertex_count];
     fn find(parent: &mut [u32], mut x: u32) -> u32 {
@@ -177,6 +177,52 @@ pub fn visible_parts(animation: &Animation) -> Parts {
     joined_parts(n, triangles.iter().chain(&seams))
 }
 
+/// The seams of [`visible_parts`] found frame by frame: classes of vertices in triangles whose
+/// positions have been equal in every frame seen so far (`-0.0` equals `0.0`). The first frame
+/// sorts the used vertices by position; each later frame only splits the classes, so the work
+/// after the first frame is proportional to the vertices still in a class, and the memory is
+/// `O(V)` whatever the frame count. Exact: where [`visible_parts`] could miss a weld on a
+/// 64-bit hash collision, this cannot.
+#[derive(Debug, Default)]
+pub(crate) struct WeldClasses {
+    /// Classes of two or more vertices, each in increasing vertex order.
+    classes: Vec<Vec<u32>>,
+    frames: usize,
+}
+
+impl WeldClasses {
+    /// Refines the classes by one frame (interleaved xyz of every vertex); `used[v]` says whether
+    /// vertex `v` is in a triangle. Returns true when a class split or lost a vertex.
+    pub(crate) fn push_frame(&mut self, frame: &[f32], used: &[bool]) -> bool {
+        let key = |v: u32| {
+            let i = 3 * v as usize;
+            [frame[i], frame[i + 1], frame[i + 2]].map(|x| (x + 0.0).to_bits())
+        };
+        let groups = if self.frames == 0 {
+            vec![(0..used.len() as u32).filter(|&v| used[v as usize]).collect::<Vec<u32>>()]
+        } else {
+            std::mem::take(&mut self.classes)
+        };
+        let mut changed = false;
+        for mut g in groups {
+            g.sort_unstable_by_key(|&v| (key(v), v));
+            let runs: Vec<&[u32]> = g.chunk_by(|&a, &b| key(a) == key(b)).collect();
+            if self.frames > 0 && runs.len() > 1 {
+                changed = true;
+            }
+            self.classes.extend(runs.into_iter().filter(|r| r.len() > 1).map(<[u32]>::to_vec));
+        }
+        self.frames += 1;
+        changed
+    }
+
+    /// The seams as degenerate triangles `[first, v, v]` joining each vertex of a class with its
+    /// class's first, for [`joined_parts`].
+    pub(crate) fn seams(&self) -> Vec<[u32; 3]> {
+        self.classes.iter().flat_map(|c| c[1..].iter().map(move |&v| [c[0], v, v])).collect()
+    }
+}
+
 /// A 64-bit finalizer (SplitMix64's): every input bit changes about half the output bits.
 fn mix(mut x: u64) -> u64 {
     x = (x ^ (x >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
@@ -215,87 +261,115 @@ pub fn part_errors(reference: &Animation, candidate: &Animation) -> Result<(Part
     if count == 0 || frames == 0 {
         return Ok((parts, Vec::new()));
     }
-    // Fixed blocks of frames (independent of the thread count), summed in order.
-    const BLOCKS: usize = 64;
-    let per_block = frames.div_ceil(BLOCKS);
-    #[derive(Clone, Copy, Default)]
-    struct Acc {
-        num: f64,
-        den: f64,
-        max2: f64,
-        magnitude: f64,
-    }
-    let label = &parts.label;
-    let sizes = &parts.sizes;
-    let blocks: Vec<Vec<Acc>> = (0..frames.div_ceil(per_block))
+    let per_block = part_block_frames(frames);
+    let (label, sizes) = (&parts.label, &parts.sizes);
+    let blocks: Vec<Vec<PartAcc>> = (0..frames.div_ceil(per_block))
         .into_par_iter()
         .map(|b| {
-            let mut acc = vec![Acc::default(); count];
+            let mut acc = vec![PartAcc::default(); count];
             let mut centre = vec![[0.0f64; 3]; count];
             for t in b * per_block..((b + 1) * per_block).min(frames) {
-                let (fa, fb) = (reference.frame(t), candidate.frame(t));
-                centre.fill([0.0; 3]);
-                for (v, &l) in label.iter().enumerate() {
-                    if l == NO_PART {
-                        continue;
-                    }
-                    let p = point(fa, v);
-                    let c = &mut centre[l as usize];
-                    for k in 0..3 {
-                        c[k] += p[k];
-                    }
-                }
-                for (c, &s) in centre.iter_mut().zip(sizes) {
-                    for ck in c.iter_mut() {
-                        *ck /= s as f64;
-                    }
-                }
-                for (v, &l) in label.iter().enumerate() {
-                    if l == NO_PART {
-                        continue;
-                    }
-                    let (p, c, a) = (point(fa, v), centre[l as usize], &mut acc[l as usize]);
-                    let d2 = vertex_dist2(fa, fb, v);
-                    a.num += d2;
-                    a.max2 = a.max2.max(d2);
-                    a.den += (p[0] - c[0]).powi(2) + (p[1] - c[1]).powi(2) + (p[2] - c[2]).powi(2);
-                    a.magnitude = a.magnitude.max(p[0].abs()).max(p[1].abs()).max(p[2].abs());
-                }
+                accumulate_part_frame(reference.frame(t), candidate.frame(t), label, sizes, &mut centre, &mut acc);
             }
             acc
         })
         .collect();
-    let mut total = vec![Acc::default(); count];
+    let mut total = vec![PartAcc::default(); count];
     for block in &blocks {
-        for (t, a) in total.iter_mut().zip(block) {
-            t.num += a.num;
-            t.den += a.den;
-            t.max2 = t.max2.max(a.max2);
-            t.magnitude = t.magnitude.max(a.magnitude);
+        merge_part_sums(&mut total, block);
+    }
+    let errors =
+        total.iter().enumerate().map(|(i, a)| part_error(i, parts.first_vertex[i], sizes[i], frames, a)).collect();
+    Ok((parts, errors))
+}
+
+/// Frames per block of [`part_errors`]: fixed blocks of frames (independent of the thread
+/// count), each summed frame after frame, the blocks then added in order.
+pub(crate) fn part_block_frames(frames: usize) -> usize {
+    const BLOCKS: usize = 64;
+    frames.div_ceil(BLOCKS).max(1)
+}
+
+/// One part's sums over vertex-frames.
+#[derive(Clone, Copy, Default, Debug, PartialEq)]
+pub(crate) struct PartAcc {
+    /// Squared displacements.
+    pub(crate) num: f64,
+    /// Squared distances from the part's per-frame centroid.
+    pub(crate) den: f64,
+    /// Largest squared displacement.
+    pub(crate) max2: f64,
+    /// Largest coordinate magnitude.
+    pub(crate) magnitude: f64,
+}
+
+/// Adds one frame (reference `fa`, candidate `fb`) to every part's sums; `centre` is scratch of
+/// one entry per part.
+pub(crate) fn accumulate_part_frame(
+    fa: &[f32],
+    fb: &[f32],
+    label: &[u32],
+    sizes: &[usize],
+    centre: &mut [[f64; 3]],
+    acc: &mut [PartAcc],
+) {
+    centre.fill([0.0; 3]);
+    for (v, &l) in label.iter().enumerate() {
+        if l == NO_PART {
+            continue;
+        }
+        let p = point(fa, v);
+        let c = &mut centre[l as usize];
+        for k in 0..3 {
+            c[k] += p[k];
         }
     }
-    let errors = total
-        .iter()
-        .enumerate()
-        .map(|(i, a)| {
-            let samples = (sizes[i] * frames) as f64;
-            let spread = (a.den / samples).sqrt();
-            let floor = PART_SPREAD_FLOOR * a.magnitude;
-            let floored = spread < floor;
-            let unit = spread.max(floor);
-            PartError {
-                part: i,
-                first_vertex: parts.first_vertex[i],
-                vertices: sizes[i],
-                kg: (unit > 0.0).then(|| 100.0 * (a.num / samples).sqrt() / unit),
-                rmse: (a.num / samples).sqrt(),
-                max_error: a.max2.sqrt(),
-                spread,
-                floored,
-            }
-        })
-        .collect();
-    Ok((parts, errors))
+    for (c, &s) in centre.iter_mut().zip(sizes) {
+        for ck in c.iter_mut() {
+            *ck /= s as f64;
+        }
+    }
+    for (v, &l) in label.iter().enumerate() {
+        if l == NO_PART {
+            continue;
+        }
+        let (p, c, a) = (point(fa, v), centre[l as usize], &mut acc[l as usize]);
+        let d2 = vertex_dist2(fa, fb, v);
+        a.num += d2;
+        a.max2 = a.max2.max(d2);
+        a.den += (p[0] - c[0]).powi(2) + (p[1] - c[1]).powi(2) + (p[2] - c[2]).powi(2);
+        a.magnitude = a.magnitude.max(p[0].abs()).max(p[1].abs()).max(p[2].abs());
+    }
+}
+
+/// Adds a block's sums into the totals, part by part.
+pub(crate) fn merge_part_sums(total: &mut [PartAcc], block: &[PartAcc]) {
+    for (t, a) in total.iter_mut().zip(block) {
+        t.num += a.num;
+        t.den += a.den;
+        t.max2 = t.max2.max(a.max2);
+        t.magnitude = t.magnitude.max(a.magnitude);
+    }
+}
+
+/// The error of part `part` (`size` vertices, smallest `first_vertex`) from its sums over
+/// `frames` frames.
+pub(crate) fn part_error(part: usize, first_vertex: usize, size: usize, frames: usize, a: &PartAcc) -> PartError {
+    let samples = (size * frames) as f64;
+    let spread = (a.den / samples).sqrt();
+    let floor = PART_SPREAD_FLOOR * a.magnitude;
+    let floored = spread < floor;
+    let unit = spread.max(floor);
+    PartError {
+        part,
+        first_vertex,
+        vertices: size,
+        kg: (unit > 0.0).then(|| 100.0 * (a.num / samples).sqrt() / unit),
+        rmse: (a.num / samples).sqrt(),
+        max_error: a.max2.sqrt(),
+        spread,
+        floored,
+    }
 }
 
 /// The part of largest KG (ties: the lower part number), or `None` when no part has one.

@@ -169,11 +169,21 @@ fn prepare(
 ) -> Result<(Vec<[u32; 2]>, Neighbourhoods)> {
     check_compatible(reference, candidate)?;
     params.validate()?;
-    let edges = unique_edges(reference.triangles());
+    mesh_neighbourhoods(reference.triangles(), reference.vertex_count(), params)
+}
+
+/// The mesh edges and every vertex's neighbourhood of `ring_radius` rings; fails for a mesh
+/// without edges (a point cloud has no STED).
+pub(crate) fn mesh_neighbourhoods(
+    triangles: &[[u32; 3]],
+    n: usize,
+    params: &StedParams,
+) -> Result<(Vec<[u32; 2]>, Neighbourhoods)> {
+    let edges = unique_edges(triangles);
     if edges.is_empty() {
         return Err(Error::InvalidAnimation(format!("{CTX}: STED needs mesh edges, but the mesh has no triangles")));
     }
-    let hood = Neighbourhoods::new(reference.vertex_count(), &edges, params.ring_radius)?;
+    let hood = Neighbourhoods::new(n, &edges, params.ring_radius)?;
     Ok((edges, hood))
 }
 
@@ -199,85 +209,169 @@ fn run(reference: &Animation, candidate: &Animation, params: &StedParams, fields
             }
         }
     }
-    let spatial = sum / (n * frames) as f64;
-
     let diameter = diameter(reference.frame(0));
-    let temporal_defined = frames >= 2 && diameter > 0.0;
-    let temporal = if temporal_defined { temporal_part(reference, candidate, diameter, params) } else { 0.0 };
-
+    let mut temporal = TemporalWindow::new(n, frames, diameter, params);
+    if let Some(t) = temporal.as_mut() {
+        for g in 1..frames {
+            t.push_edge(
+                t.edge_lengths(reference.frame(g), reference.frame(g - 1)),
+                t.edge_lengths(candidate.frame(g), candidate.frame(g - 1)),
+            );
+        }
+    }
     let spatial_per_vertex = pv_sum.iter().map(|&s| s / frames as f64).collect();
-    Ok(StedResult {
+    Ok(summarize_sted(
+        sum,
+        empty,
+        n,
+        frames,
+        temporal.map(|t| t.total()),
+        diameter,
+        params,
+        edges.len(),
+        spatial_per_vertex,
+    ))
+}
+
+/// [`StedResult`] from the sum of every frame's local deviations, the count of empty
+/// neighbourhoods and `T` (`None` when undefined).
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn summarize_sted(
+    spatial_sum: f64,
+    empty: usize,
+    n: usize,
+    frames: usize,
+    temporal: Option<f64>,
+    diameter: f64,
+    params: &StedParams,
+    edge_count: usize,
+    spatial_per_vertex: Vec<f64>,
+) -> StedResult {
+    let spatial = spatial_sum / (n * frames) as f64;
+    let temporal_defined = temporal.is_some();
+    let temporal = temporal.unwrap_or(0.0);
+    StedResult {
         sted: (spatial * spatial + params.c * params.c * temporal * temporal).sqrt(),
         spatial,
         temporal,
         temporal_defined,
         diameter,
         params: *params,
-        edge_count: edges.len(),
+        edge_count,
         empty_vertex_frames: empty,
         spatial_per_vertex,
-    })
+    }
 }
 
 /// Vertices per parallel chunk of the temporal part; fixed, so that partial sums are added in
 /// the same order whatever the thread count.
 const TEMPORAL_CHUNK: usize = 4096;
 
-/// `T` (module docs). Frames are walked in order with the reference's temporal edge lengths
-/// of the current window `max(1, f−k+1) … min(F−1, f+k)` kept as `2k` arrays of `V` lengths
-/// (memory `O(k·V)`, not `O(F·V)`); each frame's vertices run in parallel in fixed chunks.
-fn temporal_part(reference: &Animation, candidate: &Animation, diameter: f64, p: &StedParams) -> f64 {
-    let (n, frames) = (reference.vertex_count(), reference.frame_count());
-    let inv_d2 = 1.0 / (diameter * diameter);
-    let dt2 = p.dt * p.dt;
-    let k = p.speed_window as usize;
-    // Lengths of the temporal edges of every vertex ending at frame `g ≥ 1`, in units of `D`.
-    let edge_lengths = |anim: &Animation, g: usize| -> Vec<f64> {
-        let (a, b) = (anim.frame(g), anim.frame(g - 1));
-        let mut out = vec![0.0; n];
+/// The temporal part `T` (module docs), fed one temporal edge at a time in frame order: the
+/// reference's edge lengths of the window `max(1, f−k+1) … min(F−1, f+k)` are kept as at most
+/// `2k` arrays of `V` lengths, the candidate's of the frames still waiting for their window as
+/// at most `k + 1` (memory `O(k·V)`, not `O(F·V)`). Frame `f`'s term is added as soon as the
+/// last edge of its window arrives; each frame's vertices run in parallel in fixed chunks.
+pub(crate) struct TemporalWindow {
+    n: usize,
+    frames: usize,
+    k: usize,
+    inv_d2: f64,
+    dt2: f64,
+    /// `reference[j]`: the reference lengths of temporal edge `first + j`.
+    reference: std::collections::VecDeque<Vec<f64>>,
+    first: usize,
+    /// `candidate[j]`: the candidate lengths of temporal edge `next + j`.
+    candidate: std::collections::VecDeque<Vec<f64>>,
+    /// The next frame whose term is due.
+    next: usize,
+    /// Edges received so far.
+    edges: usize,
+    total: f64,
+}
+
+impl TemporalWindow {
+    /// The window for `frames` frames of `n` vertices, or `None` when `T` is undefined (one
+    /// frame, or a reference frame 0 of diameter 0).
+    pub(crate) fn new(n: usize, frames: usize, diameter: f64, p: &StedParams) -> Option<Self> {
+        (frames >= 2 && diameter > 0.0).then(|| Self {
+            n,
+            frames,
+            k: p.speed_window as usize,
+            inv_d2: 1.0 / (diameter * diameter),
+            dt2: p.dt * p.dt,
+            reference: Default::default(),
+            first: 1,
+            candidate: Default::default(),
+            next: 1,
+            edges: 0,
+            total: 0.0,
+        })
+    }
+
+    /// Bytes the window holds at most for `n` vertices and half-width `k`.
+    pub(crate) fn bytes(n: usize, k: u32) -> u64 {
+        (3 * k as u64 + 2) * n as u64 * 8
+    }
+
+    /// Lengths of the temporal edges of every vertex from frame `prev` to frame `next`, in
+    /// units of `D`.
+    pub(crate) fn edge_lengths(&self, next: &[f32], prev: &[f32]) -> Vec<f64> {
+        let (inv_d2, dt2) = (self.inv_d2, self.dt2);
+        let mut out = vec![0.0; self.n];
         out.par_chunks_mut(TEMPORAL_CHUNK).enumerate().for_each(|(c, chunk)| {
             for (i, l) in chunk.iter_mut().enumerate() {
-                *l = (vertex_dist2(a, b, c * TEMPORAL_CHUNK + i) * inv_d2 + dt2).sqrt();
+                *l = (vertex_dist2(next, prev, c * TEMPORAL_CHUNK + i) * inv_d2 + dt2).sqrt();
             }
         });
         out
-    };
-    // window[j] holds the reference lengths of temporal edge `first + j`.
-    let mut window: std::collections::VecDeque<Vec<f64>> = std::collections::VecDeque::new();
-    let mut first = 1;
-    let mut total = 0.0;
-    for f in 1..frames {
-        let (lo, hi) = ((f + 1).saturating_sub(k).max(1), (f + k).min(frames - 1));
-        while first < lo {
-            window.pop_front();
-            first += 1;
-        }
-        while first + window.len() <= hi {
-            window.push_back(edge_lengths(reference, first + window.len()));
-        }
-        let current = &window[f - first];
-        let cand = edge_lengths(candidate, f);
-        let count = window.len() as f64;
-        let chunk_sums: Vec<f64> = (0..n.div_ceil(TEMPORAL_CHUNK))
-            .into_par_iter()
-            .map(|c| {
-                (c * TEMPORAL_CHUNK..((c + 1) * TEMPORAL_CHUNK).min(n))
-                    .map(|v| {
-                        let mean_speed = window.iter().map(|w| w[v]).sum::<f64>() / count;
-                        (cand[v] - current[v]).abs() / mean_speed
-                    })
-                    .sum::<f64>()
-            })
-            .collect();
-        total += chunk_sums.iter().sum::<f64>();
     }
-    total / (n * (frames - 1)) as f64
+
+    /// The next temporal edge (ending at frame `1 + edges received`): the reference's and the
+    /// candidate's lengths from [`Self::edge_lengths`]. Adds the term of every frame whose
+    /// window is now complete.
+    pub(crate) fn push_edge(&mut self, reference: Vec<f64>, candidate: Vec<f64>) {
+        self.edges += 1;
+        self.reference.push_back(reference);
+        self.candidate.push_back(candidate);
+        let last = self.edges;
+        while self.next < self.frames && (self.next + self.k).min(self.frames - 1) <= last {
+            let f = self.next;
+            let lo = (f + 1).saturating_sub(self.k).max(1);
+            while self.first < lo {
+                self.reference.pop_front();
+                self.first += 1;
+            }
+            let (window, current) = (&self.reference, &self.reference[f - self.first]);
+            let cand = self.candidate.pop_front().unwrap_or_default();
+            let count = window.len() as f64;
+            let n = self.n;
+            let chunk_sums: Vec<f64> = (0..n.div_ceil(TEMPORAL_CHUNK))
+                .into_par_iter()
+                .map(|c| {
+                    (c * TEMPORAL_CHUNK..((c + 1) * TEMPORAL_CHUNK).min(n))
+                        .map(|v| {
+                            let mean_speed = window.iter().map(|w| w[v]).sum::<f64>() / count;
+                            (cand[v] - current[v]).abs() / mean_speed
+                        })
+                        .sum::<f64>()
+                })
+                .collect();
+            self.total += chunk_sums.iter().sum::<f64>();
+            self.next += 1;
+        }
+    }
+
+    /// `T`, once every edge has been pushed.
+    pub(crate) fn total(&self) -> f64 {
+        self.total / (self.n * (self.frames - 1)) as f64
+    }
 }
 
 /// Per vertex of one frame: the length-weighted population standard deviation of relative
 /// edge differences over its neighbourhood (0 where no neighbourhood edge has positive
 /// reference length), and how many vertices had such an empty neighbourhood.
-fn local_deviations(
+pub(crate) fn local_deviations(
     a: &[f32],
     b: &[f32],
     edges: &[[u32; 2]],
@@ -414,7 +508,7 @@ pub fn diameter(frame: &[f32]) -> f64 {
 const HOOD_BLOCK: usize = 1 << 16;
 /// Most neighbourhood entries (edge ids, 4 bytes each: 1 GiB) before giving up: a large radius
 /// on a large mesh grows as `V · radius²`.
-const MAX_HOOD_ENTRIES: usize = 1 << 28;
+pub(crate) const MAX_HOOD_ENTRIES: usize = 1 << 28;
 
 /// For every vertex `v`, the edges with at least one endpoint within `radius` hops of `v`,
 /// each once (CSR).

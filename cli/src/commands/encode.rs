@@ -6,7 +6,9 @@ use std::time::{Duration, Instant};
 use animcodec::core::{Animation, AnimationCodec, Limits, ParamSet, StreamDecoder, StreamEncoder, Topology};
 use animcodec::formats::stream::{self as cache_stream, CacheReader};
 use animcodec::front::{self, EvaluationFields, Streams, TargetSummary};
-use animcodec::harness::{self, SearchRequest, Target, TargetMetric};
+use animcodec::harness::{
+    self, CacheSource, FrameRead, InputSource, SearchRequest, StreamedInput, Target, TargetMetric,
+};
 use animcodec::metrics::{EvalOptions, MetricReport};
 use animcodec::output::{OutputPolicy, PendingFile};
 use animcodec::params::params_json;
@@ -57,12 +59,16 @@ pub struct EncodeArgs {
     #[arg(long, value_name = "N", default_value_t = 32, value_parser = clap::value_parser!(u32).range(1..))]
     pub feed: u32,
 
-    /// Memory budget of an encode with -p (bytes; K, M, G suffixes are powers of 1024), e.g.
-    /// 4G. A .pc2/.mdd input, an OBJ sequence (or synth:flag:CxRxF) is read frame by frame, so the encode holds
-    /// the mesh and what the codec buffers; a codec whose analysis holds a whole block of frames (hosvd with
-    /// block=0) chooses temporal blocks that fit the budget. The stream depends on the budget,
-    /// never on the machine. Default: none (hosvd decomposes the whole sequence at once).
-    /// Not with --target or the default-quality search, which hold the whole animation.
+    /// Memory budget (bytes; K, M, G suffixes are powers of 1024), e.g. 4G. A .pc2/.mdd input,
+    /// an OBJ sequence (or synth:flag:CxRxF) is read frame by frame, so an encode with -p holds
+    /// the mesh and what the codec buffers; a codec whose analysis holds a whole block of frames
+    /// (hosvd with block=0) chooses temporal blocks that fit the budget. The stream depends on
+    /// the budget, never on the machine. The searches (no -p, --target, -c auto) hold the whole
+    /// input while that fits the budget; beyond it they stream: each candidate is encoded from
+    /// the input as it is read and measured against a second read (a quarter of the budget is
+    /// kept for candidate streams, the codec's blocks are fitted to the rest). A codec whose
+    /// encoder holds the whole input (sac, stseg) is refused beyond it. Default: none for -p
+    /// (hosvd decomposes the whole sequence at once); for the searches, half the machine's RAM.
     #[arg(long, value_name = "BYTES", value_parser = super::parse_bytes)]
     pub memory: Option<u64>,
 
@@ -91,7 +97,9 @@ pub struct EncodeArgs {
 
     /// After encoding, decode the written stream and measure it against the input: KG, STED,
     /// Hausdorff, RMSE and max error are printed (and added to --json as `kg`, `sted` and the
-    /// full report under `metrics`).
+    /// full report under `metrics`). With -p, an input read frame by frame (.pc2, .mdd, an OBJ
+    /// sequence, synth:flag:CxRxF) is measured frame by frame too: the input is read (or
+    /// generated) again beside the stream decoded packet by packet, within --memory.
     #[arg(long)]
     pub eval: bool,
 
@@ -160,6 +168,14 @@ pub struct TargetEncodeDocument<'a> {
     pub search: &'static str,
     /// The chosen encode's warnings and remarks.
     pub notes: Vec<String>,
+    /// How the search read the input: `whole` (the animation in memory) or `streamed` (each
+    /// candidate encoded from the input as it is read and measured against a second read).
+    pub search_input: &'static str,
+    /// The memory budget the search kept to (bytes): `--memory`, or the default share of the
+    /// machine's RAM; `null` when none applies.
+    pub memory_budget: Option<u64>,
+    /// Whether `memory_budget` is the default (no `--memory`).
+    pub memory_budget_default: bool,
     /// Raw f32 size over the stream's.
     pub ratio: f64,
     /// Frames.
@@ -181,27 +197,14 @@ pub struct TargetEncodeDocument<'a> {
     pub evaluation: Option<EvaluationFields>,
 }
 
-/// Why `--eval` refuses a streamed flag (checked before encoding starts).
-const EVAL_NEEDS_MEMORY: &str = "--eval needs the input in memory, but synth:flag:COLSxROWSxFRAMES is generated \
-                                 frame by frame; write it to a file first (animcodec synth) or drop --eval";
-
 /// Runs `encode`.
 pub fn run(args: &EncodeArgs, limits: Limits) -> CmdResult {
     // Mistyped arguments first, then the output, all before anything long happens.
     let streamed = front::streamed_flag(&args.input)?.is_some();
     if args.eval {
         args.sted.metric_options().sted_params()?;
-        if streamed && !args.params.is_empty() && args.target.is_none() {
-            return Err(EVAL_NEEDS_MEMORY.into());
-        }
     }
     let policy = output_policy(args);
-    if args.memory.is_some() && (args.target.is_some() || args.params.is_empty()) {
-        return Err("--memory bounds an encode with fixed parameters (-p KEY=VALUE): --target and the \
-                    default-quality search (no -p) decode and compare whole animations, so they hold the \
-                    whole input in memory"
-            .into());
-    }
     if let Some(target) = args.target {
         return run_target(args, target, false, limits, &policy);
     }
@@ -232,10 +235,9 @@ pub fn run(args: &EncodeArgs, limits: Limits) -> CmdResult {
         None => {
             let options = args.read.options(args.fps);
             // A PC2/MDD cache or an OBJ sequence is read frame by frame as the encoder takes it
-            // (inputs may be larger than memory), unless --eval needs the whole input in memory
-            // to measure it.
+            // (inputs may be larger than memory); --eval reads it again, frame by frame.
             let path = std::path::Path::new(&args.input);
-            if !args.eval && cache_stream::is_streamable(path) {
+            if cache_stream::is_streamable(path) {
                 Source::Cache(CacheReader::open(path, &options)?)
             } else {
                 Source::Whole(load(&args.input, &options, limits, Streams::Refuse)?.animation)
@@ -245,6 +247,10 @@ pub fn run(args: &EncodeArgs, limits: Limits) -> CmdResult {
     let topology = source.topology();
     let (frame_count, frame_rate) = source.frames_and_rate(args.fps);
     let read_seconds = read_start.elapsed().as_secs_f64();
+    if args.eval && !matches!(source, Source::Whole(_)) {
+        // --eval's frame-by-frame measurement must fit --memory: refused before encoding.
+        streamed_eval_limits(&args.input, &topology, &args.sted.metric_options().eval_options()?, args.memory, limits)?;
+    }
     // A codec with a whole-block analysis chooses its blocks by the memory budget.
     let params = match args.memory {
         Some(budget) => codec.fit_memory(&params, topology.vertex_count(), frame_count, budget)?,
@@ -269,10 +275,9 @@ pub fn run(args: &EncodeArgs, limits: Limits) -> CmdResult {
     let ratio = raw_bytes(v, f) as f64 / bytes as f64;
     // --eval measures the stream as written, before it replaces anything: a failed measurement
     // leaves the old output untouched and no new file.
-    let evaluation = match (&source, args.eval) {
-        (_, false) => None,
-        (Source::Whole(input), true) => Some(evaluate_written(args, input, file.finish()?, limits)?),
-        (Source::Flag { .. } | Source::Cache(_), true) => return Err(EVAL_NEEDS_MEMORY.into()),
+    let evaluation = match args.eval {
+        false => None,
+        true => Some(evaluate_written(args, &source, file.finish()?, limits)?),
     };
     file.commit()?;
     if args.json {
@@ -333,22 +338,84 @@ pub fn run(args: &EncodeArgs, limits: Limits) -> CmdResult {
 }
 
 /// `--eval`: decodes the stream just written (from its file `written`, as any user would) and
-/// measures it against the input; returns the report and the seconds it took.
+/// measures it against the input; returns the report and the seconds it took. An input held
+/// whole is compared with the whole decoded animation; one read frame by frame (a cache, an
+/// OBJ sequence, a generated flag) is read again frame by frame and compared with the stream
+/// as it decodes packet by packet ([`harness::measure_stream`]): the same report, in the
+/// memory of the metrics' window, one packet and a chunk of frames, checked against --memory.
 fn evaluate_written(
     args: &EncodeArgs,
-    input: &Animation,
+    source: &Source,
     written: &std::path::Path,
     limits: Limits,
 ) -> CmdResult<(MetricReport, f64)> {
     let start = Instant::now();
     let registry = animcodec::registry();
-    let decoded = StreamDecoder::new(super::decode::open(written)?, &registry, limits)
-        .and_then(|d| d.decode_all())
-        .context(|| format!("decoding {} to measure it", args.output.display()))?;
     let options = args.sted.metric_options().eval_options()?;
-    let report = animcodec::metrics::evaluate(input, &decoded, &options)
-        .context(|| format!("comparing {} with its decoded stream {}", args.input, args.output.display()))?;
-    Ok((report, start.elapsed().as_secs_f64()))
+    let comparing = || format!("comparing {} with its decoded stream {}", args.input, args.output.display());
+    if let Source::Whole(input) = source {
+        let decoded = StreamDecoder::new(super::decode::open(written)?, &registry, limits)
+            .and_then(|d| d.decode_all())
+            .context(|| format!("decoding {} to measure it", args.output.display()))?;
+        let report = animcodec::metrics::evaluate(input, &decoded, &options).context(comparing)?;
+        return Ok((report, start.elapsed().as_secs_f64()));
+    }
+    let topology = source.topology();
+    let (frame_count, frame_rate) = source.frames_and_rate(args.fps);
+    let limits = streamed_eval_limits(&args.input, &topology, &options, args.memory, limits)?;
+    let stream = super::decode::open(written)?;
+    let report = match source {
+        Source::Cache(_) => {
+            let path = std::path::Path::new(&args.input);
+            let mut reader = CacheReader::open(path, &args.read.options(args.fps))?;
+            let mut read = |n: usize, out: &mut Vec<f32>| reader.read_frames(n, out);
+            let reference = harness::FrameSource { topology: &topology, frame_count, frame_rate, read: &mut read };
+            harness::measure_stream(&registry, stream, reference, &options, limits)
+        }
+        Source::Flag { cols, rows, frames } => {
+            let (cols, rows, frames) = (*cols, *rows, *frames);
+            let (mut next, mut frame) = (0, Vec::new());
+            let mut read = |n: usize, out: &mut Vec<f32>| {
+                out.clear();
+                let n = n.min(frames - next);
+                for t in next..next + n {
+                    synth::flag_frame(cols, rows, t, frames, &mut frame);
+                    out.extend_from_slice(&frame);
+                }
+                next += n;
+                Ok(n)
+            };
+            let reference = harness::FrameSource { topology: &topology, frame_count, frame_rate, read: &mut read };
+            harness::measure_stream(&registry, stream, reference, &options, limits)
+        }
+        Source::Whole(_) => unreachable!("measured in memory above"),
+    };
+    Ok((report.context(comparing)?, start.elapsed().as_secs_f64()))
+}
+
+/// The limits of `--eval`'s streamed measurement: the decode keeps `limits`; with `--memory`,
+/// the metrics' window and frames ([`harness::measure_bytes_held`]) must fit in it, and the
+/// decode gets what is left (the encoder has finished and freed its memory by then).
+fn streamed_eval_limits(
+    input: &str,
+    topology: &Topology,
+    options: &EvalOptions,
+    memory: Option<u64>,
+    limits: Limits,
+) -> CmdResult<Limits> {
+    let Some(budget) = memory else { return Ok(limits) };
+    let held = harness::measure_bytes_held(topology, options);
+    let Some(left) = budget.checked_sub(held) else {
+        return Err(format!(
+            "{input}: --eval measures frame by frame holding up to {} MiB for {} vertices (the metrics' window and \
+             two chunks of frames), more than --memory {} MiB; raise --memory, or leave out --eval",
+            held >> 20,
+            topology.vertex_count(),
+            budget >> 20
+        )
+        .into());
+    };
+    Ok(Limits { max_alloc_bytes: limits.max_alloc_bytes.min(usize::try_from(left).unwrap_or(usize::MAX)), ..limits })
 }
 
 /// Where the frames come from: a loaded animation, a PC2/MDD cache or an OBJ sequence read frame
@@ -494,6 +561,155 @@ impl<W: Write> Write for CountingWriter<W> {
     }
 }
 
+/// What a search reads: the whole animation, or a source read frame by frame.
+enum SearchSource {
+    Whole(Animation),
+    Streamed(Box<dyn InputSource>),
+}
+
+/// A search's input and its memory budget, and the note saying why it streams.
+struct PreparedInput {
+    input: SearchSource,
+    budget: Option<u64>,
+    note: Option<String>,
+}
+
+/// Reads (or opens) a search's input under the memory budget: `--memory`, else
+/// [`front::default_memory_budget`]. An input that can be read frame by frame (PC2, MDD, an
+/// OBJ sequence, `synth:flag:COLSxROWSxFRAMES`) is searched whole while the whole-array search
+/// fits the budget by [`harness::whole_search_need`] (the largest over `codecs`), and streamed
+/// beyond it, with a note saying so. Any other input is read whole; beyond an explicit
+/// `--memory` it is refused.
+fn prepare_search_input(
+    args: &EncodeArgs,
+    codecs: &[&dyn AnimationCodec],
+    eval: &EvalOptions,
+    limits: Limits,
+) -> CmdResult<PreparedInput> {
+    let (budget, given) = match args.memory {
+        Some(m) => (Some(m), true),
+        None => (front::default_memory_budget(), false),
+    };
+    let options = args.read.options(args.fps);
+    let need = |v: usize, f: usize| codecs.iter().map(|c| harness::whole_search_need(*c, v, f)).max().unwrap_or(0);
+    let path = std::path::Path::new(&args.input);
+    let source: Option<Box<dyn InputSource>> = match front::streamed_flag(&args.input)? {
+        Some((cols, rows, frames)) => {
+            check_flag_memory(&args.input, cols, rows, args.memory)?;
+            Some(Box::new(FlagSource::new(&args.input, cols, rows, frames, args.fps)))
+        }
+        None if cache_stream::is_streamable(path) => Some(Box::new(CacheSource::open(path, &options)?)),
+        None => None,
+    };
+    let Some(source) = source else {
+        let animation = load(&args.input, &options, limits, Streams::Refuse)?.animation;
+        let whole = need(animation.vertex_count(), animation.frame_count());
+        if let (Some(b), true) = (budget, given) {
+            if whole > b {
+                return Err(format!(
+                    "{}: a search over this input holds it whole (only .pc2/.mdd caches, OBJ sequences and \
+                     synth:flag:COLSxROWSxFRAMES are read frame by frame), about {} MiB, more than --memory {} MiB; \
+                     convert it to a PC2 cache (animcodec export) or give a larger --memory",
+                    args.input,
+                    whole >> 20,
+                    b >> 20
+                )
+                .into());
+            }
+        }
+        return Ok(PreparedInput { input: SearchSource::Whole(animation), budget, note: None });
+    };
+    let (v, f) = (source.topology().vertex_count(), source.frame_count());
+    let whole = need(v, f);
+    match budget {
+        Some(b) if whole > b => {
+            let whose = if given {
+                format!("--memory {} MiB", b >> 20)
+            } else {
+                format!(
+                    "the default memory budget, {} MiB ({} of this machine's RAM; --memory sets it, and the \
+                     codec's blocks may depend on it)",
+                    b >> 20,
+                    if front::DEFAULT_MEMORY_SHARE == (1, 2) {
+                        "half".to_owned()
+                    } else {
+                        format!("{:?}", front::DEFAULT_MEMORY_SHARE)
+                    }
+                )
+            };
+            let note = format!(
+                "a search over the whole of {} would hold about {} MiB, more than {whose}: it streams instead \
+                 (each candidate is encoded from the input as it is read and measured against a second read)",
+                args.input,
+                whole >> 20
+            );
+            let _ = eval;
+            Ok(PreparedInput { input: SearchSource::Streamed(source), budget, note: Some(note) })
+        }
+        _ => {
+            drop(source);
+            let animation = load(&args.input, &options, limits, Streams::Refuse)?.animation;
+            Ok(PreparedInput { input: SearchSource::Whole(animation), budget, note: None })
+        }
+    }
+}
+
+/// `synth:flag:COLSxROWSxFRAMES` as a [`InputSource`]: its frames generated one at a time for
+/// every read, its mesh held.
+struct FlagSource {
+    name: String,
+    cols: usize,
+    rows: usize,
+    frames: usize,
+    frame_rate: f32,
+    topology: Topology,
+}
+
+impl FlagSource {
+    fn new(name: &str, cols: usize, rows: usize, frames: usize, fps: Option<f32>) -> Self {
+        let topology = synth::flag_topology(cols, rows);
+        Self { name: name.to_owned(), cols, rows, frames, frame_rate: fps.unwrap_or(synth::FRAME_RATE), topology }
+    }
+}
+
+/// A read of a [`FlagSource`]: the next frame to generate.
+struct FlagReader<'a> {
+    flag: &'a FlagSource,
+    next: usize,
+    frame: Vec<f32>,
+}
+
+impl FrameRead for FlagReader<'_> {
+    fn read_frames(&mut self, frames: usize, out: &mut Vec<f32>) -> animcodec::core::Result<usize> {
+        out.clear();
+        let n = frames.min(self.flag.frames - self.next);
+        for t in self.next..self.next + n {
+            synth::flag_frame(self.flag.cols, self.flag.rows, t, self.flag.frames, &mut self.frame);
+            out.extend_from_slice(&self.frame);
+        }
+        self.next += n;
+        Ok(n)
+    }
+}
+
+impl InputSource for FlagSource {
+    fn topology(&self) -> &Topology {
+        &self.topology
+    }
+    fn frame_count(&self) -> usize {
+        self.frames
+    }
+    fn frame_rate(&self) -> f32 {
+        self.frame_rate
+    }
+    fn open(&self) -> harness::Result<Box<dyn FrameRead + '_>> {
+        Ok(Box::new(FlagReader { flag: self, next: 0, frame: Vec::new() }))
+    }
+    fn name(&self) -> String {
+        self.name.clone()
+    }
+}
+
 /// `encode --target` (or the default quality target, `by_default`): searches the codec's
 /// declared parameter space (see [`harness::search_space_target`]; with `--ladder` its rate
 /// ladder alone, [`harness::search_target`]) and writes the smallest stream that meets the
@@ -528,13 +744,64 @@ fn run_target(args: &EncodeArgs, target: Target, by_default: bool, limits: Limit
     animcodec::output::folder_exists(&args.output)?;
 
     let read_start = Instant::now();
-    // The search decodes and compares whole animations, so a synth:flag:COLSxROWSxFRAMES is
-    // built in memory (within the memory limit).
-    let options = args.read.options(args.fps);
-    let animation = load(&args.input, &options, limits, Streams::Refuse)?.animation;
+    let registry_codecs: Vec<&dyn AnimationCodec> = registry.iter().collect();
+    let searched: Vec<&dyn AnimationCodec> = match &chosen {
+        Some((codec, _)) => vec![*codec],
+        None => registry_codecs.clone(),
+    };
+    // The whole animation in memory while the search fits the memory budget; beyond it (and
+    // for an input read frame by frame) the streamed search.
+    let prepared = prepare_search_input(args, &searched, &eval, limits)?;
     // The files the read opened (a .gltf's buffers, …) are inputs too: refused before the work.
     policy.check(&args.output)?;
     let read_seconds = read_start.elapsed().as_secs_f64();
+    let streamed_input = match &prepared.input {
+        SearchSource::Streamed(source) => Some(StreamedInput::new(
+            source.as_ref(),
+            prepared.budget.expect("a streamed search has a budget"),
+            args.feed as usize,
+            &eval,
+        )?),
+        SearchSource::Whole(_) => None,
+    };
+    let mut notes: Vec<String> = prepared.note.iter().cloned().collect();
+    // On a streamed input, a codec whose encoder holds the whole input cannot stream: refused
+    // (a named codec) or left out (-c auto), naming the budget.
+    let mut every_codec: Vec<&dyn AnimationCodec> = registry_codecs.clone();
+    if let Some(streamed) = &streamed_input {
+        let (v, f) = (streamed.source().topology().vertex_count(), streamed.source().frame_count());
+        let refusal = |codec: &dyn AnimationCodec, params: &ParamSet| -> Option<String> {
+            codec.fit_memory(params, v, f, streamed.work_budget()).err().map(|e| {
+                format!(
+                    "{}: its encoder cannot stream {} within --memory {} MiB (the streamed search gives the codec \
+                     {} MiB, three quarters of the budget; a quarter is kept for candidate streams): {e}",
+                    codec.name(),
+                    args.input,
+                    streamed.budget() >> 20,
+                    streamed.work_budget() >> 20,
+                )
+            })
+        };
+        match &chosen {
+            Some((codec, params)) => {
+                if let Some(why) = refusal(*codec, params) {
+                    return Err(why.into());
+                }
+            }
+            None => every_codec.retain(|codec| match refusal(*codec, &codec.default_params()) {
+                Some(why) => {
+                    eprintln!("animcodec: left out of -c auto: {why}");
+                    notes.push(format!("left out of -c auto: {why}"));
+                    false
+                }
+                None => true,
+            }),
+        }
+    }
+    // Said once the search is sure to run (a refusal above is the one message).
+    for n in prepared.note.iter() {
+        eprintln!("animcodec: {n}");
+    }
 
     let start = Instant::now();
     // Each point is a full encode + decode + evaluation (minutes in all on real data): on a
@@ -561,15 +828,19 @@ fn run_target(args: &EncodeArgs, target: Target, by_default: bool, limits: Limit
         ));
     };
     let fixed: Vec<&str> = args.params.iter().filter_map(|p| p.split_once('=').map(|(k, _)| k.trim())).collect();
+    let input = match (&prepared.input, &streamed_input) {
+        (_, Some(streamed)) => harness::SearchInput::Streamed(streamed),
+        (SearchSource::Whole(animation), None) => harness::SearchInput::Whole(animation),
+        (SearchSource::Streamed(_), None) => unreachable!("a streamed source has its streamed input"),
+    };
     let request = SearchRequest {
         eval,
         limits,
         refine: args.refine as usize,
         progress: &progress,
         measure_every_metric: args.eval,
-        ..SearchRequest::new(&registry, &animation, target)
+        ..SearchRequest::on(&registry, input, target)
     };
-    let every_codec: Vec<&dyn AnimationCodec> = registry.iter().collect();
     let found = match (chosen, args.ladder) {
         (Some((codec, _)), false) if by_default => {
             harness::search_default_quality(&request, codec).map(|hit| (hit, Vec::new()))
@@ -585,11 +856,15 @@ fn run_target(args: &EncodeArgs, target: Target, by_default: bool, limits: Limit
     let (hit, others) = found?;
     let search_seconds = start.elapsed().as_secs_f64();
     // The chosen encode's warnings, as a plain encode prints them (stderr, `--json` "notes").
-    let mut notes: Vec<String> =
+    let mut warnings: Vec<String> =
         hit.point.report.notes.iter().filter_map(|n| n.strip_prefix("encoder: ")).map(str::to_owned).collect();
-    notes.extend(sted_motion_note(target, &hit.point));
-    for n in &notes {
+    warnings.extend(sted_motion_note(target, &hit.point));
+    for n in &warnings {
         eprintln!("animcodec: warning: {n}");
+    }
+    notes.extend(warnings);
+    if hit.stream.is_empty() {
+        return Err("internal error: the search chose a stream it did not keep".into());
     }
     // Written under a temporary name and measured (--eval) before it replaces anything.
     let mut file = policy.create(&args.output)?;
@@ -599,12 +874,29 @@ fn run_target(args: &EncodeArgs, target: Target, by_default: bool, limits: Limit
     // decoded again unless the search skipped a metric --eval reports).
     let evaluation = if args.eval {
         file.finish()?;
-        Some(front::evaluation_of(&registry, &hit, &animation, &measured, limits)?)
+        Some(match &input {
+            harness::SearchInput::Whole(animation) => {
+                front::evaluation_of(&registry, &hit, animation, &measured, limits)?
+            }
+            harness::SearchInput::Streamed(streamed) => match front::search_evaluation(&hit, &measured) {
+                Some(found) => found,
+                None => {
+                    let start = Instant::now();
+                    let (report, _) =
+                        harness::measure_stream_against(&registry, &hit.stream, streamed.source(), &measured, limits)?;
+                    (report, start.elapsed().as_secs_f64())
+                }
+            },
+        })
     } else {
         None
     };
     file.commit()?;
-    let (v, f) = (animation.vertex_count(), animation.frame_count());
+    let (v, f) = (input.vertex_count(), input.frame_count());
+    let (triangles, frame_rate) = match &prepared.input {
+        SearchSource::Whole(a) => (a.topology().triangle_count(), a.frame_rate()),
+        SearchSource::Streamed(source) => (source.topology().triangle_count(), source.frame_rate()),
+    };
     if args.json {
         return emit_document(&TargetEncodeDocument {
             summary: TargetSummary::new(target, &hit, &others),
@@ -613,11 +905,14 @@ fn run_target(args: &EncodeArgs, target: Target, by_default: bool, limits: Limit
             default_target: by_default,
             search: if args.ladder { "ladder" } else { "space" },
             notes,
+            search_input: if streamed_input.is_some() { "streamed" } else { "whole" },
+            memory_budget: prepared.budget,
+            memory_budget_default: args.memory.is_none() && prepared.budget.is_some(),
             ratio: raw_bytes(v, f) as f64 / p.bytes as f64,
             frames: f,
             vertices: v,
-            triangles: animation.topology().triangle_count(),
-            frame_rate: animation.frame_rate(),
+            triangles,
+            frame_rate,
             read_seconds,
             search_seconds,
             encode_seconds: p.encode_seconds,
@@ -625,10 +920,15 @@ fn run_target(args: &EncodeArgs, target: Target, by_default: bool, limits: Limit
         });
     }
     let mut out = format!(
-        "{input}: {f} frames × {v} vertices (read in {read_seconds:.2} s)\n\
+        "{input}: {f} frames × {v} vertices ({read})\n\
          target {target}{default}: {codec} [{params}] reaches {reached} → {output}\n\
          {parts}{bytes} bytes, {rate:.3} bits/vertex/frame; searched {n} points in {search_seconds:.2} s{fallback}\n",
         input = args.input,
+        read = if streamed_input.is_some() {
+            "streamed: read twice per candidate".to_owned()
+        } else {
+            format!("read in {read_seconds:.2} s")
+        },
         default = if by_default { " (the default quality; -p or --target for other choices)" } else { "" },
         codec = p.codec,
         params = p.params,

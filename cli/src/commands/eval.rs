@@ -4,10 +4,13 @@ use std::time::Instant;
 
 use animcodec::core::Limits;
 use animcodec::formats::gltf_out::as_shown;
+use animcodec::formats::stream::{self as cache_stream, CacheReader};
 use animcodec::formats::ReadOptions;
-use animcodec::front::{Origin, Streams};
-use animcodec::metrics::{EdgeDifference, MetricReport};
+use animcodec::front::{self, Origin, Streams};
+use animcodec::harness;
+use animcodec::metrics::{EdgeDifference, EvalOptions, MetricReport};
 use serde::Serialize;
+use std::path::Path;
 
 use super::args::MetricArgs;
 use super::{emit, emit_document, load, CmdResult, WithContext};
@@ -69,6 +72,9 @@ pub fn run(args: &EvalArgs, limits: Limits) -> CmdResult {
         animation: args.animation.clone(),
         object: args.object.clone(),
     };
+    if let Some((report, seconds)) = measure_streamed(args, &options, &read, limits)? {
+        return emit_report(args, &report, seconds, None);
+    }
     let reference = load(&args.reference, &read, limits, Streams::Decode)?;
     // --animation chooses the reference's animation; a glTF candidate plays its first.
     let mut candidate =
@@ -134,20 +140,72 @@ pub fn run(args: &EvalArgs, limits: Limits) -> CmdResult {
         ));
     }
     let seconds = start.elapsed().as_secs_f64();
+    emit_report(args, &report, seconds, matched.as_ref())
+}
+
+/// `eval` of a reference read frame by frame (a .pc2/.mdd cache or an OBJ sequence) against a
+/// candidate read so too, or an `.anim` stream decoded packet by packet: the report of the
+/// in-memory comparison ([`harness::measure_sources`], [`harness::measure_stream`]) without
+/// holding either animation. `None` for any other pair (and with --match-vertices, which
+/// matches whole trajectories), measured in memory.
+fn measure_streamed(
+    args: &EvalArgs,
+    options: &EvalOptions,
+    read: &ReadOptions,
+    limits: Limits,
+) -> CmdResult<Option<(MetricReport, f64)>> {
+    let (reference, candidate) = (Path::new(&args.reference), Path::new(&args.candidate));
+    let stream = front::names_stream(&args.candidate);
+    if args.match_vertices
+        || !cache_stream::is_streamable(reference)
+        || !(stream || cache_stream::is_streamable(candidate))
+    {
+        return Ok(None);
+    }
+    let start = Instant::now();
+    let comparing = || format!("comparing {} with {}", args.reference, args.candidate);
+    let mut ref_reader = CacheReader::open(reference, read)?;
+    let (topology, frame_count, frame_rate) =
+        (ref_reader.topology().clone(), ref_reader.frame_count(), ref_reader.frame_rate());
+    let mut read_ref = |n: usize, out: &mut Vec<f32>| ref_reader.read_frames(n, out);
+    let reference_source = harness::FrameSource { topology: &topology, frame_count, frame_rate, read: &mut read_ref };
+    let report = if stream {
+        let registry = animcodec::registry();
+        let file = front::open_stream(candidate).in_file(&args.candidate)?;
+        harness::measure_stream(&registry, file, reference_source, options, limits).context(comparing)?
+    } else {
+        let mut cand_reader = CacheReader::open(candidate, read)?;
+        let (ctop, cframes, crate_) =
+            (cand_reader.topology().clone(), cand_reader.frame_count(), cand_reader.frame_rate());
+        let mut read_cand = |n: usize, out: &mut Vec<f32>| cand_reader.read_frames(n, out);
+        let candidate_source =
+            harness::FrameSource { topology: &ctop, frame_count: cframes, frame_rate: crate_, read: &mut read_cand };
+        harness::measure_sources(reference_source, candidate_source, options).context(comparing)?
+    };
+    Ok(Some((report, start.elapsed().as_secs_f64())))
+}
+
+/// Prints the report (`--json`: the document).
+fn emit_report(
+    args: &EvalArgs,
+    report: &MetricReport,
+    seconds: f64,
+    matched: Option<&animcodec::metrics::VertexMatch>,
+) -> CmdResult {
     if args.json {
         return emit_document(&EvalDocument {
-            report: &report,
+            report,
             reference: &args.reference,
             candidate: &args.candidate,
             eval_seconds: seconds,
-            vertex_match: matched.as_ref().map(|m| VertexMatch {
+            vertex_match: matched.map(|m| VertexMatch {
                 worst_distance: m.worst_distance,
                 shared: m.shared,
                 unused: m.unused,
             }),
         });
     }
-    emit(&text(args, &report, seconds))
+    emit(&text(args, report, seconds))
 }
 
 /// The document of `eval --json`: every metric (the report's keys), the two inputs, the

@@ -5,7 +5,7 @@
 use codec_core::{Animation, AnimationCodec, CodecRegistry, ParamSet};
 
 use super::measured::Point;
-use super::point::{ladder_params, measure_point};
+use super::point::ladder_params;
 use super::search::{midpoint, SearchRequest};
 use super::target::{meets, usable, Target, TargetHit, TargetMetric, TargetMiss};
 use crate::error::{EvalError, Result};
@@ -41,7 +41,7 @@ pub const DEFAULT_REFINE_BAND: f64 = 1.25;
 /// The target is `request.target`: [`DEFAULT_TARGET`] for the default encode
 /// ([`SearchRequest::default_quality`]); the bands are relative to it.
 pub fn search_default_quality(request: &SearchRequest<'_>, codec: &dyn AnimationCodec) -> Result<TargetHit> {
-    let SearchRequest { registry, animation, target, limits, refine, progress, .. } = *request;
+    let SearchRequest { target, refine, progress, .. } = *request;
     let eval = request.metric_options();
     let base = codec.default_params();
     let ladder = codec.rate_ladder(&base);
@@ -59,7 +59,7 @@ pub fn search_default_quality(request: &SearchRequest<'_>, codec: &dyn Animation
                    tried: &mut Vec<(Point, Vec<u8>)>,
                    rejected: &mut Vec<String>|
      -> Result<bool> {
-        match measure_point(registry, codec, params, (ladder.param, index), animation, &eval, limits) {
+        match request.measure(codec, params, (ladder.param, index), &eval) {
             Ok((point, stream)) => {
                 progress(&point);
                 let pass = usable(&point) && meets(target, &point);

@@ -23,20 +23,32 @@
 //! * `space`: [`search_space_target`] over a codec's declared search space
 //!   ([`search_space_target_auto`]).
 //! * `default_quality`: [`search_default_quality`], the default encode's short search.
+//! * `streamed`: [`measure_stream`] measures an `.anim` stream packet by packet against a
+//!   reference read frame by frame ([`FrameSource`]), [`measure_sources`] two sides read so,
+//!   in the bounded memory of [`metrics::StreamingEvaluator`].
+//! * `input`: what a search measures against ([`SearchInput`]): the whole animation, or a
+//!   [`InputSource`] read frame by frame within a memory budget ([`StreamedInput`],
+//!   [`measure_point_streamed`]).
 
 mod csv;
 mod curve;
 mod default_quality;
+mod input;
 mod measured;
 mod point;
 mod rows;
 mod search;
 mod space;
+mod streamed;
 mod sweep;
 pub(crate) mod target;
 
 pub use curve::{envelope, joint_envelope, monotone_report, Monotonicity};
 pub use default_quality::{search_default_quality, DEFAULT_QUALITY_BAND, DEFAULT_REFINE_BAND, DEFAULT_TARGET};
+pub use input::{
+    encoder_need, measure_point_streamed, measure_stream_against, whole_search_need, CacheSource, FrameRead,
+    InputSource, SearchInput, StreamedInput, STREAM_SHARE_DIVISOR,
+};
 pub use measured::Point;
 pub use point::{ladder_indices, ladder_params, measure_point, measure_point_keeping};
 pub use rows::{
@@ -44,6 +56,7 @@ pub use rows::{
 };
 pub use search::{search_target, search_target_auto, SearchRequest};
 pub use space::{search_space_target, search_space_target_auto};
+pub use streamed::{chunk_frames, measure_bytes_held, measure_sources, measure_stream, FrameSource, CHUNK_BYTES};
 pub use sweep::{
     envelope_sweep, sweep, sweep_jobs, sweep_point, Failure, Sweep, SweepEvent, SweepOptions, SweepSeries,
 };

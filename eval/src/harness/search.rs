@@ -5,6 +5,7 @@
 use codec_core::{Animation, AnimationCodec, CodecRegistry, Limits, ParamSet, ParamValue};
 use metrics::EvalOptions;
 
+use super::input::{measure_point_streamed, SearchInput, StreamedInput};
 use super::measured::Point;
 use super::point::{ladder_params, measure_point};
 use super::target::{meets, usable, Target, TargetHit, TargetMiss};
@@ -16,8 +17,10 @@ use crate::error::{EvalError, Result};
 pub struct SearchRequest<'a> {
     /// Decoders for the streams measured.
     pub registry: &'a CodecRegistry,
-    /// The input every candidate is measured against.
-    pub animation: &'a Animation,
+    /// The input every candidate is encoded from and measured against: the whole animation,
+    /// or a source read frame by frame within a memory budget. The searches are the same;
+    /// only what measuring a candidate does differs ([`SearchRequest::measure`]).
+    pub input: SearchInput<'a>,
     /// The error to meet.
     pub target: Target,
     /// Metric options; a search computes only its target's metric (see
@@ -42,15 +45,53 @@ impl<'a> SearchRequest<'a> {
     /// A search for `target` on `animation`: default metric options and limits, no
     /// refinement, no progress reports.
     pub fn new(registry: &'a CodecRegistry, animation: &'a Animation, target: Target) -> Self {
+        Self::on(registry, SearchInput::Whole(animation), target)
+    }
+
+    /// A search for `target` on a streamed input: each candidate is encoded from one read of
+    /// the source and measured against another, within its memory budget.
+    pub fn streamed(registry: &'a CodecRegistry, input: &'a StreamedInput<'a>, target: Target) -> Self {
+        Self::on(registry, SearchInput::Streamed(input), target)
+    }
+
+    /// A search for `target` on `input`: default metric options and limits, no refinement, no
+    /// progress reports.
+    pub fn on(registry: &'a CodecRegistry, input: SearchInput<'a>, target: Target) -> Self {
         Self {
             registry,
-            animation,
+            input,
             target,
             eval: EvalOptions::default(),
             limits: Limits::default(),
             refine: 0,
             progress: &|_| {},
             measure_every_metric: false,
+        }
+    }
+
+    /// Measures one candidate (`codec` at `params`, at `ladder` = (parameter, index)) with
+    /// `eval`: [`measure_point`] on a whole input, [`measure_point_streamed`] on a streamed one.
+    /// On a streamed input the stream is kept only when it can still be chosen (it meets the
+    /// target and no passing stream measured before is smaller): the others are returned
+    /// empty, so the search holds at most two streams.
+    pub(crate) fn measure(
+        &self,
+        codec: &dyn AnimationCodec,
+        params: &ParamSet,
+        ladder: (&'static str, usize),
+        eval: &EvalOptions,
+    ) -> Result<(Point, Vec<u8>)> {
+        match self.input {
+            SearchInput::Whole(animation) => {
+                measure_point(self.registry, codec, params, ladder, animation, eval, self.limits)
+            }
+            SearchInput::Streamed(input) => {
+                let (point, stream) =
+                    measure_point_streamed(self.registry, codec, params, ladder, input, eval, self.limits)?;
+                let passes = usable(&point) && meets(self.target, &point);
+                let stream = if input.keep(point.bytes, passes) { stream } else { Vec::new() };
+                Ok((point, stream))
+            }
         }
     }
 
@@ -96,7 +137,7 @@ impl<'a> SearchRequest<'a> {
 /// Errors: invalid parameters or codec failures as errors; no passing point as
 /// [`EvalError::TargetMiss`].
 pub fn search_target(request: &SearchRequest<'_>, codec: &dyn AnimationCodec, base: &ParamSet) -> Result<TargetHit> {
-    let SearchRequest { registry, animation, target, limits, refine, progress, .. } = *request;
+    let SearchRequest { target, refine, progress, .. } = *request;
     let ladder = codec.rate_ladder(base);
     let n = ladder.steps.len();
     let eval = request.metric_options();
@@ -104,7 +145,7 @@ pub fn search_target(request: &SearchRequest<'_>, codec: &dyn AnimationCodec, ba
     let measure = |i: usize, measured: &mut Vec<Option<(Point, Vec<u8>)>>| -> Result<bool> {
         if measured[i].is_none() {
             let params = ladder_params(codec, base, &ladder, i)?;
-            let (point, bytes) = measure_point(registry, codec, &params, (ladder.param, i), animation, &eval, limits)?;
+            let (point, bytes) = request.measure(codec, &params, (ladder.param, i), &eval)?;
             progress(&point);
             measured[i] = Some((point, bytes));
         }
@@ -161,7 +202,7 @@ pub fn search_target(request: &SearchRequest<'_>, codec: &dyn AnimationCodec, ba
             if codec.validate(&params).is_err() {
                 break;
             }
-            let (point, bytes) = measure_point(registry, codec, &params, (ladder.param, k), animation, &eval, limits)?;
+            let (point, bytes) = request.measure(codec, &params, (ladder.param, k), &eval)?;
             progress(&point);
             if passes(&point) {
                 pass = mid;

@@ -8,7 +8,6 @@ use metrics::EvalOptions;
 use rayon::prelude::*;
 
 use super::measured::Point;
-use super::point::measure_point;
 use super::search::{round_between, smallest_over_codecs, SearchRequest};
 use super::target::{meets, usable, Target, TargetHit, TargetMiss};
 use crate::error::{EvalError, Result};
@@ -130,20 +129,13 @@ struct SpaceSearcher<'a> {
 
 impl SpaceSearcher<'_> {
     fn measure(&self, params: &ParamSet, ladder_param: &'static str, position: f64, value: ParamValue) -> Candidate {
-        let request = self.request;
         // A point between two steps carries the index of the step above it (the larger
         // stream), as the refined points of the single-ladder search do.
         let index = position.ceil() as usize;
-        let outcome = measure_point(
-            request.registry,
-            self.codec,
-            params,
-            (ladder_param, index),
-            request.animation,
-            &self.eval,
-            request.limits,
-        )
-        .map_err(|e| format!("{} [{params}]: {e}", self.codec.name()));
+        let outcome = self
+            .request
+            .measure(self.codec, params, (ladder_param, index), &self.eval)
+            .map_err(|e| format!("{} [{params}]: {e}", self.codec.name()));
         if let Ok((p, _)) = &outcome {
             (self.request.progress)(p);
         }
@@ -438,7 +430,13 @@ pub fn search_space_target(
     };
     searcher.search(first, start, &cold)?;
     let prior = searcher.prior(first);
-    others.par_iter_mut().map(|run| searcher.search(run, prior.position, &prior)).collect::<Result<Vec<()>>>()?;
+    // A streamed input's candidates each hold the work share of the memory budget: one at a
+    // time. The result does not depend on the order (see above).
+    if request.input.sequential() {
+        others.iter_mut().try_for_each(|run| searcher.search(run, prior.position, &prior))?;
+    } else {
+        others.par_iter_mut().map(|run| searcher.search(run, prior.position, &prior)).collect::<Result<Vec<()>>>()?;
+    }
     // STED targets: every configuration's smallest step too. A shape error need not grow
     // toward the small end of a ladder: the smallest model that is not flat (hosvd's
     // `(v, f) = (3, 1)`: one shape moved by the per-frame rotation and translation) keeps
@@ -449,7 +447,11 @@ pub fn search_space_target(
     // that brackets the target assumes monotone errors and never looks there. One encode per
     // configuration, the cheapest of its ladder.
     if target.distortion_kind() == DistortionKind::Shape {
-        runs.par_iter_mut().map(|run| searcher.probe_smallest(run)).collect::<Result<Vec<()>>>()?;
+        if request.input.sequential() {
+            runs.iter_mut().try_for_each(|run| searcher.probe_smallest(run))?;
+        } else {
+            runs.par_iter_mut().map(|run| searcher.probe_smallest(run)).collect::<Result<Vec<()>>>()?;
+        }
     }
 
     let mut tried = Vec::new();
