@@ -78,22 +78,6 @@ pub(crate) const CENTRE_BYTES: usize = 12;
 /// Stream version the encoder writes (6: `FLAG_CENTRE`); versions 1 to 5 keep decoding.
 pub const STREAM_VERSION: u16 = 6;
 
-/// `quant` on the sweep's envelope axis: the default 2 (fewest bits at a KG target) and 1,
-/// which the joint KG & STED targets want (horse-gallop, one ladder per value, smallest measured
-/// stream: KG ≤ 0.5 & STED ≤ 0.05 0.933 bpvf at 1 against 1.351 at 2 and 1.031 at 0.25; KG ≤ 0.1
-/// & STED ≤ 0.02 2.120 against 4.515 and 3.171; README "Choosing `quant`").
-const QUANT_AXIS: [f64; 2] = [2.0, 1.0];
-
-/// `quant` of STED target searches: 0.25, the value their configurations were chosen with (by
-/// STED alone the finer steps win: samba needs 0.196 bpvf at STED ≤ 0.1 with 0.25, 0.266 with
-/// 1, without a noise cap).
-const QUANT_SHAPE: f64 = 0.25;
-
-/// `quant` of joint target searches: 1, the smallest measured stream at KG ≤ 0.5 & STED ≤ 0.05
-/// on horse-gallop (0.933 bpvf; 0.25: 1.031), samba (0.485; 0.25: 0.504) and pcow (1.386;
-/// 0.25: 1.595).
-const QUANT_JOINT: f64 = 1.0;
-
 /// The `hosvd` codec.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct Hosvd;
@@ -117,8 +101,7 @@ impl TypedCodec for Hosvd {
         // → 0.007), and the KG ≤ 0.1 and the joint targets with STED ≤ 0.02 fall in between,
         // where an envelope interpolated across the gap, or the smallest measured stream
         // meeting a joint target, pays for the missing points.
-        let steps =
-            [0.998, 0.995, 0.99, 0.98, 0.97, 0.96, 0.95, 0.94, 0.93, 0.9, 0.85, 0.8, 0.7, 0.65, 0.6, 0.55, 0.5];
+        let steps = [0.998, 0.995, 0.99, 0.98, 0.97, 0.96, 0.95, 0.94, 0.93, 0.9, 0.85, 0.8, 0.7, 0.65, 0.6, 0.55, 0.5];
         RateLadder::over(HosvdParams::ss, steps)
     }
     /// The ladder over `ss`, on each combination of the three levers that decide between the
@@ -137,9 +120,6 @@ impl TypedCodec for Hosvd {
         }
         secondary.push(SearchAxis::over(HosvdParams::rigid, [true, false]));
         secondary.push(SearchAxis::over(HosvdParams::edge_noise, [0.0, 0.012, 0.02]));
-        if base.coding == Coding::Toolkit {
-            secondary.push(SearchAxis::over(HosvdParams::quant, QUANT_AXIS));
-        }
         SearchSpace { primary: self.ladder(base), secondary }
     }
     /// What a target search walks (a `--target` search must cost few encodes). Every measured
@@ -166,9 +146,6 @@ impl TypedCodec for Hosvd {
                 }
                 secondary.push(SearchAxis::over(HosvdParams::edge_noise, [0.012, 0.02]));
                 secondary.push(SearchAxis::over(HosvdParams::rigid, [false, true]));
-                if toolkit {
-                    secondary.push(SearchAxis::over(HosvdParams::quant, [QUANT_SHAPE]));
-                }
             }
             // Joint targets (KG and STED together): the KG half's configurations, in its order,
             // no noise cap. At KG ≤ 0.5 & STED ≤ 0.05 the cap (which buys STED with positional
@@ -182,9 +159,6 @@ impl TypedCodec for Hosvd {
                     secondary.push(SearchAxis::over(HosvdParams::edge_weight, [0.0, 1.0]));
                 }
                 secondary.push(SearchAxis::over(HosvdParams::rigid, [true, false]));
-                if toolkit {
-                    secondary.push(SearchAxis::over(HosvdParams::quant, [QUANT_JOINT]));
-                }
             }
         }
         SearchSpace { primary: self.ladder(base), secondary }
