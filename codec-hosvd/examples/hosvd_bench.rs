@@ -18,6 +18,10 @@
 //! 2's default) and a memcpy of the decoded frames, all in one run, as ratios:
 //! `target/release/examples/hosvd_bench --speed ../shared/data samba`.
 //!
+//! With `--sections DATA_DIR NAME KEY=VALUE…` one encode with those parameters prints where
+//! the stream's bytes go (topology, coded `U1` / `U3` / core, coded transforms, side data)
+//! and the KG: `target/release/examples/hosvd_bench --sections ../shared/data horse-gallop ss=0.9`.
+//!
 //! KG = 100·‖A−Â‖_F / ‖A−E(A)‖_F with E(A) the per-frame centroid of the original (f64).
 //! MSE = mean over vertices and frames of the squared vertex distance (§2.7).
 
@@ -143,6 +147,37 @@ fn run(a: &Animation, p: &HosvdParams) -> Run {
     let dec_s = t1.elapsed().as_secs_f64();
     assert_eq!(dec.positions(), &rec[..], "decoder disagrees with the encoder's reconstruction");
     Run { bytes: bytes.len(), rec, stats: enc.stats().to_vec(), enc_s, dec_s }
+}
+
+/// One encode: where the container's bytes go, in bytes and bits per vertex per frame.
+fn sections(a: &Animation, p: &HosvdParams) {
+    let r = run(a, p);
+    let vf = (a.vertex_count() * a.frame_count()) as f64;
+    let bpvf = |b: f64| 8.0 * b / vf;
+    let s = r.stats.iter().fold(codec_hosvd::Sections::default(), |t, b| codec_hosvd::Sections {
+        u1: t.u1 + b.sections.u1,
+        u1_lead: t.u1_lead + b.sections.u1_lead,
+        u3: t.u3 + b.sections.u3,
+        core: t.core + b.sections.core,
+        motion: t.motion + b.sections.motion,
+        other: t.other + b.sections.other,
+    });
+    let payload: usize = r.stats.iter().map(|b| b.payload_bytes).sum();
+    let rest = r.bytes - payload;
+    let e = errors(a, &r.rec);
+    let ranks: Vec<String> = r.stats.iter().map(|b| format!("({}, {})", b.v, b.f)).collect();
+    println!("ranks {}  bytes {}  bpvf {:.4}  KG {:.4}", ranks.join(" "), r.bytes, bpvf(r.bytes as f64), e.kg);
+    for (what, b) in [
+        ("container (topology, header, index)", rest as f64),
+        ("U1 columns", s.u1),
+        ("of which the first three", s.u1_lead),
+        ("U3 columns", s.u3),
+        ("core", s.core),
+        ("motion", s.motion as f64),
+        ("side, header, levels, modes, centre", s.other as f64),
+    ] {
+        println!("{what:>38}: {b:>9.0} B  {:>6.4} bpvf  {:>5.1} %", bpvf(b), 100.0 * b / r.bytes as f64);
+    }
 }
 
 /// PCA of §2.8 ([AM00]): frames as F vectors of 3K, centred (the mean shape is stored too),
@@ -292,6 +327,23 @@ fn main() {
         println!(
             "reconstruction s: plain {plain_s:.4} / blocked 1 thread {fast1_s:.4} / blocked all threads {fast_s:.4}"
         );
+        return;
+    }
+    if args.peek().is_some_and(|a| a == "--sections") {
+        args.next();
+        let dir = PathBuf::from(args.next().expect("DATA_DIR"));
+        let name = args.next().expect("NAME");
+        let specs = HosvdParams::specs();
+        let mut set = codec_core::params::ParamSet::defaults("hosvd", &specs);
+        for kv in args {
+            let (k, v) = kv.split_once('=').expect("KEY=VALUE");
+            let spec = codec_core::params::find_spec("hosvd", &specs, k).unwrap_or_else(|e| panic!("{e}"));
+            let value = spec.parse("hosvd", v).unwrap_or_else(|e| panic!("{e}"));
+            set.set(&specs, k, value).unwrap_or_else(|e| panic!("{e}"));
+        }
+        let p = HosvdParams::from_param_set(&set).unwrap_or_else(|e| panic!("{e}"));
+        let a = load(&dir, &name).unwrap_or_else(|e| panic!("{e}"));
+        sections(&a, &p);
         return;
     }
     let speed_only = args.peek().is_some_and(|a| a == "--speed");

@@ -36,7 +36,7 @@
 //! every component's closed loop (each entry within a step of its value before smoothing): a
 //! regression column that fails is re-coded with the mesh predictor and counted in
 //! [`Coded::fallbacks`]. Version 4 streams still decode with the unguarded fit.
-use codec_core::toolkit::adaptive::AdaptiveEncoder;
+use codec_core::toolkit::adaptive::{AdaptiveEncoder, CostModel};
 use codec_core::toolkit::order::CausalGraph;
 use codec_core::toolkit::predict::{self, Predictor};
 use codec_core::toolkit::regress::{Fit, Neighbourhoods, Regression, MAX_REGRESSORS};
@@ -151,6 +151,12 @@ pub struct Coded {
     pub dc: f64,
     /// Estimated bits of the chosen allocation (the cost model's).
     pub estimated_bits: f64,
+    /// Bits of the written codes per group (`U1`, `U3`, core), by the adaptive coder's own
+    /// cost model over the same classes and contexts: where the coded operator's bytes go.
+    pub group_bits: [f64; 3],
+    /// Bits of the first three `U1` columns (with the leading `U3` columns, the shape every
+    /// frame shares: the rest shape), by the same cost model.
+    pub lead_bits: f64,
     /// Smoothing level per `U1` column (index into [`SMOOTHING_ITERATIONS`]); all 0 without
     /// `denoise`.
     pub smoothing: Vec<u8>,
@@ -266,6 +272,8 @@ pub fn code(op: &Operator<'_>, mesh: &CausalGraph, settings: &Settings, target: 
 
     // Code every component at its step.
     let mut enc = AdaptiveEncoder::new(GROUPS * CLASSES_PER_GROUP);
+    let mut group_cost: [CostModel; GROUPS] = std::array::from_fn(|_| CostModel::new(GROUPS * CLASSES_PER_GROUP));
+    let mut lead_cost = CostModel::new(GROUPS * CLASSES_PER_GROUP);
     let mut out = Decoded::new(op);
     // The leading U1 columns as the decoder has them before smoothing: the regressors.
     let mut decoded_leads: Vec<Vec<f64>> = Vec::with_capacity(leads);
@@ -302,7 +310,12 @@ pub fn code(op: &Operator<'_>, mesh: &CausalGraph, settings: &Settings, target: 
                 failed.push(ci);
             }
             for p in 0..codes.len() {
-                enc.encode(codes[p], c.class(), predict::neighbour_bucket(c.graph, &codes, p));
+                let bucket = predict::neighbour_bucket(c.graph, &codes, p);
+                enc.encode(codes[p], c.class(), bucket);
+                group_cost[c.class() / CLASSES_PER_GROUP].add(codes[p], c.class(), bucket);
+                if c.group == Group::U1 && c.index < 3 {
+                    lead_cost.add(codes[p], c.class(), bucket);
+                }
             }
         } else {
             recon.clear();
@@ -326,6 +339,8 @@ pub fn code(op: &Operator<'_>, mesh: &CausalGraph, settings: &Settings, target: 
         du3: out.du3,
         dc: out.dc2.sqrt(),
         estimated_bits,
+        group_bits: group_cost.map(|c| c.bits()),
+        lead_bits: lead_cost.bits(),
         smoothing: levels[..v].to_vec(),
         modes: modes[..v].iter().map(|&m| m as u8).collect(),
         fallbacks,

@@ -41,6 +41,8 @@ pub struct BlockStats {
     pub error_bound: f64,
     /// Packet payload bytes.
     pub payload_bytes: usize,
+    /// Where the payload goes (toolkit coding; zeros with the paper coding).
+    pub sections: Sections,
     /// Mode-1 columns the search put in regression mode whose closed loop failed on the
     /// decoded leads and were re-coded with the mesh predictor (0 normally).
     pub regression_fallbacks: usize,
@@ -52,6 +54,27 @@ pub struct BlockStats {
     pub hooi_seconds: f64,
     /// Seconds quantizing, entropy coding and reconstructing.
     pub code_seconds: f64,
+}
+
+/// Bytes of a toolkit packet's parts: the coded operator by group (estimated from the
+/// adaptive coder's cost model; their sum is within a few bytes of the coded length), the
+/// coded transforms and the side block.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Sections {
+    /// `U1` columns (fields over the vertices: the rest shape and its modes of deformation).
+    pub u1: f64,
+    /// Of `u1`, the first three columns: the rest shape (with the leading `U3` columns, the
+    /// shape every frame shares).
+    pub u1_lead: f64,
+    /// `U3` columns (signals over the frames).
+    pub u3: f64,
+    /// Core slices.
+    pub core: f64,
+    /// Coded per-frame transforms (motion removal), with their length prefix.
+    pub motion: usize,
+    /// zstd side block (`U2`, steps, raw transforms) with its length prefix, the packet's
+    /// header bytes, smoothing levels, column modes and centre.
+    pub other: usize,
 }
 
 /// One encoded block: payload, the decoder's reconstruction (if asked), statistics.
@@ -299,12 +322,16 @@ pub fn encode_block(
         core: Vec::new(),
         transforms: if p.rigid { transforms.clone() } else { vec![Affine::IDENTITY; frames] },
     };
-    let (mut payload, terms, regression_fallbacks) =
+    let (mut payload, terms, regression_fallbacks, mut sections) =
         code_operator(p, graph, &factors, side, motion_coder, &mut m, budget)?;
     // Stream version 6: the flag, and the centre at the end of the packet.
     payload[0] |= FLAG_CENTRE;
     for c in centre32 {
         payload.extend_from_slice(&c.to_le_bytes());
+    }
+    if p.coding == Coding::Toolkit {
+        let coded = (sections.u1 + sections.u3 + sections.core).round() as usize;
+        sections.other = payload.len().saturating_sub(coded + sections.motion);
     }
     let centre = centre32.map(|c| c as f64);
     let error_bound = block_error_bound(positions, centre, &m, &u2r, &factors, &terms, norm2, trunc2);
@@ -330,6 +357,7 @@ pub fn encode_block(
         truncation_error2: trunc2,
         error_bound,
         payload_bytes: payload.len(),
+        sections,
         regression_fallbacks,
         decompose_seconds,
         search_seconds,
@@ -492,12 +520,12 @@ fn code_operator(
     mut motion_coder: Option<motion::MotionEncoder>,
     m: &mut Model,
     budget: f64,
-) -> Result<(Vec<u8>, ErrorTerms, usize)> {
+) -> Result<(Vec<u8>, ErrorTerms, usize, Sections)> {
     let Factors { u1, u3, core, s1, s3 } = factors;
     let mut w = ByteWriter::new();
     if p.coding == Coding::Paper {
         let (n1, n3, dc) = paper::code(&mut w, side, m, p, u1, u3, core, s1, s3, budget)?;
-        return Ok((w.into_vec(), ErrorTerms { n1, n3, dc }, 0));
+        return Ok((w.into_vec(), ErrorTerms { n1, n3, dc }, 0, Sections::default()));
     }
     let (k, frames, v, f) = (m.k, m.frames, m.v, m.f);
     let op = coding::Operator { k, frames, v, f, u1, u3, core, s1, s3 };
@@ -537,8 +565,17 @@ fn code_operator(
     w.u8(p.time_predictor.code());
     w.length_prefixed(&entropy::compress(side.as_slice(), p.level));
     w.length_prefixed(&coded.bytes);
+    let mut sections = Sections {
+        u1: coded.group_bits[0] / 8.0,
+        u1_lead: coded.lead_bits / 8.0,
+        u3: coded.group_bits[1] / 8.0,
+        core: coded.group_bits[2] / 8.0,
+        ..Sections::default()
+    };
     if let Some(mc) = motion_coder.take() {
+        let before = w.as_slice().len();
         w.length_prefixed(&mc.finish());
+        sections.motion = w.as_slice().len() - before;
     }
     if p.denoise {
         w.bytes(&coded.smoothing);
@@ -549,7 +586,7 @@ fn code_operator(
     m.u1 = coded.u1;
     m.u3 = coded.u3;
     m.core = coded.core;
-    Ok((w.into_vec(), ErrorTerms { n1: coded.du1, n3: coded.du3, dc: coded.dc }, coded.fallbacks.len()))
+    Ok((w.into_vec(), ErrorTerms { n1: coded.du1, n3: coded.du3, dc: coded.dc }, coded.fallbacks.len(), sections))
 }
 
 /// Upper bound of `‖T − T̂‖_F` for the block in original coordinates ([`BlockStats::error_bound`]).

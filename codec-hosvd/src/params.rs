@@ -52,8 +52,12 @@ codec_core::declare_params! {
         ),
         /// HOOI refinement sweeps after the truncated HO-SVD (0 = plain HO-SVD). Default 0.
         pub hooi_iters: u32 = 0 => int(0, 50, "HOOI refinement sweeps after the HO-SVD (beyond the paper)"),
-        /// Target quantization RMS error relative to the truncation error, 0.01..=10. Default 0.25.
-        pub quant: f64 = 0.25
+        /// Target quantization RMS error relative to the truncation error, 0.01..=10. Default 2:
+        /// with the toolkit coding's equal-slope steps and decoder-side smoothing, coarser steps
+        /// on more components give fewer bits at equal KG than fine steps on fewer (horse-gallop,
+        /// samba, pcow: README "Choosing `quant`"); the `edge_noise` cap keeps the noise
+        /// small where STED binds.
+        pub quant: f64 = 2.0
             => float(0.01, 10.0, "quantization RMS error target relative to the truncation error"),
         /// Frames per independently decomposed packet (0 = the whole sequence). Default 0.
         pub block: u32 = 0 => int(
