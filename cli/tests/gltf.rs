@@ -134,10 +134,14 @@ fn writer_inputs(test: &str) -> Vec<(String, Animation)> {
 }
 
 /// Every glTF variant we write: basis and frames layouts, .glb and .gltf, compressed
-/// (KHR_mesh_quantization + EXT_meshopt_compression, the default), quantized only, or plain.
+/// (KHR_mesh_quantization + EXT_meshopt_compression, the default, or KHR_meshopt_compression
+/// with the vertex codec's version 1), quantized only, or plain; and the compressed basis with
+/// the vertices welded and reordered, as `export` writes it.
 fn variants() -> Vec<(String, GltfOptions, bool)> {
     let mut out = Vec::new();
-    for compression in [GltfCompression::Meshopt, GltfCompression::Quantized, GltfCompression::None] {
+    let all =
+        [GltfCompression::Meshopt, GltfCompression::MeshoptKhr, GltfCompression::Quantized, GltfCompression::None];
+    for compression in all {
         for layout in [GltfLayout::Basis, GltfLayout::Frames] {
             for glb in [true, false] {
                 let options = GltfOptions { layout, target_kg: 0.5, compression, ..Default::default() };
@@ -146,6 +150,7 @@ fn variants() -> Vec<(String, GltfOptions, bool)> {
                     if layout == GltfLayout::Basis { "basis" } else { "frames" },
                     match compression {
                         GltfCompression::Meshopt => "-meshopt",
+                        GltfCompression::MeshoptKhr => "-meshopt-khr",
                         GltfCompression::Quantized => "-quantized",
                         GltfCompression::None => "",
                     },
@@ -159,6 +164,10 @@ fn variants() -> Vec<(String, GltfOptions, bool)> {
     let rigid = GltfOptions { target_kg: 0.5, rigid: Some(true), ..Default::default() };
     out.push(("basis-rigid-meshopt.glb".into(), rigid.clone(), true));
     out.push(("basis-rigid.gltf".into(), GltfOptions { compression: GltfCompression::None, ..rigid }, false));
+    for (suffix, compression) in [("meshopt", GltfCompression::Meshopt), ("meshopt-khr", GltfCompression::MeshoptKhr)] {
+        let options = GltfOptions { target_kg: 0.5, compression, reorder: true, ..Default::default() };
+        out.push((format!("basis-reordered-{suffix}.glb"), options, true));
+    }
     out
 }
 

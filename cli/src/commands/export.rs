@@ -60,9 +60,11 @@ pub struct ExportArgs {
     /// How the file stores its geometry, for the importer it is meant for. meshopt (default):
     /// KHR_mesh_quantization (16-bit positions) + EXT_meshopt_compression (meshoptimizer's
     /// codecs), the smallest, for engines and web viewers (three.js, Babylon.js, glTFast,
-    /// Godot 4); Blender 5.0 cannot import it. quantized: KHR_mesh_quantization alone, for DCC
-    /// tools (Blender 5.0 imports it). none: plain f32 positions, no extension.
-    #[arg(long, value_name = "meshopt|quantized|none", default_value = "meshopt")]
+    /// Godot 4); Blender 5.0 cannot import it. meshopt-khr: the same through
+    /// KHR_meshopt_compression, whose vertex codec version 1 is smaller, for loaders with
+    /// meshoptimizer 0.23+'s decoder (three.js r17x+). quantized: KHR_mesh_quantization alone,
+    /// for DCC tools (Blender 5.0 imports it). none: plain f32 positions, no extension.
+    #[arg(long, value_name = "meshopt|meshopt-khr|quantized|none", default_value = "meshopt")]
     pub compression: String,
 
     /// The same as --compression none.
@@ -143,8 +145,11 @@ pub fn run(args: &ExportArgs, limits: Limits) -> CmdResult {
     let compression = match (args.no_compress, args.compression.as_str()) {
         (true, _) | (false, "none") => GltfCompression::None,
         (false, "meshopt") => GltfCompression::Meshopt,
+        (false, "meshopt-khr") => GltfCompression::MeshoptKhr,
         (false, "quantized") => GltfCompression::Quantized,
-        (false, other) => return Err(format!("--compression '{other}': expected meshopt, quantized or none").into()),
+        (false, other) => {
+            return Err(format!("--compression '{other}': expected meshopt, meshopt-khr, quantized or none").into())
+        }
     };
     let options = GltfOptions {
         layout,
@@ -268,6 +273,7 @@ pub struct ExportDocument {
 fn args_compression_name(c: GltfCompression) -> &'static str {
     match c {
         GltfCompression::Meshopt => "meshopt",
+        GltfCompression::MeshoptKhr => "meshopt-khr",
         GltfCompression::Quantized => "quantized",
         GltfCompression::None => "none",
     }
@@ -280,6 +286,11 @@ fn importers(c: GltfCompression) -> &'static str {
         GltfCompression::Meshopt => {
             "requires EXT_meshopt_compression + KHR_mesh_quantization: engines and web viewers read it (three.js, \
              Babylon.js, Unity glTFast, Godot 4); Blender 5.0 does not — use --compression quantized for DCC tools"
+        }
+        GltfCompression::MeshoptKhr => {
+            "requires KHR_meshopt_compression + KHR_mesh_quantization: loaders with meshoptimizer 0.23+'s decoder \
+             read it (three.js r17x+); older ones need --compression meshopt; Blender 5.0 does not — use \
+             --compression quantized for DCC tools"
         }
         GltfCompression::Quantized => {
             "requires KHR_mesh_quantization: Blender 5.0, three.js, Babylon.js and most engines read it"

@@ -39,7 +39,8 @@
 //! - **Only geometry.** Materials, textures, images and samplers are dropped from the JSON
 //!   before the `gltf` crate sees it, so texture formats and their extensions never matter.
 //!   `asset.version` must be 2.x. A required extension is accepted when it is implemented here
-//!   (`KHR_mesh_quantization`, `EXT_meshopt_compression` with every mode and filter,
+//!   (`KHR_mesh_quantization`, `EXT_meshopt_compression` and `KHR_meshopt_compression` with
+//!   every mode and geometry filter,
 //!   `KHR_draco_mesh_compression`: see `gltf_draco.rs`, whose decoded vertex order is
 //!   kept), or when it only describes appearance ([`APPEARANCE_PREFIXES`]: materials,
 //!   textures, lights, metadata); any other (GPU instancing, animation pointers, unknown names)
@@ -152,7 +153,8 @@ pub fn list_animations(path: &Path) -> Result<Vec<AnimationInfo>> {
 }
 
 /// Extensions read here rather than by the `gltf` crate.
-const SUPPORTED_EXTENSIONS: [&str; 3] = [KHR_MESH_QUANTIZATION, gltf_meshopt::EXTENSION, gltf_draco::EXTENSION];
+const SUPPORTED_EXTENSIONS: [&str; 4] =
+    [KHR_MESH_QUANTIZATION, gltf_meshopt::EXTENSION, gltf_meshopt::KHR_EXTENSION, gltf_draco::EXTENSION];
 
 /// Prefixes of the extension families that describe appearance or metadata only (materials,
 /// textures and their formats, lights, XMP): never a reason to refuse a file for its geometry,
@@ -238,8 +240,9 @@ fn geometry_views(root: &::gltf::json::Root, raw: &Value) -> (Vec<bool>, Vec<boo
     let mut buffers = vec![false; root.buffers.len()];
     for (v, view) in root.buffer_views.iter().enumerate().filter(|(v, _)| views[*v]) {
         let compressed = raw
-            .pointer(&format!("/bufferViews/{v}/extensions/{}/buffer", gltf_meshopt::EXTENSION))
-            .and_then(Value::as_u64);
+            .pointer(&format!("/bufferViews/{v}"))
+            .and_then(gltf_meshopt::object)
+            .and_then(|(_, o)| o.get("buffer")?.as_u64());
         for b in std::iter::once(view.buffer.value()).chain(compressed.map(|b| b as usize)) {
             if let Some(x) = buffers.get_mut(b) {
                 *x = true;
@@ -273,7 +276,7 @@ fn load_buffers(
         budget.take("the buffers' byteLength", declared as u64)?;
         limits.check_alloc("gltf", "buffers", declared as u64)?;
         let data = match buffer.source() {
-            // An EXT_meshopt_compression fallback buffer: filled by decoding the views below.
+            // A KHR/EXT_meshopt_compression fallback buffer: filled by decoding the views below.
             ::gltf::buffer::Source::Bin if gltf_meshopt::is_fallback(raw, index) => vec![0; declared],
             ::gltf::buffer::Source::Bin => blob.take().ok_or_else(|| {
                 bad(file, "buffers", format!("buffer {index} refers to a GLB BIN chunk the file lacks"))

@@ -1,5 +1,8 @@
-//! `EXT_meshopt_compression` on input: buffer views whose data is meshoptimizer-encoded are
-//! decoded into their fallback buffer, after which every accessor reads them like plain data.
+//! `EXT_meshopt_compression` and `KHR_meshopt_compression` on input: buffer views whose data
+//! is meshoptimizer-encoded are decoded into their fallback buffer, after which every accessor
+//! reads them like plain data. The two extensions have the same JSON; the `KHR` one also
+//! allows version 1 of the vertex codec (which the decoder reads from the stream's first byte)
+//! and the `COLOR` filter (not read: geometry never uses it).
 //! Every mode of the extension is read: `ATTRIBUTES` (vertex codec, the `meshopt` crate's
 //! decoder, safe on untrusted input), `TRIANGLES` (index codec, the same crate) and `INDICES`
 //! (the index-sequence codec, decoded here: the crate has no safe binding for it). Every filter
@@ -23,9 +26,22 @@ use super::gltf_buffers::{bad, BufferData};
 /// The extension's name.
 pub const EXTENSION: &str = "EXT_meshopt_compression";
 
+/// The extension's ratified name (vertex codec version 1 allowed).
+pub const KHR_EXTENSION: &str = "KHR_meshopt_compression";
+
+/// Both names, as `extensionsRequired` lists them.
+pub const EXTENSIONS: [&str; 2] = [EXTENSION, KHR_EXTENSION];
+
+/// The meshopt object of a buffer view or buffer (`extensions.KHR_…` or `extensions.EXT_…`)
+/// and the extension's name.
+pub fn object(item: &Value) -> Option<(&'static str, &Value)> {
+    EXTENSIONS.iter().find_map(|&name| item.get("extensions")?.get(name).map(|o| (name, o)))
+}
+
 /// True when buffer `index` is a fallback buffer (no data of its own: meshopt views fill it).
 pub fn is_fallback(raw: &Value, index: usize) -> bool {
-    raw.pointer(&format!("/buffers/{index}/extensions/{EXTENSION}/fallback")).and_then(Value::as_bool) == Some(true)
+    raw.pointer(&format!("/buffers/{index}")).and_then(object).and_then(|(_, o)| o.get("fallback")?.as_bool())
+        == Some(true)
 }
 
 /// A byte record of `N` bytes, the element type the vertex decoder fills.
@@ -41,8 +57,8 @@ impl<const N: usize> Default for Record<N> {
 /// Most bytes a version-0 vertex stream decodes to per encoded byte: the densest block
 /// encoding spends 2 header bits on a group of 16 equal bytes (meshoptimizer's vertex codec,
 /// `decodeBytesGroup` mode 0), i.e. 64 output bytes per input byte; the tail only adds input.
-/// `EXT_meshopt_compression` requires version 0; streams of a later version (its first byte)
-/// get the looser bound of version 1, whose all-zero channel mode spends 2 bits on a channel of
+/// `EXT_meshopt_compression` requires version 0; streams of a later version (its first byte,
+/// which `KHR_meshopt_compression` allows) get the looser bound of version 1, whose all-zero channel mode spends 2 bits on a channel of
 /// a 256-vertex block (1024 bytes per byte).
 const MAX_ATTRIBUTE_RATIO: [usize; 2] = [64, 1024];
 
@@ -80,11 +96,11 @@ pub fn decode_views(
 ) -> Result<()> {
     let Some(views) = raw.get("bufferViews").and_then(Value::as_array) else { return Ok(()) };
     for (i, view) in views.iter().enumerate() {
-        let Some(ext) = view.pointer(&format!("/extensions/{EXTENSION}")) else { continue };
+        let Some((name, ext)) = object(view) else { continue };
         if !used_views.get(i).copied().unwrap_or(false) {
             continue;
         }
-        let fail = |detail: String| bad(file, "EXT_meshopt_compression", format!("bufferView {i}: {detail}"));
+        let fail = |detail: String| bad(file, name, format!("bufferView {i}: {detail}"));
         let int = |v: &Value, key: &str, default: Option<u64>| -> Result<usize> {
             match v.get(key) {
                 None => default.map(|d| d as usize).ok_or_else(|| fail(format!("missing {key}"))),
@@ -164,7 +180,7 @@ pub fn decode_views(
                  encoded bytes (mode {mode:?})"
             )));
         }
-        limits.check_alloc("gltf", "EXT_meshopt_compression", size as u64)?;
+        limits.check_alloc("gltf", name, size as u64)?;
         let encoded = buffers[source].0[offset..end].to_vec();
         let slot = &mut buffers[target].0[target_offset..slot_end];
         match mode {

@@ -88,9 +88,14 @@ impl Default for GltfOptions {
 pub enum GltfCompression {
     /// `KHR_mesh_quantization` (16-bit positions and targets) + `EXT_meshopt_compression`
     /// (meshoptimizer's vertex and index codecs on the quantized data, the weights and the key
-    /// times): the smallest; engines and web viewers read it (three.js, Babylon.js, Unity's
-    /// glTFast, Godot 4), Blender 5.0's importer does not.
+    /// times; vertex codec format version 0): engines and web viewers read it (three.js,
+    /// Babylon.js, Unity's glTFast, Godot 4), Blender 5.0's importer does not.
     Meshopt,
+    /// As [`GltfCompression::Meshopt`] through `KHR_meshopt_compression`, the extension's
+    /// ratified form, whose vertex codec format version 1 codes 16-bit values as 16-bit deltas
+    /// and picks per-channel bit widths (smaller); read by loaders with meshoptimizer 0.23+'s
+    /// decoder (three.js r17x+'s `GLTFLoader` + `MeshoptDecoder`, gltfpack's `-ce khr`).
+    MeshoptKhr,
     /// `KHR_mesh_quantization` alone: the same quantized geometry stored plainly, for DCC tools
     /// (Blender 5.0 imports it).
     Quantized,
@@ -104,15 +109,32 @@ impl GltfCompression {
         self != GltfCompression::None
     }
 
-    /// Views are meshoptimizer-coded (`EXT_meshopt_compression`).
+    /// Views are meshoptimizer-coded (`EXT_meshopt_compression` or `KHR_meshopt_compression`).
     pub fn meshopt(self) -> bool {
-        self == GltfCompression::Meshopt
+        self.meshopt_extension().is_some()
+    }
+
+    /// The meshopt extension's name, when views are meshoptimizer-coded.
+    pub fn meshopt_extension(self) -> Option<&'static str> {
+        match self {
+            GltfCompression::Meshopt => Some("EXT_meshopt_compression"),
+            GltfCompression::MeshoptKhr => Some("KHR_meshopt_compression"),
+            GltfCompression::Quantized | GltfCompression::None => None,
+        }
+    }
+
+    /// The format version meshoptimizer's vertex codec writes (and the export's step choice
+    /// counts the bytes of): 1 under `KHR_meshopt_compression`, else 0, the only one
+    /// `EXT_meshopt_compression` defines.
+    pub(super) fn vertex_codec_version(self) -> i32 {
+        i32::from(self == GltfCompression::MeshoptKhr)
     }
 
     /// The extensions a file of this form uses and requires.
     pub fn extensions(self) -> &'static [&'static str] {
         match self {
             GltfCompression::Meshopt => &["KHR_mesh_quantization", "EXT_meshopt_compression"],
+            GltfCompression::MeshoptKhr => &["KHR_mesh_quantization", "KHR_meshopt_compression"],
             GltfCompression::Quantized => &["KHR_mesh_quantization"],
             GltfCompression::None => &[],
         }
@@ -174,6 +196,95 @@ fn weld_map(a: &Animation) -> (Vec<u32>, usize, Vec<[u32; 3]>) {
     (welded.iter().map(|&w| order[w as usize]).collect(), unique, triangles.collect())
 }
 
+/// Clips up to this many frames also try [`motion_order`]'s vertex order (an export is then
+/// coded once more; longer clips keep the fetch order).
+const MOTION_ORDER_FRAMES: usize = 64;
+
+/// How many edge rings around the last placed vertices [`motion_order`] looks for the next.
+const MOTION_ORDER_RINGS: usize = 3;
+
+/// How many of the last placed vertices [`motion_order`] looks around, newest first, until
+/// one has an unplaced vertex within [`MOTION_ORDER_RINGS`] rings.
+const MOTION_ORDER_RECENT: usize = 8;
+
+/// A vertex order for the compressed basis of `a` (`order[old] = new`): meshoptimizer's
+/// vertex codec codes each vertex as the byte-wise difference from the previous one, so the
+/// file's streams (base and targets, each at its own step) code smaller when consecutive
+/// vertices have close values in every stream at once, not only close positions. Greedy
+/// path: from vertex 0, the next vertex is the unplaced one, within a few edge rings of the
+/// last placed ones, whose stream coordinates ([`gltf_out_rd::stream_coordinates`]) differ
+/// least in `Σ log2(1 + |Δ| / step)` (about the bits a delta costs); with none nearby, the
+/// first unplaced vertex. Sequential and tie-broken by index: the same order on every run.
+fn motion_order(a: &Animation, target_kg: f64) -> Result<Vec<u32>> {
+    let v = a.vertex_count();
+    let (coordinates, width) = gltf_out_rd::stream_coordinates(a, target_kg)?;
+    let mut adjacent: Vec<Vec<u32>> = vec![Vec::new(); v];
+    for t in a.triangles() {
+        for (x, y) in [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])] {
+            adjacent[x as usize].push(y);
+            adjacent[y as usize].push(x);
+        }
+    }
+    for list in &mut adjacent {
+        list.sort_unstable();
+        list.dedup();
+    }
+    let row = |i: usize| &coordinates[i * width..(i + 1) * width];
+    let cost =
+        |x: usize, y: usize| -> f64 { row(x).iter().zip(row(y)).map(|(p, q)| (1.0 + (p - q).abs()).log2()).sum() };
+    let mut order = vec![u32::MAX; v];
+    let mut path: Vec<usize> = Vec::with_capacity(v);
+    // `seen[i] == stamp`: vertex i was reached in the current ring search.
+    let (mut seen, mut stamp) = (vec![0u32; v], 0u32);
+    let mut cursor = 0;
+    let mut candidates = Vec::new();
+    let mut frontier = Vec::new();
+    let mut next_frontier = Vec::new();
+    while path.len() < v {
+        candidates.clear();
+        for &source in path.iter().rev().take(MOTION_ORDER_RECENT) {
+            stamp += 1;
+            seen[source] = stamp;
+            frontier.clear();
+            frontier.push(source);
+            for _ in 0..MOTION_ORDER_RINGS {
+                next_frontier.clear();
+                for &x in &frontier {
+                    for &y in &adjacent[x] {
+                        let y = y as usize;
+                        if seen[y] != stamp {
+                            seen[y] = stamp;
+                            next_frontier.push(y);
+                            if order[y] == u32::MAX {
+                                candidates.push(y);
+                            }
+                        }
+                    }
+                }
+                std::mem::swap(&mut frontier, &mut next_frontier);
+            }
+            if !candidates.is_empty() {
+                break;
+            }
+        }
+        let next = match path.last() {
+            Some(&last) if !candidates.is_empty() => {
+                candidates.sort_unstable();
+                *candidates.iter().min_by(|&&x, &&y| cost(last, x).total_cmp(&cost(last, y))).expect("not empty")
+            }
+            _ => {
+                while order[cursor] != u32::MAX {
+                    cursor += 1;
+                }
+                cursor
+            }
+        };
+        order[next] = path.len() as u32;
+        path.push(next);
+    }
+    Ok(order)
+}
+
 /// `a` as the file holds it under `map` (see [`weld_map`]), with `triangles`.
 fn welded(a: &Animation, map: &[u32], count: usize, triangles: Vec<[u32; 3]>) -> Result<Animation> {
     let mut source = vec![0usize; count];
@@ -231,8 +342,21 @@ pub fn encode_gltf(animation: &Animation, options: &GltfOptions, glb: bool) -> R
         // Played back through the root node, the file shows the input as `as_shown` places it.
         let shown = as_shown(animation)?;
         let reference = shown.as_ref().unwrap_or(animation);
-        let (map, count, triangles) = weld_map(animation);
-        let moved = welded(animation, &map, count, triangles)?;
+        let (mut map, count, triangles) = weld_map(animation);
+        let mut moved = welded(animation, &map, count, triangles)?;
+        // A second vertex order for the compressed basis of a short clip, kept when its first
+        // file is smaller.
+        let mut other = None;
+        if options.layout == GltfLayout::Basis
+            && options.compression.meshopt()
+            && animation.frame_count() > 1
+            && animation.frame_count() <= MOTION_ORDER_FRAMES
+        {
+            let order = motion_order(&moved, options.target_kg)?;
+            let map2: Vec<u32> = map.iter().map(|&m| order[m as usize]).collect();
+            let triangles2 = moved.triangles().iter().map(|t| t.map(|i| order[i as usize])).collect();
+            other = Some((welded(animation, &map2, count, triangles2)?, map2));
+        }
         // KG on the welded vertices counts each trajectory once, on the input's as often as it
         // repeats: the target is checked on the input's vertices as played back, and aimed
         // lower by the overshoot when missed (a few rounds).
@@ -242,7 +366,13 @@ pub fn encode_gltf(animation: &Animation, options: &GltfOptions, glb: bool) -> R
         let mut best: Option<(Vec<u8>, GltfSummary, f64)> = None;
         let (mut met_aim, mut missed_aim) = (None::<f64>, None::<f64>);
         for _ in 0..5 {
-            let (bytes, mut summary) = encode_inner(&moved, &inner, glb, true, root)?;
+            let (mut bytes, mut summary) = encode_inner(&moved, &inner, glb, true, root)?;
+            if let Some((moved2, map2)) = other.take() {
+                let (bytes2, summary2) = encode_inner(&moved2, &inner, glb, true, root)?;
+                if bytes2.len() < bytes.len() {
+                    (bytes, summary, moved, map) = (bytes2, summary2, moved2, map2);
+                }
+            }
             let played = super::gltf::parse_gltf(&bytes, None, "glTF export", animation.frame_rate())?;
             let played = restore_vertices(&played, &map, animation.triangles())?;
             let kg = gltf_out_rd::kg_between(reference, &played);
@@ -403,7 +533,7 @@ fn basis_geometry(a: &Animation, options: &GltfOptions) -> Result<Vec<Geometry>>
         // allocation that can hold the count exactly.
         let mut add = |basis: &gltf_out_rd::Pca| -> Result<()> {
             out.push(Geometry::Quantized(match options.targets {
-                None => gltf_out_rd::quantized_basis_coded(a, basis, kg)?,
+                None => gltf_out_rd::quantized_basis_coded(a, basis, kg, options.compression.vertex_codec_version())?,
                 Some(_) => gltf_out_rd::quantized_basis(a, basis, kg, (limit, limit))?,
             }));
             Ok(())
@@ -449,7 +579,7 @@ fn finish(
     let frames = animation.frame_count();
     // With rigid motion: node 0 carries it, its child node 1 the mesh.
     let mesh_node = if motion.is_some() { 1 } else { 0 };
-    let mut buf = Buffer::new(options.compression.meshopt());
+    let mut buf = Buffer::new(options.compression);
     buf.rotate = rotate;
     let tri: Vec<u32> = animation.triangles().iter().flatten().copied().collect();
     let indices = buf.indices(&tri, animation.vertex_count());
@@ -585,9 +715,8 @@ fn finish(
         root["extensionsUsed"] = json!(extensions);
         root["extensionsRequired"] = json!(extensions);
     }
-    if options.compression.meshopt() {
-        buffers
-            .push(json!({"byteLength": buf.fallback, "extensions": {"EXT_meshopt_compression": {"fallback": true}}}));
+    if let Some(name) = options.compression.meshopt_extension() {
+        buffers.push(json!({"byteLength": buf.fallback, "extensions": {name: {"fallback": true}}}));
     }
     if glb {
         root["buffers"] = buffers.into();
@@ -852,6 +981,46 @@ mod tests {
         ours.sort();
         theirs.sort();
         assert_eq!(ours, theirs);
+    }
+
+    /// The `KHR_meshopt_compression` form: every vertex stream in the vertex codec's format
+    /// version 1 (its first byte, `0xa1`; `0xa0` under `EXT_meshopt_compression`), the same
+    /// bytes on every run, the KG target met on the input's vertices, and smaller than the
+    /// `EXT_…` form; the motion order it is written in is a permutation, the same on every run.
+    #[test]
+    fn khr_meshopt_form_writes_version_1_and_is_smaller() {
+        let a = synth::waving_flag(16, 10, 30);
+        let order = motion_order(&a, 0.05).unwrap();
+        let mut sorted = order.clone();
+        sorted.sort_unstable();
+        assert_eq!(sorted, (0..a.vertex_count() as u32).collect::<Vec<_>>());
+        assert_eq!(order, motion_order(&a, 0.05).unwrap());
+        let mut sizes = Vec::new();
+        for (compression, version) in [(GltfCompression::Meshopt, 0xa0u8), (GltfCompression::MeshoptKhr, 0xa1)] {
+            let opts = GltfOptions { target_kg: 0.05, compression, reorder: true, ..Default::default() };
+            let (bytes, s) = encode_gltf(&a, &opts, true).unwrap();
+            assert_eq!(bytes, encode_gltf(&a, &opts, true).unwrap().0, "{compression:?}: not deterministic");
+            let json_length = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+            let doc: Value = serde_json::from_slice(&bytes[20..20 + json_length]).unwrap();
+            let bin = &bytes[20 + json_length + 8..];
+            let name = compression.meshopt_extension().unwrap();
+            assert_eq!(doc["extensionsRequired"][1], name);
+            let mut streams = 0;
+            for view in doc["bufferViews"].as_array().unwrap() {
+                let Some(ext) = view["extensions"].get(name) else { continue };
+                if ext["mode"] == "ATTRIBUTES" {
+                    assert_eq!(bin[ext["byteOffset"].as_u64().unwrap() as usize], version, "{compression:?}");
+                    streams += 1;
+                }
+            }
+            assert!(streams > 0);
+            let played =
+                restore_vertices(&read_back(&bytes, a.frame_rate()), s.vertex_map.as_ref().unwrap(), a.triangles());
+            let kg = metrics::kg_error(&a, &played.unwrap()).unwrap();
+            assert!(kg <= 0.05, "{compression:?}: KG {kg}");
+            sizes.push(bytes.len());
+        }
+        assert!(sizes[1] < sizes[0], "KHR {} bytes, EXT {}", sizes[1], sizes[0]);
     }
 
     /// A frame rate other than the reader's default keeps the frame times (keys at f / fps).

@@ -1,10 +1,11 @@
 //! The binary buffer of a glTF file [`super::gltf_out`] writes: 4-byte aligned buffer views and
-//! their accessors, plain or `EXT_meshopt_compression`-encoded. Kept apart from the JSON document
+//! their accessors, plain or `EXT_meshopt_compression`/`KHR_meshopt_compression`-encoded. Kept apart from the JSON document
 //! and the geometry because it only lays bytes out: what goes in is decided by the caller.
 
 use codec_core::{Error, Result};
 use serde_json::{json, Value};
 
+use super::gltf_out::GltfCompression;
 use super::gltf_out_rd;
 
 /// Little-endian binary buffer with 4-byte aligned views. With `meshopt`, view data is
@@ -15,6 +16,10 @@ pub(super) struct Buffer {
     pub(super) views: Vec<Value>,
     pub(super) accessors: Vec<Value>,
     pub(super) meshopt: bool,
+    /// The meshopt extension's name (`EXT_…` or `KHR_meshopt_compression`).
+    extension: &'static str,
+    /// The vertex codec's format version (0 under `EXT_…`, 1 under `KHR_…`).
+    version: i32,
     pub(super) fallback: usize,
     /// Triangles may come back with their corners rotated (the vertices were welded and
     /// renumbered anyway): meshopt's triangle codec (mode `TRIANGLES`), else the exact index
@@ -35,18 +40,28 @@ pub(super) fn align4(bytes: &mut Vec<u8>) {
     }
 }
 
+/// The vertex codec's compression level: the slowest and smallest (it only takes effect in
+/// format version 1, where it tries more channel modes and bit-width combinations).
+const VERTEX_CODEC_LEVEL: i32 = 3;
+
+/// Encodes `records` with meshopt's vertex codec in format `version` (0 or 1).
+pub(super) fn encode_vertex_records<T>(records: &[T], version: i32) -> Result<Vec<u8>> {
+    meshopt::encode_vertex_buffer_level(records, VERTEX_CODEC_LEVEL, Some(version))
+        .map_err(|e| Error::InvalidAnimation(format!("meshopt encoding: {e}")))
+}
+
 /// Encodes `raw` (records of `N` bytes) with meshopt's vertex codec.
-pub(super) fn encode_records<const N: usize>(raw: &[u8]) -> Result<Vec<u8>> {
+fn encode_records<const N: usize>(raw: &[u8], version: i32) -> Result<Vec<u8>> {
     let records: Vec<[u8; N]> = raw.chunks_exact(N).map(|c| c.try_into().expect("chunks of N")).collect();
-    meshopt::encode_vertex_buffer(&records).map_err(|e| Error::InvalidAnimation(format!("meshopt encoding: {e}")))
+    encode_vertex_records(&records, version)
 }
 
 /// [`encode_records`] for any stride the extension allows (a multiple of 4, at most 256).
-pub(super) fn encode_stride(raw: &[u8], stride: usize) -> Result<Vec<u8>> {
+pub(super) fn encode_stride(raw: &[u8], stride: usize, version: i32) -> Result<Vec<u8>> {
     macro_rules! strides {
         ($($n:literal)*) => {
             match stride {
-                $($n => encode_records::<$n>(raw),)*
+                $($n => encode_records::<$n>(raw, version),)*
                 other => Err(Error::InvalidAnimation(format!("meshopt stride {other} is not written"))),
             }
         };
@@ -67,8 +82,17 @@ pub(super) enum WeightForm {
 }
 
 impl Buffer {
-    pub(super) fn new(meshopt: bool) -> Self {
-        Self { bin: Vec::new(), views: Vec::new(), accessors: Vec::new(), meshopt, fallback: 0, rotate: false }
+    pub(super) fn new(compression: GltfCompression) -> Self {
+        Self {
+            bin: Vec::new(),
+            views: Vec::new(),
+            accessors: Vec::new(),
+            meshopt: compression.meshopt(),
+            extension: compression.meshopt_extension().unwrap_or_default(),
+            version: compression.vertex_codec_version(),
+            fallback: 0,
+            rotate: false,
+        }
     }
 
     /// Appends a view holding `raw`; returns its index.
@@ -83,7 +107,7 @@ impl Buffer {
             view["target"] = t.into();
         }
         if self.meshopt {
-            let (encoded, count, mode) = (encode_stride(raw, stride)?, raw.len() / stride, "ATTRIBUTES");
+            let (encoded, count, mode) = (encode_stride(raw, stride, self.version)?, raw.len() / stride, "ATTRIBUTES");
             if encoded.len() >= raw.len() {
                 // The codec gains nothing on this view (f32 weights of a short clip): plain.
                 self.bin.extend_from_slice(raw);
@@ -93,7 +117,7 @@ impl Buffer {
             view["buffer"] = 1.into();
             view["byteOffset"] = self.fallback.into();
             self.fallback += raw.len().div_ceil(4) * 4;
-            view["extensions"] = json!({"EXT_meshopt_compression": {
+            view["extensions"] = json!({self.extension: {
                 "buffer": 0, "byteOffset": self.bin.len(), "byteLength": encoded.len(),
                 "byteStride": stride, "count": count, "mode": mode}});
             self.bin.extend_from_slice(&encoded);
@@ -137,9 +161,9 @@ impl Buffer {
     /// through `filter` (`EXT_meshopt_compression` "Filters").
     pub(super) fn filtered_view(&mut self, raw: &[u8], stride: usize, filter: &str) -> Result<usize> {
         align4(&mut self.bin);
-        let encoded = encode_stride(raw, stride)?;
+        let encoded = encode_stride(raw, stride, self.version)?;
         let view = json!({"buffer": 1, "byteOffset": self.fallback, "byteLength": raw.len(),
-            "extensions": {"EXT_meshopt_compression": {"buffer": 0, "byteOffset": self.bin.len(),
+            "extensions": {self.extension: {"buffer": 0, "byteOffset": self.bin.len(),
                 "byteLength": encoded.len(), "byteStride": stride, "count": raw.len() / stride,
                 "mode": "ATTRIBUTES", "filter": filter}}});
         self.fallback += raw.len().div_ceil(4) * 4;
@@ -254,7 +278,7 @@ impl Buffer {
                 None => (super::gltf_meshopt::encode_index_sequence(data), "INDICES"),
             };
             let view = json!({"buffer": 1, "byteOffset": self.fallback, "byteLength": raw.len(), "target": 34963,
-                "extensions": {"EXT_meshopt_compression": {"buffer": 0, "byteOffset": self.bin.len(),
+                "extensions": {self.extension: {"buffer": 0, "byteOffset": self.bin.len(),
                     "byteLength": encoded.len(), "byteStride": stride, "count": data.len(), "mode": mode}}});
             self.fallback += raw.len().div_ceil(4) * 4;
             self.bin.extend_from_slice(&encoded);

@@ -23,6 +23,8 @@
 //! `EXPONENTIAL` filter.
 
 use codec_core::{linalg, Animation, Error, Result};
+
+use super::gltf_out_buffer::encode_vertex_records;
 use faer::Mat;
 
 /// Principal components of the frames about their mean.
@@ -384,15 +386,16 @@ pub(super) fn quantized_basis(
     Ok(best.expect("at least one round"))
 }
 
-/// Bytes meshoptimizer's vertex codec (version 0, the one `EXT_meshopt_compression` defines)
-/// spends on `values` in the records the writer stores them in: signed bytes in 4-byte records
-/// when every value fits, else 16-bit integers in 8-byte records.
-pub(super) fn coded_bytes(values: &[[i16; 3]]) -> usize {
+/// Bytes meshoptimizer's vertex codec (format `version`: 0 under `EXT_meshopt_compression`,
+/// 1 under `KHR_meshopt_compression`) spends on `values` in the records the writer stores them
+/// in: signed bytes in 4-byte records when every value fits, else 16-bit integers in 8-byte
+/// records.
+pub(super) fn coded_bytes(values: &[[i16; 3]], version: i32) -> usize {
     let narrow = values.iter().all(|v| v.iter().all(|&x| (-127..=127).contains(&x)));
     let encoded = if narrow {
         let records: Vec<[u8; 4]> =
             values.iter().map(|p| [p[0] as i8 as u8, p[1] as i8 as u8, p[2] as i8 as u8, 0]).collect();
-        meshopt::encode_vertex_buffer(&records)
+        encode_vertex_records(&records, version)
     } else {
         let records: Vec<[u8; 8]> = values
             .iter()
@@ -404,7 +407,7 @@ pub(super) fn coded_bytes(values: &[[i16; 3]]) -> usize {
                 r
             })
             .collect();
-        meshopt::encode_vertex_buffer(&records)
+        encode_vertex_records(&records, version)
     };
     encoded.map_or(usize::MAX, |e| e.len())
 }
@@ -442,6 +445,56 @@ pub(super) fn exponential_value(word: u32) -> f32 {
     let m = ((word << 8) as i32) >> 8;
     let e = (word as i32) >> 24;
     (m as f64 * 2f64.powi(e)) as f32
+}
+
+/// The distortion level `D` of the high-rate allocation ([`quantize_at`]) whose estimated KG
+/// meets `target_kg`: bisected on `log D` between a step far below the 16-bit floor and the
+/// diagonal.
+fn water_level(a: &Animation, p: &Pca, units: &[Unit], target_kg: f64) -> f64 {
+    let diag = a.bounding_box_diagonal().max(f64::MIN_POSITIVE);
+    let (mut lo, mut hi) = ((diag * 1e-9).ln(), diag.ln());
+    for _ in 0..40 {
+        let mid = 0.5 * (lo + hi);
+        if quantize_at(a, p, units, mid.exp(), usize::MAX, false).estimate <= target_kg {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    lo.exp()
+}
+
+/// Every vertex's coordinates in the streams the compressed basis writes, in units of each
+/// stream's water-filling step for `target_kg` (the base at `D/√F`, component `j`'s target
+/// at `D/√A_j`; components that round to nothing left out): `V` rows of equal length,
+/// flattened. Two vertices close in these coordinates code small deltas when they are
+/// neighbours in the file (meshoptimizer's vertex codec codes each vertex against the
+/// previous one).
+pub(super) fn stream_coordinates(a: &Animation, target_kg: f64) -> Result<(Vec<f64>, usize)> {
+    let p = pca(a)?;
+    let units = units(&p, usize::MAX);
+    let (frames, v) = (p.coeffs.nrows(), a.vertex_count());
+    let d = water_level(a, &p, &units, target_kg).max(f64::MIN_POSITIVE);
+    let kept: Vec<(usize, f64)> = units
+        .iter()
+        .enumerate()
+        .map(|(j, u)| (j, d / u.weight_energy.max(f64::MIN_POSITIVE).sqrt()))
+        .filter(|&(j, step)| units[j].reach >= step / 2.0)
+        .collect();
+    let width = 3 * (1 + kept.len());
+    let base_step = d / (frames.max(1) as f64).sqrt();
+    let mut out = vec![0.0; v * width];
+    for (i, row) in out.chunks_exact_mut(width).enumerate() {
+        for k in 0..3 {
+            let c = 3 * i + k;
+            let base = p.mean[c] + units.iter().enumerate().map(|(j, u)| u.min * p.dirs[(j, c)]).sum::<f64>();
+            row[k] = base / base_step;
+            for (slot, &(j, step)) in kept.iter().enumerate() {
+                row[3 * (slot + 1) + k] = units[j].range * p.dirs[(j, c)] / step;
+            }
+        }
+    }
+    Ok((out, width))
 }
 
 /// One way to write a stream (the base or a target): its step (infinite: the target is not
@@ -499,7 +552,7 @@ fn round_at(values: &[f64], step: f64, stick: f64) -> (Vec<[i16; 3]>, f64) {
 /// The choices for a stream of `values` around the step `reference`: every grid step at
 /// which they fit 16 bits (at least the finest that fits), and for a target, not writing it
 /// (error `dropped`).
-fn choices(values: &[f64], reference: f64, dropped: Option<f64>, sticky: bool) -> Vec<Choice> {
+fn choices(values: &[f64], reference: f64, dropped: Option<f64>, sticky: bool, version: i32) -> Vec<Choice> {
     let peak = values.iter().fold(0.0f64, |m, x| m.max(x.abs()));
     let mut out = Vec::new();
     if let Some(err) = dropped {
@@ -519,7 +572,7 @@ fn choices(values: &[f64], reference: f64, dropped: Option<f64>, sticky: bool) -
                 continue;
             }
             let overhead = if dropped.is_some() { TARGET_OVERHEAD } else { 0.0 };
-            out.push(Choice { step, stick, bytes: coded_bytes(&q) as f64 + overhead, err });
+            out.push(Choice { step, stick, bytes: coded_bytes(&q, version) as f64 + overhead, err });
         }
     }
     out
@@ -546,21 +599,11 @@ fn pick(choices: &[Choice], weight: f64, mu: f64) -> Choice {
 /// every target's step `s_j` is a weight `s_j / (32767 · s_b)` in [0, 1] and no residual
 /// target is needed. The weights are those the `EXPONENTIAL` filter stores
 /// ([`exponential_words`]): 16 bits relative to each column's largest, a constant exponent.
-pub(super) fn quantized_basis_coded(a: &Animation, p: &Pca, target_kg: f64) -> Result<QBasis> {
+pub(super) fn quantized_basis_coded(a: &Animation, p: &Pca, target_kg: f64, version: i32) -> Result<QBasis> {
     let units = units(p, usize::MAX);
     let (frames, n) = (p.coeffs.nrows(), p.mean.len());
     // The water-filling level for the target: the reference each stream's grid centres on.
-    let diag = a.bounding_box_diagonal().max(f64::MIN_POSITIVE);
-    let (mut lo, mut hi) = ((diag * 1e-9).ln(), diag.ln());
-    for _ in 0..40 {
-        let mid = 0.5 * (lo + hi);
-        if quantize_at(a, p, &units, mid.exp(), usize::MAX, false).estimate <= target_kg {
-            lo = mid;
-        } else {
-            hi = mid;
-        }
-    }
-    let d = lo.exp();
+    let d = water_level(a, p, &units, target_kg);
     let sticky = frames <= STICKY_FRAMES;
     let targets: Vec<Vec<f64>> =
         units.iter().enumerate().map(|(j, u)| (0..n).map(|i| u.range * p.dirs[(j, i)]).collect()).collect();
@@ -571,7 +614,7 @@ pub(super) fn quantized_basis_coded(a: &Animation, p: &Pca, target_kg: f64) -> R
         .map(|(j, (u, t))| {
             let energy = u.weight_energy.max(f64::MIN_POSITIVE);
             // Not written: the component's own energy (its minimum leaves the base too).
-            choices(t, d / energy.sqrt(), Some(p.lambda[j] / energy), sticky)
+            choices(t, d / energy.sqrt(), Some(p.lambda[j] / energy), sticky, version)
         })
         .collect();
     let tail: f64 = p.lambda[units.len()..].iter().sum();
@@ -599,7 +642,7 @@ pub(super) fn quantized_basis_coded(a: &Animation, p: &Pca, target_kg: f64) -> R
     let weights_of = |j: usize| units[j].weight_energy;
     let mut kept = vec![true; units.len()];
     let (mut base, mut centre) = base_of(&kept);
-    let mut base_choices = choices(&base, d / (frames as f64).sqrt(), None, sticky);
+    let mut base_choices = choices(&base, d / (frames as f64).sqrt(), None, sticky, version);
     // μ's range: the error is measured as a fraction of KG's denominator.
     let scale_mu = 1.0 / p.energy.max(f64::MIN_POSITIVE);
     let solve = |aim: f64, base_choices: &[Choice]| -> (Choice, Vec<Choice>) {
@@ -643,7 +686,7 @@ pub(super) fn quantized_basis_coded(a: &Animation, p: &Pca, target_kg: f64) -> R
             }
             kept = now;
             (base, centre) = base_of(&kept);
-            base_choices = choices(&base, d / (frames as f64).sqrt(), None, sticky);
+            base_choices = choices(&base, d / (frames as f64).sqrt(), None, sticky, version);
             (b, t) = solve(aim, &base_choices);
         }
         let scale = 32767.0 * b.step;
@@ -731,8 +774,8 @@ mod tests {
     fn coded_basis_meets_the_target_with_exact_weights() {
         let a = synth::waving_flag(16, 10, 30);
         for t in [0.1, 0.01] {
-            let components = quantized_basis_coded(&a, &pca(&a).unwrap(), t).unwrap();
-            let frames = quantized_basis_coded(&a, &differences(&a), t).unwrap();
+            let components = quantized_basis_coded(&a, &pca(&a).unwrap(), t, 0).unwrap();
+            let frames = quantized_basis_coded(&a, &differences(&a), t, 0).unwrap();
             for q in [&components, &frames] {
                 assert!(q.kg <= t, "target {t}: exact KG {}", q.kg);
                 assert!(q.base_normalized && q.components == q.targets.len());
