@@ -153,6 +153,85 @@ pub trait FrameDecoder: Send {
 
     /// Forgets state carried between packets (called before decoding from a keyframe after a seek).
     fn reset(&mut self) {}
+
+    /// Frame `local` (`< packet.frame_count`) of `packet`, `vertices × 3` values, equal bit for
+    /// bit to that frame of [`decode_packet`](Self::decode_packet) on the same packet in the
+    /// same decoder state. Random access calls it for one frame of a packet.
+    ///
+    /// Default: decodes the whole packet and copies the frame out (so the state carried between
+    /// packets advances as `decode_packet`'s does). A codec whose packets decode alone overrides
+    /// it to parse the packet once (kept in a [`ParsedPacket`]) and form only the frame asked
+    /// for, and then reports [`decodes_single_frames`](Self::decodes_single_frames).
+    fn decode_frame_of_packet(&mut self, packet: &Packet, local: usize) -> Result<Vec<f32>> {
+        let frames = self.decode_packet(packet)?;
+        let count = packet.frame_count as usize;
+        let per_frame = if count == 0 { 0 } else { frames.len() / count };
+        if local >= count || per_frame * count != frames.len() {
+            return Err(frame_outside_packet(packet, local));
+        }
+        Ok(frames[local * per_frame..(local + 1) * per_frame].to_vec())
+    }
+
+    /// True when [`decode_frame_of_packet`](Self::decode_frame_of_packet) costs about one
+    /// frame once the packet is parsed (the parse kept for the next frame of the same packet)
+    /// and leaves the state carried between packets as it was. Default: false (it decodes the
+    /// whole packet).
+    fn decodes_single_frames(&self) -> bool {
+        false
+    }
+}
+
+/// The refusal of a frame index outside its packet.
+pub fn frame_outside_packet(packet: &Packet, local: usize) -> Error {
+    Error::InvalidAnimation(format!(
+        "frame {local} of a packet of {} frames (frames {}..{}) is outside it",
+        packet.frame_count,
+        packet.first_frame,
+        u64::from(packet.first_frame) + u64::from(packet.frame_count)
+    ))
+}
+
+/// The parsed form of the last packet a decoder was asked frames of (a codec's dictionaries,
+/// factors or coefficients before the frames are formed), so that each further frame of the
+/// same packet costs one frame. The packet is recognised by its first frame, frame count,
+/// keyframe flag and bytes (a copy is kept: packets are small next to what they decode to).
+#[derive(Debug)]
+pub struct ParsedPacket<T> {
+    kept: Option<(Packet, T)>,
+}
+
+impl<T> Default for ParsedPacket<T> {
+    fn default() -> Self {
+        Self { kept: None }
+    }
+}
+
+impl<T> ParsedPacket<T> {
+    /// Whether the kept parse is that of `packet`.
+    pub fn holds(&self, packet: &Packet) -> bool {
+        self.kept.as_ref().is_some_and(|(p, _)| {
+            p.first_frame == packet.first_frame
+                && p.frame_count == packet.frame_count
+                && p.keyframe == packet.keyframe
+                && p.data == packet.data
+        })
+    }
+
+    /// The kept parse of `packet`, if it is kept.
+    pub fn get(&self, packet: &Packet) -> Option<&T> {
+        self.kept.as_ref().filter(|_| self.holds(packet)).map(|(_, parsed)| parsed)
+    }
+
+    /// Keeps `parsed` as the parse of `packet` (in place of any other).
+    pub fn keep(&mut self, packet: &Packet, parsed: T) -> &T {
+        let key = Packet { data: packet.data.clone(), ..*packet };
+        &self.kept.insert((key, parsed)).1
+    }
+
+    /// Drops the kept packet.
+    pub fn clear(&mut self) {
+        self.kept = None;
+    }
 }
 
 /// A codec: identity, parameters, rate knob, and factories for encoders and decoders.
