@@ -472,8 +472,10 @@ pub fn decode_packet_checked(
 }
 
 /// Frame `local` of `packet` by [`FrameDecoder::decode_frame_of_packet`], checked as
-/// [`decode_packet_checked`] checks a packet: the frame is charged to `limits` first, and must
-/// have one frame's shape and be finite.
+/// [`decode_packet_checked`] checks a packet: the packet's frames are charged to `limits` first
+/// (what a codec's parse of the packet may hold, and the check every decode path makes, so a
+/// stream too large for the limits is refused with the same message), and the frame must have
+/// one frame's shape and be finite.
 pub fn decode_frame_checked(
     decoder: &mut dyn FrameDecoder,
     codec: &'static str,
@@ -485,7 +487,7 @@ pub fn decode_frame_checked(
     if local >= packet.frame_count as usize {
         return Err(crate::codec::frame_outside_packet(packet, local));
     }
-    limits.check_alloc(codec, "the decoded frame", packet_alloc(header, 1))?;
+    limits.check_alloc(codec, "the decoded packet", packet_alloc(header, packet.frame_count as u64))?;
     let frame = decoder.decode_frame_of_packet(packet, local)?;
     let one = Packet { first_frame: packet.first_frame + local as u32, frame_count: 1, keyframe: false, data: Vec::new() };
     check_decoded(codec, header, &one, &frame)?;

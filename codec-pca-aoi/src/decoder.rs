@@ -339,6 +339,48 @@ impl FrameDecoder for PcaAoiDecoder {
 mod chunk_tests {
     use super::*;
 
+    /// One frame's rows (temporal) or columns (spatial) of `Ê F̂`, formed alone as
+    /// `decode_frame_of_packet` forms them, equal those of the whole product bit for bit, at
+    /// ranks, frame counts and cluster sizes from tiny to beyond the product's chunk.
+    #[test]
+    fn one_frame_of_the_product_is_bit_exact() {
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+        };
+        for (d, k, n) in [(40, 8, 2562), (1, 1, 5), (3, 3, 40), (16, 24, 700), (40, 60, RECONSTRUCT_VERTICES + 3)] {
+            for domain in [Resolved::Temporal, Resolved::Spatial] {
+                let (e_dim, m_dim) = matrix_dims(domain, n, d);
+                let k = k.min(e_dim).min(m_dim);
+                let e = Mat::from_fn(e_dim, k, |_, _| next());
+                let f = Mat::from_fn(k, m_dim, |_, _| next());
+                for start in (0..n).step_by(RECONSTRUCT_VERTICES) {
+                    let len = RECONSTRUCT_VERTICES.min(n - start);
+                    let whole = reconstruct_vertices(e.as_ref(), f.as_ref(), domain, start, len);
+                    for t in [0, d / 2, d - 1] {
+                        let (e1, f1) = match domain {
+                            Resolved::Temporal => (e.as_ref().subrows(3 * t, 3), f.as_ref()),
+                            Resolved::Spatial => (e.as_ref(), f.as_ref().subcols(3 * t, 3)),
+                        };
+                        let part = reconstruct_vertices(e1, f1, domain, start, len);
+                        for j in 0..len {
+                            for c in 0..3 {
+                                let (a, b) = match domain {
+                                    Resolved::Temporal => (part[(c, j)], whole[(3 * t + c, j)]),
+                                    Resolved::Spatial => (part[(j, c)], whole[(j, 3 * t + c)]),
+                                };
+                                assert_eq!(a.to_bits(), b.to_bits(), "d {d} k {k} n {n} {domain:?} t {t} vertex {j}");
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+
     /// The decoder's reconstruction in chunks of vertices equals the whole product bit for bit
     /// (old streams decode to the same frames), for ranks and cluster sizes on both sides of
     /// the chunk, remainders included.
