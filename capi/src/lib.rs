@@ -255,7 +255,8 @@ struct Playhead {
     /// The last decoded packet: its index position and frames.
     cached: Option<(usize, Vec<f32>)>,
     /// The packet (index position and bytes) last asked one frame of, for a codec that forms a
-    /// frame alone: its decoder keeps that packet parsed, so a further frame of it costs one frame.
+    /// frame alone: its decoder keeps the packets it was asked frames of parsed (up to a quarter
+    /// of the memory limit), so a further frame of one costs one frame.
     alone: Option<(usize, Packet)>,
     /// The last frame this playhead returned (a request for the next one is sequential playback).
     last_frame: Option<usize>,
@@ -285,7 +286,10 @@ impl Stream {
 
     fn playhead(&self) -> Result<Playhead, Error> {
         let limits = random_access_limits(self.codec.name(), &self.header, &self.index, self.limits)?;
-        let decoder = self.codec.new_decoder(&self.header.info, &self.header.config, &limits)?;
+        let mut decoder = self.codec.new_decoder(&self.header.info, &self.header.config, &limits)?;
+        // Random access parses each packet once: a quarter of the memory limit holds the parses
+        // of the packets visited (the least recently used dropped beyond it).
+        decoder.keep_parsed_packets(limits.max_alloc_bytes as u64 / 4);
         Ok(Playhead { decoder, next: None, cached: None, alone: None, last_frame: None })
     }
 
@@ -336,7 +340,8 @@ impl Stream {
         let pos = self.packet_of(t);
         if head.alone.as_ref().is_none_or(|(p, _)| *p != pos) {
             head.alone = None;
-            let packet = container::read_packet_at(&mut self.source.cursor(), &self.index[pos], &self.header, self.limits)?;
+            let packet =
+                container::read_packet_at(&mut self.source.cursor(), &self.index[pos], &self.header, self.limits)?;
             head.alone = Some((pos, packet));
         }
         let Some((_, packet)) = &head.alone else {
@@ -981,7 +986,10 @@ pub unsafe extern "C" fn ac_encode(
             Vec::new()
         } else {
             // SAFETY: `indices` readable values (the contract), not NULL.
-            unsafe { std::slice::from_raw_parts(triangles, indices) }.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect()
+            unsafe { std::slice::from_raw_parts(triangles, indices) }
+                .chunks_exact(3)
+                .map(|t| [t[0], t[1], t[2]])
+                .collect()
         };
         let invalid = |e: Error| Failure::new(AC_ERR_INVALID_ARGUMENT, message_with_sources(&e));
         let topology = Topology::new(vertices, tris).map_err(invalid)?;
@@ -1003,7 +1011,9 @@ fn encode_with(animation: &Animation, codec: &str, params: &[String], target: Op
     let invalid = |text: String| Failure::new(AC_ERR_INVALID_ARGUMENT, text);
     let chosen = if codec == "auto" {
         if !params.is_empty() {
-            return Err(invalid("parameters cannot be combined with codec \"auto\": parameters belong to one codec".into()));
+            return Err(invalid(
+                "parameters cannot be combined with codec \"auto\": parameters belong to one codec".into(),
+            ));
         }
         None
     } else {
@@ -1019,7 +1029,8 @@ fn encode_with(animation: &Animation, codec: &str, params: &[String], target: Op
             return encode_animation(c, &base, animation).map_err(|e| encode_failure(&e));
         }
         (None, chosen) => {
-            let request = SearchRequest { refine: 4, progress: &progress, ..SearchRequest::default_quality(registry, animation) };
+            let request =
+                SearchRequest { refine: 4, progress: &progress, ..SearchRequest::default_quality(registry, animation) };
             match chosen {
                 Some((c, _)) => harness::search_default_quality(&request, c).map_err(|e| encode_failure(&e))?,
                 None => harness::search_space_target_auto(&request, &all).map_err(|e| encode_failure(&e))?.0,
@@ -1027,7 +1038,8 @@ fn encode_with(animation: &Animation, codec: &str, params: &[String], target: Op
         }
         (Some(text), chosen) => {
             let target: Target = text.parse().map_err(invalid)?;
-            let request = SearchRequest { refine: 4, progress: &progress, ..SearchRequest::new(registry, animation, target) };
+            let request =
+                SearchRequest { refine: 4, progress: &progress, ..SearchRequest::new(registry, animation, target) };
             match chosen {
                 Some((c, base)) => {
                     let walked = c.rate_ladder(&base).param;

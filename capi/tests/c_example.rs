@@ -194,7 +194,8 @@ mod tempdir {
 fn encode_c_writes_streams_that_decode_within_the_target() {
     let test = "encode_c_writes_streams_that_decode_within_the_target";
     let Some((dir, prefix)) = install(test) else { return };
-    let exe = build_example("encode.c", dir.path(), &prefix, "encode", &[]).unwrap_or_else(|e| panic!("cc encode.c: {e}"));
+    let exe =
+        build_example("encode.c", dir.path(), &prefix, "encode", &[]).unwrap_or_else(|e| panic!("cc encode.c: {e}"));
     let out = dir.path().join("wave.anim");
     let run = Command::new(&exe).arg(&out).output().expect("encode");
     let stdout = String::from_utf8_lossy(&run.stdout);

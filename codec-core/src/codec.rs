@@ -179,6 +179,13 @@ pub trait FrameDecoder: Send {
     fn decodes_single_frames(&self) -> bool {
         false
     }
+
+    /// Lets a decoder that [decodes single frames](Self::decodes_single_frames) keep the parses
+    /// of several packets, up to `bytes` bytes in all, instead of the last one only (random
+    /// access over a whole stream then parses each packet once). Default: nothing kept.
+    fn keep_parsed_packets(&mut self, bytes: u64) {
+        let _ = bytes;
+    }
 }
 
 /// The refusal of a frame index outside its packet.
@@ -191,25 +198,41 @@ pub fn frame_outside_packet(packet: &Packet, local: usize) -> Error {
     ))
 }
 
-/// The parsed form of the last packet a decoder was asked frames of (a codec's dictionaries,
-/// factors or coefficients before the frames are formed), so that each further frame of the
-/// same packet costs one frame. The packet is recognised by its first frame, frame count,
-/// keyframe flag and bytes (a copy is kept: packets are small next to what they decode to).
+/// The parsed forms of the packets a decoder was last asked frames of (a codec's dictionaries,
+/// factors or coefficients before the frames are formed), so that each further frame of a kept
+/// packet costs one frame. A packet is recognised by its first frame, frame count, keyframe flag
+/// and bytes (a copy is kept: packets are small next to what they decode to).
+///
+/// By default only the last packet is kept. [`ParsedPacket::set_budget`] keeps more, the most
+/// recently used first, while their sizes (as the codec reports them to
+/// [`ParsedPacket::keep`]) add up to at most the budget: random access over a whole stream then
+/// parses every packet once.
 #[derive(Debug)]
 pub struct ParsedPacket<T> {
-    kept: Option<(Packet, T)>,
+    /// Most recently used last: (packet, parse, its bytes).
+    kept: Vec<(Packet, T, u64)>,
+    budget: u64,
 }
 
 impl<T> Default for ParsedPacket<T> {
     fn default() -> Self {
-        Self { kept: None }
+        Self { kept: Vec::new(), budget: 0 }
     }
 }
 
 impl<T> ParsedPacket<T> {
-    /// Whether the kept parse is that of `packet`.
-    pub fn holds(&self, packet: &Packet) -> bool {
-        self.kept.as_ref().is_some_and(|(p, _)| {
+    /// Keeps parses while their bytes (and their packets') add up to at most `bytes` (the last
+    /// one is kept whatever its size).
+    pub fn set_budget(&mut self, bytes: u64) {
+        self.budget = bytes;
+        if let Some(last) = self.kept.pop() {
+            self.evict(last.2);
+            self.kept.push(last);
+        }
+    }
+
+    fn position(&self, packet: &Packet) -> Option<usize> {
+        self.kept.iter().rposition(|(p, _, _)| {
             p.first_frame == packet.first_frame
                 && p.frame_count == packet.frame_count
                 && p.keyframe == packet.keyframe
@@ -217,20 +240,42 @@ impl<T> ParsedPacket<T> {
         })
     }
 
-    /// The kept parse of `packet`, if it is kept.
-    pub fn get(&self, packet: &Packet) -> Option<&T> {
-        self.kept.as_ref().filter(|_| self.holds(packet)).map(|(_, parsed)| parsed)
+    /// Whether the parse of `packet` is kept.
+    pub fn holds(&self, packet: &Packet) -> bool {
+        self.position(packet).is_some()
     }
 
-    /// Keeps `parsed` as the parse of `packet` (in place of any other).
-    pub fn keep(&mut self, packet: &Packet, parsed: T) -> &T {
-        let key = Packet { data: packet.data.clone(), ..*packet };
-        &self.kept.insert((key, parsed)).1
+    /// The kept parse of `packet`, if it is kept (it becomes the most recently used).
+    pub fn get(&mut self, packet: &Packet) -> Option<&T> {
+        let i = self.position(packet)?;
+        let entry = self.kept.remove(i);
+        self.kept.push(entry);
+        self.kept.last().map(|(_, parsed, _)| parsed)
     }
 
-    /// Drops the kept packet.
+    /// Keeps `parsed`, of `bytes` bytes, as the parse of `packet`, dropping the least recently
+    /// used parses beyond the budget.
+    pub fn keep(&mut self, packet: &Packet, parsed: T, bytes: u64) -> &T {
+        if let Some(i) = self.position(packet) {
+            self.kept.remove(i);
+        }
+        let bytes = bytes.saturating_add(packet.data.len() as u64);
+        self.evict(bytes);
+        self.kept.push((Packet { data: packet.data.clone(), ..*packet }, parsed, bytes));
+        &self.kept[self.kept.len() - 1].1
+    }
+
+    /// Drops the least recently used parses until `more` bytes fit the budget with the rest.
+    fn evict(&mut self, more: u64) {
+        let mut total = self.kept.iter().map(|k| k.2).fold(more, u64::saturating_add);
+        while total > self.budget && !self.kept.is_empty() {
+            total -= self.kept.remove(0).2;
+        }
+    }
+
+    /// Drops every kept parse.
     pub fn clear(&mut self) {
-        self.kept = None;
+        self.kept.clear();
     }
 }
 
@@ -477,5 +522,37 @@ impl<C: TypedCodec> AnimationCodec for C {
     }
     fn new_decoder(&self, info: &StreamInfo, config: &[u8], limits: &Limits) -> Result<Box<dyn FrameDecoder>> {
         self.decoder(info, config, limits)
+    }
+}
+
+#[cfg(test)]
+mod parsed_packet_tests {
+    use super::*;
+
+    fn packet(first: u32, byte: u8) -> Packet {
+        Packet { first_frame: first, frame_count: 2, keyframe: true, data: vec![byte; 10] }
+    }
+
+    /// Without a budget only the last parse is kept; with one, the most recently used parses
+    /// that fit it (packet bytes included), the least recently used dropped first; a packet
+    /// with other bytes is another packet.
+    #[test]
+    fn kept_parses_follow_the_budget_least_recently_used_first() {
+        let mut kept = ParsedPacket::default();
+        kept.keep(&packet(0, 1), "a", 100);
+        kept.keep(&packet(2, 1), "b", 100);
+        assert!(!kept.holds(&packet(0, 1)) && kept.holds(&packet(2, 1)));
+        assert!(!kept.holds(&packet(2, 9)), "same frames, other bytes");
+        kept.set_budget(330);
+        kept.keep(&packet(0, 1), "a", 100);
+        kept.keep(&packet(4, 1), "c", 100);
+        assert_eq!(kept.get(&packet(2, 1)), Some(&"b")); // now the most recently used
+        kept.keep(&packet(6, 1), "d", 100); // 4 × 110 > 330: the least recently used ("a") goes
+        assert!(!kept.holds(&packet(0, 1)));
+        assert!(kept.holds(&packet(2, 1)) && kept.holds(&packet(4, 1)) && kept.holds(&packet(6, 1)));
+        kept.set_budget(0);
+        assert!(kept.holds(&packet(6, 1)) && !kept.holds(&packet(2, 1)), "the last one stays");
+        kept.clear();
+        assert!(!kept.holds(&packet(6, 1)));
     }
 }

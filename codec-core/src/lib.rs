@@ -49,6 +49,6 @@ pub use params::{
 pub use quant::Quantizer;
 pub use registry::CodecRegistry;
 pub use stream::{
-    decode_animation, decode_frame, decode_frame_checked, decode_packet_checked, encode_animation, encode_animation_fed,
-    random_access_limits, DecodedPacket, Encoded, StreamDecoder, StreamEncoder,
+    decode_animation, decode_frame, decode_frame_checked, decode_packet_checked, encode_animation,
+    encode_animation_fed, random_access_limits, DecodedPacket, Encoded, StreamDecoder, StreamEncoder,
 };

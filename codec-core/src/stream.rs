@@ -489,7 +489,8 @@ pub fn decode_frame_checked(
     }
     limits.check_alloc(codec, "the decoded packet", packet_alloc(header, packet.frame_count as u64))?;
     let frame = decoder.decode_frame_of_packet(packet, local)?;
-    let one = Packet { first_frame: packet.first_frame + local as u32, frame_count: 1, keyframe: false, data: Vec::new() };
+    let one =
+        Packet { first_frame: packet.first_frame + local as u32, frame_count: 1, keyframe: false, data: Vec::new() };
     check_decoded(codec, header, &one, &frame)?;
     Ok(frame)
 }

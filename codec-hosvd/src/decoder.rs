@@ -322,25 +322,24 @@ impl HosvdDecoder {
         Ok(Parsed { prepared: self.parse_uncentred(&inner)?, centre: Some(centre) })
     }
 
-    /// `packet` parsed: kept from the last call when it is the same packet.
+    /// `packet` parsed: kept from an earlier call when it is a kept packet.
     fn parsed(&mut self, packet: &Packet) -> Result<&Parsed> {
         if !self.parsed.holds(packet) {
-            self.parsed.clear();
             let parsed = self.parse(packet)?;
-            return Ok(self.parsed.keep(packet, parsed));
+            let bytes = parsed.prepared.bytes();
+            return Ok(self.parsed.keep(packet, parsed, bytes));
         }
         self.parsed.get(packet).ok_or_else(|| Error::malformed(NAME, "packet", "not parsed"))
     }
 }
 
 impl FrameDecoder for HosvdDecoder {
-    /// Uses the kept parse when `packet` is the packet last asked a frame of; otherwise parses
-    /// without keeping it (sequential decoding holds no more than one packet's model).
+    /// Uses the kept parse when `packet` is a packet asked a frame of; otherwise parses without
+    /// keeping it (sequential decoding holds no more than one packet's model).
     fn decode_packet(&mut self, packet: &Packet) -> Result<Vec<f32>> {
         if let Some(parsed) = self.parsed.get(packet) {
             return parsed.finish(parsed.prepared.frames());
         }
-        self.parsed.clear();
         let parsed = self.parse(packet)?;
         parsed.finish(parsed.prepared.frames())
     }
@@ -357,6 +356,10 @@ impl FrameDecoder for HosvdDecoder {
 
     fn decodes_single_frames(&self) -> bool {
         true
+    }
+
+    fn keep_parsed_packets(&mut self, bytes: u64) {
+        self.parsed.set_budget(bytes);
     }
 }
 

@@ -544,6 +544,11 @@ impl Prepared {
         Self { packed, d, transforms, k, v, frames }
     }
 
+    /// Bytes held (the loadings, the lanes and the transforms).
+    pub fn bytes(&self) -> u64 {
+        (self.packed.len() as u64 + self.d.len() as u64 + 12 * self.transforms.len() as u64) * 8
+    }
+
     /// Every frame (`F × K × 3`), split over rayon's threads.
     pub fn frames(&self) -> Vec<f32> {
         let (k, frames) = (self.k, self.frames);

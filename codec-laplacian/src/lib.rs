@@ -208,25 +208,24 @@ impl LaplacianDecoder {
         packet::parse(&packet.data, &self.graph, &self.triangles, packet.frame_count as usize, &self.limits)
     }
 
-    /// `packet` up to its frames: kept from the last call when it is the same packet.
+    /// `packet` up to its frames: kept from an earlier call when it is a kept packet.
     fn parsed(&mut self, packet: &Packet) -> Result<&packet::Parsed> {
         if !self.parsed.holds(packet) {
-            self.parsed.clear();
             let parsed = self.parse(packet)?;
-            return Ok(self.parsed.keep(packet, parsed));
+            let bytes = parsed.bytes();
+            return Ok(self.parsed.keep(packet, parsed, bytes));
         }
         self.parsed.get(packet).ok_or_else(|| Error::malformed(NAME, "packet", "not parsed"))
     }
 }
 
 impl FrameDecoder for LaplacianDecoder {
-    /// Uses the kept parse when `packet` is the packet last asked a frame of; otherwise parses
-    /// without keeping it (sequential decoding holds no more than one packet's planes).
+    /// Uses the kept parse when `packet` is a packet asked a frame of; otherwise parses without
+    /// keeping it (sequential decoding holds no more than one packet's planes).
     fn decode_packet(&mut self, packet: &Packet) -> Result<Vec<f32>> {
         if let Some(parsed) = self.parsed.get(packet) {
             return parsed.all_frames();
         }
-        self.parsed.clear();
         self.parse(packet)?.all_frames()
     }
 
@@ -241,6 +240,10 @@ impl FrameDecoder for LaplacianDecoder {
 
     fn decodes_single_frames(&self) -> bool {
         true
+    }
+
+    fn keep_parsed_packets(&mut self, bytes: u64) {
+        self.parsed.set_budget(bytes);
     }
 }
 

@@ -222,6 +222,16 @@ impl Parsed {
         finite(out)
     }
 
+    /// Bytes held.
+    pub(crate) fn bytes(&self) -> u64 {
+        match self {
+            Parsed::Raw { data, .. } => data.len() as u64 * 4,
+            Parsed::Coded { decoded: d, .. } => {
+                (d.avg.len() + d.centroid.len() + d.basis.len() + d.coeffs.len()) as u64 * 8
+            }
+        }
+    }
+
     /// Frame `t` alone (`t` < the packet's frames, checked by the caller).
     pub(crate) fn frame(&self, t: usize) -> Result<Vec<f32>> {
         let out = match self {
@@ -527,9 +537,7 @@ pub(crate) fn parse(
             let data = bytes.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
             Ok(Parsed::Raw { data, frames })
         }
-        MODE_CODED => {
-            Ok(Parsed::Coded { decoded: decode_coded(&mut r, graph, triangles, frames, limits)?, v, frames })
-        }
+        MODE_CODED => Ok(Parsed::Coded { decoded: decode_coded(&mut r, graph, triangles, frames, limits)?, v, frames }),
         m => Err(r.malformed("mode", format!("{m} (0 coded, 1 raw)"))),
     }
 }

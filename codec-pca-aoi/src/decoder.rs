@@ -37,7 +37,7 @@ pub struct PcaAoiDecoder {
     vertex_count: usize,
     clusters: Vec<Vec<u32>>,
     limits: Limits,
-    /// The last packet asked a frame of, parsed.
+    /// The packets asked a frame of, parsed.
     parsed: ParsedPacket<Vec<DecodedCluster>>,
 }
 
@@ -301,16 +301,17 @@ fn reconstruct_vertices(
 }
 
 impl FrameDecoder for PcaAoiDecoder {
-    /// Uses the kept parse when `packet` is the packet last asked a frame of; otherwise parses
-    /// without keeping it (sequential decoding holds no more than one packet's matrices).
+    /// Uses the kept parse when `packet` is a packet asked a frame of; otherwise parses without
+    /// keeping it (sequential decoding holds no more than one packet's matrices).
     fn decode_packet(&mut self, packet: &Packet) -> Result<Vec<f32>> {
         let d = packet.frame_count as usize;
-        if let Some(parsed) = self.parsed.get(packet) {
-            return Ok(self.frames(parsed, d));
-        }
-        self.parsed.clear();
-        let parsed = self.parse(packet)?;
-        Ok(self.frames(&parsed, d))
+        let mut kept = std::mem::take(&mut self.parsed);
+        let frames = match kept.get(packet) {
+            Some(parsed) => Ok(self.frames(parsed, d)),
+            None => self.parse(packet).map(|parsed| self.frames(&parsed, d)),
+        };
+        self.parsed = kept;
+        frames
     }
 
     /// Every packet decodes alone (its clusters' dictionaries and features, kept once parsed);
@@ -319,19 +320,31 @@ impl FrameDecoder for PcaAoiDecoder {
         if local >= packet.frame_count as usize {
             return Err(codec_core::codec::frame_outside_packet(packet, local));
         }
-        if !self.parsed.holds(packet) {
-            self.parsed.clear();
-            let parsed = self.parse(packet)?;
-            self.parsed.keep(packet, parsed);
-        }
-        match self.parsed.get(packet) {
+        let mut kept = std::mem::take(&mut self.parsed);
+        let frame = match kept.get(packet) {
             Some(parsed) => Ok(self.frame(parsed, local)),
-            None => Err(Error::malformed(NAME, "packet", "not parsed")),
-        }
+            None => self.parse(packet).map(|parsed| {
+                let bytes = parsed
+                    .iter()
+                    .map(|c| {
+                        (c.e_hat.nrows() * c.e_hat.ncols() + c.f_hat.nrows() * c.f_hat.ncols() + c.means.len()) as u64
+                            * 8
+                    })
+                    .sum();
+                let parsed = kept.keep(packet, parsed, bytes);
+                self.frame(parsed, local)
+            }),
+        };
+        self.parsed = kept;
+        frame
     }
 
     fn decodes_single_frames(&self) -> bool {
         true
+    }
+
+    fn keep_parsed_packets(&mut self, bytes: u64) {
+        self.parsed.set_budget(bytes);
     }
 }
 

@@ -462,7 +462,8 @@ pub fn random_access_matches_full_decode(registry: &CodecRegistry) -> Failures {
 /// A codec that [decodes single frames](codec_core::FrameDecoder::decodes_single_frames) is asked every frame
 /// in a scrambled order that jumps between packets and comes back to them (a kept parse and a
 /// new one), and after each packet's first frame the whole packet by `decode_packet` (which may
-/// use the kept parse). Any other codec is asked, packet by packet in stream order from a
+/// use the kept parse); once keeping the last packet's parse only, once keeping every packet's
+/// ([`codec_core::FrameDecoder::keep_parsed_packets`]). Any other codec is asked, packet by packet in stream order from a
 /// reset, one frame each: its default hook decodes the packet and so advances the decoder as
 /// `decode_packet` does. A frame past the end of a packet is refused.
 pub fn frames_of_packets_match_full_decode(
@@ -492,7 +493,14 @@ pub fn frames_of_packets_match_full_decode(
         }
         Ok(())
     };
-    if decoder.decodes_single_frames() {
+    // Twice: keeping the last packet's parse only, then every packet's (a budget that holds them).
+    for budget in [0, 1 << 30] {
+        if !decoder.decodes_single_frames() {
+            break;
+        }
+        decoder =
+            codec.new_decoder(&header.info, &header.config, &decoder_limits).map_err(|e| format!("decoder: {e}"))?;
+        decoder.keep_parsed_packets(budget);
         // A stride coprime with the frame count visits every frame once, out of order.
         let stride = (1..=frames).rev().find(|s| s * 8 <= frames * 5 && gcd(*s, frames) == 1).unwrap_or(1);
         let mut seen = vec![false; index.len()];
@@ -513,7 +521,8 @@ pub fn frames_of_packets_match_full_decode(
                 }
             }
         }
-    } else {
+    }
+    if !decoder.decodes_single_frames() {
         decoder.reset();
         for (pos, entry) in index.iter().enumerate() {
             let local = pos % entry.frame_count as usize;
