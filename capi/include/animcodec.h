@@ -167,9 +167,11 @@ enum ac_status ac_stream_get_info(const struct ac_stream *h, struct ac_stream_in
 enum ac_status ac_copy_triangles(const struct ac_stream *h, uint32_t *out, size_t n);
 
 // Decodes frame `frame` into `out_xyz` (`n` floats, at least 3 × vertices: x, y, z per vertex).
-// Random access: decodes only the packet holding the frame (from its keyframe when it is not
-// one) and keeps it, so the other frames of that packet then cost a copy. Thread-safe on a
-// shared handle.
+// Random access: pca-aoi, hosvd and laplacian form that frame alone from the packet's parse,
+// which the stream keeps (for the packets visited, within a quarter of the memory limit), so a
+// frame costs about one frame once its packet was parsed; the other codecs decode the packet
+// holding the frame (from its keyframe when it is not one) and keep it, so the other frames of
+// that packet then cost a copy. Thread-safe on a shared handle.
 //
 // # Safety
 // `h` is a live handle; `out_xyz` points to `n` writable floats.

@@ -165,7 +165,7 @@ pub trait FrameDecoder: Send {
     fn decode_frame_of_packet(&mut self, packet: &Packet, local: usize) -> Result<Vec<f32>> {
         let frames = self.decode_packet(packet)?;
         let count = packet.frame_count as usize;
-        let per_frame = if count == 0 { 0 } else { frames.len() / count };
+        let per_frame = frames.len().checked_div(count).unwrap_or(0);
         if local >= count || per_frame * count != frames.len() {
             return Err(frame_outside_packet(packet, local));
         }
