@@ -98,6 +98,15 @@ typedef struct ac_stream_info {
   size_t max_packet_frames;
 } ac_stream_info;
 
+// Bytes the library allocated (the stream [`ac_encode`] wrote): `size` bytes at `data`. Free
+// them with [`ac_buffer_free`]; `data` is NULL when `size` is 0.
+typedef struct ac_buffer {
+  // The bytes.
+  uint8_t *data;
+  // Their number.
+  size_t size;
+} ac_buffer;
+
 #ifdef __cplusplus
 extern "C" {
 #endif // __cplusplus
@@ -158,9 +167,11 @@ enum ac_status ac_stream_get_info(const struct ac_stream *h, struct ac_stream_in
 enum ac_status ac_copy_triangles(const struct ac_stream *h, uint32_t *out, size_t n);
 
 // Decodes frame `frame` into `out_xyz` (`n` floats, at least 3 × vertices: x, y, z per vertex).
-// Random access: decodes only the packet holding the frame (from its keyframe when it is not
-// one) and keeps it, so the other frames of that packet then cost a copy. Thread-safe on a
-// shared handle.
+// Random access: pca-aoi, hosvd and laplacian form that frame alone from the packet's parse,
+// which the stream keeps (for the packets visited, within a quarter of the memory limit), so a
+// frame costs about one frame once its packet was parsed; the other codecs decode the packet
+// holding the frame (from its keyframe when it is not one) and keep it, so the other frames of
+// that packet then cost a copy. Thread-safe on a shared handle.
 //
 // # Safety
 // `h` is a live handle; `out_xyz` points to `n` writable floats.
@@ -214,6 +225,47 @@ enum ac_status ac_player_frame_view(struct ac_player *p, size_t frame, const flo
 // # Safety
 // `p` is NULL or a player from this library, not used again.
 void ac_player_free(struct ac_player *p);
+
+// Encodes an animation into `.anim` stream bytes in `*out` (a buffer the library owns: free it
+// with [`ac_buffer_free`]; `{NULL, 0}` on failure), as `animcodec encode` does:
+//
+// - `positions`: `frames × vertices × 3` floats (x, y, z per vertex, frame after frame), finite;
+// - `triangles`: `triangle_count × 3` vertex indices (NULL when `triangle_count` is 0);
+// - `frame_rate`: frames per second (> 0);
+// - `codec`: a codec name (`"quant-delta"`, `"pca-aoi"`, `"hosvd"`, `"sac"`, `"stseg"`,
+//   `"laplacian"`) or `"auto"` (the smallest stream over every codec; not with `params`);
+// - `params`: NULL, or the codec's parameters as `key=value` pairs separated by spaces or
+//   commas (`"bits=12 block=8"`), as `-p` takes them;
+// - `target`: NULL, or an error to meet as `--target` takes it (`"kg=0.5"`,
+//   `"kg=0.5,sted=0.05"`): the codec's parameter space is searched for the smallest stream
+//   meeting it, the `params` staying fixed.
+//
+// With `params` and no `target`: exactly those parameters (the rest at their defaults). With
+// neither: the smallest stream meeting the default quality (`kg=0.5,sted=0.05`). A search
+// encodes and measures many candidates: seconds to minutes on large animations. Errors carry
+// the CLI's messages. Thread-safe.
+//
+// # Safety
+// `positions` points to `frames × vertices × 3` readable floats; `triangles` to
+// `triangle_count × 3` readable indices (or is NULL when that count is 0); `codec`, `params`
+// and `target` are NULL or NUL-terminated strings; `out` is writable.
+enum ac_status ac_encode(const float *positions,
+                         size_t frames,
+                         size_t vertices,
+                         const uint32_t *triangles,
+                         size_t triangle_count,
+                         float frame_rate,
+                         const char *codec,
+                         const char *params,
+                         const char *target,
+                         struct ac_buffer *out);
+
+// Frees a buffer made by [`ac_encode`] and sets it to `{NULL, 0}` (NULL, and a buffer already
+// freed, are accepted).
+//
+// # Safety
+// `b` is NULL or points to a buffer from [`ac_encode`] (or `{NULL, 0}`).
+void ac_buffer_free(struct ac_buffer *b);
 
 #ifdef __cplusplus
 }  // extern "C"

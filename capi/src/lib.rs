@@ -27,9 +27,11 @@ use std::sync::{Arc, Mutex, Once, OnceLock, TryLockError};
 use animcodec::core::container::{self, Header, IndexEntry};
 use animcodec::core::error::message_with_sources;
 use animcodec::core::{
-    decode_packet_checked, random_access_limits, AnimationCodec, CodecRegistry, Error, FrameDecoder, Limits,
-    StreamDecoder,
+    decode_frame_checked, decode_packet_checked, encode_animation, random_access_limits, Animation, AnimationCodec,
+    CodecRegistry, Error, FrameDecoder, Limits, Packet, StreamDecoder, Topology,
 };
+use animcodec::front;
+use animcodec::harness::{self, SearchRequest, Target};
 
 use source::Source;
 
@@ -252,6 +254,12 @@ struct Playhead {
     next: Option<usize>,
     /// The last decoded packet: its index position and frames.
     cached: Option<(usize, Vec<f32>)>,
+    /// The packet (index position and bytes) last asked one frame of, for a codec that forms a
+    /// frame alone: its decoder keeps the packets it was asked frames of parsed (up to a quarter
+    /// of the memory limit), so a further frame of one costs one frame.
+    alone: Option<(usize, Packet)>,
+    /// The last frame this playhead returned (a request for the next one is sequential playback).
+    last_frame: Option<usize>,
 }
 
 impl Stream {
@@ -278,8 +286,11 @@ impl Stream {
 
     fn playhead(&self) -> Result<Playhead, Error> {
         let limits = random_access_limits(self.codec.name(), &self.header, &self.index, self.limits)?;
-        let decoder = self.codec.new_decoder(&self.header.info, &self.header.config, &limits)?;
-        Ok(Playhead { decoder, next: None, cached: None })
+        let mut decoder = self.codec.new_decoder(&self.header.info, &self.header.config, &limits)?;
+        // Random access parses each packet once: a quarter of the memory limit holds the parses
+        // of the packets visited (the least recently used dropped beyond it).
+        decoder.keep_parsed_packets(limits.max_alloc_bytes as u64 / 4);
+        Ok(Playhead { decoder, next: None, cached: None, alone: None, last_frame: None })
     }
 
     /// Index position of the packet holding frame `t` (`t` < the frame count; the index covers
@@ -322,9 +333,43 @@ impl Stream {
         }
     }
 
+    /// Frame `t` alone, where the codec forms one frame of a packet without the others
+    /// ([`FrameDecoder::decodes_single_frames`]): the packet's parse stays in the decoder and its
+    /// bytes in `head`, so the next frame of the same packet costs one frame.
+    fn frame_alone(&self, head: &mut Playhead, t: usize) -> Result<Vec<f32>, Error> {
+        let pos = self.packet_of(t);
+        if head.alone.as_ref().is_none_or(|(p, _)| *p != pos) {
+            head.alone = None;
+            let packet =
+                container::read_packet_at(&mut self.source.cursor(), &self.index[pos], &self.header, self.limits)?;
+            head.alone = Some((pos, packet));
+        }
+        let Some((_, packet)) = &head.alone else {
+            return Err(Error::malformed(self.codec.name(), "index", "no packet holds the frame"));
+        };
+        let local = t - self.index[pos].first_frame as usize;
+        decode_frame_checked(head.decoder.as_mut(), self.codec.name(), &self.header, packet, local, &self.limits)
+    }
+
     /// Writes frames `first .. first + count` into `out` (frame-major, 3 floats per vertex).
+    ///
+    /// One frame of a packet not kept decoded, asked out of sequence, is formed alone when the
+    /// codec can ([`Stream::frame_alone`]); a frame in sequence (the one after the last returned)
+    /// or a range decodes the whole packet and keeps it, so playback in order costs the bulk
+    /// decode's time per frame.
     fn decode_into(&self, head: &mut Playhead, first: usize, count: usize, out: &mut [f32]) -> Outcome {
         let v3 = self.values_per_frame();
+        if count == 1 && head.decoder.decodes_single_frames() {
+            let pos = self.packet_of(first);
+            let kept = head.cached.as_ref().is_some_and(|(p, _)| *p == pos);
+            let in_sequence = head.last_frame.is_some_and(|last| last + 1 == first);
+            if !kept && !in_sequence {
+                let frame = self.frame_alone(head, first).map_err(|e| self.failure(&e))?;
+                out[..v3].copy_from_slice(&frame);
+                head.last_frame = Some(first);
+                return Ok(());
+            }
+        }
         let mut t = first;
         let end = first + count;
         while t < end {
@@ -338,6 +383,7 @@ impl Stream {
             out[(t - first) * v3..(t - first + n) * v3].copy_from_slice(src);
             t = packet_end;
         }
+        head.last_frame = end.checked_sub(1);
         Ok(())
     }
 
@@ -658,9 +704,11 @@ pub unsafe extern "C" fn ac_copy_triangles(h: *const ac_stream, out: *mut u32, n
 }
 
 /// Decodes frame `frame` into `out_xyz` (`n` floats, at least 3 × vertices: x, y, z per vertex).
-/// Random access: decodes only the packet holding the frame (from its keyframe when it is not
-/// one) and keeps it, so the other frames of that packet then cost a copy. Thread-safe on a
-/// shared handle.
+/// Random access: pca-aoi, hosvd and laplacian form that frame alone from the packet's parse,
+/// which the stream keeps (for the packets visited, within a quarter of the memory limit), so a
+/// frame costs about one frame once its packet was parsed; the other codecs decode the packet
+/// holding the frame (from its keyframe when it is not one) and keep it, so the other frames of
+/// that packet then cost a copy. Thread-safe on a shared handle.
 ///
 /// # Safety
 /// `h` is a live handle; `out_xyz` points to `n` writable floats.
@@ -819,6 +867,216 @@ pub unsafe extern "C" fn ac_player_free(p: *mut ac_player) {
         if !p.is_null() {
             // SAFETY: made by `Box::into_raw` in `ac_player_new`, freed once (the contract).
             drop(unsafe { Box::from_raw(p) });
+        }
+        Ok(())
+    });
+}
+
+/// Bytes the library allocated (the stream [`ac_encode`] wrote): `size` bytes at `data`. Free
+/// them with [`ac_buffer_free`]; `data` is NULL when `size` is 0.
+#[repr(C)]
+pub struct ac_buffer {
+    /// The bytes.
+    pub data: *mut u8,
+    /// Their number.
+    pub size: usize,
+}
+
+/// `key=value` pairs separated by spaces, tabs, newlines or commas (the values of every codec
+/// parameter are numbers or names without either).
+fn param_pairs(text: &str) -> Vec<String> {
+    text.split(|c: char| c == ',' || c.is_whitespace()).filter(|p| !p.is_empty()).map(str::to_owned).collect()
+}
+
+/// An error of the encoder or the searches, with its sources on one line as the CLI prints it.
+fn encode_failure(e: &(dyn std::error::Error + 'static)) -> Failure {
+    let status = match e.downcast_ref::<Error>() {
+        Some(e) => return Failure::from_error(e, None),
+        None => AC_ERR_FORMAT,
+    };
+    let mut text = e.to_string();
+    let mut source = e.source();
+    while let Some(s) = source {
+        let more = s.to_string();
+        if !text.contains(&more) {
+            text = format!("{text}: {more}");
+        }
+        source = s.source();
+    }
+    Failure::new(status, text)
+}
+
+/// A C string argument: `None` for NULL or "", else its UTF-8 text.
+///
+/// # Safety
+/// `p` is NULL or a NUL-terminated string.
+unsafe fn text_arg<'a>(p: *const c_char, what: &str) -> Outcome<Option<&'a str>> {
+    if p.is_null() {
+        return Ok(None);
+    }
+    // SAFETY: NUL-terminated (the contract).
+    let s = unsafe { CStr::from_ptr(p) };
+    let s = s.to_str().map_err(|_| Failure::new(AC_ERR_INVALID_ARGUMENT, format!("{what} is not UTF-8")))?;
+    Ok(Some(s).filter(|s| !s.trim().is_empty()))
+}
+
+/// Encodes an animation into `.anim` stream bytes in `*out` (a buffer the library owns: free it
+/// with [`ac_buffer_free`]; `{NULL, 0}` on failure), as `animcodec encode` does:
+///
+/// - `positions`: `frames × vertices × 3` floats (x, y, z per vertex, frame after frame), finite;
+/// - `triangles`: `triangle_count × 3` vertex indices (NULL when `triangle_count` is 0);
+/// - `frame_rate`: frames per second (> 0);
+/// - `codec`: a codec name (`"quant-delta"`, `"pca-aoi"`, `"hosvd"`, `"sac"`, `"stseg"`,
+///   `"laplacian"`) or `"auto"` (the smallest stream over every codec; not with `params`);
+/// - `params`: NULL, or the codec's parameters as `key=value` pairs separated by spaces or
+///   commas (`"bits=12 block=8"`), as `-p` takes them;
+/// - `target`: NULL, or an error to meet as `--target` takes it (`"kg=0.5"`,
+///   `"kg=0.5,sted=0.05"`): the codec's parameter space is searched for the smallest stream
+///   meeting it, the `params` staying fixed.
+///
+/// With `params` and no `target`: exactly those parameters (the rest at their defaults). With
+/// neither: the smallest stream meeting the default quality (`kg=0.5,sted=0.05`). A search
+/// encodes and measures many candidates: seconds to minutes on large animations. Errors carry
+/// the CLI's messages. Thread-safe.
+///
+/// # Safety
+/// `positions` points to `frames × vertices × 3` readable floats; `triangles` to
+/// `triangle_count × 3` readable indices (or is NULL when that count is 0); `codec`, `params`
+/// and `target` are NULL or NUL-terminated strings; `out` is writable.
+#[no_mangle]
+#[allow(clippy::too_many_arguments)]
+pub unsafe extern "C" fn ac_encode(
+    positions: *const f32,
+    frames: usize,
+    vertices: usize,
+    triangles: *const u32,
+    triangle_count: usize,
+    frame_rate: f32,
+    codec: *const c_char,
+    params: *const c_char,
+    target: *const c_char,
+    out: *mut ac_buffer,
+) -> ac_status {
+    guard(|| {
+        if out.is_null() {
+            return Err(null("out"));
+        }
+        // SAFETY: `out` is writable (the contract) and not NULL.
+        unsafe { *out = ac_buffer { data: std::ptr::null_mut(), size: 0 } };
+        // SAFETY: the contract.
+        let codec_name = unsafe { text_arg(codec, "codec") }?.ok_or_else(|| null("codec"))?;
+        // SAFETY: the contract.
+        let params = unsafe { text_arg(params, "params") }?.map(param_pairs).unwrap_or_default();
+        // SAFETY: the contract.
+        let target = unsafe { text_arg(target, "target") }?;
+        let too_many = || Failure::new(AC_ERR_INVALID_ARGUMENT, "the animation's size overflows the address space");
+        let coords = frames.checked_mul(vertices).and_then(|n| n.checked_mul(3)).ok_or_else(too_many)?;
+        let indices = triangle_count.checked_mul(3).ok_or_else(too_many)?;
+        if positions.is_null() && coords > 0 {
+            return Err(null("positions"));
+        }
+        if triangles.is_null() && indices > 0 {
+            return Err(null("triangles"));
+        }
+        let coords: Vec<f32> = if coords == 0 {
+            Vec::new()
+        } else {
+            // SAFETY: `coords` readable floats (the contract), not NULL.
+            unsafe { std::slice::from_raw_parts(positions, coords) }.to_vec()
+        };
+        let tris: Vec<[u32; 3]> = if indices == 0 {
+            Vec::new()
+        } else {
+            // SAFETY: `indices` readable values (the contract), not NULL.
+            unsafe { std::slice::from_raw_parts(triangles, indices) }
+                .chunks_exact(3)
+                .map(|t| [t[0], t[1], t[2]])
+                .collect()
+        };
+        let invalid = |e: Error| Failure::new(AC_ERR_INVALID_ARGUMENT, message_with_sources(&e));
+        let topology = Topology::new(vertices, tris).map_err(invalid)?;
+        let animation = Animation::new(topology, coords, frame_rate).map_err(invalid)?;
+        let bytes = encode_with(&animation, codec_name, &params, target)?;
+        let boxed = bytes.into_boxed_slice();
+        let size = boxed.len();
+        let data = Box::into_raw(boxed).cast::<u8>();
+        // SAFETY: checked above.
+        unsafe { *out = ac_buffer { data, size } };
+        Ok(())
+    })
+}
+
+/// [`ac_encode`]'s work on a checked animation: fixed parameters, a target search or the
+/// default-quality search, through the facade's front door (parameters from text) and searches.
+fn encode_with(animation: &Animation, codec: &str, params: &[String], target: Option<&str>) -> Outcome<Vec<u8>> {
+    let registry = registry();
+    let invalid = |text: String| Failure::new(AC_ERR_INVALID_ARGUMENT, text);
+    let chosen = if codec == "auto" {
+        if !params.is_empty() {
+            return Err(invalid(
+                "parameters cannot be combined with codec \"auto\": parameters belong to one codec".into(),
+            ));
+        }
+        None
+    } else {
+        let c = registry.by_name(codec).map_err(|e| invalid(message_with_sources(&e)))?;
+        let base = front::params_from_text(c, params).map_err(|e| invalid(encode_failure(e.as_ref()).message))?;
+        Some((c, base))
+    };
+    let progress = |_: &harness::Point| {};
+    let all: Vec<&dyn AnimationCodec> = registry.iter().collect();
+    let fixed: Vec<&str> = params.iter().filter_map(|p| p.split('=').next()).collect();
+    let hit = match (target, chosen) {
+        (None, Some((c, base))) if !params.is_empty() => {
+            return encode_animation(c, &base, animation).map_err(|e| encode_failure(&e));
+        }
+        (None, chosen) => {
+            let request =
+                SearchRequest { refine: 4, progress: &progress, ..SearchRequest::default_quality(registry, animation) };
+            match chosen {
+                Some((c, _)) => harness::search_default_quality(&request, c).map_err(|e| encode_failure(&e))?,
+                None => harness::search_space_target_auto(&request, &all).map_err(|e| encode_failure(&e))?.0,
+            }
+        }
+        (Some(text), chosen) => {
+            let target: Target = text.parse().map_err(invalid)?;
+            let request =
+                SearchRequest { refine: 4, progress: &progress, ..SearchRequest::new(registry, animation, target) };
+            match chosen {
+                Some((c, base)) => {
+                    let walked = c.rate_ladder(&base).param;
+                    if fixed.contains(&walked) {
+                        return Err(invalid(format!(
+                            "{}: '{walked}' is the rate ladder's parameter, which the target {target} chooses; leave it out",
+                            c.name()
+                        )));
+                    }
+                    harness::search_space_target(&request, c, &base, &fixed).map_err(|e| encode_failure(&e))?
+                }
+                None => harness::search_space_target_auto(&request, &all).map_err(|e| encode_failure(&e))?.0,
+            }
+        }
+    };
+    Ok(hit.stream)
+}
+
+/// Frees a buffer made by [`ac_encode`] and sets it to `{NULL, 0}` (NULL, and a buffer already
+/// freed, are accepted).
+///
+/// # Safety
+/// `b` is NULL or points to a buffer from [`ac_encode`] (or `{NULL, 0}`).
+#[no_mangle]
+pub unsafe extern "C" fn ac_buffer_free(b: *mut ac_buffer) {
+    guard(|| {
+        // SAFETY: NULL or a valid buffer (the contract).
+        if let Some(b) = unsafe { b.as_mut() } {
+            if !b.data.is_null() {
+                let slice = std::ptr::slice_from_raw_parts_mut(b.data, b.size);
+                // SAFETY: made by `Box::into_raw` of a boxed slice of `size` bytes in `ac_encode`,
+                // freed once (the pointer is cleared below).
+                drop(unsafe { Box::from_raw(slice) });
+            }
+            *b = ac_buffer { data: std::ptr::null_mut(), size: 0 };
         }
         Ok(())
     });

@@ -50,6 +50,11 @@ fn install(test: &str) -> Option<(tempdir::Dir, PathBuf)> {
 
 /// `cc play.c $(pkg-config --cflags --libs animcodec) extra…` → the executable.
 fn build_play(dir: &Path, prefix: &Path, name: &str, extra: &[&str]) -> Result<PathBuf, String> {
+    build_example("play.c", dir, prefix, name, extra)
+}
+
+/// `cc capi/examples/SOURCE $(pkg-config --cflags --libs animcodec) extra…` → the executable.
+fn build_example(source: &str, dir: &Path, prefix: &Path, name: &str, extra: &[&str]) -> Result<PathBuf, String> {
     let pc = Command::new("pkg-config")
         .args(["--cflags", "--libs", "animcodec"])
         .env("PKG_CONFIG_PATH", prefix.join("lib").join("pkgconfig"))
@@ -60,8 +65,9 @@ fn build_play(dir: &Path, prefix: &Path, name: &str, extra: &[&str]) -> Result<P
     let exe = dir.join(name);
     let out = Command::new("cc")
         .args(["-std=c99", "-Wall", "-Wextra", "-Werror", "-g"])
-        .arg(common::workspace().join("capi").join("examples").join("play.c"))
+        .arg(common::workspace().join("capi").join("examples").join(source))
         .args(flags.split_whitespace())
+        .arg("-lm")
         .arg(format!("-Wl,-rpath,{}", prefix.join("lib").display()))
         .args(extra)
         .arg("-o")
@@ -178,4 +184,24 @@ mod tempdir {
             let _ = std::fs::remove_dir_all(&self.0);
         }
     }
+}
+
+/// `capi/examples/encode.c`: `ac_encode` from C with a KG target and with fixed parameters;
+/// each stream decodes back (through the C API) within its bound, the targeted stream is a
+/// valid stream for the Rust library too, and an unknown parameter fails with its name in
+/// `ac_last_error`.
+#[test]
+fn encode_c_writes_streams_that_decode_within_the_target() {
+    let test = "encode_c_writes_streams_that_decode_within_the_target";
+    let Some((dir, prefix)) = install(test) else { return };
+    let exe =
+        build_example("encode.c", dir.path(), &prefix, "encode", &[]).unwrap_or_else(|e| panic!("cc encode.c: {e}"));
+    let out = dir.path().join("wave.anim");
+    let run = Command::new(&exe).arg(&out).output().expect("encode");
+    let stdout = String::from_utf8_lossy(&run.stdout);
+    assert!(run.status.success(), "{stdout}{}", String::from_utf8_lossy(&run.stderr));
+    assert!(stdout.contains("target kg=0.5") && stdout.contains("nonsense=3: AC_ERR_INVALID_ARGUMENT"), "{stdout}");
+    let bytes = std::fs::read(&out).expect("the stream encode.c wrote");
+    let decoded = decode_animation(&bytes, &animcodec::registry(), Limits::default()).expect("decodes");
+    assert_eq!((decoded.frame_count(), decoded.vertex_count()), (30, 24 * 16));
 }

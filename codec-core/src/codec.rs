@@ -153,6 +153,130 @@ pub trait FrameDecoder: Send {
 
     /// Forgets state carried between packets (called before decoding from a keyframe after a seek).
     fn reset(&mut self) {}
+
+    /// Frame `local` (`< packet.frame_count`) of `packet`, `vertices × 3` values, equal bit for
+    /// bit to that frame of [`decode_packet`](Self::decode_packet) on the same packet in the
+    /// same decoder state. Random access calls it for one frame of a packet.
+    ///
+    /// Default: decodes the whole packet and copies the frame out (so the state carried between
+    /// packets advances as `decode_packet`'s does). A codec whose packets decode alone overrides
+    /// it to parse the packet once (kept in a [`ParsedPacket`]) and form only the frame asked
+    /// for, and then reports [`decodes_single_frames`](Self::decodes_single_frames).
+    fn decode_frame_of_packet(&mut self, packet: &Packet, local: usize) -> Result<Vec<f32>> {
+        let frames = self.decode_packet(packet)?;
+        let count = packet.frame_count as usize;
+        let per_frame = frames.len().checked_div(count).unwrap_or(0);
+        if local >= count || per_frame * count != frames.len() {
+            return Err(frame_outside_packet(packet, local));
+        }
+        Ok(frames[local * per_frame..(local + 1) * per_frame].to_vec())
+    }
+
+    /// True when [`decode_frame_of_packet`](Self::decode_frame_of_packet) costs about one
+    /// frame once the packet is parsed (the parse kept for the next frame of the same packet)
+    /// and leaves the state carried between packets as it was. Default: false (it decodes the
+    /// whole packet).
+    fn decodes_single_frames(&self) -> bool {
+        false
+    }
+
+    /// Lets a decoder that [decodes single frames](Self::decodes_single_frames) keep the parses
+    /// of several packets, up to `bytes` bytes in all, instead of the last one only (random
+    /// access over a whole stream then parses each packet once). Default: nothing kept.
+    fn keep_parsed_packets(&mut self, bytes: u64) {
+        let _ = bytes;
+    }
+}
+
+/// The refusal of a frame index outside its packet.
+pub fn frame_outside_packet(packet: &Packet, local: usize) -> Error {
+    Error::InvalidAnimation(format!(
+        "frame {local} of a packet of {} frames (frames {}..{}) is outside it",
+        packet.frame_count,
+        packet.first_frame,
+        u64::from(packet.first_frame) + u64::from(packet.frame_count)
+    ))
+}
+
+/// The parsed forms of the packets a decoder was last asked frames of (a codec's dictionaries,
+/// factors or coefficients before the frames are formed), so that each further frame of a kept
+/// packet costs one frame. A packet is recognised by its first frame, frame count, keyframe flag
+/// and bytes (a copy is kept: packets are small next to what they decode to).
+///
+/// By default only the last packet is kept. [`ParsedPacket::set_budget`] keeps more, the most
+/// recently used first, while their sizes (as the codec reports them to
+/// [`ParsedPacket::keep`]) add up to at most the budget: random access over a whole stream then
+/// parses every packet once.
+#[derive(Debug)]
+pub struct ParsedPacket<T> {
+    /// Most recently used last: (packet, parse, its bytes).
+    kept: Vec<(Packet, T, u64)>,
+    budget: u64,
+}
+
+impl<T> Default for ParsedPacket<T> {
+    fn default() -> Self {
+        Self { kept: Vec::new(), budget: 0 }
+    }
+}
+
+impl<T> ParsedPacket<T> {
+    /// Keeps parses while their bytes (and their packets') add up to at most `bytes` (the last
+    /// one is kept whatever its size).
+    pub fn set_budget(&mut self, bytes: u64) {
+        self.budget = bytes;
+        if let Some(last) = self.kept.pop() {
+            self.evict(last.2);
+            self.kept.push(last);
+        }
+    }
+
+    fn position(&self, packet: &Packet) -> Option<usize> {
+        self.kept.iter().rposition(|(p, _, _)| {
+            p.first_frame == packet.first_frame
+                && p.frame_count == packet.frame_count
+                && p.keyframe == packet.keyframe
+                && p.data == packet.data
+        })
+    }
+
+    /// Whether the parse of `packet` is kept.
+    pub fn holds(&self, packet: &Packet) -> bool {
+        self.position(packet).is_some()
+    }
+
+    /// The kept parse of `packet`, if it is kept (it becomes the most recently used).
+    pub fn get(&mut self, packet: &Packet) -> Option<&T> {
+        let i = self.position(packet)?;
+        let entry = self.kept.remove(i);
+        self.kept.push(entry);
+        self.kept.last().map(|(_, parsed, _)| parsed)
+    }
+
+    /// Keeps `parsed`, of `bytes` bytes, as the parse of `packet`, dropping the least recently
+    /// used parses beyond the budget.
+    pub fn keep(&mut self, packet: &Packet, parsed: T, bytes: u64) -> &T {
+        if let Some(i) = self.position(packet) {
+            self.kept.remove(i);
+        }
+        let bytes = bytes.saturating_add(packet.data.len() as u64);
+        self.evict(bytes);
+        self.kept.push((Packet { data: packet.data.clone(), ..*packet }, parsed, bytes));
+        &self.kept[self.kept.len() - 1].1
+    }
+
+    /// Drops the least recently used parses until `more` bytes fit the budget with the rest.
+    fn evict(&mut self, more: u64) {
+        let mut total = self.kept.iter().map(|k| k.2).fold(more, u64::saturating_add);
+        while total > self.budget && !self.kept.is_empty() {
+            total -= self.kept.remove(0).2;
+        }
+    }
+
+    /// Drops every kept parse.
+    pub fn clear(&mut self) {
+        self.kept.clear();
+    }
 }
 
 /// A codec: identity, parameters, rate knob, and factories for encoders and decoders.
@@ -398,5 +522,37 @@ impl<C: TypedCodec> AnimationCodec for C {
     }
     fn new_decoder(&self, info: &StreamInfo, config: &[u8], limits: &Limits) -> Result<Box<dyn FrameDecoder>> {
         self.decoder(info, config, limits)
+    }
+}
+
+#[cfg(test)]
+mod parsed_packet_tests {
+    use super::*;
+
+    fn packet(first: u32, byte: u8) -> Packet {
+        Packet { first_frame: first, frame_count: 2, keyframe: true, data: vec![byte; 10] }
+    }
+
+    /// Without a budget only the last parse is kept; with one, the most recently used parses
+    /// that fit it (packet bytes included), the least recently used dropped first; a packet
+    /// with other bytes is another packet.
+    #[test]
+    fn kept_parses_follow_the_budget_least_recently_used_first() {
+        let mut kept = ParsedPacket::default();
+        kept.keep(&packet(0, 1), "a", 100);
+        kept.keep(&packet(2, 1), "b", 100);
+        assert!(!kept.holds(&packet(0, 1)) && kept.holds(&packet(2, 1)));
+        assert!(!kept.holds(&packet(2, 9)), "same frames, other bytes");
+        kept.set_budget(330);
+        kept.keep(&packet(0, 1), "a", 100);
+        kept.keep(&packet(4, 1), "c", 100);
+        assert_eq!(kept.get(&packet(2, 1)), Some(&"b")); // now the most recently used
+        kept.keep(&packet(6, 1), "d", 100); // 4 × 110 > 330: the least recently used ("a") goes
+        assert!(!kept.holds(&packet(0, 1)));
+        assert!(kept.holds(&packet(2, 1)) && kept.holds(&packet(4, 1)) && kept.holds(&packet(6, 1)));
+        kept.set_budget(0);
+        assert!(kept.holds(&packet(6, 1)) && !kept.holds(&packet(2, 1)), "the last one stays");
+        kept.clear();
+        assert!(!kept.holds(&packet(6, 1)));
     }
 }

@@ -36,8 +36,8 @@ pub struct ReadmeDoctests;
 
 pub use animation::{Animation, Topology};
 pub use codec::{
-    AnimationCodec, EncodedPacket, EncoderSetup, ErrorBound, FourCc, FrameDecoder, FrameEncoder, Packet, StreamInfo,
-    TypedCodec,
+    AnimationCodec, EncodedPacket, EncoderSetup, ErrorBound, FourCc, FrameDecoder, FrameEncoder, Packet, ParsedPacket,
+    StreamInfo, TypedCodec,
 };
 pub use error::{Error, Result};
 pub use limits::Limits;
@@ -49,6 +49,6 @@ pub use params::{
 pub use quant::Quantizer;
 pub use registry::CodecRegistry;
 pub use stream::{
-    decode_animation, decode_frame, decode_packet_checked, encode_animation, encode_animation_fed,
-    random_access_limits, DecodedPacket, Encoded, StreamDecoder, StreamEncoder,
+    decode_animation, decode_frame, decode_frame_checked, decode_packet_checked, encode_animation,
+    encode_animation_fed, random_access_limits, DecodedPacket, Encoded, StreamDecoder, StreamEncoder,
 };

@@ -471,6 +471,30 @@ pub fn decode_packet_checked(
     Ok(positions)
 }
 
+/// Frame `local` of `packet` by [`FrameDecoder::decode_frame_of_packet`], checked as
+/// [`decode_packet_checked`] checks a packet: the packet's frames are charged to `limits` first
+/// (what a codec's parse of the packet may hold, and the check every decode path makes, so a
+/// stream too large for the limits is refused with the same message), and the frame must have
+/// one frame's shape and be finite.
+pub fn decode_frame_checked(
+    decoder: &mut dyn FrameDecoder,
+    codec: &'static str,
+    header: &Header,
+    packet: &Packet,
+    local: usize,
+    limits: &Limits,
+) -> Result<Vec<f32>> {
+    if local >= packet.frame_count as usize {
+        return Err(crate::codec::frame_outside_packet(packet, local));
+    }
+    limits.check_alloc(codec, "the decoded packet", packet_alloc(header, packet.frame_count as u64))?;
+    let frame = decoder.decode_frame_of_packet(packet, local)?;
+    let one =
+        Packet { first_frame: packet.first_frame + local as u32, frame_count: 1, keyframe: false, data: Vec::new() };
+    check_decoded(codec, header, &one, &frame)?;
+    Ok(frame)
+}
+
 /// The limits left for a codec decoder that random access builds: `limits` less the packet
 /// `index` and the topology, which are held while it decodes (what [`decode_frame`] charges).
 pub fn random_access_limits(
@@ -615,14 +639,14 @@ pub fn decode_frame<R: Read + Seek>(
     let decoder_limits = random_access_limits(codec.name(), &header, &index, limits)?;
     let mut decoder = codec.new_decoder(&header.info, &header.config, &decoder_limits)?;
     decoder.reset();
-    let v3 = header.info.vertex_count() * 3;
     for entry in &index[start..=target] {
         let packet = container::read_packet_at(src, entry, &header, limits)?;
-        let positions = decode_packet_checked(decoder.as_mut(), codec.name(), &header, &packet, &limits)?;
         if entry.first_frame as usize + entry.frame_count as usize > t {
+            // The frame's packet: only that frame, where the codec can form it alone.
             let local = t - entry.first_frame as usize;
-            return Ok(positions[local * v3..(local + 1) * v3].to_vec());
+            return decode_frame_checked(decoder.as_mut(), codec.name(), &header, &packet, local, &limits);
         }
+        decode_packet_checked(decoder.as_mut(), codec.name(), &header, &packet, &limits)?;
     }
     Err(Error::malformed(codec.name(), "index", format!("no packet holds frame {t}")))
 }

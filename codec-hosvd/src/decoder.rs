@@ -5,10 +5,10 @@ use codec_core::bytes::ByteReader;
 use codec_core::toolkit::order::{self, CausalGraph};
 use codec_core::toolkit::predict::Predictor;
 use codec_core::toolkit::regress::Neighbourhoods;
-use codec_core::{entropy, Error, FrameDecoder, Limits, Packet, Result, StreamInfo};
+use codec_core::{entropy, Error, FrameDecoder, Limits, Packet, ParsedPacket, Result, StreamInfo};
 
 use crate::memory::decode_work;
-use crate::tensor::{self, Affine, Model};
+use crate::tensor::{Affine, Model, Prepared};
 use crate::{coding, motion, paper};
 use crate::{CENTRE_BYTES, FLAG_CENTRE, FLAG_DENOISE, FLAG_MOTION, FLAG_REGRESS, FLAG_TOOLKIT, NAME, STREAM_VERSION};
 
@@ -26,6 +26,8 @@ struct HosvdDecoder {
     graph: MeshOrder,
     /// Stream version (3 allows [`FLAG_MOTION`]).
     version: u16,
+    /// The last packet parsed, for further frames of it.
+    parsed: ParsedPacket<Parsed>,
 }
 
 /// [`AnimationCodec::new_decoder`](codec_core::AnimationCodec::new_decoder): reads the stream
@@ -51,7 +53,13 @@ pub(crate) fn new_decoder(info: &StreamInfo, config: &[u8], limits: &Limits) -> 
     } else {
         MeshOrder::Unavailable
     };
-    Ok(Box::new(HosvdDecoder { k: info.vertex_count(), limits: *limits, graph, version: info.codec_version }))
+    Ok(Box::new(HosvdDecoder {
+        k: info.vertex_count(),
+        limits: *limits,
+        graph,
+        version: info.codec_version,
+        parsed: ParsedPacket::default(),
+    }))
 }
 
 impl HosvdDecoder {
@@ -126,8 +134,9 @@ impl HosvdDecoder {
     }
 
     /// A packet without `FLAG_CENTRE` (every packet of versions 1 to 5; a version 6 packet
-    /// after [`FrameDecoder::decode_packet`] took its centre off).
-    fn decode_uncentred(&mut self, packet: &Packet) -> Result<Vec<f32>> {
+    /// after [`HosvdDecoder::parse`] took its centre off), up to the last step of its
+    /// reconstruction.
+    fn parse_uncentred(&mut self, packet: &Packet) -> Result<Prepared> {
         let (k, frames) = (self.k, packet.frame_count as usize);
         if k == 0 || frames == 0 {
             return Err(Error::malformed(NAME, "packet", "no vertices or no frames"));
@@ -193,7 +202,7 @@ impl HosvdDecoder {
             (u1, u3, core, transforms)
         };
         let model = Model { k, frames, v, f, u1, u2, u3, core, transforms };
-        Ok(tensor::reconstruct(&model))
+        Ok(Prepared::new(&model))
     }
 
     /// The rest of a toolkit-coded packet after its side block's `U2` and transforms: the
@@ -266,14 +275,31 @@ fn read_ranks(r: &mut ByteReader<'_>, k: usize, frames: usize) -> Result<(usize,
     Ok((v as usize, f as usize))
 }
 
-impl FrameDecoder for HosvdDecoder {
-    /// Stream version 6: a packet with `FLAG_CENTRE` ends with the centre the
-    /// encoder subtracted; the rest, with that flag cleared, is a version 5 packet. The centre
-    /// is added to every decoded coordinate ([`add_centre`]).
-    fn decode_packet(&mut self, packet: &Packet) -> Result<Vec<f32>> {
+/// A packet parsed up to the last step of its reconstruction, and the centre its frames get
+/// (stream version 6).
+struct Parsed {
+    prepared: Prepared,
+    centre: Option<[f32; 3]>,
+}
+
+impl Parsed {
+    /// Frames `t` for `t` in `frames` (all of them, or one), with the centre added.
+    fn finish(&self, mut out: Vec<f32>) -> Result<Vec<f32>> {
+        if let Some(centre) = self.centre {
+            add_centre(&mut out, centre)?;
+        }
+        Ok(out)
+    }
+}
+
+impl HosvdDecoder {
+    /// Stream version 6: a packet with `FLAG_CENTRE` ends with the centre the encoder
+    /// subtracted; the rest, with that flag cleared, is a version 5 packet. The centre is added
+    /// to every decoded coordinate ([`add_centre`]).
+    fn parse(&mut self, packet: &Packet) -> Result<Parsed> {
         let centred = packet.data.first().is_some_and(|&flags| flags & FLAG_CENTRE != 0);
         if !centred {
-            return self.decode_uncentred(packet);
+            return Ok(Parsed { prepared: self.parse_uncentred(packet)?, centre: None });
         }
         if self.version < 6 {
             return Err(Error::malformed(
@@ -293,9 +319,47 @@ impl FrameDecoder for HosvdDecoder {
         let mut data = packet.data[..split].to_vec();
         data[0] &= !FLAG_CENTRE;
         let inner = Packet { data, ..*packet };
-        let mut out = self.decode_uncentred(&inner)?;
-        add_centre(&mut out, centre)?;
-        Ok(out)
+        Ok(Parsed { prepared: self.parse_uncentred(&inner)?, centre: Some(centre) })
+    }
+
+    /// `packet` parsed: kept from an earlier call when it is a kept packet.
+    fn parsed(&mut self, packet: &Packet) -> Result<&Parsed> {
+        if !self.parsed.holds(packet) {
+            let parsed = self.parse(packet)?;
+            let bytes = parsed.prepared.bytes();
+            return Ok(self.parsed.keep(packet, parsed, bytes));
+        }
+        self.parsed.get(packet).ok_or_else(|| Error::malformed(NAME, "packet", "not parsed"))
+    }
+}
+
+impl FrameDecoder for HosvdDecoder {
+    /// Uses the kept parse when `packet` is a packet asked a frame of; otherwise parses without
+    /// keeping it (sequential decoding holds no more than one packet's model).
+    fn decode_packet(&mut self, packet: &Packet) -> Result<Vec<f32>> {
+        if let Some(parsed) = self.parsed.get(packet) {
+            return parsed.finish(parsed.prepared.frames());
+        }
+        let parsed = self.parse(packet)?;
+        parsed.finish(parsed.prepared.frames())
+    }
+
+    /// Every packet decodes alone; frame `t` is `U1` against that frame's loadings
+    /// (`U2 · core · row t of U3`) and mapped by its transform, once the packet is parsed.
+    fn decode_frame_of_packet(&mut self, packet: &Packet, local: usize) -> Result<Vec<f32>> {
+        if local >= packet.frame_count as usize {
+            return Err(codec_core::codec::frame_outside_packet(packet, local));
+        }
+        let parsed = self.parsed(packet)?;
+        parsed.finish(parsed.prepared.frame(local))
+    }
+
+    fn decodes_single_frames(&self) -> bool {
+        true
+    }
+
+    fn keep_parsed_packets(&mut self, bytes: u64) {
+        self.parsed.set_budget(bytes);
     }
 }
 

@@ -518,25 +518,64 @@ pub struct Model {
 /// the reference. Frames are split over rayon's threads (disjoint output ranges). On x86-64
 /// with AVX2 (runtime-detected by `pulp`) the kernel is compiled for 256-bit vectors.
 pub fn reconstruct(m: &Model) -> Vec<f32> {
-    let (k, frames, v) = (m.k, m.frames, m.v);
-    let d = frame_loadings(m);
-    let mut out = vec![0.0f32; frames * k * 3];
-    if k == 0 || frames == 0 {
-        return out;
+    Prepared::new(m).frames()
+}
+
+/// A model made ready for [`reconstruct`]'s last step: the per-frame loadings `D`, `U1` in
+/// lanes and the transforms in f64. Any frame is then formed alone at the cost of one frame,
+/// with the bits the whole reconstruction gives it (the kernel's output for frame `t` reads
+/// only `D[t]`, the lanes and transform `t`).
+pub struct Prepared {
+    packed: Vec<f64>,
+    d: Vec<f64>,
+    transforms: Vec<([f64; 9], [f64; 3])>,
+    k: usize,
+    v: usize,
+    frames: usize,
+}
+
+impl Prepared {
+    /// `D` and the lanes of `m` (`O(v·f·(3 + F) + K·v)`).
+    pub fn new(m: &Model) -> Self {
+        let (k, frames, v) = (m.k, m.frames, m.v);
+        let d = frame_loadings(m);
+        let packed = pack_lanes(&m.u1, k, v);
+        let transforms = m.transforms.iter().map(|a| (a.m.map(|x| x as f64), a.c.map(|x| x as f64))).collect();
+        Self { packed, d, transforms, k, v, frames }
     }
-    let packed = pack_lanes(&m.u1, k, v);
-    let transforms: Vec<([f64; 9], [f64; 3])> =
-        m.transforms.iter().map(|a| (a.m.map(|x| x as f64), a.c.map(|x| x as f64))).collect();
-    // Enough chunks to keep every thread busy; the split never changes a value.
-    let threads = rayon::current_num_threads().max(1);
-    let per_chunk = frames.div_ceil(threads * 2).max(1);
-    use rayon::prelude::*;
-    out.par_chunks_mut(per_chunk * k * 3).enumerate().for_each(|(c, o)| {
-        let t0 = c * per_chunk;
-        let job = KernelJob { packed: &packed, d: &d, transforms: &transforms, k, v, t0 };
-        job.run(o);
-    });
-    out
+
+    /// Bytes held (the loadings, the lanes and the transforms).
+    pub fn bytes(&self) -> u64 {
+        (self.packed.len() as u64 + self.d.len() as u64 + 12 * self.transforms.len() as u64) * 8
+    }
+
+    /// Every frame (`F × K × 3`), split over rayon's threads.
+    pub fn frames(&self) -> Vec<f32> {
+        let (k, frames) = (self.k, self.frames);
+        let mut out = vec![0.0f32; frames * k * 3];
+        if k == 0 || frames == 0 {
+            return out;
+        }
+        // Enough chunks to keep every thread busy; the split never changes a value.
+        let threads = rayon::current_num_threads().max(1);
+        let per_chunk = frames.div_ceil(threads * 2).max(1);
+        use rayon::prelude::*;
+        out.par_chunks_mut(per_chunk * k * 3).enumerate().for_each(|(c, o)| self.job(c * per_chunk).run(o));
+        out
+    }
+
+    /// Frame `t` (`< F`) alone (`K × 3`).
+    pub fn frame(&self, t: usize) -> Vec<f32> {
+        let mut out = vec![0.0f32; self.k * 3];
+        if self.k > 0 && t < self.frames {
+            self.job(t).run(&mut out);
+        }
+        out
+    }
+
+    fn job(&self, t0: usize) -> KernelJob<'_> {
+        KernelJob { packed: &self.packed, d: &self.d, transforms: &self.transforms, k: self.k, v: self.v, t0 }
+    }
 }
 
 /// Vertices per block of the reconstruction kernel (four 256-bit vectors of f64).

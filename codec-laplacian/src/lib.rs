@@ -32,7 +32,8 @@ mod packet;
 mod params;
 
 use codec_core::codec::{
-    EncodedPacket, EncoderSetup, ErrorBound, FourCc, FrameDecoder, FrameEncoder, Packet, StreamInfo, TypedCodec,
+    EncodedPacket, EncoderSetup, ErrorBound, FourCc, FrameDecoder, FrameEncoder, Packet, ParsedPacket, StreamInfo,
+    TypedCodec,
 };
 use codec_core::params::{RateLadder, SearchAxis, SearchSpace, Setting};
 use codec_core::toolkit::order::{mesh_bytes, CausalGraph};
@@ -124,7 +125,12 @@ impl TypedCodec for Laplacian {
         let topology = &info.topology;
         limits.check_alloc(NAME, "vertex order", mesh_bytes(topology.vertex_count(), topology.triangles().len()))?;
         let graph = CausalGraph::mesh(topology.vertex_count(), topology.triangles());
-        Ok(Box::new(LaplacianDecoder { graph, triangles: topology.triangles().to_vec(), limits: *limits }))
+        Ok(Box::new(LaplacianDecoder {
+            graph,
+            triangles: topology.triangles().to_vec(),
+            limits: *limits,
+            parsed: ParsedPacket::default(),
+        }))
     }
 }
 
@@ -189,14 +195,55 @@ struct LaplacianDecoder {
     graph: CausalGraph,
     triangles: Vec<[u32; 3]>,
     limits: Limits,
+    /// The last packet parsed, for further frames of it.
+    parsed: ParsedPacket<packet::Parsed>,
 }
 
-impl FrameDecoder for LaplacianDecoder {
-    fn decode_packet(&mut self, packet: &Packet) -> Result<Vec<f32>> {
+impl LaplacianDecoder {
+    /// `packet` up to its frames.
+    fn parse(&self, packet: &Packet) -> Result<packet::Parsed> {
         if !packet.keyframe {
             return Err(Error::malformed(NAME, "packet", "every packet of this codec is a keyframe".to_owned()));
         }
-        packet::decode(&packet.data, &self.graph, &self.triangles, packet.frame_count as usize, &self.limits)
+        packet::parse(&packet.data, &self.graph, &self.triangles, packet.frame_count as usize, &self.limits)
+    }
+
+    /// `packet` up to its frames: kept from an earlier call when it is a kept packet.
+    fn parsed(&mut self, packet: &Packet) -> Result<&packet::Parsed> {
+        if !self.parsed.holds(packet) {
+            let parsed = self.parse(packet)?;
+            let bytes = parsed.bytes();
+            return Ok(self.parsed.keep(packet, parsed, bytes));
+        }
+        self.parsed.get(packet).ok_or_else(|| Error::malformed(NAME, "packet", "not parsed"))
+    }
+}
+
+impl FrameDecoder for LaplacianDecoder {
+    /// Uses the kept parse when `packet` is a packet asked a frame of; otherwise parses without
+    /// keeping it (sequential decoding holds no more than one packet's planes).
+    fn decode_packet(&mut self, packet: &Packet) -> Result<Vec<f32>> {
+        if let Some(parsed) = self.parsed.get(packet) {
+            return parsed.all_frames();
+        }
+        self.parse(packet)?.all_frames()
+    }
+
+    /// Every packet decodes alone; a frame is one row of the temporal basis (and of the
+    /// centroid trajectory) against the coefficients, once the packet is parsed.
+    fn decode_frame_of_packet(&mut self, packet: &Packet, local: usize) -> Result<Vec<f32>> {
+        if local >= packet.frame_count as usize {
+            return Err(codec_core::codec::frame_outside_packet(packet, local));
+        }
+        self.parsed(packet)?.frame(local)
+    }
+
+    fn decodes_single_frames(&self) -> bool {
+        true
+    }
+
+    fn keep_parsed_packets(&mut self, bytes: u64) {
+        self.parsed.set_budget(bytes);
     }
 }
 

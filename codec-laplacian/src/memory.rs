@@ -1,6 +1,6 @@
 //! The encoder's memory model: peak bytes per block of frames, what
 //! [`AnimationCodec::fit_memory`](codec_core::AnimationCodec::fit_memory) sizes blocks with.
-//! The decoder's memory and work are checked per packet in `packet::decode` and
+//! The decoder's memory and work are checked per packet in `packet::parse` and
 //! `operator::Operator::new`, before they are spent.
 
 use codec_core::Result;

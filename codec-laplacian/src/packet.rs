@@ -170,7 +170,7 @@ impl Header {
 /// What both sides hold after the codes: the decoded average mesh (vertex order, `V × 3`), the
 /// centroid trajectory (`3F`), the basis (`3F × N`, column-major) and the coefficients
 /// (`V × N`, column-major).
-struct Decoded {
+pub(crate) struct Decoded {
     avg: Vec<f64>,
     centroid: Vec<f64>,
     basis: Vec<f64>,
@@ -180,22 +180,81 @@ struct Decoded {
 impl Decoded {
     /// The frames, `f32`, frame-major.
     fn frames(&self, v: usize, frames: usize) -> Vec<f32> {
-        let n = self.basis.len() / (3 * frames).max(1);
         let mut out = Vec::with_capacity(frames * v * 3);
         for t in 0..frames {
-            for x in 0..v {
-                for k in 0..3 {
-                    let r = 3 * t + k;
-                    let mut s = self.avg[x * 3 + k] + self.centroid[r];
-                    for j in 0..n {
-                        s += self.coeffs[j * v + x] * self.basis[j * 3 * frames + r];
-                    }
-                    out.push(s as f32);
-                }
-            }
+            self.push_frame(t, v, frames, &mut out);
         }
         out
     }
+
+    /// Appends frame `t` of `frames` to `out`: the mean, the centroid and one row of the
+    /// temporal basis against the coefficients (the same sums, in the same order, for one frame
+    /// or all).
+    fn push_frame(&self, t: usize, v: usize, frames: usize, out: &mut Vec<f32>) {
+        let n = self.basis.len() / (3 * frames).max(1);
+        for x in 0..v {
+            for k in 0..3 {
+                let r = 3 * t + k;
+                let mut s = self.avg[x * 3 + k] + self.centroid[r];
+                for j in 0..n {
+                    s += self.coeffs[j * v + x] * self.basis[j * 3 * frames + r];
+                }
+                out.push(s as f32);
+            }
+        }
+    }
+}
+
+/// A decoded packet before its frames are formed: raw frames as stored, or the coded
+/// packet's mean, centroid trajectory, basis and coefficients.
+pub(crate) enum Parsed {
+    Raw { data: Vec<f32>, frames: usize },
+    Coded { decoded: Decoded, v: usize, frames: usize },
+}
+
+impl Parsed {
+    /// Every frame (`F × V × 3`).
+    pub(crate) fn all_frames(&self) -> Result<Vec<f32>> {
+        let out = match self {
+            Parsed::Raw { data, .. } => data.clone(),
+            Parsed::Coded { decoded, v, frames } => decoded.frames(*v, *frames),
+        };
+        finite(out)
+    }
+
+    /// Bytes held.
+    pub(crate) fn bytes(&self) -> u64 {
+        match self {
+            Parsed::Raw { data, .. } => data.len() as u64 * 4,
+            Parsed::Coded { decoded: d, .. } => {
+                (d.avg.len() + d.centroid.len() + d.basis.len() + d.coeffs.len()) as u64 * 8
+            }
+        }
+    }
+
+    /// Frame `t` alone (`t` < the packet's frames, checked by the caller).
+    pub(crate) fn frame(&self, t: usize) -> Result<Vec<f32>> {
+        let out = match self {
+            Parsed::Raw { data, frames } => {
+                let per = data.len() / frames.max(&1);
+                data[t * per..(t + 1) * per].to_vec()
+            }
+            Parsed::Coded { decoded, v, frames } => {
+                let mut out = Vec::with_capacity(v * 3);
+                decoded.push_frame(t, *v, *frames, &mut out);
+                out
+            }
+        };
+        finite(out)
+    }
+}
+
+/// `out`, or the error of its first non-finite coordinate.
+fn finite(out: Vec<f32>) -> Result<Vec<f32>> {
+    if let Some(x) = out.iter().find(|x: &&f32| !x.is_finite()) {
+        return Err(Error::malformed(NAME, "packet", format!("decodes to a non-finite coordinate {x}")));
+    }
+    Ok(out)
 }
 
 /// An encoded packet's bytes and the frames it decodes to.
@@ -457,33 +516,30 @@ fn solve_normal(g: &Mat<f64>, xb: &Mat<f64>) -> Option<Vec<f64>> {
     Some(out)
 }
 
-/// Decodes one packet of `frames` frames; `limits` bounds its memory and work (checked before
-/// either is spent).
-pub(crate) fn decode(
+/// Decodes one packet of `frames` frames up to its frames ([`Parsed`]); `limits` bounds its
+/// memory and work (checked before either is spent), that of every frame included.
+pub(crate) fn parse(
     data: &[u8],
     graph: &CausalGraph,
     triangles: &[[u32; 3]],
     frames: usize,
     limits: &Limits,
-) -> Result<Vec<f32>> {
+) -> Result<Parsed> {
     let v = graph.len();
     let coords = Limits::product(&[frames as u64, v as u64, 3]);
     limits.check_alloc(NAME, "decoded frames", coords.saturating_mul(4))?;
     let mut r = ByteReader::new(data, NAME);
-    let out = match r.u8("mode")? {
+    match r.u8("mode")? {
         MODE_RAW => {
             let len = usize::try_from(coords.saturating_mul(4)).unwrap_or(usize::MAX);
             let bytes = r.take(len, "raw frames")?;
             r.expect_end("raw frames")?;
-            bytes.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect()
+            let data = bytes.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
+            Ok(Parsed::Raw { data, frames })
         }
-        MODE_CODED => decode_coded(&mut r, graph, triangles, frames, limits)?,
-        m => return Err(r.malformed("mode", format!("{m} (0 coded, 1 raw)"))),
-    };
-    if let Some(x) = out.iter().find(|x: &&f32| !x.is_finite()) {
-        return Err(Error::malformed(NAME, "packet", format!("decodes to a non-finite coordinate {x}")));
+        MODE_CODED => Ok(Parsed::Coded { decoded: decode_coded(&mut r, graph, triangles, frames, limits)?, v, frames }),
+        m => Err(r.malformed("mode", format!("{m} (0 coded, 1 raw)"))),
     }
-    Ok(out)
 }
 
 fn decode_coded(
@@ -492,7 +548,7 @@ fn decode_coded(
     triangles: &[[u32; 3]],
     f: usize,
     limits: &Limits,
-) -> Result<Vec<f32>> {
+) -> Result<Decoded> {
     let v = graph.len();
     if v == 0 || f == 0 {
         return Err(r.malformed("mode", "a coded packet with no vertices or no frames".to_owned()));
@@ -584,5 +640,5 @@ fn decode_coded(
         }
     }
     dec.finish()?;
-    Ok(Decoded { avg, centroid, basis, coeffs }.frames(v, f))
+    Ok(Decoded { avg, centroid, basis, coeffs })
 }

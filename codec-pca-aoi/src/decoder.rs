@@ -4,12 +4,13 @@
 use codec_core::bytes::ByteReader;
 use codec_core::toolkit::order::{self, CausalGraph};
 use codec_core::toolkit::predict::Predictor;
-use codec_core::{Error, FrameDecoder, Limits, Packet, Result, StreamInfo, Topology};
+use codec_core::{Error, FrameDecoder, Limits, Packet, ParsedPacket, Result, StreamInfo, Topology};
 use faer::Mat;
 
 use crate::params::{Coding, PcaAoiParams};
 use crate::payload::{
-    check_matrices, layouts, matrix_dims, read_domain, read_means, spend_cluster, Resolved, RECONSTRUCT_VERTICES,
+    check_matrices, layouts, matrix_dims, read_domain, read_means, spend_cluster, DecodedCluster, Resolved,
+    RECONSTRUCT_VERTICES,
 };
 use crate::{cluster, coding, linalg, paper};
 use crate::{CODING_PAPER, CODING_TOOLKIT, MAX_BLOCK, MAX_CLUSTERS, NAME};
@@ -36,6 +37,8 @@ pub struct PcaAoiDecoder {
     vertex_count: usize,
     clusters: Vec<Vec<u32>>,
     limits: Limits,
+    /// The packets asked a frame of, parsed.
+    parsed: ParsedPacket<Vec<DecodedCluster>>,
 }
 
 impl PcaAoiDecoder {
@@ -89,6 +92,7 @@ impl PcaAoiDecoder {
             vertex_count: v,
             clusters: cluster::partition(&info.topology, clusters as usize),
             limits: *limits,
+            parsed: ParsedPacket::default(),
         })
     }
 
@@ -108,7 +112,7 @@ impl PcaAoiDecoder {
                 meshes: MeshOrders::Built(graphs),
             },
         };
-        Self { coding, vertex_count, clusters, limits: Limits::default() }
+        Self { coding, vertex_count, clusters, limits: Limits::default(), parsed: ParsedPacket::default() }
     }
 
     /// Builds the clusters' mesh coding orders on first use, once their size passed the limits.
@@ -136,9 +140,9 @@ impl PcaAoiDecoder {
         cluster::partition(topology, clusters)
     }
 
-    /// Decodes cluster `c`'s payload of a packet of `d` frames into `out`, charging its work to
-    /// `limits`.
-    fn decode_cluster(&self, limits: &mut Limits, payload: &[u8], d: usize, c: usize, out: &mut [f32]) -> Result<()> {
+    /// Decodes cluster `c`'s payload of a packet of `d` frames up to its matrices, charging its
+    /// work to `limits`.
+    fn decode_cluster(&self, limits: &mut Limits, payload: &[u8], d: usize, c: usize) -> Result<DecodedCluster> {
         let verts = &self.clusters[c];
         let (dict_bits, feat_bits) = match &self.coding {
             DecoderCoding::Paper { dict_bits, feat_bits } => (*dict_bits, *feat_bits),
@@ -146,12 +150,65 @@ impl PcaAoiDecoder {
                 let MeshOrders::Built(graphs) = meshes else {
                     return Err(Error::malformed(NAME, "cluster", "mesh coding order not built"));
                 };
-                return self.decode_toolkit_cluster(limits, payload, d, verts, &graphs[c], *mesh, *time, out);
+                return self.decode_toolkit_cluster(limits, payload, d, verts, &graphs[c], *mesh, *time);
             }
         };
-        let c = paper::decode_cluster(payload, d, verts.len(), (dict_bits, feat_bits), &self.limits, limits)?;
-        self.write_cluster(c.e_hat.as_ref(), c.f_hat.as_ref(), &c.means, c.domain, verts, out);
-        Ok(())
+        paper::decode_cluster(payload, d, verts.len(), (dict_bits, feat_bits), &self.limits, limits)
+    }
+
+    /// A packet up to its clusters' matrices (every check and the work charged as for its
+    /// frames).
+    fn parse(&mut self, packet: &Packet) -> Result<Vec<DecodedCluster>> {
+        let d = packet.frame_count as usize;
+        if d == 0 {
+            return Err(Error::malformed(NAME, "packet.frame_count", "a packet holds at least one frame"));
+        }
+        // Packets never hold more frames than `block`'s range allows; refusing longer ones
+        // bounds the rank, and with it the reconstruction work per decoded value.
+        if d > MAX_BLOCK && matches!(self.coding, DecoderCoding::Toolkit { .. }) {
+            return Err(Error::malformed(
+                NAME,
+                "packet.frame_count",
+                format!("{d} exceeds the longest block the encoder writes ({MAX_BLOCK})"),
+            ));
+        }
+        let len = d as u64 * self.vertex_count as u64 * 3;
+        self.limits.check_alloc(NAME, "packet.frames", len * 4)?;
+        self.build_meshes()?;
+        let mut r = ByteReader::new(&packet.data, NAME);
+        // Each cluster's work is charged (`--max-work`) before it is decoded.
+        let mut limits = self.limits;
+        let mut clusters = Vec::with_capacity(self.clusters.len());
+        for c in 0..self.clusters.len() {
+            let payload = r.length_prefixed("cluster.payload")?;
+            clusters.push(self.decode_cluster(&mut limits, payload, d, c)?);
+        }
+        r.expect_end("packet")?;
+        self.limits = limits;
+        Ok(clusters)
+    }
+
+    /// Every frame of a parsed packet of `d` frames.
+    fn frames(&self, parsed: &[DecodedCluster], d: usize) -> Vec<f32> {
+        let mut out = vec![0f32; d * self.vertex_count * 3];
+        for (c, verts) in parsed.iter().zip(&self.clusters) {
+            self.write_cluster(c.e_hat.as_ref(), c.f_hat.as_ref(), &c.means, c.domain, verts, &mut out);
+        }
+        out
+    }
+
+    /// Frame `t` of a parsed packet alone: per cluster, the three rows (temporal) or columns
+    /// (spatial) of `Ê F̂` that hold frame `t`, plus its means.
+    fn frame(&self, parsed: &[DecodedCluster], t: usize) -> Vec<f32> {
+        let mut out = vec![0f32; self.vertex_count * 3];
+        for (c, verts) in parsed.iter().zip(&self.clusters) {
+            let (e_hat, f_hat) = match c.domain {
+                Resolved::Temporal => (c.e_hat.as_ref().subrows(3 * t, 3), c.f_hat.as_ref()),
+                Resolved::Spatial => (c.e_hat.as_ref(), c.f_hat.as_ref().subcols(3 * t, 3)),
+            };
+            self.write_cluster(e_hat, f_hat, &c.means[3 * t..3 * t + 3], c.domain, verts, &mut out);
+        }
+        out
     }
 
     /// Eq. 5: `D̂ = Ê F̂`, plus the stored means, into the packet's frames. The product is
@@ -195,8 +252,7 @@ impl PcaAoiDecoder {
         mesh: &CausalGraph,
         mesh_predictor: Predictor,
         time_predictor: Predictor,
-        out: &mut [f32],
-    ) -> Result<()> {
+    ) -> Result<DecodedCluster> {
         let mut r = ByteReader::new(payload, NAME);
         let domain = read_domain(&mut r)?;
         let frames = r.varint("cluster.frames")?;
@@ -225,8 +281,7 @@ impl PcaAoiDecoder {
         let settings = coding::Settings { mesh: mesh_predictor, time: time_predictor, rdq: true };
         let bytes = r.take(r.remaining(), "cluster.codes")?;
         let (e_hat, f_hat) = coding::decode(bytes, &steps, dict_layout, feat_layout, &settings)?;
-        self.write_cluster(e_hat.as_ref(), f_hat.as_ref(), &means, domain, verts, out);
-        Ok(())
+        Ok(DecodedCluster { domain, means, e_hat, f_hat })
     }
 }
 
@@ -246,40 +301,98 @@ fn reconstruct_vertices(
 }
 
 impl FrameDecoder for PcaAoiDecoder {
+    /// Uses the kept parse when `packet` is a packet asked a frame of; otherwise parses without
+    /// keeping it (sequential decoding holds no more than one packet's matrices).
     fn decode_packet(&mut self, packet: &Packet) -> Result<Vec<f32>> {
         let d = packet.frame_count as usize;
-        if d == 0 {
-            return Err(Error::malformed(NAME, "packet.frame_count", "a packet holds at least one frame"));
+        let mut kept = std::mem::take(&mut self.parsed);
+        let frames = match kept.get(packet) {
+            Some(parsed) => Ok(self.frames(parsed, d)),
+            None => self.parse(packet).map(|parsed| self.frames(&parsed, d)),
+        };
+        self.parsed = kept;
+        frames
+    }
+
+    /// Every packet decodes alone (its clusters' dictionaries and features, kept once parsed);
+    /// frame `t` is then three rows (or columns) of each cluster's `Ê F̂` plus its means.
+    fn decode_frame_of_packet(&mut self, packet: &Packet, local: usize) -> Result<Vec<f32>> {
+        if local >= packet.frame_count as usize {
+            return Err(codec_core::codec::frame_outside_packet(packet, local));
         }
-        // Packets never hold more frames than `block`'s range allows; refusing longer ones
-        // bounds the rank, and with it the reconstruction work per decoded value.
-        if d > MAX_BLOCK && matches!(self.coding, DecoderCoding::Toolkit { .. }) {
-            return Err(Error::malformed(
-                NAME,
-                "packet.frame_count",
-                format!("{d} exceeds the longest block the encoder writes ({MAX_BLOCK})"),
-            ));
-        }
-        let len = d as u64 * self.vertex_count as u64 * 3;
-        self.limits.check_alloc(NAME, "packet.frames", len * 4)?;
-        let mut out = vec![0f32; len as usize];
-        self.build_meshes()?;
-        let mut r = ByteReader::new(&packet.data, NAME);
-        // Each cluster's work is charged (`--max-work`) before it is decoded.
-        let mut limits = self.limits;
-        for c in 0..self.clusters.len() {
-            let payload = r.length_prefixed("cluster.payload")?;
-            self.decode_cluster(&mut limits, payload, d, c, &mut out)?;
-        }
-        r.expect_end("packet")?;
-        self.limits = limits;
-        Ok(out)
+        let mut kept = std::mem::take(&mut self.parsed);
+        let frame = match kept.get(packet) {
+            Some(parsed) => Ok(self.frame(parsed, local)),
+            None => self.parse(packet).map(|parsed| {
+                let bytes = parsed
+                    .iter()
+                    .map(|c| {
+                        (c.e_hat.nrows() * c.e_hat.ncols() + c.f_hat.nrows() * c.f_hat.ncols() + c.means.len()) as u64
+                            * 8
+                    })
+                    .sum();
+                let parsed = kept.keep(packet, parsed, bytes);
+                self.frame(parsed, local)
+            }),
+        };
+        self.parsed = kept;
+        frame
+    }
+
+    fn decodes_single_frames(&self) -> bool {
+        true
+    }
+
+    fn keep_parsed_packets(&mut self, bytes: u64) {
+        self.parsed.set_budget(bytes);
     }
 }
 
 #[cfg(test)]
 mod chunk_tests {
     use super::*;
+
+    /// One frame's rows (temporal) or columns (spatial) of `Ê F̂`, formed alone as
+    /// `decode_frame_of_packet` forms them, equal those of the whole product bit for bit, at
+    /// ranks, frame counts and cluster sizes from tiny to beyond the product's chunk.
+    #[test]
+    fn one_frame_of_the_product_is_bit_exact() {
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+        };
+        for (d, k, n) in [(40, 8, 2562), (1, 1, 5), (3, 3, 40), (16, 24, 700), (40, 60, RECONSTRUCT_VERTICES + 3)] {
+            for domain in [Resolved::Temporal, Resolved::Spatial] {
+                let (e_dim, m_dim) = matrix_dims(domain, n, d);
+                let k = k.min(e_dim).min(m_dim);
+                let e = Mat::from_fn(e_dim, k, |_, _| next());
+                let f = Mat::from_fn(k, m_dim, |_, _| next());
+                for start in (0..n).step_by(RECONSTRUCT_VERTICES) {
+                    let len = RECONSTRUCT_VERTICES.min(n - start);
+                    let whole = reconstruct_vertices(e.as_ref(), f.as_ref(), domain, start, len);
+                    for t in [0, d / 2, d - 1] {
+                        let (e1, f1) = match domain {
+                            Resolved::Temporal => (e.as_ref().subrows(3 * t, 3), f.as_ref()),
+                            Resolved::Spatial => (e.as_ref(), f.as_ref().subcols(3 * t, 3)),
+                        };
+                        let part = reconstruct_vertices(e1, f1, domain, start, len);
+                        for j in 0..len {
+                            for c in 0..3 {
+                                let (a, b) = match domain {
+                                    Resolved::Temporal => (part[(c, j)], whole[(3 * t + c, j)]),
+                                    Resolved::Spatial => (part[(j, c)], whole[(j, 3 * t + c)]),
+                                };
+                                assert_eq!(a.to_bits(), b.to_bits(), "d {d} k {k} n {n} {domain:?} t {t} vertex {j}");
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
 
     /// The decoder's reconstruction in chunks of vertices equals the whole product bit for bit
     /// (old streams decode to the same frames), for ranks and cluster sizes on both sides of

@@ -445,10 +445,108 @@ pub fn random_access_matches_full_decode(registry: &CodecRegistry) -> Failures {
                 if decode_frame(&mut cursor, registry, limits, anim.frame_count()).is_ok() {
                     f.push(codec.name(), format!("animation {i}: decode_frame past the end succeeded"));
                 }
+                f.count(1);
+                if let Err(e) = frames_of_packets_match_full_decode(&bytes, registry, limits, &full) {
+                    f.push(codec.name(), format!("animation {i}: {e}"));
+                }
             }
         });
     }
     failures
+}
+
+/// Every frame of the stream `bytes` through [`codec_core::FrameDecoder::decode_frame_of_packet`] on one
+/// decoder kept across requests (what the C library's playhead does) equals frame `t` of `full`,
+/// the stream's full decode, bit for bit.
+///
+/// A codec that [decodes single frames](codec_core::FrameDecoder::decodes_single_frames) is asked every frame
+/// in a scrambled order that jumps between packets and comes back to them (a kept parse and a
+/// new one), and after each packet's first frame the whole packet by `decode_packet` (which may
+/// use the kept parse); once keeping the last packet's parse only, once keeping every packet's
+/// ([`codec_core::FrameDecoder::keep_parsed_packets`]). Any other codec is asked, packet by packet in stream order from a
+/// reset, one frame each: its default hook decodes the packet and so advances the decoder as
+/// `decode_packet` does. A frame past the end of a packet is refused.
+pub fn frames_of_packets_match_full_decode(
+    bytes: &[u8],
+    registry: &CodecRegistry,
+    limits: Limits,
+    full: &Animation,
+) -> Result<(), String> {
+    use codec_core::container;
+    use codec_core::stream::{decode_frame_checked, decode_packet_checked, random_access_limits};
+    let mut src = Cursor::new(bytes);
+    let (header, index) = container::read_index(&mut src, limits).map_err(|e| format!("index: {e}"))?;
+    let codec = registry.by_fourcc(header.info.fourcc).map_err(|e| e.to_string())?;
+    let decoder_limits = random_access_limits(codec.name(), &header, &index, limits).map_err(|e| e.to_string())?;
+    let mut decoder =
+        codec.new_decoder(&header.info, &header.config, &decoder_limits).map_err(|e| format!("decoder: {e}"))?;
+    let name = codec.name();
+    let mut read = |pos: usize| -> Result<Packet, String> {
+        container::read_packet_at(&mut src, &index[pos], &header, limits).map_err(|e| format!("packet {pos}: {e}"))
+    };
+    let frames = full.frame_count();
+    let packet_of = |t: usize| index.partition_point(|e| e.first_frame as usize <= t).saturating_sub(1);
+    let expect = |t: usize, got: &[f32], how: &str| -> Result<(), String> {
+        let want = full.frame(t);
+        if got.len() != want.len() || got.iter().zip(want).any(|(a, b)| a.to_bits() != b.to_bits()) {
+            return Err(format!("frame {t} by {how} differs from the full decode"));
+        }
+        Ok(())
+    };
+    // Twice: keeping the last packet's parse only, then every packet's (a budget that holds them).
+    for budget in [0, 1 << 30] {
+        if !decoder.decodes_single_frames() {
+            break;
+        }
+        decoder =
+            codec.new_decoder(&header.info, &header.config, &decoder_limits).map_err(|e| format!("decoder: {e}"))?;
+        decoder.keep_parsed_packets(budget);
+        // A stride coprime with the frame count visits every frame once, out of order.
+        let stride = (1..=frames).rev().find(|s| s * 8 <= frames * 5 && gcd(*s, frames) == 1).unwrap_or(1);
+        let mut seen = vec![false; index.len()];
+        for i in 0..frames {
+            let t = (i * stride) % frames;
+            let pos = packet_of(t);
+            let packet = read(pos)?;
+            let local = t - index[pos].first_frame as usize;
+            let frame = decode_frame_checked(decoder.as_mut(), name, &header, &packet, local, &limits)
+                .map_err(|e| format!("frame {t}: {e}"))?;
+            expect(t, &frame, "decode_frame_of_packet")?;
+            if !std::mem::replace(&mut seen[pos], true) {
+                let all = decode_packet_checked(decoder.as_mut(), name, &header, &packet, &limits)
+                    .map_err(|e| format!("packet {pos}: {e}"))?;
+                let v3 = full.vertex_count() * 3;
+                for (j, frame) in all.chunks_exact(v3.max(1)).enumerate() {
+                    expect(index[pos].first_frame as usize + j, frame, "decode_packet after a frame of it")?;
+                }
+            }
+        }
+    }
+    if !decoder.decodes_single_frames() {
+        decoder.reset();
+        for (pos, entry) in index.iter().enumerate() {
+            let local = pos % entry.frame_count as usize;
+            let frame = decode_frame_checked(decoder.as_mut(), name, &header, &read(pos)?, local, &limits)
+                .map_err(|e| format!("packet {pos}: {e}"))?;
+            expect(entry.first_frame as usize + local, &frame, "the default decode_frame_of_packet")?;
+        }
+    }
+    if let Some(pos) = index.len().checked_sub(1) {
+        let packet = read(pos)?;
+        let past = packet.frame_count as usize;
+        if decode_frame_checked(decoder.as_mut(), name, &header, &packet, past, &limits).is_ok() {
+            return Err(format!("frame {past} of a packet of {past} frames was decoded"));
+        }
+    }
+    Ok(())
+}
+
+fn gcd(a: usize, b: usize) -> usize {
+    if b == 0 {
+        a
+    } else {
+        gcd(b, a % b)
+    }
 }
 
 // ---------------------------------------------------------------------------------------
