@@ -324,11 +324,13 @@ pub fn measure_point_streamed(
     let (_, sink, notes) = encoder.finish_with_notes()?;
     let bytes = sink.bytes;
     let encode_seconds = start.elapsed().as_secs_f64();
-    // The decoder and the metrics share the work share (the encoder is gone).
+    // The decoder and the metrics share the work share (the encoder is gone): the decoder gets
+    // what the measurement's window and frames leave.
     let limits = Limits {
         max_alloc_bytes: limits.max_alloc_bytes.min(usize::try_from(input.work_budget()).unwrap_or(usize::MAX)),
         ..limits
-    };
+    }
+    .reserve(codec.name(), "the streaming metrics' window and frames", measure_bytes_held(topology, eval))?;
     let (mut report, decode_seconds) = measure_stream_against(registry, &bytes, source, eval, limits)?;
     report.notes.extend(notes.into_iter().map(|n| format!("encoder: {n}")));
     let size = bytes.len() as u64;
