@@ -64,7 +64,7 @@ pub struct StreamingEvaluator {
     hausdorff_max: f64,
     hausdorff_sum: f64,
     /// Edges and neighbourhoods, or why STED is undefined (`None` when not requested).
-    sted: Option<std::result::Result<(Vec<[u32; 2]>, Neighbourhoods), String>>,
+    sted: Option<std::result::Result<StedMesh, String>>,
     sted_sum: f64,
     sted_empty: usize,
     diameter: f64,
@@ -73,6 +73,9 @@ pub struct StreamingEvaluator {
     previous: Option<(Vec<f32>, Vec<f32>)>,
     parts: PartState,
 }
+
+/// STED's mesh edges and every vertex's neighbourhood.
+type StedMesh = (Vec<[u32; 2]>, Neighbourhoods);
 
 /// The per-part sums (module docs).
 struct PartState {
