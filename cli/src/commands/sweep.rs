@@ -450,7 +450,7 @@ fn show_progress(bar: &Progress, event: harness::SweepEvent<'_>) {
         harness::SweepEvent::Phase { phase, phases, name, points, total } => {
             bar.set_total(total as u64);
             bar.prefix(if phases > 1 {
-                format!("sweep phase {phase}/{phases} ({name}: {points} points)")
+                format!("sweep {phase}/{phases} {name} ({points})")
             } else {
                 "sweep".to_owned()
             });

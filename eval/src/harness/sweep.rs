@@ -73,7 +73,9 @@ pub enum SweepEvent<'a> {
         phase: usize,
         /// The phases of the sweep.
         phases: usize,
-        /// What the phase measures.
+        /// What the phase measures, in a word: `ladder steps` (a plain sweep), `ladders`
+        /// (every codec's first configuration), `configurations` (the others), `neighbours`
+        /// (the ladder neighbours of their points on the envelope).
         name: &'static str,
         /// Its points.
         points: usize,
@@ -305,7 +307,7 @@ pub fn envelope_sweep<'a>(
     let phase = |phase: usize, name: &'static str, points: usize, total: usize| {
         progress(SweepEvent::Phase { phase, phases: 3, name, points, total });
     };
-    phase(1, "first configurations' ladders", first_points, first_points + second_most + third_most);
+    phase(1, "ladders", first_points, first_points + second_most + third_most);
     let mut result = sweep_phase(registry, &first, animation, options, progress)?;
     let mut second = Vec::new();
     for (head, others) in first.iter().zip(rest) {
@@ -333,14 +335,14 @@ pub fn envelope_sweep<'a>(
         }
     }
     let second_points = sweep_jobs(&second, options.points).len();
-    phase(2, "other configurations", second_points, first_points + second_points + third_most);
+    phase(2, "configurations", second_points, first_points + second_points + third_most);
     let more = sweep_phase(registry, &second, animation, options, progress)?;
     result.points.extend(more.points);
     result.failures.extend(more.failures);
     result.decoded.extend(more.decoded);
     let third = envelope_neighbours(&second, &result.points, per_config);
     let third_points = sweep_jobs(&third, options.points).len();
-    phase(3, "envelope neighbours", third_points, first_points + second_points + third_points);
+    phase(3, "neighbours", third_points, first_points + second_points + third_points);
     if !third.is_empty() {
         let more = sweep_phase(registry, &third, animation, options, progress)?;
         result.points.extend(more.points);
