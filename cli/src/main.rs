@@ -23,6 +23,10 @@ use commands::{animations, decode, demo, encode, eval, export, info, inspect, li
 /// (`.usda`, `.usdc`, `.usd`, `.usdz`: time-sampled mesh points), an `.abc` Alembic archive
 /// (PolyMesh/SubD objects, transforms baked in; `--object` picks one), or a directory / pattern of OBJ files. `synth:NAME[:SIZE]` names a built-in synthetic animation
 /// (see `animcodec synth --help`).
+///
+/// Long commands show their progress on stderr when it is a terminal (frames, points or
+/// stages done of their total, and an ETA); never when stderr is piped or with --json.
+/// ANIMCODEC_PROGRESS=never turns it off on a terminal too.
 #[derive(Debug, Parser)]
 #[command(name = "animcodec", version, propagate_version = true, max_term_width = 110)]
 struct Cli {

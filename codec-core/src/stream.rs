@@ -601,7 +601,13 @@ impl<R: Read> StreamDecoder<R> {
     }
 
     /// Decodes every packet into one animation.
-    pub fn decode_all(mut self) -> Result<Animation> {
+    pub fn decode_all(self) -> Result<Animation> {
+        self.decode_all_reporting(&mut |_| {})
+    }
+
+    /// [`StreamDecoder::decode_all`], calling `frames_done` with the number of frames decoded
+    /// so far after every packet (a progress display; the header's frame count is the total).
+    pub fn decode_all_reporting(mut self, frames_done: &mut dyn FnMut(usize)) -> Result<Animation> {
         let header = self.reader.header();
         self.reader.limits().check_alloc(
             self.codec,
@@ -609,8 +615,12 @@ impl<R: Read> StreamDecoder<R> {
             packet_alloc(header, header.info.frame_count as u64),
         )?;
         let mut positions = Vec::new();
+        let mut frames = 0;
         while let Some(p) = self.next_packet() {
-            positions.extend_from_slice(&p?.positions);
+            let p = p?;
+            positions.extend_from_slice(&p.positions);
+            frames += p.frame_count;
+            frames_done(frames);
         }
         let header = self.reader.header();
         Animation::new(header.info.topology.clone(), positions, header.info.frame_rate)?.with_metadata(header.metadata)

@@ -150,7 +150,7 @@ pub(crate) fn sweep_local<'py>(py: Python<'py>, sweep: LocalSweep<'py>) -> PyRes
                 done.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
                 ("finished", series, step)
             }
-            harness::SweepEvent::Planned(_) => return,
+            harness::SweepEvent::Phase { .. } => return,
         };
         callback.call(&serde_json::json!({
             "event": kind,

@@ -10,6 +10,8 @@ use animcodec::formats::{self, WriteOptions};
 use animcodec::output::OutputPolicy;
 use serde::Serialize;
 
+use crate::progress::Progress;
+
 use super::{emit, emit_document, CmdResult, WithContext};
 use clap::Args;
 use std::path::PathBuf;
@@ -78,15 +80,20 @@ pub fn run(args: &DecodeArgs, limits: Limits) -> CmdResult {
         return run_streaming(args, limits, &options);
     }
     let start = Instant::now();
-    let stages = crate::progress::Stages::new("decode", 2, args.json);
-    stages.stage(format!("decoding {}", args.input.display()));
     let name = || args.input.display().to_string();
     let decoder = StreamDecoder::new(open(&args.input)?, &registry, limits).in_file(&name())?;
     let codec = decoder.codec_name();
-    let animation = decoder.decode_all().in_file(&name())?;
+    // Frames decoded of the header's count, then the write (one stage: the writers take the
+    // whole animation).
+    let progress = Progress::counter("decode", decoder.header().info.frame_count as u64, "frames", args.json);
+    progress.message(format!("decoding {}", args.input.display()));
+    let animation = decoder.decode_all_reporting(&mut |frames| progress.set(frames as u64)).in_file(&name())?;
+    progress.finish();
+    drop(progress);
     let decode_seconds = start.elapsed().as_secs_f64();
 
     let write_start = Instant::now();
+    let stages = Progress::stages("decode", 1, args.json);
     stages.stage(format!("writing {}", args.output.display()));
     let written = formats::write_animation_with(&args.output, &animation, &options)?;
     drop(stages);
@@ -118,7 +125,7 @@ fn is_stream(path: &Path) -> bool {
 fn run_conversion(args: &DecodeArgs, options: &WriteOptions) -> CmdResult {
     let start = Instant::now();
     let input = args.input.display().to_string();
-    let stages = crate::progress::Stages::new("decode", 2, args.json);
+    let stages = Progress::stages("decode", 2, args.json);
     stages.stage(format!("reading {input} (not an animcodec stream: converting it)"));
     let animation =
         super::load(&input, &formats::ReadOptions::default(), Limits::default(), animcodec::front::Streams::Refuse)?
@@ -153,6 +160,8 @@ fn run_streaming(args: &DecodeArgs, limits: Limits, options: &WriteOptions) -> C
     let info = decoder.header().info.clone();
     let mut writer = CacheWriter::create(&args.output, &info.topology, info.frame_count, info.frame_rate, options)?;
     let (mut decode_seconds, mut write_seconds) = (0.0, 0.0);
+    let progress = Progress::counter("decode", info.frame_count as u64, "frames", args.json);
+    progress.message(format!("decoding {} → {}", args.input.display(), args.output.display()));
     loop {
         let t = Instant::now();
         let Some(packet) = decoder.next_packet() else { break };
@@ -161,7 +170,10 @@ fn run_streaming(args: &DecodeArgs, limits: Limits, options: &WriteOptions) -> C
         let t = Instant::now();
         writer.write_frames(&packet.positions)?;
         write_seconds += t.elapsed().as_secs_f64();
+        progress.inc(packet.frame_count as u64);
     }
+    progress.finish();
+    drop(progress);
     let t = Instant::now();
     let written = writer.finish()?;
     write_seconds += t.elapsed().as_secs_f64();

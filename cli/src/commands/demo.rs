@@ -2,12 +2,10 @@
 //! encode, decode, check, measure, and print a table.
 
 use std::fmt::Write as _;
-use std::io::IsTerminal;
 use std::time::Instant;
 
 use animcodec::core::{encode_animation_fed, Animation, AnimationCodec, CodecRegistry, Limits, StreamDecoder};
 use animcodec::synth::{self, SynthSize};
-use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use serde_json::{json, Value};
 
 use super::args::SizeArg;
@@ -108,31 +106,23 @@ pub fn run(args: &DemoArgs, limits: Limits) -> CmdResult {
     };
     let size: SynthSize = args.size.into();
 
-    let bar = if std::io::stderr().is_terminal() && !args.json {
-        let bar =
-            ProgressBar::with_draw_target(Some((names.len() * codecs.len()) as u64), ProgressDrawTarget::stderr());
-        if let Ok(style) = ProgressStyle::with_template("{bar:30} {pos}/{len} {elapsed} {msg}") {
-            bar.set_style(style);
-        }
-        bar
-    } else {
-        ProgressBar::hidden()
-    };
+    let bar = crate::progress::Progress::counter("demo", (names.len() * codecs.len()) as u64, "runs", args.json);
 
     let mut runs = Vec::new();
     let mut animations = Vec::new();
     for &name in &names {
-        bar.set_message(format!("synthesizing {name}"));
+        bar.message(format!("synthesizing {name}"));
         let start = Instant::now();
         let animation = synth::by_name(name, size)?;
         animations.push((name, animation.vertex_count(), animation.frame_count(), start.elapsed().as_secs_f64()));
         for &codec in &codecs {
-            bar.set_message(format!("{name} / {}", codec.name()));
+            bar.message(format!("{name} / {}", codec.name()));
             runs.push(run_one(&registry, codec, name, &animation, limits));
             bar.inc(1);
         }
     }
-    bar.finish_and_clear();
+    bar.finish();
+    drop(bar);
 
     let failures: Vec<String> =
         runs.iter().filter_map(|r| r.failure.as_ref().map(|f| format!("{} / {}: {f}", r.animation, r.codec))).collect();

@@ -1,7 +1,7 @@
 //! `animcodec encode`: animation file → `.anim` container, streamed to disk.
 
-use std::io::{IsTerminal, Write};
-use std::time::{Duration, Instant};
+use std::io::Write;
+use std::time::Instant;
 
 use animcodec::core::{Animation, AnimationCodec, Limits, ParamSet, StreamDecoder, StreamEncoder, Topology};
 use animcodec::formats::stream::{self as cache_stream, CacheReader};
@@ -13,12 +13,12 @@ use animcodec::metrics::{EvalOptions, MetricReport};
 use animcodec::output::{OutputPolicy, PendingFile};
 use animcodec::params::params_json;
 use animcodec::synth;
-use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use serde::Serialize;
 use serde_json::Value;
 
 use super::args::{ReadArgs, StedArgs};
 use super::{emit, emit_document, load, raw_bytes, CmdResult, WithContext};
+use crate::progress::{self, Progress};
 use clap::Args;
 use std::path::PathBuf;
 
@@ -252,23 +252,39 @@ pub fn run(args: &EncodeArgs, limits: Limits) -> CmdResult {
         streamed_eval_limits(&args.input, &topology, &args.sted.metric_options().eval_options()?, args.memory, limits)?;
     }
     // A codec with a whole-block analysis chooses its blocks by the memory budget.
+    let asked = params.clone();
     let params = match args.memory {
         Some(budget) => codec.fit_memory(&params, topology.vertex_count(), frame_count, budget)?,
         None => params,
     };
+    // What the encode does other than the user asked, said before it starts (stderr) and
+    // kept with the encoder's warnings (the text's `warning:` lines, `--json` "notes").
+    let substitutions = substitutions(args, streamed, codec, &asked, &params);
+    for n in &substitutions {
+        eprintln!("animcodec: warning: {n}");
+    }
 
     let start = Instant::now();
     // Written to a temporary file renamed into place when complete: a failure or an interruption
     // leaves whatever was at the output path before.
     let file = policy.create(&args.output)?;
-    let (mut file, bytes, notes) =
-        encode_to_file(codec, &params, &mut source, (&topology, frame_count, frame_rate), file, args.feed as usize)?;
+    let progress = Progress::counter("encode", frame_count as u64, "frames", args.json);
+    let (mut file, bytes, notes) = encode_to_file(
+        codec,
+        &params,
+        &mut source,
+        (&topology, frame_count, frame_rate),
+        file,
+        (args.feed as usize, &progress),
+    )?;
+    drop(progress);
     let encode_seconds = start.elapsed().as_secs_f64();
     // The encoder's warnings (e.g. a fallback it took to stay within its bound) also go
     // to stderr, whatever the output format; `--json` lists them under "notes".
     for n in &notes {
         eprintln!("animcodec: warning: {n}");
     }
+    let notes: Vec<String> = substitutions.into_iter().chain(notes).collect();
 
     let (v, f, t) = (topology.vertex_count(), frame_count, topology.triangle_count());
     let rate = animcodec::metrics::bpvf(bytes, v, f)?;
@@ -335,6 +351,48 @@ pub fn run(args: &EncodeArgs, limits: Limits) -> CmdResult {
         }
     }
     emit(&text)
+}
+
+/// The notes of an encode with fixed parameters that does other than the user asked: a
+/// streamed `synth:flag:COLSxROWSxFRAMES` without `-p` keeps the codec's defaults instead of
+/// the default-quality search (which needs the whole animation), and `--memory` changes the
+/// parameters `fit_memory` adapts to the budget (the blocks of hosvd and pca-aoi).
+fn substitutions(
+    args: &EncodeArgs,
+    streamed: bool,
+    codec: &dyn AnimationCodec,
+    asked: &ParamSet,
+    used: &ParamSet,
+) -> Vec<String> {
+    let mut notes = Vec::new();
+    let ladder = codec.rate_ladder(used);
+    if streamed && args.params.is_empty() && args.target.is_none() {
+        notes.push(format!(
+            "{input} is generated frame by frame and never held, so the default-quality search \
+             ({target}: it decodes and compares whole animations) does not run: {codec} encodes at its default \
+             parameters ({knob}), whose error is not measured; choose them with -p KEY=VALUE, or write the flag \
+             to a file (animcodec synth) to search it",
+            input = args.input,
+            target = harness::DEFAULT_TARGET,
+            codec = codec.name(),
+            knob = used.get(ladder.param).map_or_else(|| ladder.param.to_owned(), |v| format!("{}={v}", ladder.param)),
+        ));
+    }
+    let given = |name: &str| args.params.iter().any(|p| p.split_once('=').is_some_and(|(k, _)| k.trim() == name));
+    for (name, value) in used.iter() {
+        let before = asked.get(name);
+        if before != Some(value) {
+            let before = before.map_or_else(|| "unset".to_owned(), |v| format!("{name}={v}"));
+            notes.push(format!(
+                "--memory {budget}: {codec} encodes with {name}={value} instead of {before} ({whose}) to stay within \
+                 the budget",
+                budget = args.memory.map_or_else(String::new, |b| format!("{} MiB", b >> 20)),
+                codec = codec.name(),
+                whose = if given(name) { "given with -p" } else { "its default" },
+            ));
+        }
+    }
+    notes
 }
 
 /// `--eval`: decodes the stream just written (from its file `written`, as any user would) and
@@ -492,8 +550,9 @@ fn output_policy(args: &EncodeArgs) -> OutputPolicy {
     policy
 }
 
-/// Encodes `source` into `file`, feeding `feed` frames per call; returns the file (complete,
-/// not yet committed), the container size in bytes and the encoder's warnings
+/// Encodes `source` into `file`, feeding `feed` frames per call and counting them on
+/// `progress` (with the bytes written so far); returns the file (complete, not yet
+/// committed), the container size in bytes and the encoder's warnings
 /// ([`animcodec::core::FrameEncoder::notes`]).
 fn encode_to_file(
     codec: &dyn AnimationCodec,
@@ -501,8 +560,9 @@ fn encode_to_file(
     source: &mut Source,
     (topology, frame_count, frame_rate): (&Topology, usize, f32),
     file: PendingFile,
-    feed: usize,
+    (feed, progress): (usize, &Progress),
 ) -> CmdResult<(PendingFile, u64, Vec<String>)> {
+    let written = std::sync::Arc::new(std::sync::atomic::AtomicU64::new(0));
     let mut encoder = StreamEncoder::with_metadata(
         codec,
         params,
@@ -511,19 +571,26 @@ fn encode_to_file(
         frame_rate,
         false,
         &source.metadata(),
-        CountingWriter { inner: file, count: 0 },
+        CountingWriter { inner: file, count: 0, shared: written.clone() },
     )?;
     let per_frame = topology.vertex_count() * 3;
+    let pushed = |encoder: &mut StreamEncoder<_>, block: &[f32]| -> CmdResult {
+        encoder.push_frames(block)?;
+        progress.inc((block.len() / per_frame.max(1)) as u64);
+        progress
+            .message(format!("{} written", progress::bytes_text(written.load(std::sync::atomic::Ordering::Relaxed))));
+        Ok(())
+    };
     match source {
         Source::Whole(animation) => {
             for block in animation.positions().chunks(feed.max(1) * per_frame) {
-                encoder.push_frames(block)?;
+                pushed(&mut encoder, block)?;
             }
         }
         Source::Cache(reader) => {
             let mut block = Vec::new();
             while reader.read_frames(feed.max(1), &mut block)? > 0 {
-                encoder.push_frames(&block)?;
+                pushed(&mut encoder, &block)?;
             }
         }
         Source::Flag { cols, rows, frames } => {
@@ -533,26 +600,32 @@ fn encode_to_file(
                 synth::flag_frame(*cols, *rows, t, *frames, &mut frame);
                 block.extend_from_slice(&frame);
                 if block.len() == feed.max(1) * per_frame || t + 1 == *frames {
-                    encoder.push_frames(&block)?;
+                    pushed(&mut encoder, &block)?;
                     block.clear();
                 }
             }
         }
     }
+    progress.message("finishing the stream");
     let (_, sink, notes) = encoder.finish_with_notes()?;
+    progress.message(format!("{} written", progress::bytes_text(sink.count)));
+    progress.finish();
     Ok((sink.inner, sink.count, notes))
 }
 
-/// Counts the bytes written through it.
+/// Counts the bytes written through it (also in `shared`, for the progress display while the
+/// encoder owns the writer).
 struct CountingWriter<W: Write> {
     inner: W,
     count: u64,
+    shared: std::sync::Arc<std::sync::atomic::AtomicU64>,
 }
 
 impl<W: Write> Write for CountingWriter<W> {
     fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
         let n = self.inner.write(buf)?;
         self.count += n as u64;
+        self.shared.store(self.count, std::sync::atomic::Ordering::Relaxed);
         Ok(n)
     }
 
@@ -804,30 +877,15 @@ fn run_target(args: &EncodeArgs, target: Target, by_default: bool, limits: Limit
     }
 
     let start = Instant::now();
+    let fixed: Vec<&str> = args.params.iter().filter_map(|p| p.split_once('=').map(|(k, _)| k.trim())).collect();
     // Each point is a full encode + decode + evaluation (minutes in all on real data): on a
-    // terminal, a spinner shows the latest point.
-    let bar = if std::io::stderr().is_terminal() {
-        let bar = ProgressBar::with_draw_target(None, ProgressDrawTarget::stderr());
-        if let Ok(style) = ProgressStyle::with_template("{spinner} {elapsed} {pos} points; {msg}") {
-            bar.set_style(style);
-        }
-        bar.set_message(format!("searching for {target}"));
-        bar.enable_steady_tick(Duration::from_millis(200));
-        bar
-    } else {
-        ProgressBar::hidden()
-    };
+    // terminal, the points measured of those expected, and the latest point.
+    let bar = search_progress(&registry, &chosen, &fixed, target, (by_default, args.ladder), args.refine, args.json);
     let progress = |p: &harness::Point| {
         bar.inc(1);
         let knob = p.ladder_value().map_or_else(String::new, |v| format!("{}={v} ", p.ladder_param));
-        bar.set_message(format!(
-            "last: {} {knob}→ {} at {:.3} bpvf",
-            p.codec,
-            target.reached_text(&p.report, 4),
-            p.bpvf
-        ));
+        bar.message(format!("last: {} {knob}→ {} at {:.3} bpvf", p.codec, target.reached_text(&p.report, 4), p.bpvf));
     };
-    let fixed: Vec<&str> = args.params.iter().filter_map(|p| p.split_once('=').map(|(k, _)| k.trim())).collect();
     let input = match (&prepared.input, &streamed_input) {
         (_, Some(streamed)) => harness::SearchInput::Streamed(streamed),
         (SearchSource::Whole(animation), None) => harness::SearchInput::Whole(animation),
@@ -852,7 +910,10 @@ fn run_target(args: &EncodeArgs, target: Target, by_default: bool, limits: Limit
         (None, true) => harness::search_target_auto(&request, &every_codec),
         (None, false) => harness::search_space_target_auto(&request, &every_codec),
     };
-    bar.finish_and_clear();
+    bar.finish();
+    // Every point measured, over every codec searched (the chosen codec's are `hit.tried`).
+    let measured_points = bar.done();
+    drop(bar);
     let (hit, others) = found?;
     let search_seconds = start.elapsed().as_secs_f64();
     // The chosen encode's warnings, as a plain encode prints them (stderr, `--json` "notes").
@@ -922,7 +983,7 @@ fn run_target(args: &EncodeArgs, target: Target, by_default: bool, limits: Limit
     let mut out = format!(
         "{input}: {f} frames × {v} vertices ({read})\n\
          target {target}{default}: {codec} [{params}] reaches {reached} → {output}\n\
-         {parts}{bytes} bytes, {rate:.3} bits/vertex/frame; searched {n} points in {search_seconds:.2} s{fallback}\n",
+         {parts}{bytes} bytes, {rate:.3} bits/vertex/frame; searched {n} in {search_seconds:.2} s{fallback}\n",
         input = args.input,
         read = if streamed_input.is_some() {
             "streamed: read twice per candidate".to_owned()
@@ -936,7 +997,10 @@ fn run_target(args: &EncodeArgs, target: Target, by_default: bool, limits: Limit
         output = args.output.display(),
         bytes = p.bytes,
         rate = p.bpvf,
-        n = hit.tried.len(),
+        n = match measured_points as usize {
+            n if n > hit.tried.len() => format!("{n} points ({} for {})", hit.tried.len(), p.codec),
+            _ => format!("{} points", hit.tried.len()),
+        },
         // A KG bound holds for every part; say which figure it was.
         parts = match (&p.report.worst_part, target.bound(TargetMetric::Kg)) {
             (Some(w), Some(_)) if p.report.parts > 1 => format!(
@@ -973,6 +1037,35 @@ fn run_target(args: &EncodeArgs, target: Target, by_default: bool, limits: Limit
         ));
     }
     emit(&out)
+}
+
+/// The progress display of a target search: the points expected of the search `encode` runs
+/// (`by_default`: the default quality; `ladder`: `--ladder`), over every codec for `-c auto`
+/// (`chosen` is `None`).
+fn search_progress(
+    registry: &animcodec::core::CodecRegistry,
+    chosen: &Option<(&dyn AnimationCodec, ParamSet)>,
+    fixed: &[&str],
+    target: Target,
+    (by_default, ladder): (bool, bool),
+    refine: u32,
+    json: bool,
+) -> Progress {
+    let search = match (by_default, ladder) {
+        (_, true) => progress::Search::Ladder,
+        (true, false) if chosen.is_some() => progress::Search::DefaultQuality,
+        _ => progress::Search::Space,
+    };
+    let expect = |codec: &dyn AnimationCodec, base: &ParamSet, fixed: &[&str]| {
+        progress::expected_search_points(codec, base, fixed, target, search, refine as usize)
+    };
+    let expected = match chosen {
+        Some((codec, params)) => expect(*codec, params, fixed),
+        None => registry.iter().map(|c| expect(c, &c.default_params(), &[])).sum(),
+    };
+    let bar = Progress::estimate("encode", expected, "points", json);
+    bar.message(format!("searching for {target}"));
+    bar
 }
 
 /// `--eval`'s line on the worst part: its KG against its own spread, beside the global figures

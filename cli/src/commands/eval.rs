@@ -75,7 +75,11 @@ pub fn run(args: &EvalArgs, limits: Limits) -> CmdResult {
     if let Some((report, seconds)) = measure_streamed(args, &options, &read, limits)? {
         return emit_report(args, &report, seconds, None);
     }
+    // Stages: the two reads and the measurement (Hausdorff and STED on a large mesh: minutes).
+    let stages = crate::progress::Progress::stages("eval", 3, args.json);
+    stages.stage(format!("reading {}", args.reference));
     let reference = load(&args.reference, &read, limits, Streams::Decode)?;
+    stages.stage(format!("reading {}", args.candidate));
     // --animation chooses the reference's animation; a glTF candidate plays its first.
     let mut candidate =
         load(&args.candidate, &ReadOptions { animation: None, ..read }, limits, Streams::Decode)?.animation;
@@ -126,8 +130,10 @@ pub fn run(args: &EvalArgs, limits: Limits) -> CmdResult {
         return Err(format!("comparing {} with {}: {e}{hint}", args.reference, args.candidate).into());
     }
     let start = Instant::now();
+    stages.stage("measuring (KG, STED, Hausdorff, RMSE, max error)");
     let mut report = animcodec::metrics::evaluate(&reference, &candidate, &options)
         .context(|| format!("comparing {} with {}", args.reference, args.candidate))?;
+    drop(stages);
     report.notes.extend(reference_note);
     if let Some(m) = &matched {
         report.notes.push(format!(

@@ -116,7 +116,7 @@ pub fn run(args: &ExportArgs, limits: Limits) -> CmdResult {
     policy.check(&args.output)?;
     let eval = EvalOptions { compute_hausdorff: false, ..args.sted.metric_options().eval_options()? };
     let read = args.read.options(args.fps);
-    let stages = crate::progress::Stages::new("export", 4, args.json);
+    let stages = crate::progress::Progress::stages("export", 4, args.json);
     stages.stage(format!("reading {}", shown(&args.input)));
     let animation = load(&args.input, &read, limits, animcodec::front::Streams::Decode)?.animation;
     // The files the read opened (a .gltf's buffers, …) are inputs too: refused before the work.

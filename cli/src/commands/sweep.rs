@@ -2,16 +2,15 @@
 //! a table and write JSON, CSV and an SVG rate-distortion plot.
 
 use std::fmt::Write as _;
-use std::io::IsTerminal;
 use std::path::Path;
 use std::time::Instant;
 
+use crate::progress::Progress;
 use crate::viewer;
 use animcodec::core::{AnimationCodec, CodecRegistry, Limits};
 use animcodec::harness::{self, monotone_report, Point, Sweep, SweepDocument, SweepOptions, SweepSeries, TargetMetric};
 use animcodec::output::{commit_all, OutputPolicy};
 use animcodec::params::params_json;
-use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
 use super::args::{MetricArgs, ReadArgs};
 use super::{emit, emit_json, load, CmdResult};
@@ -121,6 +120,7 @@ pub fn run(args: &SweepArgs, limits: Limits) -> CmdResult {
         policy = policy.with_input(t);
     }
     let json_file = args.json.as_deref().filter(|p| p.as_os_str() != "-");
+    let to_stdout = args.json.as_deref().is_some_and(|p| p.as_os_str() == "-");
     let outputs: Vec<&Path> =
         [json_file, args.csv.as_deref(), args.plot.as_deref(), args.html.as_deref()].into_iter().flatten().collect();
     policy.check_all(&outputs)?;
@@ -145,22 +145,11 @@ pub fn run(args: &SweepArgs, limits: Limits) -> CmdResult {
         // The --view-points' decoded animations are kept as the sweep measures them.
         keep_decoded: view_points.clone(),
     };
-    let total = if envelope_mode { 0 } else { harness::sweep_jobs(&series, options.points).len() as u64 };
-    let bar = if std::io::stderr().is_terminal() {
-        let bar = ProgressBar::with_draw_target(Some(total), ProgressDrawTarget::stderr());
-        // ETA: indicatif's estimate from the points done so far (points differ in cost, so it
-        // firms up as the sweep goes); the message names the point that started last.
-        if let Ok(style) =
-            ProgressStyle::with_template("{bar:30} {pos}/{len} {elapsed} (ETA {eta}) sweeping {prefix}: {msg}")
-        {
-            bar.set_style(style);
-        }
-        bar.set_prefix(input.to_string());
-        bar.enable_steady_tick(std::time::Duration::from_millis(500));
-        bar
-    } else {
-        ProgressBar::hidden()
-    };
+    // Every phase's points are counted before the first starts (the later phases at their
+    // most, falling to their exact count as they are planned), so the ETA — indicatif's
+    // estimate from the points done so far, firming up as the sweep goes — never runs short
+    // because the total grew; the message names the phase and the point that started last.
+    let bar = Progress::counter("sweep", 0, "points", to_stdout);
     let start = Instant::now();
     let result = if envelope_mode {
         let fixed: Vec<&'static str> = {
@@ -186,9 +175,9 @@ pub fn run(args: &SweepArgs, limits: Limits) -> CmdResult {
         harness::sweep(&registry, &series, &animation, &options, &|event| show_progress(&bar, event))?
     };
     let seconds = start.elapsed().as_secs_f64();
-    bar.finish_and_clear();
+    bar.finish();
+    drop(bar);
 
-    let to_stdout = args.json.as_deref().is_some_and(|p| p.as_os_str() == "-");
     // Every output is built and staged under its temporary name first, then all are renamed
     // together: a failure on the way leaves every old file untouched.
     let mut staged = Vec::new();
@@ -454,12 +443,19 @@ fn series_on<'r>(codec: &'r dyn AnimationCodec, pairs: &[String]) -> CmdResult<S
     Ok(SweepSeries::with_base(codec, base)?)
 }
 
-/// Shows a sweep's progress on `bar`: planned points extend it, a started point's name becomes
-/// the message, a finished point advances it.
-fn show_progress(bar: &ProgressBar, event: harness::SweepEvent<'_>) {
+/// Shows a sweep's progress on `bar`: a phase sets the total and names itself in the prefix,
+/// a started point's name becomes the message, a finished point advances it.
+fn show_progress(bar: &Progress, event: harness::SweepEvent<'_>) {
     match event {
-        harness::SweepEvent::Planned(n) => bar.inc_length(n as u64),
-        harness::SweepEvent::Started { series, step } => bar.set_message(format!("{series} ladder step {step}")),
+        harness::SweepEvent::Phase { phase, phases, name, points, total } => {
+            bar.set_total(total as u64);
+            bar.prefix(if phases > 1 {
+                format!("sweep {phase}/{phases} {name} ({points})")
+            } else {
+                "sweep".to_owned()
+            });
+        }
+        harness::SweepEvent::Started { series, step } => bar.message(format!("{series} ladder step {step}")),
         harness::SweepEvent::Finished { .. } => bar.inc(1),
     }
 }

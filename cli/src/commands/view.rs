@@ -100,7 +100,7 @@ pub fn run(args: &ViewArgs, limits: Limits) -> CmdResult {
         object: args.object.clone(),
     };
     // Stages: the reference, each candidate, the measurements, the page.
-    let stages = crate::progress::Stages::new("view", 3 + args.candidates.len() as u64, false);
+    let stages = crate::progress::Progress::stages("view", 3 + args.candidates.len() as u64, false);
     stages.stage(format!("reading {}", shown(&args.reference)));
     let reference = load(&args.reference, &read, limits, animcodec::front::Streams::Decode)?.animation;
     let sted = args.sted.metric_options().sted_params()?;

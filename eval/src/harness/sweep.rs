@@ -60,11 +60,28 @@ pub struct Sweep {
 }
 
 /// What [`sweep`] and [`envelope_sweep`] report while they run (from worker threads), for a
-/// progress display: the number of points grows as the envelope sweep plans its second phase.
+/// progress display with an honest total: every phase is counted before the first point
+/// starts, a phase not yet planned at its most, so the total only ever falls to the exact
+/// count as the later phases are planned (never grows as they start).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum SweepEvent<'a> {
-    /// `n` more points are planned.
-    Planned(usize),
+    /// Phase `phase` of `phases` (from 1) starts, measuring `points` points; `total` counts the
+    /// points of the whole sweep as now known: those of the phases planned so far, exactly,
+    /// and at most those of the phases still to plan.
+    Phase {
+        /// This phase, from 1.
+        phase: usize,
+        /// The phases of the sweep.
+        phases: usize,
+        /// What the phase measures, in a word: `ladder steps` (a plain sweep), `ladders`
+        /// (every codec's first configuration), `configurations` (the others), `neighbours`
+        /// (the ladder neighbours of their points on the envelope).
+        name: &'static str,
+        /// Its points.
+        points: usize,
+        /// The whole sweep's points (see above).
+        total: usize,
+    },
     /// A point started: its curve's label and ladder position.
     Started {
         /// Curve name (see [`Point::series`]).
@@ -120,10 +137,23 @@ impl<'a> SweepSeries<'a> {
     }
 }
 
-/// Walks the rate ladder of every series on `animation`. `progress` hears of every point as it
-/// starts and as it finishes (from worker threads; [`SweepEvent`]). Output order (series, then ladder step) does not
-/// depend on scheduling.
+/// Walks the rate ladder of every series on `animation`. `progress` hears of the one phase
+/// (its points) and of every point as it starts and as it finishes (from worker threads;
+/// [`SweepEvent`]). Output order (series, then ladder step) does not depend on scheduling.
 pub fn sweep(
+    registry: &CodecRegistry,
+    series: &[SweepSeries<'_>],
+    animation: &Animation,
+    options: &SweepOptions,
+    progress: &(dyn Fn(SweepEvent<'_>) + Sync),
+) -> Result<Sweep> {
+    let points = sweep_jobs(series, options.points).len();
+    progress(SweepEvent::Phase { phase: 1, phases: 1, name: "ladder steps", points, total: points });
+    sweep_phase(registry, series, animation, options, progress)
+}
+
+/// [`sweep`] without the phase event: one phase of a sweep whose caller reports the phases.
+fn sweep_phase(
     registry: &CodecRegistry,
     series: &[SweepSeries<'_>],
     animation: &Animation,
@@ -264,8 +294,21 @@ pub fn envelope_sweep<'a>(
         first.push(series.remove(0));
         rest.push(series);
     }
-    progress(SweepEvent::Planned(sweep_jobs(&first, options.points).len()));
-    let mut result = sweep(registry, &first, animation, options, progress)?;
+    // Every phase counted before the first starts: the first exactly, the second and third
+    // at their most (`second_phase_most`, `third_phase_most`), replaced by their exact
+    // counts as they are planned.
+    let first_points = sweep_jobs(&first, options.points).len();
+    let second_most: usize = first
+        .iter()
+        .zip(&rest)
+        .flat_map(|(head, others)| others.iter().map(move |s| second_phase_most(head, s, per_config)))
+        .sum();
+    let third_most: usize = rest.iter().flatten().map(|s| third_phase_most(s, per_config)).sum();
+    let phase = |phase: usize, name: &'static str, points: usize, total: usize| {
+        progress(SweepEvent::Phase { phase, phases: 3, name, points, total });
+    };
+    phase(1, "ladders", first_points, first_points + second_most + third_most);
+    let mut result = sweep_phase(registry, &first, animation, options, progress)?;
     let mut second = Vec::new();
     for (head, others) in first.iter().zip(rest) {
         let curve: Vec<&Point> = result.points.iter().filter(|p| p.series == head.label).collect();
@@ -291,20 +334,37 @@ pub fn envelope_sweep<'a>(
             second.push(s);
         }
     }
-    progress(SweepEvent::Planned(sweep_jobs(&second, options.points).len()));
-    let more = sweep(registry, &second, animation, options, progress)?;
+    let second_points = sweep_jobs(&second, options.points).len();
+    phase(2, "configurations", second_points, first_points + second_points + third_most);
+    let more = sweep_phase(registry, &second, animation, options, progress)?;
     result.points.extend(more.points);
     result.failures.extend(more.failures);
     result.decoded.extend(more.decoded);
     let third = envelope_neighbours(&second, &result.points, per_config);
+    let third_points = sweep_jobs(&third, options.points).len();
+    phase(3, "neighbours", third_points, first_points + second_points + third_points);
     if !third.is_empty() {
-        progress(SweepEvent::Planned(sweep_jobs(&third, options.points).len()));
-        let more = sweep(registry, &third, animation, options, progress)?;
+        let more = sweep_phase(registry, &third, animation, options, progress)?;
         result.points.extend(more.points);
         result.failures.extend(more.failures);
         result.decoded.extend(more.decoded);
     }
     Ok(result)
+}
+
+/// The most points the envelope sweep's second phase measures on configuration `s` (after
+/// `head`, its codec's first): `per_config` positions spread over at most the longer of the
+/// two ladders, and the smallest step.
+fn second_phase_most(head: &SweepSeries<'_>, s: &SweepSeries<'_>, per_config: usize) -> usize {
+    let positions = head.ladder().steps.len().max(s.ladder().steps.len());
+    per_config.min(positions) + 1
+}
+
+/// The most points the envelope sweep's third phase measures on configuration `s`:
+/// `per_config` ladder neighbours, of the steps the second phase left (its smallest step is
+/// always measured there).
+fn third_phase_most(s: &SweepSeries<'_>, per_config: usize) -> usize {
+    per_config.min(s.ladder().steps.len().saturating_sub(1))
 }
 
 /// The envelope sweep's third phase: for every configuration after the first, the unmeasured
