@@ -656,7 +656,6 @@ struct PreparedInput {
 fn prepare_search_input(
     args: &EncodeArgs,
     codecs: &[&dyn AnimationCodec],
-    eval: &EvalOptions,
     limits: Limits,
 ) -> CmdResult<PreparedInput> {
     let (budget, given) = match args.memory {
@@ -716,7 +715,6 @@ fn prepare_search_input(
                 args.input,
                 whole >> 20
             );
-            let _ = eval;
             Ok(PreparedInput { input: SearchSource::Streamed(source), budget, note: Some(note) })
         }
         _ => {
@@ -824,7 +822,7 @@ fn run_target(args: &EncodeArgs, target: Target, by_default: bool, limits: Limit
     };
     // The whole animation in memory while the search fits the memory budget; beyond it (and
     // for an input read frame by frame) the streamed search.
-    let prepared = prepare_search_input(args, &searched, &eval, limits)?;
+    let prepared = prepare_search_input(args, &searched, limits)?;
     // The files the read opened (a .gltf's buffers, …) are inputs too: refused before the work.
     policy.check(&args.output)?;
     let read_seconds = read_start.elapsed().as_secs_f64();
