@@ -54,7 +54,25 @@ fn offset_plane(s: &Scratch, name: &str, offset: f64) -> String {
 /// KG (%) of `-c hosvd -p ss=0.95 --eval` on `input`, or the refusal's text.
 fn hosvd_kg(s: &Scratch, input: &str) -> std::result::Result<f64, String> {
     let out = s.path("o.anim");
-    let o = common::animcodec(&["encode", input, "-c", "hosvd", "-p", "ss=0.95", "--eval", "--json", "-o", &out, "-f"]);
+    // quant=0.25 codes the kept operator finely enough that the input's own f32 rounding at the
+    // offset is what shows (at the default quant=2 the quantization noise is sized to twice the
+    // truncation error, which at the offset holds that rounding: KG 0.14 % at 1e4 for 0.015 %
+    // untranslated).
+    let o = common::animcodec(&[
+        "encode",
+        input,
+        "-c",
+        "hosvd",
+        "-p",
+        "ss=0.95",
+        "-p",
+        "quant=0.25",
+        "--eval",
+        "--json",
+        "-o",
+        &out,
+        "-f",
+    ]);
     if !o.status.success() {
         return Err(common::stderr(&o));
     }

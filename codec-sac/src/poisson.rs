@@ -519,3 +519,81 @@ pub fn cholesky_work(fill: usize, n: usize) -> u64 {
     let fill = fill as u64;
     fill.saturating_mul(fill) / (n as u64).max(1)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::tests::{blob, rot};
+    use crate::geometry::{components, deformation_gradients, exp_rotation, log_rotation, Svd3};
+
+    #[test]
+    fn gradients_to_positions_round_trip_to_machine_precision() {
+        let (a, tris) = blob(3);
+        let n = a.len();
+        // A non-rigid, non-affine target: twist + bulge + translation.
+        let b: Vec<V3> = a
+            .iter()
+            .map(|p| {
+                let ang = 0.6 * p[2];
+                let (s, c) = ang.sin_cos();
+                let g = 1.0 + 0.2 * p[0] * p[0];
+                [g * (c * p[0] - s * p[1]) + 3.0, g * (s * p[0] + c * p[1]) - 1.0, p[2] * 1.1 + 0.5]
+            })
+            .collect();
+        let j = deformation_gradients(&tris, &a, &b);
+        let (_, pins) = components(n, &tris);
+        let sys = PoissonSystem::new(n, &tris, &pins).unwrap();
+        let x = sys.solve(&a, &j).unwrap();
+        // The solution is b up to the translation fixed by the pinned vertex.
+        let shift = sub(b[pins[0]], a[pins[0]]);
+        let err = x
+            .iter()
+            .zip(&b)
+            .map(|(x, b)| (0..3).map(|k| (x[k] + shift[k] - b[k]).abs()).fold(0.0, f64::max))
+            .fold(0.0, f64::max);
+        assert!(err < 1e-10 * n as f64, "round-trip error {err}");
+        // Through polar decomposition and log/exp as the codec does it.
+        let mut svd = Svd3::new();
+        let j2: Vec<M3> = j
+            .iter()
+            .map(|j| {
+                let (u, p) = svd.polar(j).unwrap();
+                mul(&exp_rotation(log_rotation(&u)), &p)
+            })
+            .collect();
+        let x2 = sys.solve(&a, &j2).unwrap();
+        let err2 = x2.iter().zip(&x).map(|(p, q)| norm(sub(*p, *q))).fold(0.0, f64::max);
+        assert!(err2 < 1e-10 * n as f64, "polar/log/exp round-trip error {err2}");
+    }
+
+    #[test]
+    fn disconnected_meshes_pin_one_vertex_per_component() {
+        let tris = vec![[0, 1, 2], [3, 4, 5]];
+        let (comp, pins) = components(7, &tris);
+        assert_eq!(comp, vec![0, 0, 0, 1, 1, 1, 2]);
+        assert_eq!(pins, vec![0, 3, 6]);
+        let a: Vec<V3> =
+            vec![[0., 0., 0.], [1., 0., 0.], [0., 1., 0.], [5., 0., 0.], [6., 0., 0.], [5., 1., 1.], [9., 9., 9.]];
+        let r = rot([0.0, 0.3, 1.0], 0.4);
+        let b: Vec<V3> = a
+            .iter()
+            .map(|p| {
+                (0..3).fold([0.0; 3], |mut o, i| {
+                    for k in 0..3 {
+                        o[i] += r[i][k] * p[k];
+                    }
+                    o
+                })
+            })
+            .collect();
+        let sys = PoissonSystem::new(7, &tris, &pins).unwrap();
+        let x = sys.solve(&a, &deformation_gradients(&tris, &a, &b)).unwrap();
+        for c in [[0usize, 1, 2], [3, 4, 5]] {
+            let s = sub(b[c[0]], x[c[0]]);
+            for &v in &c {
+                assert!(norm(sub(sub(b[v], x[v]), s)) < 1e-12);
+            }
+        }
+        assert_eq!(x[6], a[6]);
+    }
+}

@@ -2,8 +2,8 @@
 
 use codec_core::Animation;
 
+use crate::mesh;
 use crate::params::{Centering, StsegParams};
-use crate::segment;
 
 /// The declared relative RMS bound (see README "Error bound"). With `D` the animation's
 /// bounding-box diagonal, `G` = `groups`, `T` the longest segment, `δ = T/(2^coef_bits − 1)`:
@@ -73,7 +73,7 @@ pub(crate) fn toolkit_rms_bound(p: &StsegParams, animation: &Animation) -> Optio
     let n = 3.0 + 2.0 * t;
     let trunc = ((1.0 - p.omega) * p.groups as f64 / 3.0).sqrt();
     // A block below the negligible energy keeps no component: its whole centred energy is error.
-    let negligible = segment::NEGLIGIBLE_AMPLITUDE * (p.groups as f64).sqrt();
+    let negligible = mesh::NEGLIGIBLE_AMPLITUDE * (p.groups as f64).sqrt();
     let rounding = 4.0 * mag * f32::EPSILON as f64 / diag;
     Some(s * (trunc + negligible) * (2.0 * (1.0 + n * p.quant * p.quant)).sqrt() + rounding + 1e-12)
 }

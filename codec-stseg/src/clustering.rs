@@ -5,8 +5,8 @@ use codec_core::Result;
 use faer::Mat;
 
 use crate::linalg::{gram, pcs_for_persistence, sym_eig_desc};
+use crate::mesh::{frame_diagonal, MeshGraph, NEGLIGIBLE_AMPLITUDE};
 use crate::params::StsegParams;
-use crate::segment::{frame_diagonal, MeshGraph, NEGLIGIBLE_AMPLITUDE};
 
 /// Most principal components a vertex group keeps while grouping rigid clusters (Alg. 1).
 /// The paper does not say; a small cap keeps Eq. 4 a subspace fit rather than a copy.

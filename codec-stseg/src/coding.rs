@@ -34,9 +34,10 @@ use faer::Mat;
 use rayon::prelude::*;
 
 use crate::linalg::{mul, sym_eig_desc};
+use crate::mesh::MeshGraph;
 use crate::params::{Centering, StsegParams, MAX_SEGMENT_FRAMES};
 use crate::pca::{centred_block, group_pca_energy, mean_layout, reconstruct_group};
-use crate::segment::{MeshGraph, Segment};
+use crate::segment::Segment;
 use crate::NAME;
 
 const CLASS_LABEL: usize = 0;

@@ -5,8 +5,9 @@
 use codec_core::{Animation, EncodedPacket, EncoderSetup, Error, FrameEncoder, Packet, Result};
 
 use crate::decoder::StsegDecoder;
+use crate::mesh::MeshGraph;
 use crate::params::{Coding, StsegParams};
-use crate::segment::{BlockKind, MeshGraph, Segment, Segmentation, Segmenter};
+use crate::segment::{BlockKind, Segment, Segmentation, Segmenter};
 use crate::{coding, paper, MAX_GROUPS, NAME};
 
 /// Fixed-size temporal blocks with a single vertex group: the segmentation of the paper's

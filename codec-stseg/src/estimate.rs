@@ -5,9 +5,10 @@ use codec_core::{entropy, Animation, Error, Result};
 use faer::Mat;
 
 use crate::linalg::mul;
+use crate::mesh::MeshGraph;
 use crate::params::{Centering, StsegParams};
 use crate::pca::{centred_block, group_pca};
-use crate::segment::{MeshGraph, Segment, Segmentation};
+use crate::segment::{Segment, Segmentation};
 use crate::NAME;
 
 /// The per-group component counts `k_j^i` of one segment (groups in label order), as the

@@ -24,6 +24,7 @@ mod encoder;
 mod estimate;
 mod linalg;
 mod memory;
+mod mesh;
 mod paper;
 mod params;
 mod pca;

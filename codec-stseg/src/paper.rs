@@ -9,9 +9,10 @@ use faer::Mat;
 use rayon::prelude::*;
 
 use crate::linalg::{mul, sym_eig_desc};
+use crate::mesh::MeshGraph;
 use crate::params::{Centering, StsegParams};
 use crate::pca::{centred_block, group_pca, mean_layout, reconstruct_group};
-use crate::segment::{MeshGraph, Segment};
+use crate::segment::Segment;
 use crate::{coding, NAME};
 
 /// One group's coded PCA (§4.4, Eq. 5): `X ≈ mean + A·B`, the mean as [`Centering`] says.

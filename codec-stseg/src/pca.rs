@@ -6,8 +6,8 @@ use codec_core::Result;
 use faer::Mat;
 
 use crate::linalg::{gram, pcs_for_persistence, sym_eig_desc};
+use crate::mesh::{frame_diagonal, MeshGraph, NEGLIGIBLE_AMPLITUDE};
 use crate::params::{Centering, StsegParams};
-use crate::segment::{frame_diagonal, MeshGraph, NEGLIGIBLE_AMPLITUDE};
 
 /// Number of mean quantizers and mean values of one group of `n` vertices over `frames`.
 pub(crate) fn mean_layout(centering: Centering, n: usize, frames: usize) -> (usize, usize) {

@@ -653,11 +653,7 @@ struct PreparedInput {
 /// fits the budget by [`harness::whole_search_need`] (the largest over `codecs`), and streamed
 /// beyond it, with a note saying so. Any other input is read whole; beyond an explicit
 /// `--memory` it is refused.
-fn prepare_search_input(
-    args: &EncodeArgs,
-    codecs: &[&dyn AnimationCodec],
-    limits: Limits,
-) -> CmdResult<PreparedInput> {
+fn prepare_search_input(args: &EncodeArgs, codecs: &[&dyn AnimationCodec], limits: Limits) -> CmdResult<PreparedInput> {
     let (budget, given) = match args.memory {
         Some(m) => (Some(m), true),
         None => (front::default_memory_budget(), false),

@@ -27,6 +27,7 @@
 use base64::Engine as _;
 use codec_core::{Animation, Error, Result, SceneMetadata, UpAxis};
 
+pub use super::gltf_out_buffer::GltfCompression;
 use super::gltf_out_buffer::{align4, shortest, Buffer, WeightForm};
 use super::gltf_out_morphs::{basis_morphs, frame_morphs, quantize, rigid_split, Morphs, RigidMotion};
 use super::gltf_out_rd::{self, QBasis};
@@ -79,64 +80,6 @@ impl Default for GltfOptions {
             compression: GltfCompression::Meshopt,
             rigid: None,
             reorder: false,
-        }
-    }
-}
-
-/// How a glTF file stores its geometry: what the importer it is meant for can read.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum GltfCompression {
-    /// `KHR_mesh_quantization` (16-bit positions and targets) + `EXT_meshopt_compression`
-    /// (meshoptimizer's vertex and index codecs on the quantized data, the weights and the key
-    /// times; vertex codec format version 0): engines and web viewers read it (three.js,
-    /// Babylon.js, Unity's glTFast, Godot 4), Blender 5.0's importer does not.
-    Meshopt,
-    /// As [`GltfCompression::Meshopt`] through `KHR_meshopt_compression`, the extension's
-    /// ratified form, whose vertex codec format version 1 codes 16-bit values as 16-bit deltas
-    /// and picks per-channel bit widths (smaller); read by loaders with meshoptimizer 0.23+'s
-    /// decoder (three.js r17x+'s `GLTFLoader` + `MeshoptDecoder`, gltfpack's `-ce khr`).
-    MeshoptKhr,
-    /// `KHR_mesh_quantization` alone: the same quantized geometry stored plainly, for DCC tools
-    /// (Blender 5.0 imports it).
-    Quantized,
-    /// Plain `f32` positions and targets: no extension at all.
-    None,
-}
-
-impl GltfCompression {
-    /// Positions and targets are 16-bit integers (`KHR_mesh_quantization`).
-    pub fn quantized(self) -> bool {
-        self != GltfCompression::None
-    }
-
-    /// Views are meshoptimizer-coded (`EXT_meshopt_compression` or `KHR_meshopt_compression`).
-    pub fn meshopt(self) -> bool {
-        self.meshopt_extension().is_some()
-    }
-
-    /// The meshopt extension's name, when views are meshoptimizer-coded.
-    pub fn meshopt_extension(self) -> Option<&'static str> {
-        match self {
-            GltfCompression::Meshopt => Some("EXT_meshopt_compression"),
-            GltfCompression::MeshoptKhr => Some("KHR_meshopt_compression"),
-            GltfCompression::Quantized | GltfCompression::None => None,
-        }
-    }
-
-    /// The format version meshoptimizer's vertex codec writes (and the export's step choice
-    /// counts the bytes of): 1 under `KHR_meshopt_compression`, else 0, the only one
-    /// `EXT_meshopt_compression` defines.
-    pub(super) fn vertex_codec_version(self) -> i32 {
-        i32::from(self == GltfCompression::MeshoptKhr)
-    }
-
-    /// The extensions a file of this form uses and requires.
-    pub fn extensions(self) -> &'static [&'static str] {
-        match self {
-            GltfCompression::Meshopt => &["KHR_mesh_quantization", "EXT_meshopt_compression"],
-            GltfCompression::MeshoptKhr => &["KHR_mesh_quantization", "KHR_meshopt_compression"],
-            GltfCompression::Quantized => &["KHR_mesh_quantization"],
-            GltfCompression::None => &[],
         }
     }
 }

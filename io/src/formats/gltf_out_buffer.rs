@@ -5,8 +5,65 @@
 use codec_core::{Error, Result};
 use serde_json::{json, Value};
 
-use super::gltf_out::GltfCompression;
-use super::gltf_out_rd;
+use super::gltf_out_rd::{self, encode_vertex_records};
+
+/// How a glTF file stores its geometry: what the importer it is meant for can read.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum GltfCompression {
+    /// `KHR_mesh_quantization` (16-bit positions and targets) + `EXT_meshopt_compression`
+    /// (meshoptimizer's vertex and index codecs on the quantized data, the weights and the key
+    /// times; vertex codec format version 0): engines and web viewers read it (three.js,
+    /// Babylon.js, Unity's glTFast, Godot 4), Blender 5.0's importer does not.
+    Meshopt,
+    /// As [`GltfCompression::Meshopt`] through `KHR_meshopt_compression`, the extension's
+    /// ratified form, whose vertex codec format version 1 codes 16-bit values as 16-bit deltas
+    /// and picks per-channel bit widths (smaller); read by loaders with meshoptimizer 0.23+'s
+    /// decoder (three.js r17x+'s `GLTFLoader` + `MeshoptDecoder`, gltfpack's `-ce khr`).
+    MeshoptKhr,
+    /// `KHR_mesh_quantization` alone: the same quantized geometry stored plainly, for DCC tools
+    /// (Blender 5.0 imports it).
+    Quantized,
+    /// Plain `f32` positions and targets: no extension at all.
+    None,
+}
+
+impl GltfCompression {
+    /// Positions and targets are 16-bit integers (`KHR_mesh_quantization`).
+    pub fn quantized(self) -> bool {
+        self != GltfCompression::None
+    }
+
+    /// Views are meshoptimizer-coded (`EXT_meshopt_compression` or `KHR_meshopt_compression`).
+    pub fn meshopt(self) -> bool {
+        self.meshopt_extension().is_some()
+    }
+
+    /// The meshopt extension's name, when views are meshoptimizer-coded.
+    pub fn meshopt_extension(self) -> Option<&'static str> {
+        match self {
+            GltfCompression::Meshopt => Some("EXT_meshopt_compression"),
+            GltfCompression::MeshoptKhr => Some("KHR_meshopt_compression"),
+            GltfCompression::Quantized | GltfCompression::None => None,
+        }
+    }
+
+    /// The format version meshoptimizer's vertex codec writes (and the export's step choice
+    /// counts the bytes of): 1 under `KHR_meshopt_compression`, else 0, the only one
+    /// `EXT_meshopt_compression` defines.
+    pub(super) fn vertex_codec_version(self) -> i32 {
+        i32::from(self == GltfCompression::MeshoptKhr)
+    }
+
+    /// The extensions a file of this form uses and requires.
+    pub fn extensions(self) -> &'static [&'static str] {
+        match self {
+            GltfCompression::Meshopt => &["KHR_mesh_quantization", "EXT_meshopt_compression"],
+            GltfCompression::MeshoptKhr => &["KHR_mesh_quantization", "KHR_meshopt_compression"],
+            GltfCompression::Quantized => &["KHR_mesh_quantization"],
+            GltfCompression::None => &[],
+        }
+    }
+}
 
 /// Little-endian binary buffer with 4-byte aligned views. With `meshopt`, view data is
 /// meshoptimizer-encoded into buffer 0 and the view itself points into buffer 1, the
@@ -38,16 +95,6 @@ pub(super) fn align4(bytes: &mut Vec<u8>) {
     while !bytes.len().is_multiple_of(4) {
         bytes.push(0);
     }
-}
-
-/// The vertex codec's compression level: the slowest and smallest (it only takes effect in
-/// format version 1, where it tries more channel modes and bit-width combinations).
-const VERTEX_CODEC_LEVEL: i32 = 3;
-
-/// Encodes `records` with meshopt's vertex codec in format `version` (0 or 1).
-pub(super) fn encode_vertex_records<T>(records: &[T], version: i32) -> Result<Vec<u8>> {
-    meshopt::encode_vertex_buffer_level(records, VERTEX_CODEC_LEVEL, Some(version))
-        .map_err(|e| Error::InvalidAnimation(format!("meshopt encoding: {e}")))
 }
 
 /// Encodes `raw` (records of `N` bytes) with meshopt's vertex codec.

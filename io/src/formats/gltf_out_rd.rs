@@ -24,7 +24,6 @@
 
 use codec_core::{linalg, Animation, Error, Result};
 
-use super::gltf_out_buffer::encode_vertex_records;
 use faer::Mat;
 
 /// Principal components of the frames about their mean.
@@ -760,6 +759,16 @@ pub(super) fn quantized_basis_coded(a: &Animation, p: &Pca, target_kg: f64, vers
         };
     }
     Ok(best.expect("at least one round").0)
+}
+
+/// The vertex codec's compression level: the slowest and smallest (it only takes effect in
+/// format version 1, where it tries more channel modes and bit-width combinations).
+const VERTEX_CODEC_LEVEL: i32 = 3;
+
+/// Encodes `records` with meshopt's vertex codec in format `version` (0 or 1).
+pub(super) fn encode_vertex_records<T>(records: &[T], version: i32) -> Result<Vec<u8>> {
+    meshopt::encode_vertex_buffer_level(records, VERTEX_CODEC_LEVEL, Some(version))
+        .map_err(|e| Error::InvalidAnimation(format!("meshopt encoding: {e}")))
 }
 
 #[cfg(test)]
