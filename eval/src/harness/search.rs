@@ -19,7 +19,7 @@ pub struct SearchRequest<'a> {
     pub registry: &'a CodecRegistry,
     /// The input every candidate is encoded from and measured against: the whole animation,
     /// or a source read frame by frame within a memory budget. The searches are the same;
-    /// only what measuring a candidate does differs ([`SearchRequest::measure`]).
+    /// only what measuring a candidate does differs (`SearchRequest::measure`).
     pub input: SearchInput<'a>,
     /// The error to meet.
     pub target: Target,
