@@ -4,10 +4,10 @@ use codec_core::{Animation, Result};
 use serde::Serialize;
 
 use crate::common::check_compatible;
-use crate::displacement::{displacement_stats, kg_error};
-use crate::hausdorff::{hausdorff, isolated_vertex_count, HausdorffMode};
+use crate::displacement::{displacement_stats, kg_error, DisplacementStats};
+use crate::hausdorff::{hausdorff, isolated_vertex_count, HausdorffMode, HausdorffStats};
 use crate::parts::{part_errors, worst_part, PartError};
-use crate::sted::{sted, StedParams};
+use crate::sted::{sted, StedParams, StedResult};
 
 /// What [`evaluate`] computes.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -119,9 +119,44 @@ pub fn evaluate(reference: &Animation, candidate: &Animation, options: &EvalOpti
         notes.push("sted not requested".to_string());
         None
     };
+    let h = if options.compute_hausdorff { Some(hausdorff(reference, candidate)?) } else { None };
+    let counts = ReportCounts {
+        parts: parts.count(),
+        vertices: reference.vertex_count(),
+        frames: reference.frame_count(),
+        isolated: isolated_vertex_count(reference.triangles(), reference.vertex_count()),
+    };
+    Ok(assemble(kg, st, h, disp, worst, counts, options, notes))
+}
+
+/// Sizes a [`MetricReport`] states beside the metrics.
+pub(crate) struct ReportCounts {
+    /// Visible parts.
+    pub parts: usize,
+    /// Vertices per frame.
+    pub vertices: usize,
+    /// Frames.
+    pub frames: usize,
+    /// Vertices in no triangle (measured as points by Hausdorff).
+    pub isolated: usize,
+}
+
+/// The report of [`evaluate`] and of [`StreamingEvaluator::finish`](crate::StreamingEvaluator::finish)
+/// from their metrics: the notes on STED and Hausdorff added after those already in `notes`.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn assemble(
+    kg: Option<f64>,
+    st: Option<StedResult>,
+    h: Option<HausdorffStats>,
+    disp: DisplacementStats,
+    worst: Option<PartError>,
+    counts: ReportCounts,
+    options: &EvalOptions,
+    mut notes: Vec<String>,
+) -> MetricReport {
     if let Some(s) = &st {
         if !s.temporal_defined {
-            notes.push(if reference.frame_count() < 2 {
+            notes.push(if counts.frames < 2 {
                 "sted is the spatial part alone: a single frame has no temporal edges (the author's tool prints NaN)"
                     .to_string()
             } else {
@@ -137,22 +172,17 @@ pub fn evaluate(reference: &Animation, candidate: &Animation, options: &EvalOpti
             ));
         }
     }
-    let h = if options.compute_hausdorff {
-        let h = hausdorff(reference, candidate)?;
-        if h.mode == HausdorffMode::PointToPoint {
-            notes.push("hausdorff: the mesh has no triangles, distances are point-to-point".to_string());
-        } else {
-            let isolated = isolated_vertex_count(reference.triangles(), reference.vertex_count());
-            if isolated > 0 {
-                notes.push(format!("hausdorff: {isolated} vertices in no triangle are measured as points"));
-            }
+    match &h {
+        Some(h) if h.mode == HausdorffMode::PointToPoint => {
+            notes.push("hausdorff: the mesh has no triangles, distances are point-to-point".to_string())
         }
-        Some(h)
-    } else {
-        notes.push("hausdorff not requested".to_string());
-        None
-    };
-    Ok(MetricReport {
+        Some(_) if counts.isolated > 0 => {
+            notes.push(format!("hausdorff: {} vertices in no triangle are measured as points", counts.isolated))
+        }
+        Some(_) => {}
+        None => notes.push("hausdorff not requested".to_string()),
+    }
+    MetricReport {
         kg,
         sted: st.as_ref().map(|s| s.sted),
         sted_spatial: st.as_ref().map(|s| s.spatial),
@@ -167,12 +197,12 @@ pub fn evaluate(reference: &Animation, candidate: &Animation, options: &EvalOpti
         mse_relative: disp.mse_relative,
         rmse_relative: disp.rmse_relative,
         max_error: disp.max_error,
-        parts: parts.count(),
+        parts: counts.parts,
         worst_part: worst,
         sted_params: options.sted,
         bbox_diagonal: disp.bbox_diagonal,
-        vertex_count: reference.vertex_count(),
-        frame_count: reference.frame_count(),
+        vertex_count: counts.vertices,
+        frame_count: counts.frames,
         notes,
-    })
+    }
 }

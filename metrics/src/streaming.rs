@@ -29,12 +29,12 @@ use codec_core::{Error, Result, Topology};
 use rayon::prelude::*;
 
 use crate::displacement::{displacement_frame, kg_frame, kg_from_sums, summarize_displacement};
-use crate::hausdorff::{isolated_vertex_count, summarize_hausdorff, FrameSurface, HausdorffMode};
+use crate::hausdorff::{isolated_vertex_count, summarize_hausdorff, FrameSurface};
 use crate::parts::{
     accumulate_part_frame, connected_parts, joined_parts, merge_part_sums, part_block_frames, part_error, worst_part,
     PartAcc, PartError, Parts, WeldClasses, NO_PART,
 };
-use crate::report::{EvalOptions, MetricReport};
+use crate::report::{assemble, EvalOptions, MetricReport, ReportCounts};
 use crate::sted::{diameter, local_deviations, mesh_neighbourhoods, summarize_sted, Neighbourhoods, TemporalWindow};
 
 const CTX: &str = "streaming metrics";
@@ -324,63 +324,17 @@ impl StreamingEvaluator {
                 None
             }
         };
-        if let Some(s) = &st {
-            if !s.temporal_defined {
-                notes.push(if frames < 2 {
-                    "sted is the spatial part alone: a single frame has no temporal edges (the author's tool prints NaN)"
-                        .to_string()
-                } else {
-                    "sted is the spatial part alone: reference frame 0 is a single point (diameter 0), the temporal \
-                     part's unit"
-                        .to_string()
-                });
-            }
-            if s.empty_vertex_frames > 0 {
-                notes.push(format!(
-                    "sted_spatial: {} vertex-frames without a positive-length edge in their neighbourhood count as 0",
-                    s.empty_vertex_frames
-                ));
-            }
-        }
         let h = self.surface.as_ref().map(|s| {
             let mean = self.hausdorff_sum / frames as f64;
             summarize_hausdorff(self.hausdorff_max, mean, diag, s.mode, Vec::new())
         });
-        match &h {
-            Some(h) if h.mode == HausdorffMode::PointToPoint => {
-                notes.push("hausdorff: the mesh has no triangles, distances are point-to-point".to_string())
-            }
-            Some(_) => {
-                let isolated = isolated_vertex_count(self.topology.triangles(), n);
-                if isolated > 0 {
-                    notes.push(format!("hausdorff: {isolated} vertices in no triangle are measured as points"));
-                }
-            }
-            None => notes.push("hausdorff not requested".to_string()),
-        }
-        Ok(MetricReport {
-            kg,
-            sted: st.as_ref().map(|s| s.sted),
-            sted_spatial: st.as_ref().map(|s| s.spatial),
-            sted_temporal: st.as_ref().filter(|s| s.temporal_defined).map(|s| s.temporal),
-            hausdorff: h.as_ref().map(|h| h.max),
-            hausdorff_mean: h.as_ref().map(|h| h.mean),
-            hausdorff_relative: h.as_ref().and_then(|h| h.max_relative),
-            hausdorff_mean_relative: h.as_ref().and_then(|h| h.mean_relative),
-            hausdorff_mode: h.as_ref().map(|h| h.mode),
-            mse: disp.mse,
-            rmse: disp.rmse,
-            mse_relative: disp.mse_relative,
-            rmse_relative: disp.rmse_relative,
-            max_error: disp.max_error,
+        let counts = ReportCounts {
             parts: parts.count(),
-            worst_part: worst,
-            sted_params: self.options.sted,
-            bbox_diagonal: diag,
-            vertex_count: n,
-            frame_count: frames,
-            notes,
-        })
+            vertices: n,
+            frames,
+            isolated: isolated_vertex_count(self.topology.triangles(), n),
+        };
+        Ok(assemble(kg, st, h, disp, worst, counts, &self.options, notes))
     }
 
     /// Bytes this evaluator holds for `topology` × `options` (its window), for memory budgets:
