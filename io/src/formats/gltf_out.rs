@@ -28,7 +28,7 @@ use base64::Engine as _;
 use codec_core::{Animation, Error, Result, SceneMetadata, UpAxis};
 
 pub use super::gltf_out_buffer::GltfCompression;
-use super::gltf_out_buffer::{align4, shortest, Buffer, WeightForm};
+use super::gltf_out_buffer::{align4, drop_zero_offsets, shortest, Buffer, WeightForm};
 use super::gltf_out_morphs::{basis_morphs, frame_morphs, quantize, rigid_split, Morphs, RigidMotion};
 use super::gltf_out_rd::{self, QBasis};
 use serde_json::{json, Value};
@@ -519,6 +519,8 @@ fn finish(
     root_matrix: Option<[f32; 16]>,
 ) -> Result<(Vec<u8>, GltfSummary)> {
     let (glb, rotate) = form;
+    // The meshopt forms are for engines and web viewers: no field they do not need.
+    let compact = options.compression.meshopt();
     let frames = animation.frame_count();
     // With rigid motion: node 0 carries it, its child node 1 the mesh.
     let mesh_node = if motion.is_some() { 1 } else { 0 };
@@ -564,7 +566,8 @@ fn finish(
             weight_form = if q.weights_exponential { WeightForm::Exponential } else { WeightForm::F32 };
             let arrays: Vec<&[[i16; 3]]> =
                 std::iter::once(q.base.as_slice()).chain(q.targets.iter().map(|t| t.values.as_slice())).collect();
-            let bytes: Vec<bool> = std::iter::once(false).chain(q.targets.iter().map(|t| t.bytes)).collect();
+            let narrow = gltf_out_rd::narrow_targets(options.compression.vertex_codec_version());
+            let bytes: Vec<bool> = std::iter::once(false).chain(q.targets.iter().map(|t| t.bytes && narrow)).collect();
             let accessors = buf.positions(&arrays, &bytes, q.base_normalized)?;
             let position = accessors[0];
             let targets: Vec<Value> = accessors[1..].iter().map(|&a| json!({"POSITION": a})).collect();
@@ -576,7 +579,20 @@ fn finish(
     };
     let k = targets.len();
     let fps = animation.frame_rate();
-    let mut primitive = json!({"attributes": {"POSITION": position}, "indices": indices, "mode": 4});
+    let mut primitive = json!({"attributes": {"POSITION": position}, "indices": indices});
+    // Triangles (4) is the default mode (glTF 2.0 `mesh.primitive.mode`): written out only
+    // outside the compact form.
+    if !compact {
+        primitive["mode"] = 4.into();
+    }
+    // A sampler's interpolation defaults to `LINEAR` (`animation.sampler.interpolation`).
+    let sampler = |input: usize, output: usize, interpolation: &str| {
+        let mut s = json!({"input": input, "output": output});
+        if !(compact && interpolation == "LINEAR") {
+            s["interpolation"] = interpolation.into();
+        }
+        s
+    };
     let mut mesh = json!({"name": options.name, "primitives": []});
     // Shape-key names for DCC importers; the compressed basis's targets are numbered
     // components, which importers name the same way by default, so the bytes are saved.
@@ -615,15 +631,16 @@ fn finish(
     let mut input = None;
     if k > 0 {
         primitive["targets"] = targets.into();
-        // The node starts at frame 0's weights so a viewer without animation shows frame 0.
-        mesh["weights"] = shortest(&weights[..k]);
+        // The node starts at frame 0's weights so a viewer without animation shows frame 0
+        // (the compact form to 3 significant digits: a still pose, not the played frames).
+        mesh["weights"] = if compact { significant(&weights[..k], 3) } else { shortest(&weights[..k]) };
         if frames > 1 {
             let keys = buf.floats(&times, "SCALAR", None, true)?;
             input = Some(keys);
             let output = buf.weights(&weights, k, weight_form)?;
             let interpolation = if options.layout == GltfLayout::Frames { "STEP" } else { "LINEAR" };
             channels.push(json!({"sampler": samplers.len(), "target": {"node": mesh_node, "path": "weights"}}));
-            samplers.push(json!({"input": keys, "output": output, "interpolation": interpolation}));
+            samplers.push(sampler(keys, output, interpolation));
         }
     }
     if let (Some(m), true) = (&motion, frames > 1) {
@@ -634,20 +651,24 @@ fn finish(
         for (path, data, kind) in [("translation", &m.translations, "VEC3"), ("rotation", &m.rotations, "VEC4")] {
             let output = buf.floats(data, kind, None, false)?;
             channels.push(json!({"sampler": samplers.len(), "target": {"node": 0, "path": path}}));
-            samplers.push(json!({"input": keys, "output": output, "interpolation": "LINEAR"}));
+            samplers.push(sampler(keys, output, "LINEAR"));
         }
     }
     if !channels.is_empty() {
-        root["animations"] = json!([{
-            "name": options.name,
-            "channels": channels,
-            "samplers": samplers,
-            "extras": {"animcodec": {"fps": fps}},
-        }]);
+        let mut clip = json!({"name": options.name, "channels": channels, "samplers": samplers});
+        // The compact form leaves the rate out when a reader recovers it from the key grid.
+        if !(compact && key_grid_gives(&times, fps)) {
+            clip["extras"] = json!({"animcodec": {"fps": fps}});
+        }
+        root["animations"] = json!([clip]);
     }
     mesh["primitives"] = json!([primitive]);
     root["meshes"] = json!([mesh]);
-    root["bufferViews"] = buf.views.into();
+    let mut views = buf.views;
+    if compact {
+        views.iter_mut().for_each(drop_zero_offsets);
+    }
+    root["bufferViews"] = views.into();
     root["accessors"] = buf.accessors.into();
     let mut bin = buf.bin;
     align4(&mut bin);
@@ -672,6 +693,44 @@ fn finish(
         let text = serde_json::to_vec(&root).map_err(|e| Error::InvalidAnimation(format!("glTF JSON: {e}")))?;
         Ok((text, summary))
     }
+}
+
+/// `values` as a JSON array of decimals with `digits` significant digits (the shortest that
+/// reads back as the same `f32` when that is shorter).
+fn significant(values: &[f32], digits: usize) -> Value {
+    let exact = shortest(values);
+    Value::Array(
+        values
+            .iter()
+            .zip(exact.as_array().into_iter().flatten())
+            .map(|(&x, exact)| {
+                let rounded: f64 = format!("{:.*e}", digits.saturating_sub(1), x).parse().unwrap_or(x as f64);
+                match serde_json::Number::from_f64(rounded) {
+                    Some(n) if n.to_string().len() < exact.to_string().len() => Value::Number(n),
+                    _ => exact.clone(),
+                }
+            })
+            .collect(),
+    )
+}
+
+/// Whether a reader without the rate in `extras` samples keys at `times` (`frame / fps`) at
+/// `fps`: the key grid it finds (`gltf_scene_channels::key_rate`, the rule the reader applies)
+/// is `fps` itself.
+fn key_grid_gives(times: &[f32], fps: f32) -> bool {
+    let track = super::gltf_anim::Track {
+        times: times.to_vec(),
+        values: Vec::new(),
+        width: 1,
+        interpolation: ::gltf::animation::Interpolation::Linear,
+        rotation: false,
+    };
+    let channel = super::gltf_scene_channels::Channel {
+        node: 0,
+        property: ::gltf::animation::Property::MorphTargetWeights,
+        track,
+    };
+    times.len() >= 2 && super::gltf_scene_channels::key_rate(&[channel]) == Some(f64::from(fps))
 }
 
 /// GLB container (glTF spec §4.4): 12-byte header, JSON chunk padded with spaces, BIN chunk
@@ -964,6 +1023,55 @@ mod tests {
             sizes.push(bytes.len());
         }
         assert!(sizes[1] < sizes[0], "KHR {} bytes, EXT {}", sizes[1], sizes[0]);
+    }
+
+    /// The meshopt forms leave out what a reader needs not be told: the frame rate when the
+    /// key grid gives it (a reader told nothing samples at the same rate; a rate off the
+    /// integers keeps it), the default primitive mode and interpolation, zero byte offsets;
+    /// the default weights are short. `KHR_meshopt_compression` writes every target in one
+    /// SHORT view. The other forms keep every field.
+    #[test]
+    fn the_compact_form_leaves_out_defaults() {
+        let doc = |bytes: &[u8]| -> Value {
+            let json_length = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+            serde_json::from_slice(&bytes[20..20 + json_length]).unwrap()
+        };
+        let a = synth::waving_flag(16, 10, 30);
+        for (fps, compression) in [
+            (24.0, GltfCompression::Meshopt),
+            (29.97, GltfCompression::Meshopt),
+            (30.0, GltfCompression::MeshoptKhr),
+            (24.0, GltfCompression::Quantized),
+        ] {
+            let a =
+                Animation::from_parts(a.vertex_count(), a.triangles().to_vec(), a.positions().to_vec(), fps).unwrap();
+            let opts = GltfOptions { target_kg: 0.05, compression, ..Default::default() };
+            let (bytes, s) = encode_gltf(&a, &opts, true).unwrap();
+            assert!(s.targets > 1);
+            let j = doc(&bytes);
+            let compact = compression.meshopt();
+            let integral = fps.fract() == 0.0;
+            assert_eq!(j["animations"][0].get("extras").is_none(), compact && integral, "{fps} {compression:?}");
+            assert_eq!(j["meshes"][0]["primitives"][0].get("mode").is_none(), compact);
+            assert_eq!(j["animations"][0]["samplers"][0].get("interpolation").is_none(), compact);
+            let zero_offsets = j["bufferViews"].to_string().contains("\"byteOffset\":0,");
+            assert_eq!(zero_offsets, !compact, "{}", j["bufferViews"]);
+            let defaults = j["meshes"][0]["weights"].as_array().unwrap();
+            assert_eq!(defaults.len(), s.targets);
+            // A reader told no rate samples the file at the source's.
+            let selection = super::super::gltf::GltfSelection::default();
+            let played = super::super::gltf::parse_gltf_with(&bytes, None, "t.glb", &selection).unwrap();
+            assert_eq!((played.frame_rate(), played.frame_count()), (fps, a.frame_count()), "{compression:?}");
+            let kg = metrics::kg_error(&a, &played).unwrap();
+            assert!(kg <= 0.05, "{compression:?}: KG {kg}");
+            let views = j["bufferViews"].as_array().unwrap();
+            let narrow = views.iter().filter(|v| v.to_string().contains("\"byteStride\":4,")).count();
+            if compression == GltfCompression::MeshoptKhr {
+                assert_eq!(narrow, 0, "KHR writes no BYTE view: {views:?}");
+            }
+        }
+        assert!(key_grid_gives(&[0.0, 0.1, 0.2], 10.0) && !key_grid_gives(&[0.0], 10.0));
+        assert!(!key_grid_gives(&[0.0, 1.0 / 29.97, 2.0 / 29.97], 29.97));
     }
 
     /// A frame rate other than the reader's default keeps the frame times (keys at f / fps).

@@ -97,6 +97,22 @@ pub(super) fn align4(bytes: &mut Vec<u8>) {
     }
 }
 
+/// Leaves out `byteOffset` where it is 0, its default (glTF 2.0 `bufferView.byteOffset`,
+/// the meshopt extensions' `byteOffset`), in `view` and its meshopt extension object.
+pub(super) fn drop_zero_offsets(view: &mut Value) {
+    let zero = |v: &mut Value| {
+        if let Some(map) = v.as_object_mut() {
+            if map.get("byteOffset").and_then(Value::as_u64) == Some(0) {
+                map.remove("byteOffset");
+            }
+        }
+    };
+    if let Some(extensions) = view.get_mut("extensions").and_then(Value::as_object_mut) {
+        extensions.values_mut().for_each(zero);
+    }
+    zero(view);
+}
+
 /// Encodes `raw` (records of `N` bytes) with meshopt's vertex codec.
 fn encode_records<const N: usize>(raw: &[u8], version: i32) -> Result<Vec<u8>> {
     let records: Vec<[u8; N]> = raw.chunks_exact(N).map(|c| c.try_into().expect("chunks of N")).collect();

@@ -144,7 +144,8 @@ pub(super) fn successive_differences(a: &Animation) -> Pca {
 /// A quantized morph target: integers in units of `S · weight`.
 pub(super) struct QTarget {
     pub(super) values: Vec<[i16; 3]>,
-    /// Every value fits a signed byte (written as BYTE, 4-byte records).
+    /// Every value fits a signed byte (written as BYTE, 4-byte records, when
+    /// [`narrow_targets`] says so for the form's vertex codec version).
     pub(super) bytes: bool,
 }
 
@@ -387,10 +388,10 @@ pub(super) fn quantized_basis(
 
 /// Bytes meshoptimizer's vertex codec (format `version`: 0 under `EXT_meshopt_compression`,
 /// 1 under `KHR_meshopt_compression`) spends on `values` in the records the writer stores them
-/// in: signed bytes in 4-byte records when every value fits, else 16-bit integers in 8-byte
-/// records.
+/// in: under version 0, signed bytes in 4-byte records when every value fits, else (and always
+/// under version 1, see [`narrow_targets`]) 16-bit integers in 8-byte records.
 pub(super) fn coded_bytes(values: &[[i16; 3]], version: i32) -> usize {
-    let narrow = values.iter().all(|v| v.iter().all(|&x| (-127..=127).contains(&x)));
+    let narrow = narrow_targets(version) && values.iter().all(|v| v.iter().all(|&x| (-127..=127).contains(&x)));
     let encoded = if narrow {
         let records: Vec<[u8; 4]> =
             values.iter().map(|p| [p[0] as i8 as u8, p[1] as i8 as u8, p[2] as i8 as u8, 0]).collect();
@@ -409,6 +410,15 @@ pub(super) fn coded_bytes(values: &[[i16; 3]], version: i32) -> usize {
         encode_vertex_records(&records, version)
     };
     encoded.map_or(usize::MAX, |e| e.len())
+}
+
+/// Whether targets whose values all fit a signed byte are written as BYTE (4-byte records, a
+/// view of their own) in vertex codec format `version`. Version 0 codes bytes, so a 16-bit
+/// value costs its high byte's deltas too; version 1 codes 16-bit channels as 16-bit deltas at
+/// the bit width they need, so small values cost the same in SHORT records and the second view
+/// (its JSON, ~200 bytes) is saved.
+pub(super) fn narrow_targets(version: i32) -> bool {
+    version == 0
 }
 
 /// `EXT_meshopt_compression`'s `EXPONENTIAL` filter form of non-negative `weights` (`k` per
