@@ -70,6 +70,39 @@ pub fn default_memory_budget() -> Option<u64> {
     mem_total(&text).map(|total| total / DEFAULT_MEMORY_SHARE.1 * DEFAULT_MEMORY_SHARE.0)
 }
 
+/// Raw size (f32 coordinates) above which a search streams its input even when the
+/// whole-array search fits the memory budget. The whole-array search holds three times the raw
+/// input at least (the input, a decoded candidate, the metrics' working copies) plus the
+/// encoder's analysis (hosvd's whole-sequence decomposition: ~16× raw): gigabytes once the
+/// input is this large, for a search ~1.35× faster than the streamed one (a 40 MB cache: 21.8 s
+/// whole, 29.4 s streamed). Below it the whole-array search stays (a few hundred MiB at most).
+pub const WHOLE_SEARCH_MAX_RAW: u64 = 256 << 20;
+
+/// The budget of a streamed search over an input above [`WHOLE_SEARCH_MAX_RAW`], as
+/// (numerator, denominator) of its raw size: twice. A command's memory then grows with its
+/// input, not with the machine: `--memory` (or the default budget) only caps it. The budget is
+/// kept by the codecs' memory models, which are upper bounds: at twice raw the measured peaks
+/// of the default command with `--eval` on a 99 856 × 300 cache (343 MB) were 0.91× raw
+/// (quant-delta), 1.36× (pca-aoi) and 1.18× (hosvd), `docs/notes/session-2026-11-29.md`.
+/// Raised to the least budget the searched codecs accept ([`harness::least_streamed_budget`]:
+/// hosvd's smallest blocks, quant-delta's packets), so no codec is refused for it.
+///
+/// [`harness::least_streamed_budget`]: animcodec_eval::harness::least_streamed_budget
+pub const STREAMED_SEARCH_SHARE_OF_RAW: (u64, u64) = (2, 1);
+
+/// The budget a search over `raw` bytes of input keeps to, given the command's `budget`
+/// (`--memory` or the default) and `least`, the least budget its codecs accept: `None` when
+/// the input is small enough for the whole-array search ([`WHOLE_SEARCH_MAX_RAW`]); else
+/// [`STREAMED_SEARCH_SHARE_OF_RAW`] of `raw`, raised to `least`, capped by `budget`.
+pub fn streamed_search_budget(raw: u64, budget: Option<u64>, least: u64) -> Option<u64> {
+    if raw <= WHOLE_SEARCH_MAX_RAW {
+        return None;
+    }
+    let (num, den) = STREAMED_SEARCH_SHARE_OF_RAW;
+    let want = (raw / den).saturating_mul(num).max(least);
+    Some(budget.map_or(want, |b| b.min(want)))
+}
+
 /// `MemTotal` in bytes from the text of `/proc/meminfo` (`MemTotal:   23456789 kB`).
 fn mem_total(meminfo: &str) -> Option<u64> {
     let line = meminfo.lines().find(|l| l.starts_with("MemTotal:"))?;
@@ -550,5 +583,22 @@ mod memory_tests {
         assert_eq!(mem_total("MemTotal: x kB\n"), None);
         assert_eq!(mem_total("MemFree: 1 kB\n"), None);
         assert_eq!(mem_total("MemTotal: 99999999999999999999 kB\n"), None);
+    }
+
+    /// Small inputs keep the whole-array search; a large one streams within its share of raw,
+    /// raised to what its codecs need, never above the budget.
+    #[test]
+    fn a_large_input_streams_within_its_share_of_raw_capped_by_the_budget() {
+        const MIB: u64 = 1 << 20;
+        assert_eq!(streamed_search_budget(WHOLE_SEARCH_MAX_RAW, Some(64 * 1024 * MIB), 0), None);
+        let raw = 343 * MIB;
+        let (num, den) = STREAMED_SEARCH_SHARE_OF_RAW;
+        let share = raw / den * num;
+        assert_eq!(streamed_search_budget(raw, Some(4096 * MIB), 0), Some(share));
+        assert_eq!(streamed_search_budget(raw, None, 0), Some(share));
+        assert_eq!(streamed_search_budget(raw, Some(4096 * MIB), 900 * MIB), Some(share.max(900 * MIB)));
+        assert_eq!(streamed_search_budget(raw, Some(300 * MIB), 0), Some(300 * MIB));
+        assert_eq!(streamed_search_budget(raw, Some(300 * MIB), 900 * MIB), Some(300 * MIB));
+        assert_eq!(streamed_search_budget(u64::MAX, None, 0), Some((u64::MAX / den).saturating_mul(num)));
     }
 }

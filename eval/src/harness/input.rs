@@ -253,6 +253,34 @@ pub fn encoder_need(codec: &dyn AnimationCodec, params: &ParamSet, vertices: usi
     Some(hi)
 }
 
+/// The least budget a streamed search can give `codec` at `params` on `vertices × frames`:
+/// the smallest budget whose work share (all but the 1/[`STREAM_SHARE_DIVISOR`] kept for streams) its
+/// [`AnimationCodec::fit_memory`] accepts, found by bisection to a MiB; `None` when even 1 PiB
+/// does not (a codec whose encoder holds the whole input). The parameters may still be
+/// fitted (hosvd's blocks shrink); this is where fitting stops being possible.
+pub fn least_streamed_budget(
+    codec: &dyn AnimationCodec,
+    params: &ParamSet,
+    vertices: usize,
+    frames: usize,
+) -> Option<u64> {
+    let work = |b: u64| b - b / STREAM_SHARE_DIVISOR;
+    let fits = |b: u64| codec.fit_memory(params, vertices, frames, work(b)).is_ok();
+    let (mut lo, mut hi) = (0u64, 1u64 << 50);
+    if !fits(hi) {
+        return None;
+    }
+    while hi - lo > MIB {
+        let mid = lo + (hi - lo) / 2;
+        if fits(mid) {
+            hi = mid;
+        } else {
+            lo = mid;
+        }
+    }
+    Some(hi)
+}
+
 /// About what a search over the whole animation holds at its peak with `codec`: the input,
 /// one decoded candidate and the whole-array metrics' working copies (three times the raw
 /// coordinates) plus the encoder's own need at the codec's defaults ([`encoder_need`]).

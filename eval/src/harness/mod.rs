@@ -46,8 +46,8 @@ pub(crate) mod target;
 pub use curve::{envelope, joint_envelope, monotone_report, Monotonicity};
 pub use default_quality::{search_default_quality, DEFAULT_QUALITY_BAND, DEFAULT_REFINE_BAND, DEFAULT_TARGET};
 pub use input::{
-    encoder_need, measure_point_streamed, measure_stream_against, whole_search_need, CacheSource, FrameRead,
-    InputSource, SearchInput, StreamedInput, STREAM_SHARE_DIVISOR,
+    encoder_need, least_streamed_budget, measure_point_streamed, measure_stream_against, whole_search_need,
+    CacheSource, FrameRead, InputSource, SearchInput, StreamedInput, STREAM_SHARE_DIVISOR,
 };
 pub use measured::Point;
 pub use point::{ladder_indices, ladder_params, measure_point, measure_point_keeping};

@@ -22,10 +22,11 @@ pub struct TargetEncodeDocument<'a> {
     /// How the search read the input: `whole` (the animation in memory) or `streamed` (each
     /// candidate encoded from the input as it is read and measured against a second read).
     pub search_input: &'static str,
-    /// The memory budget the search kept to (bytes): `--memory`, or the default share of the
-    /// machine's RAM; `null` when none applies.
+    /// The memory budget the search kept to (bytes): for an input over
+    /// [`front::WHOLE_SEARCH_MAX_RAW`], [`front::streamed_search_budget`]; else `--memory`, or
+    /// the default share of the machine's RAM; `null` when none applies.
     pub memory_budget: Option<u64>,
-    /// Whether `memory_budget` is the default (no `--memory`).
+    /// Whether no `--memory` was given (the cap is the default share of the RAM).
     pub memory_budget_default: bool,
     /// Raw f32 size over the stream's.
     pub ratio: f64,
@@ -63,17 +64,24 @@ struct PreparedInput {
 
 /// Reads (or opens) a search's input under the memory budget: `--memory`, else
 /// [`front::default_memory_budget`]. An input that can be read frame by frame (PC2, MDD, an
-/// OBJ sequence, `synth:flag:COLSxROWSxFRAMES`) is searched whole while the whole-array search
-/// fits the budget by [`harness::whole_search_need`] (the largest over `codecs`), and streamed
-/// beyond it, with a note saying so. Any other input is read whole; beyond an explicit
-/// `--memory` it is refused.
-fn prepare_search_input(args: &EncodeArgs, codecs: &[&dyn AnimationCodec], limits: Limits) -> CmdResult<PreparedInput> {
+/// OBJ sequence, `synth:flag:COLSxROWSxFRAMES`) is searched whole while it is small
+/// ([`front::WHOLE_SEARCH_MAX_RAW`]) and the whole-array search fits the budget by
+/// [`harness::whole_search_need`] (the largest over `codecs`); a larger one streams within
+/// [`front::streamed_search_budget`] (twice its raw size by the codecs' models, capped by the budget), one that
+/// does not fit streams within the budget, each with a note saying so. Any other input is read
+/// whole; beyond an explicit `--memory` it is refused.
+fn prepare_search_input(
+    args: &EncodeArgs,
+    codecs: &[(&dyn AnimationCodec, ParamSet)],
+    eval: &EvalOptions,
+    limits: Limits,
+) -> CmdResult<PreparedInput> {
     let (budget, given) = match args.memory {
         Some(m) => (Some(m), true),
         None => (front::default_memory_budget(), false),
     };
     let options = args.read.options(args.fps);
-    let need = |v: usize, f: usize| codecs.iter().map(|c| harness::whole_search_need(*c, v, f)).max().unwrap_or(0);
+    let need = |v: usize, f: usize| codecs.iter().map(|(c, _)| harness::whole_search_need(*c, v, f)).max().unwrap_or(0);
     let path = std::path::Path::new(&args.input);
     let source: Option<Box<dyn InputSource>> = match front::streamed_flag(&args.input)? {
         Some((cols, rows, frames)) => {
@@ -103,6 +111,34 @@ fn prepare_search_input(args: &EncodeArgs, codecs: &[&dyn AnimationCodec], limit
     };
     let (v, f) = (source.topology().vertex_count(), source.frame_count());
     let whole = need(v, f);
+    let raw = (v as u64).saturating_mul(f as u64).saturating_mul(12);
+    // The least budget every searched codec streams in (a codec that cannot stream at all is
+    // refused or left out later, naming it) and the streamed search's own floor.
+    let least = codecs
+        .iter()
+        .filter_map(|(c, p)| harness::least_streamed_budget(*c, p, v, f))
+        .max()
+        .unwrap_or(0)
+        .max(StreamedInput::least_budget(source.topology(), eval));
+    if let Some(b) = front::streamed_search_budget(raw, budget, least) {
+        let (num, den) = front::STREAMED_SEARCH_SHARE_OF_RAW;
+        let note = format!(
+            "{} is {} MiB of coordinates: the search streams it within {} MiB ({num}/{den} of that{}{}) rather than \
+             holding it whole (about {} MiB); each candidate is encoded from the input as it is read and measured \
+             against a second read",
+            args.input,
+            raw >> 20,
+            b >> 20,
+            if least > raw / den * num { ", raised to the least the codec's blocks allow" } else { "" },
+            match (budget, given) {
+                (Some(cap), true) if cap < raw / den * num => ", capped by --memory",
+                (Some(cap), false) if cap < raw / den * num => ", capped by the default memory budget",
+                _ => "",
+            },
+            whole.min(u64::MAX >> 1) >> 20
+        );
+        return Ok(PreparedInput { input: SearchSource::Streamed(source), budget: Some(b), note: Some(note) });
+    }
     match budget {
         Some(b) if whole > b => {
             let whose = if given {
@@ -238,7 +274,11 @@ pub(super) fn run_target(
     };
     // The whole animation in memory while the search fits the memory budget; beyond it (and
     // for an input read frame by frame) the streamed search.
-    let prepared = prepare_search_input(args, &searched, limits)?;
+    let searched_params: Vec<(&dyn AnimationCodec, ParamSet)> = match &chosen {
+        Some((codec, params)) => vec![(*codec, params.clone())],
+        None => searched.iter().map(|c| (*c, c.default_params())).collect(),
+    };
+    let prepared = prepare_search_input(args, &searched_params, &eval, limits)?;
     // The files the read opened (a .gltf's buffers, …) are inputs too: refused before the work.
     policy.check(&args.output)?;
     let read_seconds = read_start.elapsed().as_secs_f64();
