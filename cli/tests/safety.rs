@@ -32,7 +32,7 @@ fn interrupted_encode_leaves_the_old_stream_and_no_partial_file() {
     std::fs::write(&out, b"the previous stream").unwrap();
     // A flag big enough that encoding takes several seconds, streamed to disk.
     let mut child = Command::new(env!("CARGO_BIN_EXE_animcodec"))
-        .args(["encode", "-c", "quant-delta", "-f", "-o", &out, "synth:flag:100x100x3000"])
+        .args(["encode", "-c", "quant-delta", "-p", "bits=12", "-f", "-o", &out, "synth:flag:100x100x3000"])
         .stdout(Stdio::null())
         .stderr(Stdio::piped())
         .spawn()

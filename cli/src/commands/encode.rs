@@ -160,7 +160,7 @@ pub struct EncodeDocument<'a> {
 /// Runs `encode`.
 pub fn run(args: &EncodeArgs, limits: Limits) -> CmdResult {
     // Mistyped arguments first, then the output, all before anything long happens.
-    let streamed = front::streamed_flag(&args.input)?.is_some();
+    front::streamed_flag(&args.input)?;
     if args.eval {
         args.sted.metric_options().sted_params()?;
     }
@@ -169,15 +169,15 @@ pub fn run(args: &EncodeArgs, limits: Limits) -> CmdResult {
         return run_target(args, target, false, limits, &policy);
     }
     // Quality by default: no parameters and no target aims at the documented default quality
-    // and picks the parameters for this input. A streamed flag is never held in memory, so it
-    // cannot be searched: it keeps the codec's fixed defaults.
-    if args.params.is_empty() && !streamed {
+    // and picks the parameters for this input (a streamed flag too: a large one is searched
+    // streamed, each candidate measured against the flag generated again).
+    if args.params.is_empty() {
         return run_target(args, harness::DEFAULT_TARGET, true, limits, &policy);
     }
     if args.codec == "auto" {
         return Err("-c auto searches every codec for the smallest stream meeting an error target \
-                    (--target METRIC=VALUE, or the default quality without -p); it takes no -p and cannot \
-                    encode a streamed synth:flag:COLSxROWSxFRAMES: name a codec (see `animcodec list`)"
+                    (--target METRIC=VALUE, or the default quality without -p); it takes no -p: name a codec \
+                    (see `animcodec list`)"
             .into());
     }
     let registry = animcodec::registry();
@@ -219,7 +219,7 @@ pub fn run(args: &EncodeArgs, limits: Limits) -> CmdResult {
     };
     // What the encode does other than the user asked, said before it starts (stderr) and
     // kept with the encoder's warnings (the text's `warning:` lines, `--json` "notes").
-    let substitutions = substitutions(args, streamed, codec, &asked, &params);
+    let substitutions = substitutions(args, codec, &asked, &params);
     for n in &substitutions {
         eprintln!("animcodec: warning: {n}");
     }
@@ -313,31 +313,11 @@ pub fn run(args: &EncodeArgs, limits: Limits) -> CmdResult {
     emit(&text)
 }
 
-/// The notes of an encode with fixed parameters that does other than the user asked: a
-/// streamed `synth:flag:COLSxROWSxFRAMES` without `-p` keeps the codec's defaults instead of
-/// the default-quality search (which needs the whole animation), and `--memory` changes the
-/// parameters `fit_memory` adapts to the budget (the blocks of hosvd and pca-aoi).
-fn substitutions(
-    args: &EncodeArgs,
-    streamed: bool,
-    codec: &dyn AnimationCodec,
-    asked: &ParamSet,
-    used: &ParamSet,
-) -> Vec<String> {
+/// The notes of an encode with fixed parameters that does other than the user asked:
+/// `--memory` changes the parameters `fit_memory` adapts to the budget (the blocks of hosvd and
+/// pca-aoi).
+fn substitutions(args: &EncodeArgs, codec: &dyn AnimationCodec, asked: &ParamSet, used: &ParamSet) -> Vec<String> {
     let mut notes = Vec::new();
-    let ladder = codec.rate_ladder(used);
-    if streamed && args.params.is_empty() && args.target.is_none() {
-        notes.push(format!(
-            "{input} is generated frame by frame and never held, so the default-quality search \
-             ({target}: it decodes and compares whole animations) does not run: {codec} encodes at its default \
-             parameters ({knob}), whose error is not measured; choose them with -p KEY=VALUE, or write the flag \
-             to a file (animcodec synth) to search it",
-            input = args.input,
-            target = harness::DEFAULT_TARGET,
-            codec = codec.name(),
-            knob = used.get(ladder.param).map_or_else(|| ladder.param.to_owned(), |v| format!("{}={v}", ladder.param)),
-        ));
-    }
     let given = |name: &str| args.params.iter().any(|p| p.split_once('=').is_some_and(|(k, _)| k.trim() == name));
     for (name, value) in used.iter() {
         let before = asked.get(name);
