@@ -245,6 +245,46 @@ fn sweep_without_input_uses_synthetic_data_and_is_deterministic() {
     fails(&["sweep", "-c", "nope"], &["nope"]);
 }
 
+/// `sweep --memory`: a sweep holds the input whole and a candidate per parallel job; one that
+/// would need more than the budget is refused (a cache sized from its header, before it is
+/// read), naming the budget and the streamed alternative; within the budget it runs.
+#[test]
+fn sweep_beyond_its_memory_budget_is_refused_naming_the_budget() {
+    let s = Scratch::new("sweep-memory");
+    let pc2 = s.path("flag.pc2");
+    ok(&["synth", "flag", "-o", &pc2]);
+    let args = |memory: &'static str, jobs: &'static str| {
+        vec![
+            "sweep".to_owned(),
+            pc2.clone(),
+            "-c".into(),
+            "quant-delta".into(),
+            "--points".into(),
+            "2".into(),
+            "--memory".into(),
+            memory.into(),
+            "--jobs".into(),
+            jobs.into(),
+            "--json".into(),
+            "-".into(),
+        ]
+    };
+    let refused = |memory, jobs| {
+        let a = args(memory, jobs);
+        let o = common::animcodec(&a.iter().map(String::as_str).collect::<Vec<_>>());
+        assert!(!o.status.success(), "--memory {memory} --jobs {jobs} ran");
+        let e = common::stderr(&o);
+        assert!(e.contains("more than --memory") && e.contains("--target") && !e.contains("panicked"), "{e}");
+        // "about N MiB": what the sweep would hold.
+        e.split("about ").nth(1).and_then(|t| t.split(' ').next()).and_then(|n| n.parse::<u64>().ok()).unwrap()
+    };
+    let (one, four) = (refused("1M", "1"), refused("1M", "4"));
+    assert!(four > one, "four jobs hold more than one: {four} vs {one} MiB");
+    let a = args("4G", "1");
+    let v = ok_json(&a.iter().map(String::as_str).collect::<Vec<_>>());
+    assert!(!v["rows"].as_array().unwrap().is_empty(), "{v}");
+}
+
 #[test]
 fn target_search_meets_the_target_and_the_next_smaller_point_does_not() {
     let registry = animcodec::registry();

@@ -8,6 +8,8 @@ use std::time::Instant;
 use crate::progress::Progress;
 use crate::viewer;
 use animcodec::core::{AnimationCodec, CodecRegistry, Limits};
+use animcodec::formats::stream::{self as cache_stream, CacheReader};
+use animcodec::front;
 use animcodec::harness::{self, monotone_report, Point, Sweep, SweepDocument, SweepOptions, SweepSeries, TargetMetric};
 use animcodec::output::{commit_all, OutputPolicy};
 use animcodec::params::params_json;
@@ -100,6 +102,14 @@ pub struct SweepArgs {
     #[command(flatten)]
     pub metrics: MetricArgs,
 
+    /// Memory budget (bytes; K, M, G suffixes are powers of 1024), e.g. 4G. A sweep holds the
+    /// whole input, and each parallel job a decoded candidate and the metrics' working copies: a
+    /// sweep that would need more is refused before the input is read (a .pc2/.mdd cache or an
+    /// OBJ sequence is sized from its header). Default: half the machine's RAM. The streamed
+    /// searches (`encode --target`, `-c auto`) measure inputs of any size within --memory.
+    #[arg(long, value_name = "BYTES", value_parser = super::parse_bytes)]
+    pub memory: Option<u64>,
+
     /// How the input is read.
     #[command(flatten)]
     pub read: ReadArgs,
@@ -133,7 +143,14 @@ pub fn run(args: &SweepArgs, limits: Limits) -> CmdResult {
     let view_points = args.view_points.iter().map(|t| parse_view_point(t, &series)).collect::<CmdResult<Vec<_>>>()?;
     let eval = args.metrics.metric_options().eval_options()?;
     let read = args.read.options(None);
+    // A cache's size is known from its header: a sweep it could not hold is refused unread.
+    let path = Path::new(input);
+    if cache_stream::is_streamable(path) {
+        let cache = CacheReader::open(path, &read)?;
+        check_sweep_memory(args, &series, input, cache.vertex_count(), cache.frame_count())?;
+    }
     let animation = load(input, &read, limits, animcodec::front::Streams::Decode)?.animation;
+    check_sweep_memory(args, &series, input, animation.vertex_count(), animation.frame_count())?;
     // The files the read opened (a .gltf's buffers, …) are inputs too: refused before the work.
     policy.check_all(&outputs)?;
 
@@ -429,6 +446,52 @@ fn sweep_series<'r>(registry: &'r CodecRegistry, args: &SweepArgs) -> CmdResult<
         return Err(format!("series '{}' is given twice", dup.label).into());
     }
     Ok(out)
+}
+
+/// Refuses a sweep of `vertices × frames` whose whole-array measurement would exceed the
+/// budget (`--memory`, else [`front::default_memory_budget`]): the input once, and per parallel
+/// job what a whole-array search holds beyond it ([`harness::whole_search_need`] less the input:
+/// a decoded candidate, the metrics' working copies, the encoder's analysis), the largest over
+/// the series' codecs.
+fn check_sweep_memory(
+    args: &SweepArgs,
+    series: &[SweepSeries<'_>],
+    input: &str,
+    vertices: usize,
+    frames: usize,
+) -> CmdResult<()> {
+    let (budget, given) = match args.memory {
+        Some(m) => (m, true),
+        None => match front::default_memory_budget() {
+            Some(b) => (b, false),
+            None => return Ok(()),
+        },
+    };
+    let raw = (vertices as u64).saturating_mul(frames as u64).saturating_mul(12);
+    let per_job = series
+        .iter()
+        .map(|s| harness::whole_search_need(s.codec, vertices, frames).saturating_sub(raw))
+        .max()
+        .unwrap_or(0);
+    let jobs = args.jobs.map_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()), |j| j as usize);
+    let need = raw.saturating_add(per_job.saturating_mul(jobs as u64));
+    if need <= budget {
+        return Ok(());
+    }
+    let whose = if given {
+        "--memory".to_owned()
+    } else {
+        "the default memory budget (half the RAM; --memory sets it)".to_owned()
+    };
+    Err(format!(
+        "{input}: a sweep holds the whole input and, per parallel job ({jobs}), a decoded candidate and the \
+         metrics' working copies: about {} MiB, more than {whose}, {} MiB. Give fewer --jobs or a larger --memory, \
+         or find the smallest stream at a target with `animcodec encode {input} -c CODEC --target kg=…`, which streams \
+         an input of any size within --memory",
+        need >> 20,
+        budget >> 20
+    )
+    .into())
 }
 
 /// `codec` on the parameters `pairs`, refusing to set the parameter its ladder walks.
