@@ -44,7 +44,7 @@ use crate::connectivity::{
 };
 use crate::error::{Error, Result};
 use crate::numbering::{Predictor, KINDS};
-use crate::toolkit::adaptive::{AdaptiveDecoder, AdaptiveEncoder, MAX_MAGNITUDE};
+use crate::toolkit::adaptive::{AdaptiveDecoder, AdaptiveEncoder, CostModel, MAX_MAGNITUDE};
 
 /// Model classes of the arithmetic coder.
 #[derive(Clone, Copy)]
@@ -290,8 +290,58 @@ fn see(walk: &mut Walk, predictor: &mut Option<Predictor>, x: u32) {
     }
 }
 
+/// Where the walk's symbols go: the range coder, or a count of their ideal bits per class.
+trait Sink {
+    fn put(&mut self, value: i32, class: usize, bucket: usize);
+}
+
+impl Sink for AdaptiveEncoder {
+    fn put(&mut self, value: i32, class: usize, bucket: usize) {
+        self.encode(value, class, bucket);
+    }
+}
+
+/// Ideal code length per class, adapting exactly like [`AdaptiveEncoder`].
+struct ClassBits {
+    model: CostModel,
+    bits: Vec<f64>,
+}
+
+impl Sink for ClassBits {
+    fn put(&mut self, value: i32, class: usize, bucket: usize) {
+        let before = self.model.bits();
+        self.model.add(value, class, bucket);
+        self.bits[class] += self.model.bits() - before;
+    }
+}
+
 /// Method 2, or method 3 with `predicted`.
 fn encode_with(topology: &Topology, predicted: bool) -> Option<Vec<u8>> {
+    let mut enc = AdaptiveEncoder::new(CLASSES + if predicted { KINDS } else { 0 });
+    walk_symbols(topology, predicted, &mut enc)?;
+    let bytes = enc.finish();
+    (topology.triangle_count() <= max_triangles(bytes.len())).then_some(bytes)
+}
+
+/// Where the bits of method 2 (`predicted` false) or method 3 go, for benchmarks: the ideal
+/// code length (bits, before the range coder's few bytes of overhead) of the ops (class 0),
+/// the new-vertex ranks (1, method 2 only), the escapes (2), the seen vertices' deltas (3), the
+/// component starts (4) and, for method 3, the candidate flags summed over the kinds (5).
+/// `None` where [`encode`] / [`encode_predicted`] would give up.
+#[doc(hidden)]
+pub fn bits_by_class(topology: &Topology, predicted: bool) -> Option<[f64; 6]> {
+    let classes = CLASSES + if predicted { KINDS } else { 0 };
+    let mut sink = ClassBits { model: CostModel::new(classes), bits: vec![0.0; classes] };
+    walk_symbols(topology, predicted, &mut sink)?;
+    let mut out = [0.0; 6];
+    out[..CLASSES].copy_from_slice(&sink.bits[..CLASSES]);
+    out[5] = sink.bits[CLASSES..].iter().fold(0.0, |a, b| a + b);
+    Some(out)
+}
+
+/// The walk of [`encode_with`], its symbols into `enc`; `None` when an index delta exceeds the
+/// coder's range.
+fn walk_symbols(topology: &Topology, predicted: bool, enc: &mut impl Sink) -> Option<()> {
     let triangles = topology.triangles();
     if triangles.len() > u32::MAX as usize / 3 {
         return None;
@@ -301,7 +351,6 @@ fn encode_with(topology: &Topology, predicted: bool) -> Option<Vec<u8>> {
     let mut done = vec![false; triangles.len()];
     let mut walk = Walk::new(topology.vertex_count());
     let mut predictor = predicted.then(Predictor::new);
-    let mut enc = AdaptiveEncoder::new(CLASSES + if predicted { KINDS } else { 0 });
     let (mut seen_cand, mut new_cand) = (Vec::new(), Vec::new());
     let (mut coded, mut next_start) = (0usize, 0usize);
     while coded < triangles.len() {
@@ -312,7 +361,7 @@ fn encode_with(topology: &Topology, predicted: bool) -> Option<Vec<u8>> {
             walk.seen_candidates(u, v, &mut seen_cand);
             let context = walk.op_context(&seen_cand);
             let Some(t) = half_edges.across(v, u, &done) else {
-                enc.encode(OP_BORDER, Class::Op as usize, context);
+                enc.put(OP_BORDER, Class::Op as usize, context);
                 walk.close(u, v);
                 walk.after = AFTER_BORDER;
                 continue;
@@ -321,19 +370,19 @@ fn encode_with(topology: &Topology, predicted: bool) -> Option<Vec<u8>> {
             coded += 1;
             let w = third(triangles[t], v, u);
             if !walk.is_seen(w) {
-                enc.encode(OP_NEW, Class::Op as usize, context);
+                enc.put(OP_NEW, Class::Op as usize, context);
                 match predictor.as_mut() {
                     None => {
                         walk.new_candidates(u, v, &mut new_cand);
                         match new_cand.iter().position(|&x| x == w) {
-                            Some(k) => enc.encode(k as i32 + 1, Class::NewRank as usize, new_cand.len().min(7)),
+                            Some(k) => enc.put(k as i32 + 1, Class::NewRank as usize, new_cand.len().min(7)),
                             None => {
-                                enc.encode(0, Class::NewRank as usize, new_cand.len().min(7));
+                                enc.put(0, Class::NewRank as usize, new_cand.len().min(7));
                                 let d = w as i64 - walk.last_seen as i64;
                                 if !fits(d) {
                                     return None;
                                 }
-                                enc.encode(d as i32, Class::NewDelta as usize, 0);
+                                enc.put(d as i32, Class::NewDelta as usize, 0);
                             }
                         }
                     }
@@ -341,7 +390,7 @@ fn encode_with(topology: &Topology, predicted: bool) -> Option<Vec<u8>> {
                         p.list(&walk, u, v);
                         let hit = p.candidates.iter().position(|e| e.0 == w);
                         for (i, &(_, kind)) in p.candidates.iter().enumerate() {
-                            enc.encode(i32::from(hit == Some(i)), CLASSES + kind, 0);
+                            enc.put(i32::from(hit == Some(i)), CLASSES + kind, 0);
                             if hit == Some(i) {
                                 break;
                             }
@@ -351,7 +400,7 @@ fn encode_with(topology: &Topology, predicted: bool) -> Option<Vec<u8>> {
                             if !fits(d) {
                                 return None;
                             }
-                            enc.encode(d as i32, Class::NewDelta as usize, 0);
+                            enc.put(d as i32, Class::NewDelta as usize, 0);
                         }
                         p.learn(hit);
                     }
@@ -359,15 +408,15 @@ fn encode_with(topology: &Topology, predicted: bool) -> Option<Vec<u8>> {
                 see(&mut walk, &mut predictor, w);
                 walk.after = AFTER_NEW;
             } else if let Some(k) = seen_cand.iter().position(|&x| x == w) {
-                enc.encode(OP_CANDIDATE + k as i32, Class::Op as usize, context);
+                enc.put(OP_CANDIDATE + k as i32, Class::Op as usize, context);
                 walk.after = AFTER_CANDIDATE;
             } else {
-                enc.encode(OP_SEEN, Class::Op as usize, context);
+                enc.put(OP_SEEN, Class::Op as usize, context);
                 let d = w as i64 - u as i64;
                 if !fits(d) {
                     return None;
                 }
-                enc.encode(d as i32, Class::SeenDelta as usize, 0);
+                enc.put(d as i32, Class::SeenDelta as usize, 0);
                 walk.after = AFTER_SEEN;
             }
             walk.add([v, u, w]);
@@ -385,7 +434,7 @@ fn encode_with(topology: &Topology, predicted: bool) -> Option<Vec<u8>> {
             if !fits(d) {
                 return None;
             }
-            enc.encode(d as i32, Class::Start as usize, corner);
+            enc.put(d as i32, Class::Start as usize, corner);
             base = x;
         }
         for x in t {
@@ -396,8 +445,7 @@ fn encode_with(topology: &Topology, predicted: bool) -> Option<Vec<u8>> {
         walk.after = AFTER_NEW;
         walk.add(t);
     }
-    let bytes = enc.finish();
-    (triangles.len() <= max_triangles(bytes.len())).then_some(bytes)
+    Some(())
 }
 
 /// Most bytes [`decode`] allocates besides the triangles it returns: the walk's state
@@ -706,6 +754,21 @@ mod tests {
         assert_eq!(decode(&b, huge.vertex_count(), huge.triangle_count()).unwrap(), huge);
         let e = decode(&bytes, 10, g.triangle_count()).unwrap_err().to_string();
         assert!(e.contains("topology") && e.contains("out of range"), "{e}");
+    }
+
+    /// The per-class bit count sees the same symbols as the coder: its total is the block's
+    /// size within the range coder's overhead (a few words), for methods 2 and 3.
+    #[test]
+    fn bits_by_class_add_up_to_the_block() {
+        let canonical = canonical_order(&renumbered(&grid(30), 5));
+        for predicted in [false, true] {
+            let bytes = encode_with(&canonical, predicted).unwrap().len() as f64;
+            let classes = bits_by_class(&canonical, predicted).unwrap();
+            let total = classes.iter().sum::<f64>() / 8.0;
+            assert!((bytes - 12.0..=bytes + 1.0).contains(&total), "{total} bits/8 vs {bytes} bytes");
+            assert_eq!(classes[1] == 0.0, predicted, "method 3 codes no ranks");
+            assert_eq!(classes[5] == 0.0, !predicted, "method 2 codes no flags");
+        }
     }
 
     /// Method 3 on arbitrary bytes: an error or a triangle list of the declared size with
