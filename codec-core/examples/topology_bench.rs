@@ -1,6 +1,7 @@
 //! Topology coding on real meshes: container version 1's list coding, version 2's
-//! connectivity coding (method 1) and version 3's traversal coding (method 2): bytes, bits
-//! per triangle, encode and decode time, same run.
+//! connectivity coding (method 1), version 3's traversal coding (method 2) and version 5's
+//! predicted traversal (method 3): bytes, bits per triangle, encode and decode time, same run;
+//! then where methods 2 and 3 spend their bits (ideal code length per symbol class).
 //!
 //! `cargo run --release -p codec-core --example topology_bench -- ../shared/data/*/*.obj`
 
@@ -52,8 +53,9 @@ fn main() {
         eprintln!("usage: topology_bench MESH.obj...");
         std::process::exit(2);
     }
-    println!("| mesh | triangles | list bytes | list bits/tri | method 1 bytes | method 1 bits/tri | method 2 bytes | method 2 bits/tri | method 1 / method 2 | canonical order s | method 1 encode s | method 1 decode s | method 2 encode s | method 2 decode s |");
-    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+    println!("| mesh | triangles | list bytes | list bits/tri | method 1 bytes | method 1 bits/tri | method 2 bytes | method 2 bits/tri | method 3 bytes | method 3 bits/tri | method 3 / method 2 | canonical order s | method 1 encode s | method 1 decode s | method 2 encode s | method 2 decode s | method 3 encode s | method 3 decode s |");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+    let mut breakdown = Vec::new();
     for path in &paths {
         let topo = match load_obj(path) {
             Ok(t) => t,
@@ -72,9 +74,14 @@ fn main() {
         let (back3, t_dec3) =
             best_of(3, || traversal::decode(&v3, canon.vertex_count(), canon.triangle_count()).expect("decodes"));
         assert_eq!(back3, canon, "method 2 round trip");
+        let (v4, t_enc4) = best_of(3, || traversal::encode_predicted(&canon).expect("indices fit"));
+        let (back4, t_dec4) = best_of(3, || {
+            traversal::decode_predicted(&v4, canon.vertex_count(), canon.triangle_count()).expect("decodes")
+        });
+        assert_eq!(back4, canon, "method 3 round trip");
         let name = std::path::Path::new(path).file_stem().map_or(path.clone(), |s| s.to_string_lossy().into_owned());
         println!(
-            "| {name} | {} | {} | {:.2} | {} | {:.2} | {} | {:.2} | {:.2}× | {:.4} | {:.4} | {:.4} | {:.4} | {:.4} |",
+            "| {name} | {} | {} | {:.2} | {} | {:.2} | {} | {:.2} | {} | {:.2} | {:.3} | {:.4} | {:.4} | {:.4} | {:.4} | {:.4} | {:.4} | {:.4} |",
             topo.triangle_count(),
             v1.len(),
             v1.len() as f64 * 8.0 / n,
@@ -82,12 +89,36 @@ fn main() {
             v2.len() as f64 * 8.0 / n,
             v3.len(),
             v3.len() as f64 * 8.0 / n,
-            v2.len() as f64 / v3.len().max(1) as f64,
+            v4.len(),
+            v4.len() as f64 * 8.0 / n,
+            v4.len() as f64 / v3.len().max(1) as f64,
             t_canon,
             t_enc,
             t_dec,
             t_enc3,
-            t_dec3
+            t_dec3,
+            t_enc4,
+            t_dec4
         );
+        breakdown.push((name, n, canon));
+    }
+    // Where methods 2 and 3 spend their bits (ideal code lengths per class, bits per triangle).
+    println!();
+    println!("| mesh | method | ops | new-vertex ranks | candidate flags | escapes | seen deltas | component starts | total |");
+    println!("|---|---|---|---|---|---|---|---|---|");
+    for (name, n, canon) in &breakdown {
+        for (method, predicted) in [(2, false), (3, true)] {
+            let b = traversal::bits_by_class(canon, predicted).expect("indices fit");
+            println!(
+                "| {name} | {method} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} |",
+                b[0] / n,
+                b[1] / n,
+                b[5] / n,
+                b[2] / n,
+                b[3] / n,
+                b[4] / n,
+                b.iter().sum::<f64>() / n
+            );
+        }
     }
 }

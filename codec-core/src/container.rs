@@ -22,11 +22,12 @@ use crate::metadata::SceneMetadata;
 
 /// File magic: `ANIMCDC` then 0x1A (stops `type` on DOS, catches text-mode mangling).
 pub const MAGIC: [u8; 8] = *b"ANIMCDC\x1a";
-/// Newest container version this library reads and writes. It writes 4 when the stream
-/// carries scene metadata ([`crate::metadata`]; a block after the topology), else 3 when the
-/// topology block uses the traversal coding (method 2), else 2 (the same bytes as before
-/// versions 3 and 4).
-pub const CONTAINER_VERSION: u16 = 4;
+/// Newest container version this library reads and writes. It writes 5 when the topology
+/// block uses the predicted traversal coding (method 3; the metadata block is then present,
+/// possibly empty), else 4 when the stream carries scene metadata ([`crate::metadata`]; a
+/// block after the topology), else 3 when the topology block uses the traversal coding
+/// (method 2), else 2 (the same bytes as before versions 3 to 5).
+pub const CONTAINER_VERSION: u16 = 5;
 /// First container version with the scene-metadata block.
 pub const METADATA_CONTAINER_VERSION: u16 = 4;
 /// Tag opening every packet.
@@ -100,6 +101,11 @@ const TOPOLOGY_CONNECTIVITY: u8 = 1;
 /// Topology block method byte (container version 3): [`crate::traversal`]'s walk over the
 /// mesh (an older reader would not know it, hence the version).
 const TOPOLOGY_TRAVERSAL: u8 = 2;
+/// Topology block method byte (container version 5): the same walk with each new vertex
+/// named by candidate kinds ([`crate::traversal::encode_predicted`]).
+const TOPOLOGY_PREDICTED: u8 = 3;
+/// First container version with topology method 3.
+const PREDICTED_CONTAINER_VERSION: u16 = 5;
 
 /// Container version 1's topology coding: per triangle, zigzag varints of the first index's
 /// delta from the previous triangle's first index and of the other two indices relative to
@@ -118,10 +124,11 @@ pub fn encode_topology_list(topology: &Topology) -> Vec<u8> {
 }
 
 /// Codes a triangle list exactly as the container stores it: a method byte, then the
-/// smallest of [`crate::traversal::encode`] (used only when decoding it gives back exactly
-/// `topology`: the stream encoder's [`crate::connectivity::canonical_order`]),
-/// [`crate::connectivity::encode`] and version 1's list coding. Returns the container version
-/// the block needs (3 for the traversal coding, else 2) with the block.
+/// smallest of [`crate::traversal::encode_predicted`] and [`crate::traversal::encode`] (each
+/// used only when decoding it gives back exactly `topology`: the stream encoder's
+/// [`crate::connectivity::canonical_order`]), [`crate::connectivity::encode`] and version 1's
+/// list coding; ties keep the older method. Returns the container version the block needs
+/// (5 for method 3, 3 for method 2, else 2) with the block.
 pub fn encode_topology(topology: &Topology) -> (u16, Vec<u8>) {
     let list = encode_topology_list(topology);
     let nonempty = topology.triangle_count() > 0;
@@ -130,8 +137,16 @@ pub fn encode_topology(topology: &Topology) -> (u16, Vec<u8>) {
     let traversal = nonempty.then(|| crate::traversal::encode(topology)).flatten().filter(|b| {
         crate::traversal::decode(b, topology.vertex_count(), topology.triangle_count()).is_ok_and(|t| t == *topology)
     });
+    let predicted = nonempty.then(|| crate::traversal::encode_predicted(topology)).flatten().filter(|b| {
+        crate::traversal::decode_predicted(b, topology.vertex_count(), topology.triangle_count())
+            .is_ok_and(|t| t == *topology)
+    });
     let mut best = (2, TOPOLOGY_LIST, list);
-    for (version, method, body) in [(2, TOPOLOGY_CONNECTIVITY, connectivity), (3, TOPOLOGY_TRAVERSAL, traversal)] {
+    for (version, method, body) in [
+        (2, TOPOLOGY_CONNECTIVITY, connectivity),
+        (3, TOPOLOGY_TRAVERSAL, traversal),
+        (PREDICTED_CONTAINER_VERSION, TOPOLOGY_PREDICTED, predicted),
+    ] {
         if let Some(body) = body.filter(|b| b.len() < best.2.len()) {
             best = (version, method, body);
         }
@@ -144,7 +159,7 @@ pub fn encode_topology(topology: &Topology) -> (u16, Vec<u8>) {
 }
 
 /// Inverse of [`encode_topology`] for `container_version` (1: the list coding alone; 2: the
-/// method byte first, methods 0 and 1; 3: also method 2), checking every index against
+/// method byte first, methods 0 and 1; 3 and 4: also method 2; 5: also method 3), checking every index against
 /// `vertex_count`.
 pub fn decode_topology(
     block: &[u8],
@@ -164,9 +179,12 @@ pub fn decode_topology(
         TOPOLOGY_LIST => return decode_topology_list(body, vertex_count, triangle_count, limits),
         TOPOLOGY_CONNECTIVITY => (crate::connectivity::decoder_bytes, crate::connectivity::decode),
         TOPOLOGY_TRAVERSAL if container_version >= 3 => (crate::traversal::decoder_bytes, crate::traversal::decode),
+        TOPOLOGY_PREDICTED if container_version >= PREDICTED_CONTAINER_VERSION => {
+            (crate::traversal::decoder_bytes_predicted, crate::traversal::decode_predicted)
+        }
         m => return Err(Error::malformed(CTX, "topology", format!("unknown topology coding method {m}"))),
     };
-    // An arithmetic-coded block (methods 1 and 2): the triangles and the decoder's own state
+    // An arithmetic-coded block (methods 1 to 3): the triangles and the decoder's own state
     // are checked against `limits` before `decode` allocates them.
     limits.check_alloc(CTX, "triangle_count", triangle_count as u64 * 12)?;
     if triangle_count > 0 {
@@ -237,6 +255,7 @@ impl<W: Write> ContainerWriter<W> {
         metadata.validate()?;
         let (topology_version, topo) = encode_topology(topology);
         let meta_block = metadata.to_block();
+        // Version 5 (method 3) always has the metadata block, empty when there is none.
         let container_version =
             if meta_block.is_empty() { topology_version } else { METADATA_CONTAINER_VERSION.max(topology_version) };
         let mut w = ByteWriter::new();
@@ -854,6 +873,56 @@ mod tests {
         // Metadata that is not valid is refused when written.
         let bad = SceneMetadata { meters_per_unit: Some(-1.0), ..Default::default() };
         assert!(ContainerWriter::with_metadata(Vec::new(), &info, b"", &bad).is_err());
+    }
+
+    /// A 30 × 30 grid renumbered within windows of 8 (local but irregular, like real meshes),
+    /// in canonical order: topology method 3 is the smallest coding there.
+    fn local_numbering() -> Topology {
+        let g = Topology::grid(30, 30).unwrap();
+        let n = g.vertex_count();
+        let mut perm: Vec<u32> = (0..n as u32).collect();
+        let mut s = 0x2545_f491_4f6c_dd1du64;
+        for chunk in perm.chunks_mut(8) {
+            for i in (1..chunk.len()).rev() {
+                s ^= s << 13;
+                s ^= s >> 7;
+                s ^= s << 17;
+                chunk.swap(i, (s % (i as u64 + 1)) as usize);
+            }
+        }
+        let tris = g.triangles().iter().map(|t| t.map(|x| perm[x as usize])).collect();
+        crate::connectivity::canonical_order(&Topology::new(n, tris).unwrap())
+    }
+
+    #[test]
+    fn method_3_makes_version_5_and_older_versions_refuse_it() {
+        let topo = local_numbering();
+        let (version, block) = encode_topology(&topo);
+        assert_eq!((version, block[0]), (5, TOPOLOGY_PREDICTED));
+        let method_2 = crate::traversal::encode(&topo).unwrap().len();
+        assert!(block.len() - 1 < method_2, "{} vs method 2's {method_2}", block.len() - 1);
+        let limits = Limits::default();
+        let (n, t) = (topo.vertex_count(), topo.triangle_count());
+        assert_eq!(decode_topology(&block, 5, n, t, &limits).unwrap(), topo);
+        for old in [2, 3, 4] {
+            let e = decode_topology(&block, old, n, t, &limits).unwrap_err().to_string();
+            assert!(e.contains("unknown topology coding method 3"), "{e}");
+        }
+        // A whole stream: version 5 with an empty metadata block, read back exactly.
+        let packets = [Packet { first_frame: 0, frame_count: 6, keyframe: true, data: vec![7; 10] }];
+        let bytes = write(&topo, &packets);
+        let (header, read, _) = read_all(&bytes).unwrap();
+        assert_eq!((header.container_version, header.info.topology.clone(), read.len()), (5, topo, 1));
+        assert!(header.metadata.is_empty());
+        // Truncated or flipped topology blocks are errors or other triangle lists, never panics.
+        for cut in 1..block.len() {
+            let _ = decode_topology(&block[..cut], 5, n, t, &limits);
+        }
+        for i in 1..block.len() {
+            let mut b = block.clone();
+            b[i] ^= 0x10;
+            let _ = decode_topology(&b, 5, n, t, &limits);
+        }
     }
 
     #[test]

@@ -43,7 +43,8 @@ use crate::connectivity::{
     bad_triangle as bad, canonical_order, check_density, index_at, max_triangles, Neighbours, CTX, FIELD,
 };
 use crate::error::{Error, Result};
-use crate::toolkit::adaptive::{AdaptiveDecoder, AdaptiveEncoder, MAX_MAGNITUDE};
+use crate::numbering::{Predictor, KINDS};
+use crate::toolkit::adaptive::{AdaptiveDecoder, AdaptiveEncoder, CostModel, MAX_MAGNITUDE};
 
 /// Model classes of the arithmetic coder.
 #[derive(Clone, Copy)]
@@ -82,23 +83,23 @@ pub const MAX_OPEN: usize = 32;
 const MAX_NEW_CANDIDATES: usize = 48;
 
 /// The walk's state, advanced identically by [`encode`] and [`decode`].
-struct Walk {
-    vertex_count: u64,
+pub(crate) struct Walk {
+    pub(crate) vertex_count: u64,
     /// Seen vertices, grown up to the largest index met.
-    seen: Vec<bool>,
+    pub(crate) seen: Vec<bool>,
     /// Per vertex `x`: the `y` of its open half-edges `x → y`, ascending.
-    open_out: Vec<Vec<u32>>,
+    pub(crate) open_out: Vec<Vec<u32>>,
     /// Per vertex `y`: the `x` of its open half-edges `x → y`, ascending.
-    open_in: Vec<Vec<u32>>,
-    gates: Vec<(u32, u32)>,
+    pub(crate) open_in: Vec<Vec<u32>>,
+    pub(crate) gates: Vec<(u32, u32)>,
     /// Mesh neighbours in coded triangles (new-vertex candidates come from their indices).
-    known: Neighbours,
-    last_seen: u32,
+    pub(crate) known: Neighbours,
+    pub(crate) last_seen: u32,
     after: usize,
 }
 
 impl Walk {
-    fn new(vertex_count: usize) -> Self {
+    pub(crate) fn new(vertex_count: usize) -> Self {
         Self {
             vertex_count: vertex_count as u64,
             seen: Vec::new(),
@@ -111,11 +112,11 @@ impl Walk {
         }
     }
 
-    fn is_seen(&self, x: u32) -> bool {
+    pub(crate) fn is_seen(&self, x: u32) -> bool {
         self.seen.get(x as usize).copied().unwrap_or(false)
     }
 
-    fn see(&mut self, x: u32) {
+    pub(crate) fn see(&mut self, x: u32) {
         if x as usize >= self.seen.len() {
             self.seen.resize(x as usize + 1, false);
         }
@@ -123,11 +124,11 @@ impl Walk {
         self.last_seen = x;
     }
 
-    fn is_open(&self, x: u32, y: u32) -> bool {
+    pub(crate) fn is_open(&self, x: u32, y: u32) -> bool {
         self.open_out.get(x as usize).is_some_and(|l| l.binary_search(&y).is_ok())
     }
 
-    fn open(&mut self, x: u32, y: u32) {
+    pub(crate) fn open(&mut self, x: u32, y: u32) {
         let top = x.max(y) as usize + 1;
         if top > self.open_out.len() {
             self.open_out.resize(top, Vec::new());
@@ -145,7 +146,7 @@ impl Walk {
         }
     }
 
-    fn close(&mut self, x: u32, y: u32) {
+    pub(crate) fn close(&mut self, x: u32, y: u32) {
         if let Some(out) = self.open_out.get_mut(x as usize) {
             if let Ok(i) = out.binary_search(&y) {
                 out.remove(i);
@@ -160,7 +161,7 @@ impl Walk {
     /// Adds the coded triangle `t` (oriented): each half-edge closes its open reverse or
     /// opens, last to first — so after a gate's triangle `(v, u, w)` the walk goes on from
     /// `u → w` (1.5 % smaller than first to first on the dev meshes).
-    fn add(&mut self, t: [u32; 3]) {
+    pub(crate) fn add(&mut self, t: [u32; 3]) {
         for (x, y) in [(t[2], t[0]), (t[1], t[2]), (t[0], t[1])] {
             if x == y {
                 continue;
@@ -177,7 +178,7 @@ impl Walk {
     /// Seen vertices that would close the border next to the gate `u → v`: those with an
     /// open half-edge into `u` and one out of `v` first, then into `u` only, then out of `v`
     /// only; each tier ascending.
-    fn seen_candidates(&self, u: u32, v: u32, out: &mut Vec<u32>) {
+    pub(crate) fn seen_candidates(&self, u: u32, v: u32, out: &mut Vec<u32>) {
         out.clear();
         let empty = Vec::new();
         let into_u = self.open_in.get(u as usize).unwrap_or(&empty);
@@ -223,13 +224,13 @@ impl Walk {
 
 /// Sorted half-edges `(from, to, triangle)` of the non-degenerate triangles, with a cursor
 /// per key range to its first possibly uncoded triangle (so repeated edges cost linear time).
-struct HalfEdges {
+pub(crate) struct HalfEdges {
     edges: Vec<(u32, u32, u32)>,
     cursor: Vec<u32>,
 }
 
 impl HalfEdges {
-    fn new(triangles: &[[u32; 3]]) -> Self {
+    pub(crate) fn new(triangles: &[[u32; 3]]) -> Self {
         let mut edges = Vec::with_capacity(triangles.len() * 3);
         for (i, t) in triangles.iter().enumerate() {
             if t[0] != t[1] && t[1] != t[2] && t[2] != t[0] {
@@ -244,7 +245,7 @@ impl HalfEdges {
     }
 
     /// The first uncoded triangle holding the half-edge `x → y`.
-    fn across(&mut self, x: u32, y: u32, done: &[bool]) -> Option<usize> {
+    pub(crate) fn across(&mut self, x: u32, y: u32, done: &[bool]) -> Option<usize> {
         let start = self.edges.partition_point(|e| (e.0, e.1) < (x, y));
         let end = start + self.edges[start..].partition_point(|e| (e.0, e.1) == (x, y));
         if start == end {
@@ -260,7 +261,7 @@ impl HalfEdges {
 }
 
 /// The corner after `x → y` in `t` (which holds that half-edge).
-fn third(t: [u32; 3], x: u32, y: u32) -> u32 {
+pub(crate) fn third(t: [u32; 3], x: u32, y: u32) -> u32 {
     (0..3)
         .find(|&i| t[i] == x && t[(i + 1) % 3] == y)
         .map(|i| t[(i + 2) % 3])
@@ -271,6 +272,76 @@ fn third(t: [u32; 3], x: u32, y: u32) -> u32 {
 /// when an index delta exceeds the coder's range or the block would be denser than
 /// [`max_triangles`] allows.
 pub fn encode(topology: &Topology) -> Option<Vec<u8>> {
+    encode_with(topology, false)
+}
+
+/// Topology method 3 (container version 5): [`encode`]'s walk, each new vertex named by the
+/// candidate kinds of `codec_core::numbering` (adaptive per-kind flags, escapes counted in
+/// unseen indices) instead of a rank in one list.
+pub fn encode_predicted(topology: &Topology) -> Option<Vec<u8>> {
+    encode_with(topology, true)
+}
+
+/// Marks `x` seen in the walk and the predictor (method 3).
+fn see(walk: &mut Walk, predictor: &mut Option<Predictor>, x: u32) {
+    walk.see(x);
+    if let Some(p) = predictor {
+        p.saw(x, &walk.seen);
+    }
+}
+
+/// Where the walk's symbols go: the range coder, or a count of their ideal bits per class.
+trait Sink {
+    fn put(&mut self, value: i32, class: usize, bucket: usize);
+}
+
+impl Sink for AdaptiveEncoder {
+    fn put(&mut self, value: i32, class: usize, bucket: usize) {
+        self.encode(value, class, bucket);
+    }
+}
+
+/// Ideal code length per class, adapting exactly like [`AdaptiveEncoder`].
+struct ClassBits {
+    model: CostModel,
+    bits: Vec<f64>,
+}
+
+impl Sink for ClassBits {
+    fn put(&mut self, value: i32, class: usize, bucket: usize) {
+        let before = self.model.bits();
+        self.model.add(value, class, bucket);
+        self.bits[class] += self.model.bits() - before;
+    }
+}
+
+/// Method 2, or method 3 with `predicted`.
+fn encode_with(topology: &Topology, predicted: bool) -> Option<Vec<u8>> {
+    let mut enc = AdaptiveEncoder::new(CLASSES + if predicted { KINDS } else { 0 });
+    walk_symbols(topology, predicted, &mut enc)?;
+    let bytes = enc.finish();
+    (topology.triangle_count() <= max_triangles(bytes.len())).then_some(bytes)
+}
+
+/// Where the bits of method 2 (`predicted` false) or method 3 go, for benchmarks: the ideal
+/// code length (bits, before the range coder's few bytes of overhead) of the ops (class 0),
+/// the new-vertex ranks (1, method 2 only), the escapes (2), the seen vertices' deltas (3), the
+/// component starts (4) and, for method 3, the candidate flags summed over the kinds (5).
+/// `None` where [`encode`] / [`encode_predicted`] would give up.
+#[doc(hidden)]
+pub fn bits_by_class(topology: &Topology, predicted: bool) -> Option<[f64; 6]> {
+    let classes = CLASSES + if predicted { KINDS } else { 0 };
+    let mut sink = ClassBits { model: CostModel::new(classes), bits: vec![0.0; classes] };
+    walk_symbols(topology, predicted, &mut sink)?;
+    let mut out = [0.0; 6];
+    out[..CLASSES].copy_from_slice(&sink.bits[..CLASSES]);
+    out[5] = sink.bits[CLASSES..].iter().fold(0.0, |a, b| a + b);
+    Some(out)
+}
+
+/// The walk of [`encode_with`], its symbols into `enc`; `None` when an index delta exceeds the
+/// coder's range.
+fn walk_symbols(topology: &Topology, predicted: bool, enc: &mut impl Sink) -> Option<()> {
     let triangles = topology.triangles();
     if triangles.len() > u32::MAX as usize / 3 {
         return None;
@@ -279,7 +350,7 @@ pub fn encode(topology: &Topology) -> Option<Vec<u8>> {
     let mut half_edges = HalfEdges::new(triangles);
     let mut done = vec![false; triangles.len()];
     let mut walk = Walk::new(topology.vertex_count());
-    let mut enc = AdaptiveEncoder::new(CLASSES);
+    let mut predictor = predicted.then(Predictor::new);
     let (mut seen_cand, mut new_cand) = (Vec::new(), Vec::new());
     let (mut coded, mut next_start) = (0usize, 0usize);
     while coded < triangles.len() {
@@ -290,7 +361,7 @@ pub fn encode(topology: &Topology) -> Option<Vec<u8>> {
             walk.seen_candidates(u, v, &mut seen_cand);
             let context = walk.op_context(&seen_cand);
             let Some(t) = half_edges.across(v, u, &done) else {
-                enc.encode(OP_BORDER, Class::Op as usize, context);
+                enc.put(OP_BORDER, Class::Op as usize, context);
                 walk.close(u, v);
                 walk.after = AFTER_BORDER;
                 continue;
@@ -299,31 +370,53 @@ pub fn encode(topology: &Topology) -> Option<Vec<u8>> {
             coded += 1;
             let w = third(triangles[t], v, u);
             if !walk.is_seen(w) {
-                enc.encode(OP_NEW, Class::Op as usize, context);
-                walk.new_candidates(u, v, &mut new_cand);
-                match new_cand.iter().position(|&x| x == w) {
-                    Some(k) => enc.encode(k as i32 + 1, Class::NewRank as usize, new_cand.len().min(7)),
+                enc.put(OP_NEW, Class::Op as usize, context);
+                match predictor.as_mut() {
                     None => {
-                        enc.encode(0, Class::NewRank as usize, new_cand.len().min(7));
-                        let d = w as i64 - walk.last_seen as i64;
-                        if !fits(d) {
-                            return None;
+                        walk.new_candidates(u, v, &mut new_cand);
+                        match new_cand.iter().position(|&x| x == w) {
+                            Some(k) => enc.put(k as i32 + 1, Class::NewRank as usize, new_cand.len().min(7)),
+                            None => {
+                                enc.put(0, Class::NewRank as usize, new_cand.len().min(7));
+                                let d = w as i64 - walk.last_seen as i64;
+                                if !fits(d) {
+                                    return None;
+                                }
+                                enc.put(d as i32, Class::NewDelta as usize, 0);
+                            }
                         }
-                        enc.encode(d as i32, Class::NewDelta as usize, 0);
+                    }
+                    Some(p) => {
+                        p.list(&walk, u, v);
+                        let hit = p.candidates.iter().position(|e| e.0 == w);
+                        for (i, &(_, kind)) in p.candidates.iter().enumerate() {
+                            enc.put(i32::from(hit == Some(i)), CLASSES + kind, 0);
+                            if hit == Some(i) {
+                                break;
+                            }
+                        }
+                        if hit.is_none() {
+                            let d = p.escape_code(walk.last_seen, w);
+                            if !fits(d) {
+                                return None;
+                            }
+                            enc.put(d as i32, Class::NewDelta as usize, 0);
+                        }
+                        p.learn(hit);
                     }
                 }
-                walk.see(w);
+                see(&mut walk, &mut predictor, w);
                 walk.after = AFTER_NEW;
             } else if let Some(k) = seen_cand.iter().position(|&x| x == w) {
-                enc.encode(OP_CANDIDATE + k as i32, Class::Op as usize, context);
+                enc.put(OP_CANDIDATE + k as i32, Class::Op as usize, context);
                 walk.after = AFTER_CANDIDATE;
             } else {
-                enc.encode(OP_SEEN, Class::Op as usize, context);
+                enc.put(OP_SEEN, Class::Op as usize, context);
                 let d = w as i64 - u as i64;
                 if !fits(d) {
                     return None;
                 }
-                enc.encode(d as i32, Class::SeenDelta as usize, 0);
+                enc.put(d as i32, Class::SeenDelta as usize, 0);
                 walk.after = AFTER_SEEN;
             }
             walk.add([v, u, w]);
@@ -341,19 +434,18 @@ pub fn encode(topology: &Topology) -> Option<Vec<u8>> {
             if !fits(d) {
                 return None;
             }
-            enc.encode(d as i32, Class::Start as usize, corner);
+            enc.put(d as i32, Class::Start as usize, corner);
             base = x;
         }
         for x in t {
             if !walk.is_seen(x) {
-                walk.see(x);
+                see(&mut walk, &mut predictor, x);
             }
         }
         walk.after = AFTER_NEW;
         walk.add(t);
     }
-    let bytes = enc.finish();
-    (triangles.len() <= max_triangles(bytes.len())).then_some(bytes)
+    Some(())
 }
 
 /// Most bytes [`decode`] allocates besides the triangles it returns: the walk's state
@@ -375,8 +467,25 @@ pub fn decoder_bytes(vertex_count: usize, triangle_count: usize) -> u64 {
 /// [`decoder_bytes`] against its limits; more than [`max_triangles`] for the block's size is
 /// refused up front.
 pub fn decode(bytes: &[u8], vertex_count: usize, triangle_count: usize) -> Result<Topology> {
+    decode_with(bytes, vertex_count, triangle_count, false)
+}
+
+/// Inverse of [`encode_predicted`] (topology method 3), with [`decode`]'s checks; the
+/// caller has checked [`decoder_bytes_predicted`] against its limits.
+pub fn decode_predicted(bytes: &[u8], vertex_count: usize, triangle_count: usize) -> Result<Topology> {
+    decode_with(bytes, vertex_count, triangle_count, true)
+}
+
+/// [`decoder_bytes`] plus the new-vertex model of method 3.
+pub fn decoder_bytes_predicted(vertex_count: usize, triangle_count: usize) -> u64 {
+    decoder_bytes(vertex_count, triangle_count) + crate::numbering::predictor_bytes(vertex_count)
+}
+
+fn decode_with(bytes: &[u8], vertex_count: usize, triangle_count: usize, predicted: bool) -> Result<Topology> {
     check_density(bytes, triangle_count)?;
-    let mut dec = AdaptiveDecoder::new(bytes, CLASSES, CTX, FIELD)?;
+    let classes = CLASSES + if predicted { KINDS } else { 0 };
+    let mut dec = AdaptiveDecoder::new(bytes, classes, CTX, FIELD)?;
+    let mut predictor = predicted.then(Predictor::new);
     let index = |t: usize, base: u32, delta: i32| index_at(t, base, delta, vertex_count);
     let mut triangles: Vec<[u32; 3]> = Vec::with_capacity(triangle_count);
     let mut walk = Walk::new(vertex_count);
@@ -397,16 +506,51 @@ pub fn decode(bytes: &[u8], vertex_count: usize, triangle_count: usize) -> Resul
                     continue;
                 }
                 OP_NEW => {
-                    walk.new_candidates(u, v, &mut new_cand);
-                    let w = match dec.decode(Class::NewRank as usize, new_cand.len().min(7))? {
-                        0 => index(t, walk.last_seen, dec.decode(Class::NewDelta as usize, 0)?)?,
-                        k if k > 0 && (k as usize) <= new_cand.len() => new_cand[k as usize - 1],
-                        k => return Err(bad(t, format!("new vertex candidate {k} of {}", new_cand.len()))),
+                    let w = match predictor.as_mut() {
+                        None => {
+                            walk.new_candidates(u, v, &mut new_cand);
+                            match dec.decode(Class::NewRank as usize, new_cand.len().min(7))? {
+                                0 => index(t, walk.last_seen, dec.decode(Class::NewDelta as usize, 0)?)?,
+                                k if k > 0 && (k as usize) <= new_cand.len() => new_cand[k as usize - 1],
+                                k => return Err(bad(t, format!("new vertex candidate {k} of {}", new_cand.len()))),
+                            }
+                        }
+                        Some(p) => {
+                            p.list(&walk, u, v);
+                            let mut hit = None;
+                            for (i, &(_, kind)) in p.candidates.iter().enumerate() {
+                                match dec.decode(CLASSES + kind, 0)? {
+                                    0 => {}
+                                    1 => {
+                                        hit = Some(i);
+                                        break;
+                                    }
+                                    k => return Err(bad(t, format!("candidate flag {k}"))),
+                                }
+                            }
+                            let w = match hit {
+                                Some(i) => p.candidates[i].0,
+                                None => {
+                                    let code = dec.decode(Class::NewDelta as usize, 0)?;
+                                    p.escaped(walk.last_seen, code, vertex_count).ok_or_else(|| {
+                                        bad(
+                                            t,
+                                            format!(
+                                                "escape {code} from vertex {} leaves the unseen indices",
+                                                walk.last_seen
+                                            ),
+                                        )
+                                    })?
+                                }
+                            };
+                            p.learn(hit);
+                            w
+                        }
                     };
                     if walk.is_seen(w) {
                         return Err(bad(t, format!("new vertex {w} was seen before")));
                     }
-                    walk.see(w);
+                    see(&mut walk, &mut predictor, w);
                     walk.after = AFTER_NEW;
                     w
                 }
@@ -436,7 +580,7 @@ pub fn decode(bytes: &[u8], vertex_count: usize, triangle_count: usize) -> Resul
         }
         for x in corners {
             if !walk.is_seen(x) {
-                walk.see(x);
+                see(&mut walk, &mut predictor, x);
             }
         }
         walk.after = AFTER_NEW;
@@ -455,12 +599,20 @@ mod tests {
         canonical_order(&crate::Topology::grid(n, n).unwrap())
     }
 
-    fn roundtrip(topo: &Topology) -> usize {
+    /// Round trips `topo` through methods 2 and 3; their block sizes.
+    fn roundtrip_both(topo: &Topology) -> (usize, usize) {
         let canonical = canonical_order(topo);
         let bytes = encode(&canonical).expect("fits");
         let back = decode(&bytes, topo.vertex_count(), topo.triangle_count()).unwrap();
         assert_eq!(back, canonical);
-        bytes.len()
+        let predicted = encode_predicted(&canonical).expect("fits");
+        let back = decode_predicted(&predicted, topo.vertex_count(), topo.triangle_count()).unwrap();
+        assert_eq!(back, canonical, "method 3");
+        (bytes.len(), predicted.len())
+    }
+
+    fn roundtrip(topo: &Topology) -> usize {
+        roundtrip_both(topo).0
     }
 
     /// Vertices renumbered by a deterministic (xorshift) shuffle.
@@ -536,9 +688,51 @@ mod tests {
     }
 
     #[test]
+    fn method_3_names_local_numberings_in_fewer_bits() {
+        // A grid renumbered within windows of 8: local but irregular, like real meshes.
+        let g = grid(40);
+        let n = g.vertex_count();
+        let mut perm: Vec<u32> = (0..n as u32).collect();
+        let mut s = 0x9e37_79b9_7f4a_7c15u64;
+        for chunk in perm.chunks_mut(8) {
+            for i in (1..chunk.len()).rev() {
+                s ^= s << 13;
+                s ^= s >> 7;
+                s ^= s << 17;
+                chunk.swap(i, (s % (i as u64 + 1)) as usize);
+            }
+        }
+        let tris = g.triangles().iter().map(|t| t.map(|x| perm[x as usize])).collect();
+        let (m2, m3) = roundtrip_both(&Topology::new(n, tris).unwrap());
+        assert!(m3 < m2, "method 3 {m3} bytes vs method 2's {m2}");
+        // Vertex counts far above the indices used, and the escape at either end of the range.
+        roundtrip_both(&Topology::new(u32::MAX as usize, vec![[7, 3_000_000, 9], [9, 3_000_000, 0]]).unwrap());
+        roundtrip_both(&Topology::new(5, vec![[4, 0, 2], [2, 0, 1], [1, 3, 2]]).unwrap());
+    }
+
+    #[test]
     fn corrupt_blocks_are_errors_not_panics() {
         let g = renumbered(&grid(12), 3);
         let canonical = canonical_order(&g);
+        // Method 3 first: every truncation and three flips per byte.
+        let bytes = encode_predicted(&canonical).unwrap();
+        for cut in (0..bytes.len()).step_by(4) {
+            let _ = decode_predicted(&bytes[..cut], g.vertex_count(), g.triangle_count());
+        }
+        for i in 0..bytes.len() {
+            for flip in [0x01, 0x5a, 0xff] {
+                let mut b = bytes.clone();
+                b[i] ^= flip;
+                if let Ok(t) = decode_predicted(&b, g.vertex_count(), g.triangle_count()) {
+                    assert_eq!(t.triangle_count(), g.triangle_count());
+                }
+            }
+        }
+        let _ = decode_predicted(&bytes, g.vertex_count(), g.triangle_count() * 3);
+        let e = decode_predicted(&[], g.vertex_count(), 5_000_000).unwrap_err().to_string();
+        assert!(e.contains("at most 4096 per byte"), "{e}");
+        let e = decode_predicted(&bytes, 10, g.triangle_count()).unwrap_err().to_string();
+        assert!(e.contains("topology") && (e.contains("out of range") || e.contains("leaves the unseen")), "{e}");
         let bytes = encode(&canonical).unwrap();
         for cut in (0..bytes.len()).step_by(4) {
             let _ = decode(&bytes[..cut], g.vertex_count(), g.triangle_count());
@@ -560,5 +754,56 @@ mod tests {
         assert_eq!(decode(&b, huge.vertex_count(), huge.triangle_count()).unwrap(), huge);
         let e = decode(&bytes, 10, g.triangle_count()).unwrap_err().to_string();
         assert!(e.contains("topology") && e.contains("out of range"), "{e}");
+    }
+
+    /// The per-class bit count sees the same symbols as the coder: its total is the block's
+    /// size within the range coder's overhead (a few words), for methods 2 and 3.
+    #[test]
+    fn bits_by_class_add_up_to_the_block() {
+        let canonical = canonical_order(&renumbered(&grid(30), 5));
+        for predicted in [false, true] {
+            let bytes = encode_with(&canonical, predicted).unwrap().len() as f64;
+            let classes = bits_by_class(&canonical, predicted).unwrap();
+            let total = classes.iter().sum::<f64>() / 8.0;
+            assert!((bytes - 12.0..=bytes + 1.0).contains(&total), "{total} bits/8 vs {bytes} bytes");
+            assert_eq!(classes[1] == 0.0, predicted, "method 3 codes no ranks");
+            assert_eq!(classes[5] == 0.0, !predicted, "method 2 codes no flags");
+        }
+    }
+
+    /// Method 3 on arbitrary bytes: an error or a triangle list of the declared size with
+    /// every index in range, never a panic — also with a declared vertex count of 2^32 − 1,
+    /// where the escapes can name any index (the unseen-index tree grows only as far as the
+    /// indices met, at most twice the largest).
+    #[test]
+    fn method_3_on_random_bytes_is_an_error_or_a_valid_list() {
+        let mut s = 0x243f_6a88_85a3_08d3u64;
+        let mut next = || {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            s
+        };
+        let mut decoded = 0;
+        for round in 0..600 {
+            let words = (next() % 24) as usize;
+            let bytes: Vec<u8> = (0..4 * words).map(|_| next() as u8).collect();
+            let vertex_count = [3usize, 40, 5_000, 1 << 20][round % 4];
+            let triangle_count = [1usize, 7, 60][(round / 4) % 3];
+            if let Ok(t) = decode_predicted(&bytes, vertex_count, triangle_count) {
+                assert_eq!(t.triangle_count(), triangle_count);
+                assert!(t.triangles().iter().flatten().all(|&x| (x as usize) < vertex_count));
+                decoded += 1;
+            }
+        }
+        assert!(decoded > 0, "no random block decoded: the test would not see a wrong list");
+        // Escapes far up a 2^32 − 1 vertex range: the walk allocates up to the index met only.
+        for round in 0..40 {
+            let bytes: Vec<u8> = (0..16).map(|_| next() as u8).collect();
+            let r = decode_predicted(&bytes, u32::MAX as usize, 1 + round % 3);
+            if let Ok(t) = r {
+                assert!(t.triangles().iter().flatten().all(|&x| x < u32::MAX));
+            }
+        }
     }
 }

@@ -132,7 +132,7 @@ fn every_golden_stream_decodes_to_its_hash() {
 }
 
 /// Random access on every golden stream (every codec and stream version, container versions
-/// 2 to 4 included): every frame through the codec's one-frame hook, on a decoder kept across
+/// 2 to 5 included): every frame through the codec's one-frame hook, on a decoder kept across
 /// requests, equals that frame of the full decode bit for bit
 /// ([`conformance_tests::suite::frames_of_packets_match_full_decode`]).
 #[test]
@@ -262,10 +262,10 @@ fn container_versions_keep_the_triangles() {
 
 /// Container version 3 (the traversal coding of the triangles, topology method 2). Real
 /// meshes number their vertices locally but not regularly; a flag whose vertices are shuffled
-/// within windows of 8 has that, and its stream as this build writes it is version 3 with
-/// method 2, smaller in topology than methods 0 and 1. The committed one
-/// (`container-v3/quant-delta-v1-traversal.anim`, written by `ANIMCODEC_WRITE_GOLDEN=1` when
-/// missing) still decodes to the same frames and triangles.
+/// within windows of 8 has that, and its stream as this build writes it is version 5 with
+/// method 3 (see `container_v5_predicted_golden`), smaller in topology than methods 0 to 2. The
+/// committed version 3 stream (`container-v3/quant-delta-v1-traversal.anim`, written by
+/// `ANIMCODEC_WRITE_GOLDEN=1` when missing) still decodes to the same frames and triangles.
 #[test]
 fn container_v3_traversal_golden() {
     let registry = registry();
@@ -282,13 +282,14 @@ fn container_v3_traversal_golden() {
         bytes[40 + config_len]
     };
     let fresh_header = ContainerReader::new(&fresh[..], Limits::default()).unwrap().header().clone();
-    assert_eq!((fresh_header.container_version, topology_method(&fresh)), (3, 2), "this build's stream");
+    assert_eq!((fresh_header.container_version, topology_method(&fresh)), (5, 3), "this build's stream");
     let canonical = codec_core::connectivity::canonical_order(input.topology());
     let method_1 = codec_core::connectivity::encode(&canonical).unwrap().len();
+    let method_2 = codec_core::traversal::encode(&canonical).unwrap().len();
     let list = codec_core::container::encode_topology_list(&canonical).len();
     assert!(
-        fresh_header.topology_bytes <= method_1.min(list),
-        "{} vs {method_1} and {list}",
+        fresh_header.topology_bytes <= method_1.min(list).min(method_2),
+        "{} vs {method_1}, {method_2} and {list}",
         fresh_header.topology_bytes
     );
     let bytes = std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
@@ -306,6 +307,41 @@ fn container_v3_traversal_golden() {
     relabelled[crc_at..crc_at + 4].copy_from_slice(&crc.to_le_bytes());
     let e = ContainerReader::new(&relabelled[..], Limits::default()).map(|_| ()).expect_err("refused").to_string();
     assert!(e.contains("unknown topology coding method 2"), "{e}");
+}
+
+/// Container version 5 (topology method 3: the traversal with new vertices named by candidate
+/// kinds). The flag of `container_v3_traversal_golden`, shuffled within windows of 8, is written
+/// as version 5 with method 3 (an empty metadata block). The committed stream
+/// (`container-v5/quant-delta-v1-predicted.anim`, written by `ANIMCODEC_WRITE_GOLDEN=1` when
+/// missing) decodes to the same frames and triangles, this build writes it byte for byte, and
+/// a reader of version 4 refuses its method 3.
+#[test]
+fn container_v5_predicted_golden() {
+    let registry = registry();
+    let input = shuffled_within(&synth::waving_flag(24, 16, 3), 8);
+    let codec = registry.by_name("quant-delta").unwrap();
+    let fresh = encode_animation(codec, &codec.default_params(), &input).unwrap();
+    let path = golden_dir().join("container-v5").join("quant-delta-v1-predicted.anim");
+    if std::env::var_os("ANIMCODEC_WRITE_GOLDEN").is_some() && !path.exists() {
+        std::fs::create_dir_all(path.parent().unwrap()).unwrap();
+        std::fs::write(&path, &fresh).unwrap();
+    }
+    let bytes = std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    assert_eq!(bytes, fresh, "this build writes the committed version 5 stream byte for byte");
+    let header = ContainerReader::new(&bytes[..], Limits::default()).unwrap().header().clone();
+    let config_len = u32::from_le_bytes(bytes[32..36].try_into().unwrap()) as usize;
+    assert_eq!((header.container_version, bytes[40 + config_len]), (5, 3));
+    assert!(header.metadata.is_empty());
+    let decoded = decode_animation(&bytes, &registry, Limits::default()).unwrap();
+    assert!(codec_core::connectivity::same_triangles(decoded.topology(), input.topology()));
+    // Method 3 in a container that says version 4 is refused (an older reader's view).
+    let mut relabelled = bytes.clone();
+    relabelled[8..10].copy_from_slice(&4u16.to_le_bytes());
+    let crc_at = header.header_bytes - 4;
+    let crc = crc32fast::hash(&relabelled[..crc_at]);
+    relabelled[crc_at..crc_at + 4].copy_from_slice(&crc.to_le_bytes());
+    let e = ContainerReader::new(&relabelled[..], Limits::default()).map(|_| ()).expect_err("refused").to_string();
+    assert!(e.contains("unknown topology coding method 3"), "{e}");
 }
 
 /// Container version 4 carries the source's scene metadata after the topology. The committed
