@@ -229,7 +229,7 @@ fn envelope_sweep_counts_every_phase_up_front() {
     let phases = Mutex::new(Vec::new());
     let finished = std::sync::atomic::AtomicUsize::new(0);
     let swept = harness::envelope_sweep(&registry, &codecs, &animation, &options, 2, &|event| match event {
-        SweepEvent::Phase { phase, phases, points, total, .. } if phases == 3 + rounds => {
+        SweepEvent::Phase { phase, phases: count, points, total, .. } if count == 3 + rounds => {
             let done = finished.load(std::sync::atomic::Ordering::SeqCst);
             phases.lock().unwrap().push((phase, points, total, done));
         }

@@ -126,8 +126,10 @@ codec_core::declare_params! {
         /// the third, proportional to the local edge length raised to this strength (0 = off,
         /// 1 = proportional; to the nearest quarter), derived by the decoder from the decoded
         /// leading columns (`coding::relstep`). STED measures relative edge-length changes, so
-        /// uniform noise hurts most where edges are short. Default 0.5 (README, "Stream version 7").
-        pub relstep: f64 = 0.5 => float(
+        /// uniform noise hurts most where edges are short. Default 0.25: at equal bits STED −1 to
+        /// −7 % with KG within about 1 % on horse-gallop and pcow, where 0.5 costs KG 1–6 % and
+        /// 1 more (README, "Stream version 7"; `docs/notes/issue-45-relstep.md`).
+        pub relstep: f64 = 0.25 => float(
             0.0,
             1.0,
             "toolkit: mode-1 factor steps proportional to the local edge length^relstep (0 = off, 1 = proportional; quarters; v7)"
