@@ -666,8 +666,7 @@ fn forced_unguarded_regression_is_caught_and_falls_back() {
     let anim = skinned_character(&CharacterSpec { parts: 25, frames: 24, ..CharacterSpec::spheres_like(7) });
     // The paper's affine motion: the configuration in which this character's unguarded fit
     // was found to diverge. No step scales (version 7), so a version 4 decoder reads the packets.
-    let forced =
-        HosvdParams { force_unguarded_regression: true, affine: true, relstep: 0.0, ..HosvdParams::default() };
+    let forced = HosvdParams { force_unguarded_regression: true, affine: true, relstep: 0.0, ..HosvdParams::default() };
     let topology = codec_core::connectivity::canonical_order(anim.topology());
     let mut enc = HosvdEncoder::new(forced, &topology, anim.frame_count(), true);
     let mut packets = enc.push_frames(anim.positions()).unwrap();
