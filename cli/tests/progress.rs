@@ -208,7 +208,8 @@ fn json_stays_a_clean_document_under_a_terminal() {
     }
 }
 
-/// The envelope sweep counts its three phases before the first point starts: the totals it
+/// The envelope sweep counts its phases (the grid's three, the refinement's rounds) before the
+/// first point starts: the totals it
 /// reports never grow, each phase measures the points it announced, and the last total is
 /// the number of points measured (or failed) — for every registered codec, whose search
 /// spaces and ladders differ.
@@ -222,16 +223,17 @@ fn envelope_sweep_counts_every_phase_up_front() {
     let animation = synth::waving_flag(12, 9, 12);
     let codecs: Vec<(&dyn AnimationCodec, ParamSet, Vec<&'static str>)> =
         registry.iter().map(|c| (c, c.default_params(), Vec::new())).collect();
-    let options = SweepOptions { points: Some(4), ..Default::default() };
+    let rounds = 2;
+    let options = SweepOptions { points: Some(4), refine_rounds: rounds, ..Default::default() };
     // (phase, points, total) of every phase; points finished.
     let phases = Mutex::new(Vec::new());
     let finished = std::sync::atomic::AtomicUsize::new(0);
     let swept = harness::envelope_sweep(&registry, &codecs, &animation, &options, 2, &|event| match event {
-        SweepEvent::Phase { phase, phases: 3, points, total, .. } => {
+        SweepEvent::Phase { phase, phases: count, points, total, .. } if count == 3 + rounds => {
             let done = finished.load(std::sync::atomic::Ordering::SeqCst);
             phases.lock().unwrap().push((phase, points, total, done));
         }
-        SweepEvent::Phase { phases, .. } => panic!("the envelope sweep has 3 phases, not {phases}"),
+        SweepEvent::Phase { phases, .. } => panic!("the envelope sweep has 3 + {rounds} phases, not {phases}"),
         SweepEvent::Started { .. } => {}
         SweepEvent::Finished { .. } => {
             finished.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
@@ -240,7 +242,11 @@ fn envelope_sweep_counts_every_phase_up_front() {
     .unwrap();
     let phases = phases.into_inner().unwrap();
     let measured = swept.points.len() + swept.failures.len();
-    assert_eq!(phases.iter().map(|p| p.0).collect::<Vec<_>>(), [1, 2, 3], "{phases:?}");
+    // The grid's three phases, then the refinement's rounds (ending early when one plans
+    // nothing).
+    let numbers: Vec<usize> = phases.iter().map(|p| p.0).collect();
+    assert!(numbers.len() >= 4 && numbers.iter().enumerate().all(|(i, &n)| n == i + 1), "{phases:?}");
+    assert!(swept.points.iter().any(|p| p.refined), "the refinement measured nothing: {phases:?}");
     assert!(phases.windows(2).all(|w| w[1].2 <= w[0].2), "a total grew: {phases:?}");
     assert_eq!(phases.last().unwrap().2, measured, "the last total is not the count: {phases:?}");
     assert_eq!(finished.into_inner(), measured);

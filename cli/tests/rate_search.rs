@@ -651,3 +651,67 @@ fn encode_with_a_joint_target_writes_a_stream_meeting_both_bounds() {
     assert_eq!(o.status.code(), Some(2), "a malformed --target is a usage error");
     assert!(stderr(&o).contains("kg is bounded twice"), "{}", stderr(&o));
 }
+
+/// The envelope sweep's refinement places its points where the target search finds its
+/// answers: at every standard target the search meets, the smallest swept stream of the codec
+/// meeting it is no larger than the stream the space search (`encode -c CODEC --target`, 4
+/// refinement points) chooses. Without the refinement the grid alone is larger somewhere (so
+/// this can fail), and the refined sweep is the same at 1 and 2 threads.
+#[test]
+fn refined_sweep_envelope_reaches_what_the_target_search_finds() {
+    let registry = animcodec::registry();
+    let animation = synth::waving_flag(14, 10, 16);
+    let eval = EvalOptions::default();
+    let names = ["quant-delta", "pca-aoi", "hosvd"];
+    let codecs: Vec<(&dyn AnimationCodec, ParamSet, Vec<&'static str>)> = names
+        .iter()
+        .map(|n| {
+            let c = registry.by_name(n).unwrap();
+            (c, c.default_params(), Vec::new())
+        })
+        .collect();
+    let sweep = |rounds: usize, jobs: usize| {
+        let options = harness::SweepOptions { jobs: Some(jobs), refine_rounds: rounds, ..Default::default() };
+        let swept = harness::envelope_sweep(&registry, &codecs, &animation, &options, 3, &|_| {}).unwrap();
+        assert!(swept.failures.is_empty(), "{:?}", swept.failures);
+        swept
+    };
+    let (grid, refined) = (sweep(0, 2), sweep(harness::REFINE_ROUNDS, 2));
+    assert!(refined.points.iter().any(|p| p.refined) && !grid.points.iter().any(|p| p.refined));
+    let same = |a: &harness::Sweep, b: &harness::Sweep| {
+        let key = |s: &harness::Sweep| {
+            s.points.iter().map(|p| (p.series.clone(), p.params.to_string(), p.bytes)).collect::<Vec<_>>()
+        };
+        key(a) == key(b)
+    };
+    assert!(same(&refined, &sweep(harness::REFINE_ROUNDS, 1)), "the refined sweep depends on the thread count");
+    let smallest = |s: &harness::Sweep, codec: &str, target: Target| {
+        s.points
+            .iter()
+            .filter(|p| p.codec == codec && harness::usable(p) && target.meets(&p.report))
+            .map(|p| p.bytes)
+            .min()
+    };
+    let (mut compared, mut grid_larger) = (0, 0);
+    for target in harness::STANDARD_TARGETS {
+        for (codec, base, _) in &codecs {
+            let Ok(hit) = search_space_target(&request(&registry, &animation, target, &eval, 4), *codec, base, &[])
+            else {
+                continue;
+            };
+            let swept = smallest(&refined, codec.name(), target).expect("the search met it, so a swept point does");
+            assert!(
+                swept <= hit.point.bytes,
+                "{} at {target}: the refined sweep's smallest passing stream is {swept} B, the search found {} B ({})",
+                codec.name(),
+                hit.point.bytes,
+                hit.point.params
+            );
+            compared += 1;
+            grid_larger += usize::from(smallest(&grid, codec.name(), target).is_none_or(|g| g > hit.point.bytes));
+        }
+    }
+    eprintln!("{compared} (codec, target) pairs compared; the grid alone was larger at {grid_larger}");
+    assert!(compared >= 6, "only {compared} (codec, target) pairs met by the search");
+    assert!(grid_larger > 0, "the grid alone already matched the search everywhere: the test shows nothing");
+}

@@ -40,12 +40,14 @@ use codec_core::toolkit::adaptive::{AdaptiveEncoder, CostModel};
 use codec_core::toolkit::order::CausalGraph;
 use codec_core::toolkit::predict::{self, Predictor};
 use codec_core::toolkit::regress::{Fit, Neighbourhoods, Regression, MAX_REGRESSORS};
+use std::sync::Arc;
 
 mod decoding;
 mod rd_search;
+pub mod relstep;
 mod smoothing;
 
-pub use decoding::decode;
+pub use decoding::{decode, StepScales};
 use rd_search::{choose_steps, edge_ratio, lead_fits, push_factor_components, u1_reference_step};
 use rd_search::{Component, Group, Steps};
 pub use smoothing::{Smoother, SMOOTHING_ITERATIONS};
@@ -79,6 +81,12 @@ pub struct Settings {
     /// parallelogram and (after the first column) local regression on the leading columns
     /// ([`codec_core::toolkit::regress`]); stream version 4, [`ColumnMode`].
     pub regress: bool,
+    /// Per-vertex step scales of the `U1` columns from [`relstep::SCALED_FROM`] on (stream
+    /// version 7, [`relstep`]): strength byte, `0..=4` (0 = off); the encoder leaves them off
+    /// when [`relstep::jensen_gain`] is below [`relstep::MIN_GAIN`].
+    pub relstep: u8,
+    /// Leave the scales off where [`relstep::jensen_gain`] is below [`relstep::MIN_GAIN`].
+    pub relstep_auto: bool,
     /// Test hook (never set by the codec's parameters): regression on every `U1` column after
     /// the first, with version 4's *unguarded* fit and no final-pass choice, so tests can drive
     /// the encoder into the divergence and see its closed-loop check fall back.
@@ -162,6 +170,12 @@ pub struct Coded {
     pub smoothing: Vec<u8>,
     /// Per `U1` column, its [`ColumnMode`] byte (all 0 without `regress`).
     pub modes: Vec<u8>,
+    /// Strength byte of the per-vertex step scales the stream carries (0 = none: off, or
+    /// fewer than [`relstep::SCALED_FROM`] + 1 columns).
+    pub relstep: u8,
+    /// The gains of the leading columns the step scales were derived with (`‖C_i‖` as f32),
+    /// written after the strength byte.
+    pub gains: [f32; relstep::LEADS],
     /// `U1` columns coded in regression mode whose closed loop failed (an entry more than a
     /// step from its value, or not finite) and were re-coded with the mesh predictor.
     pub fallbacks: Vec<usize>,
@@ -238,6 +252,22 @@ pub fn code(op: &Operator<'_>, mesh: &CausalGraph, settings: &Settings, target: 
     let leads = regression_leads(settings, v);
     let guarded = !settings.force_unguarded_regression;
     let (hoods, fits) = lead_fits(op, mesh, leads, guarded, target);
+    // Per-vertex step scales: the search's from the unquantized leads, the coding's (below)
+    // from the decoded ones, as the decoder has them; the gains as the stream stores them.
+    let gains: [f32; relstep::LEADS] = std::array::from_fn(|i| op.s1.get(i).map_or(0.0, |&s| s as f32));
+    let gains64: Vec<f64> = gains.iter().map(|&g| g as f64).collect();
+    let mut relstep = if v > relstep::SCALED_FROM { settings.relstep } else { 0 };
+    let search_scales: Option<Arc<[f64]>> = if relstep > 0 {
+        let leads: Vec<Vec<f64>> =
+            (0..relstep::LEADS).map(|i| mesh.order().iter().map(|&x| op.u1[x as usize * v + i]).collect()).collect();
+        // On meshes of even edge lengths the scales cost more than they save: off there.
+        if settings.relstep_auto && relstep::jensen_gain(mesh, &leads, &gains64) < relstep::MIN_GAIN {
+            relstep = 0;
+        }
+        (relstep > 0).then(|| relstep::vertex_scales(mesh, &leads, &gains64, relstep).into())
+    } else {
+        None
+    };
     for i in 0..v {
         let values: Vec<f64> = mesh.order().iter().map(|&x| op.u1[x as usize * v + i]).collect();
         let reference_step = u1_reference_step(op, target, i);
@@ -262,6 +292,7 @@ pub fn code(op: &Operator<'_>, mesh: &CausalGraph, settings: &Settings, target: 
             modes: settings.regress,
             forced: settings.force_unguarded_regression,
             regression,
+            scales: search_scales.clone().filter(|_| i >= relstep::SCALED_FROM),
         });
     }
     push_factor_components(op, &rho, &time, &core_chain, settings, target, &mut comps);
@@ -281,7 +312,21 @@ pub fn code(op: &Operator<'_>, mesh: &CausalGraph, settings: &Settings, target: 
     let mut modes = modes;
     let (mut fallbacks, mut failed) = (Vec::new(), Vec::new());
     let (mut alt_codes, mut alt_recon) = (Vec::new(), Vec::new());
-    for (ci, ((c, &step), &level)) in comps.iter().zip(&steps).zip(&levels).enumerate() {
+    let mut scaled = false;
+    for ci in 0..comps.len() {
+        let (step, level) = (steps[ci], levels[ci]);
+        if relstep > 0 && comps[ci].group == Group::U1 && comps[ci].index == relstep::SCALED_FROM {
+            // The leads are decoded and smoothed: the decoder's scales, from them.
+            let leads: Vec<Vec<f64>> = (0..relstep::LEADS)
+                .map(|i| mesh.order().iter().map(|&x| out.u1[x as usize * v + i]).collect())
+                .collect();
+            let w: Arc<[f64]> = relstep::vertex_scales(mesh, &leads, &gains64, relstep).into();
+            for c in comps.iter_mut().filter(|c| c.group == Group::U1 && c.index >= relstep::SCALED_FROM) {
+                c.scales = Some(w.clone());
+            }
+            scaled = true;
+        }
+        let c = &comps[ci];
         if step > 0.0 {
             match (&hoods, modes[ci]) {
                 (Some(hoods), ColumnMode::Regression) => {
@@ -299,14 +344,14 @@ pub fn code(op: &Operator<'_>, mesh: &CausalGraph, settings: &Settings, target: 
                         }
                     }
                 }
-                (_, ColumnMode::Parallelogram) => {
-                    let pred = Predictor::Parallelogram;
-                    predict::quantize(c.graph, pred, &c.values, step, c.shaping, &mut codes, &mut recon)
+                (_, mode) => {
+                    let pred = if mode == ColumnMode::Parallelogram { Predictor::Parallelogram } else { c.predictor };
+                    let scales = c.scales.as_deref();
+                    predict::quantize_scaled(c.graph, pred, &c.values, step, scales, c.shaping, &mut codes, &mut recon)
                 }
-                _ => predict::quantize(c.graph, c.predictor, &c.values, step, c.shaping, &mut codes, &mut recon),
             }
             let shaping = if modes[ci] == ColumnMode::Regression { 0.0 } else { c.shaping };
-            if !closed_loop_holds(&c.values, &recon, step, shaping) {
+            if !closed_loop_holds(&c.values, &recon, step * c.max_scale(), shaping) {
                 failed.push(ci);
             }
             for p in 0..codes.len() {
@@ -343,6 +388,8 @@ pub fn code(op: &Operator<'_>, mesh: &CausalGraph, settings: &Settings, target: 
         lead_bits: lead_cost.bits(),
         smoothing: levels[..v].to_vec(),
         modes: modes[..v].iter().map(|&m| m as u8).collect(),
+        relstep: if scaled { relstep } else { 0 },
+        gains,
         fallbacks,
         failed,
     }

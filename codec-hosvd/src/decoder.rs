@@ -10,7 +10,10 @@ use codec_core::{entropy, Error, FrameDecoder, Limits, Packet, ParsedPacket, Res
 use crate::memory::decode_work;
 use crate::tensor::{Affine, Model, Prepared};
 use crate::{coding, motion, paper};
-use crate::{CENTRE_BYTES, FLAG_CENTRE, FLAG_DENOISE, FLAG_MOTION, FLAG_REGRESS, FLAG_TOOLKIT, NAME, STREAM_VERSION};
+use crate::{
+    CENTRE_BYTES, FLAG_CENTRE, FLAG_DENOISE, FLAG_MOTION, FLAG_REGRESS, FLAG_RELSTEP, FLAG_TOOLKIT, NAME,
+    STREAM_VERSION,
+};
 
 /// The decoder's mesh coding order: none in version 1 streams, built lazily in version 2.
 enum MeshOrder {
@@ -85,6 +88,7 @@ struct Flags {
     coded_motion: bool,
     denoise: bool,
     regress: bool,
+    relstep: bool,
 }
 
 /// A packet's header: its flags, frame count and ranks.
@@ -98,11 +102,13 @@ struct Header {
 
 impl HosvdDecoder {
     /// The flag bits the stream's version defines: bit 0 in every version, [`FLAG_TOOLKIT`]
-    /// from version 2, [`FLAG_MOTION`] and [`FLAG_DENOISE`] from 3, [`FLAG_REGRESS`] from 4
+    /// from version 2, [`FLAG_MOTION`] and [`FLAG_DENOISE`] from 3, [`FLAG_REGRESS`] from 4,
+    /// [`FLAG_RELSTEP`] from 7
     /// ([`FLAG_CENTRE`] is taken off before, by [`FrameDecoder::decode_packet`]).
     fn known_flags(&self) -> u8 {
         match (&self.graph, self.version) {
             (MeshOrder::Unavailable, _) => 1,
+            (_, v) if v >= 7 => 1 | FLAG_TOOLKIT | FLAG_MOTION | FLAG_DENOISE | FLAG_REGRESS | FLAG_RELSTEP,
             (_, v) if v >= 4 => 1 | FLAG_TOOLKIT | FLAG_MOTION | FLAG_DENOISE | FLAG_REGRESS,
             (_, 3) => 1 | FLAG_TOOLKIT | FLAG_MOTION | FLAG_DENOISE,
             _ => 1 | FLAG_TOOLKIT,
@@ -130,7 +136,11 @@ impl HosvdDecoder {
         if regress && !toolkit {
             return Err(r.malformed("flags", format!("{flags:#04x}: regression without toolkit coding")));
         }
-        Ok(Flags { rigid, toolkit, coded_motion, denoise, regress })
+        let relstep = flags & FLAG_RELSTEP != 0;
+        if relstep && !toolkit {
+            return Err(r.malformed("flags", format!("{flags:#04x}: step scales without toolkit coding")));
+        }
+        Ok(Flags { rigid, toolkit, coded_motion, denoise, regress, relstep })
     }
 
     /// A packet without `FLAG_CENTRE` (every packet of versions 1 to 5; a version 6 packet
@@ -233,9 +243,32 @@ impl HosvdDecoder {
         };
         let smoothing = if flags.denoise { Some(r.take(v, "smoothing")?.to_vec()) } else { None };
         let modes = if flags.regress { Some(r.take(v, "column modes")?.to_vec()) } else { None };
+        let relstep = if flags.relstep {
+            let strength = r.u8("relstep")?;
+            let max = coding::relstep::MAX_STRENGTH;
+            if strength == 0 || strength > max {
+                return Err(r.malformed("relstep", format!("strength {strength} is outside 1..={max}")));
+            }
+            if v <= coding::relstep::SCALED_FROM {
+                let n = coding::relstep::SCALED_FROM;
+                return Err(r.malformed("relstep", format!("step scales with v = {v} (no column after the first {n})")));
+            }
+            let mut gains = [0.0f32; coding::relstep::LEADS];
+            for g in &mut gains {
+                *g = r.finite_f32("relstep gains")?;
+            }
+            Some((strength, gains))
+        } else {
+            None
+        };
         r.expect_end("packet")?;
         if modes.as_ref().is_some_and(|x| x.contains(&(coding::ColumnMode::Regression as u8))) {
             self.limits.check_alloc(NAME, "regression neighbourhoods", Neighbourhoods::bytes(self.k))?;
+        }
+        if relstep.is_some() {
+            // Per-vertex scales: embedding, lengths and scales (40 bytes a vertex) and the
+            // mesh adjacency (the smoother's size), within 64 bytes a vertex plus the adjacency.
+            self.limits.check_alloc(NAME, "step scales", 64 * self.k as u64)?;
         }
         // Version 5's guarded regression; version 4 streams keep their arithmetic.
         let guarded = self.version >= 5;
@@ -251,6 +284,7 @@ impl HosvdDecoder {
             &steps,
             modes.as_deref(),
             guarded,
+            relstep.map(|(strength, gains)| coding::StepScales { strength, gains, levels: smoothing.as_deref() }),
         )?;
         if let Some(levels) = smoothing {
             coding::Smoother::new(graph).apply_columns(graph, &mut u1, v, &levels)?;

@@ -15,7 +15,7 @@ use crate::params::{Coding, HosvdParams};
 use crate::strategy::{self, Dims, Strategy};
 use crate::tensor::{self, Affine, Model, Spectrum, Tensor, Tucker};
 use crate::{coding, motion, paper, spectra};
-use crate::{FLAG_CENTRE, FLAG_DENOISE, FLAG_MOTION, FLAG_REGRESS, FLAG_TOOLKIT, NAME};
+use crate::{FLAG_CENTRE, FLAG_DENOISE, FLAG_MOTION, FLAG_REGRESS, FLAG_RELSTEP, FLAG_TOOLKIT, NAME};
 
 /// What the encoder measured and decided for one packet.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -537,6 +537,8 @@ fn code_operator(
         edge_weight: p.edge_weight,
         denoise: p.denoise,
         regress: p.regress,
+        relstep: coding::relstep::strength_byte(p.relstep),
+        relstep_auto: p.relstep_auto,
         force_unguarded_regression: p.force_unguarded_regression,
     };
     let coded = coding::code(&op, graph, &settings, budget);
@@ -558,7 +560,8 @@ fn code_operator(
         | FLAG_TOOLKIT
         | if motion_coder.is_some() { FLAG_MOTION } else { 0 }
         | if p.denoise { FLAG_DENOISE } else { 0 }
-        | if p.regress { FLAG_REGRESS } else { 0 });
+        | if p.regress { FLAG_REGRESS } else { 0 }
+        | if coded.relstep > 0 { FLAG_RELSTEP } else { 0 });
     w.varint(v as u64);
     w.varint(f as u64);
     w.u8(p.mesh_predictor.code());
@@ -582,6 +585,12 @@ fn code_operator(
     }
     if p.regress {
         w.bytes(&coded.modes);
+    }
+    if coded.relstep > 0 {
+        w.u8(coded.relstep);
+        for &g in &coded.gains {
+            w.f32(g);
+        }
     }
     m.u1 = coded.u1;
     m.u3 = coded.u3;

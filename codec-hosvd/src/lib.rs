@@ -72,11 +72,18 @@ pub(crate) const FLAG_REGRESS: u8 = 16;
 /// whatever the coding.
 pub(crate) const FLAG_CENTRE: u8 = 32;
 
+/// Packet flag bit 6 (stream version 7): a strength byte follows the column modes (or
+/// whatever ends the packet before the centre), and the `U1` columns from
+/// `coding::relstep::SCALED_FROM` on are multiplied, after smoothing, by per-vertex scales that
+/// follow the local edge length (`coding::relstep`). Written with the toolkit coding and
+/// `relstep > 0` when `v > 3`.
+pub(crate) const FLAG_RELSTEP: u8 = 64;
+
 /// Bytes of the centre at the end of a `FLAG_CENTRE` packet.
 pub(crate) const CENTRE_BYTES: usize = 12;
 
-/// Stream version the encoder writes (6: `FLAG_CENTRE`); versions 1 to 5 keep decoding.
-pub const STREAM_VERSION: u16 = 6;
+/// Stream version the encoder writes (7: `FLAG_RELSTEP`); versions 1 to 6 keep decoding.
+pub const STREAM_VERSION: u16 = 7;
 
 /// The `hosvd` codec.
 #[derive(Debug, Clone, Copy, Default)]

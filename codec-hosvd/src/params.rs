@@ -122,6 +122,24 @@ codec_core::declare_params! {
         pub regress: bool = true => boolean(
             "toolkit: per mode-1 factor column the cheapest of mesh predictor, parallelogram, local regression on the leading columns (v4)"
         ),
+        /// Toolkit (stream version 7): per-vertex step scales of the mode-1 factor columns after
+        /// the third, proportional to the local edge length raised to this strength (0 = off,
+        /// 1 = proportional; to the nearest quarter), derived by the decoder from the decoded
+        /// leading columns (`coding::relstep`). STED measures relative edge-length changes, so
+        /// uniform noise hurts most where edges are short. Default 0.25: at equal bits STED −1 to
+        /// −7 % with KG within about 1 % on horse-gallop and pcow, where 0.5 costs KG 1–6 % and
+        /// 1 more (README, "Stream version 7"; `docs/notes/issue-45-relstep.md`).
+        pub relstep: f64 = 0.25 => float(
+            0.0,
+            1.0,
+            "toolkit: mode-1 factor steps proportional to the local edge length^relstep (0 = off, 1 = proportional; quarters; v7)"
+        ),
+        /// Toolkit: with `relstep`, leave the scales off when the mesh's edge lengths promise
+        /// less than 0.1 bit per coded coordinate (`coding::relstep::jensen_gain`); false = always
+        /// on. Default true.
+        pub relstep_auto: bool = true => boolean(
+            "toolkit: with relstep, only where the edge lengths vary enough to promise 0.1 bit per coordinate"
+        ),
         /// Test hook, not a codec parameter (always false from a [`ParamSet`](codec_core::ParamSet)): regression on every
         /// mode-1 column with stream version 4's unguarded fit, to drive the encoder into a
         /// diverging regression and prove its closed-loop check falls back

@@ -665,8 +665,8 @@ fn forced_unguarded_regression_is_caught_and_falls_back() {
     use animcodec_synth::{skinned_character, CharacterSpec};
     let anim = skinned_character(&CharacterSpec { parts: 25, frames: 24, ..CharacterSpec::spheres_like(7) });
     // The paper's affine motion: the configuration in which this character's unguarded fit
-    // was found to diverge.
-    let forced = HosvdParams { force_unguarded_regression: true, affine: true, ..HosvdParams::default() };
+    // was found to diverge. No step scales (version 7), so a version 4 decoder reads the packets.
+    let forced = HosvdParams { force_unguarded_regression: true, affine: true, relstep: 0.0, ..HosvdParams::default() };
     let topology = codec_core::connectivity::canonical_order(anim.topology());
     let mut enc = HosvdEncoder::new(forced, &topology, anim.frame_count(), true);
     let mut packets = enc.push_frames(anim.positions()).unwrap();
@@ -781,4 +781,75 @@ fn the_precision_check_refuses_a_reconstruction_beyond_its_promise() {
     // The f32 rounding of each output coordinate (one unit in the last place) is allowed for.
     rec[1] = input[1] + 0.0078125;
     assert!(check_precision(&input, &rec, 0.0, 0.0, 3, 2).is_ok());
+}
+
+#[test]
+fn relstep_streams_decode_to_the_encoder_reconstruction() {
+    // Version 7: per-vertex step scales of the U1 columns after the third. The decoder derives
+    // them from its decoded leads and core and rebuilds the encoder's reconstruction bit for
+    // bit; a bad strength byte is refused by name; a version 6 stream cannot carry the flag.
+    let anim = flag(16, 12, 24, 1.0, 1.0);
+    let k = anim.vertex_count();
+    let hp =
+        HosvdParams { ss: 0.6, rigid: false, quant: 0.05, relstep: 1.0, relstep_auto: false, ..Default::default() };
+    let graph = mesh_graph(&hp, anim.topology());
+    let block = encode_block(anim.positions(), k, &hp, &graph, true).unwrap();
+    assert_eq!(block.payload[0] & FLAG_RELSTEP, FLAG_RELSTEP);
+    assert!(block.stats.v > coding::relstep::SCALED_FROM, "v = {}", block.stats.v);
+    // The strength byte, then the three gains (f32), then the centre.
+    let n = block.payload.len() - CENTRE_BYTES - 12;
+    assert_eq!(block.payload[n - 1], 4, "strength byte");
+    let info = StreamInfo {
+        fourcc: FOURCC,
+        codec_version: STREAM_VERSION,
+        topology: anim.topology().clone(),
+        frame_count: 24,
+        frame_rate: 30.0,
+    };
+    let mut dec = Hosvd.new_decoder(&info, &24u32.to_le_bytes(), &Limits::default()).unwrap();
+    let packet = |data: Vec<u8>| Packet { first_frame: 0, frame_count: 24, keyframe: true, data };
+    let out = dec.decode_packet(&packet(block.payload.clone())).unwrap();
+    assert_eq!(Some(&out), block.reconstruction.as_ref());
+    for byte in [0u8, 5, 255] {
+        let mut bad = block.payload.clone();
+        bad[n - 1] = byte;
+        let e = dec.decode_packet(&packet(bad)).unwrap_err().to_string();
+        assert!(e.contains("relstep") && e.contains(&format!("strength {byte}")), "{e}");
+    }
+    // Other strengths decode (to other frames), never panic; a gain that is not finite is refused.
+    let mut other = block.payload.clone();
+    other[n - 1] = 2;
+    assert_ne!(dec.decode_packet(&packet(other)).unwrap(), out);
+    let mut bad = block.payload.clone();
+    bad[n..n + 4].copy_from_slice(&f32::NAN.to_le_bytes());
+    let e = dec.decode_packet(&packet(bad)).unwrap_err().to_string();
+    assert!(e.contains("relstep gains"), "{e}");
+    // Corrupt bytes anywhere: errors or other frames, never a panic.
+    for i in (0..block.payload.len()).filter(|&i| i % 7 == 0 || i >= n - 1) {
+        for flip in [0xA5u8, 0x01, 0x80] {
+            let mut bad = block.payload.clone();
+            bad[i] ^= flip;
+            let _ = dec.decode_packet(&packet(bad));
+        }
+    }
+    let v6 = StreamInfo { codec_version: 6, ..info.clone() };
+    let mut dec6 = Hosvd.new_decoder(&v6, &24u32.to_le_bytes(), &Limits::default()).unwrap();
+    let e = dec6.decode_packet(&packet(block.payload.clone())).unwrap_err().to_string();
+    assert!(e.contains("unknown bits"), "{e}");
+    // Off: no flag, no byte; the scaled stream's error stays of the same order.
+    // The flag's even edges promise < 0.1 bit: by default the encoder leaves the scales off.
+    let auto = HosvdParams { relstep_auto: true, ..hp };
+    let b3 = encode_block(anim.positions(), k, &auto, &graph, true).unwrap();
+    assert_eq!(b3.payload[0] & FLAG_RELSTEP, 0);
+    let plain = HosvdParams { relstep: 0.0, ..hp };
+    let b2 = encode_block(anim.positions(), k, &plain, &graph, true).unwrap();
+    assert_eq!(b2.payload[0] & FLAG_RELSTEP, 0);
+    let err = |r: &[f32]| anim.positions().iter().zip(r).map(|(a, b)| ((a - b) as f64).powi(2)).sum::<f64>();
+    let (e1, e2) = (err(&out), err(&b2.reconstruction.unwrap()));
+    eprintln!(
+        "relstep: {} bytes, error² {e1:.3e}; off: {} bytes, error² {e2:.3e}",
+        block.payload.len(),
+        b2.payload.len()
+    );
+    assert!(e1 < 4.0 * e2 && e2 < 4.0 * e1, "{e1} vs {e2}");
 }

@@ -278,6 +278,7 @@ mod tests {
             report: MetricReport { kg: Some(kg), sted: Some(sted), worst_part: None, ..exact.clone() },
             encode_seconds: 0.0,
             decode_seconds: 0.0,
+            refined: false,
         };
         // KG 125 at STED 7.6e-5: no result; the other two are.
         let svg = rd_svg("t", &[point(0.156, 125.0, 7.6e-5), point(0.5, 2.0, 0.05), point(1.0, 0.4, 0.02)]);

@@ -448,3 +448,45 @@ fn hosvd_column_modes_golden(version: u16) {
     let decoded = decode_animation(&bytes, &registry, Limits::default()).unwrap();
     assert_eq!(frames_hash(&decoded), hash.trim(), "hosvd v{version} column modes decode to their golden frames");
 }
+
+/// hosvd stream version 7's per-vertex step scales (`relstep`; the default golden input's even
+/// edges leave them off): the column-modes input with `relstep=1` pins the scales'
+/// arithmetic (embedding of the decoded leads, edge lengths, clamp, RMS normalisation).
+/// `ANIMCODEC_WRITE_GOLDEN=1` writes `hosvd-v7-relstep/hosvd-v7.anim` and its hash when missing
+/// (only a build whose hosvd writes version 7 can).
+#[test]
+fn hosvd_v7_relstep_golden() {
+    use codec_core::container::Section;
+    let version = 7;
+    let registry = registry();
+    let codec = registry.by_name("hosvd").unwrap();
+    let dir = golden_dir().join("hosvd-v7-relstep");
+    let (path, hash_path) = (dir.join("hosvd-v7.anim"), dir.join("hash.txt"));
+    let input = synth::waving_flag(16, 12, 24);
+    let specs = codec.param_specs();
+    let params = codec
+        .default_params()
+        .with(&specs, "rigid", ParamValue::Bool(false))
+        .and_then(|p| p.with(&specs, "ss", ParamValue::Float(0.6)))
+        .and_then(|p| p.with(&specs, "quant", ParamValue::Float(0.05)))
+        .and_then(|p| p.with(&specs, "relstep", ParamValue::Float(1.0)))
+        .and_then(|p| p.with(&specs, "relstep_auto", ParamValue::Bool(false)))
+        .unwrap();
+    if std::env::var_os("ANIMCODEC_WRITE_GOLDEN").is_some() && !path.exists() && codec.stream_version() == version {
+        let bytes = encode_animation(codec, &params, &input).unwrap();
+        let decoded = decode_animation(&bytes, &registry, Limits::default()).unwrap();
+        std::fs::create_dir_all(&dir).unwrap();
+        std::fs::write(&path, &bytes).unwrap();
+        std::fs::write(&hash_path, format!("{}\n", frames_hash(&decoded))).unwrap();
+    }
+    let bytes = std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let hash = std::fs::read_to_string(&hash_path).unwrap_or_else(|e| panic!("{}: {e}", hash_path.display()));
+    let mut reader = ContainerReader::new(&bytes[..], Limits::default()).unwrap();
+    assert_eq!(reader.header().info.codec_version, version);
+    // Flag bit 6, and the strength byte (4) before the three gains (f32) and the centre.
+    let Some(Ok(Section::Packet(packet))) = reader.next_section() else { panic!("no packet") };
+    assert_eq!(packet.data[0] & 64, 64, "step scales flag");
+    assert_eq!(packet.data[packet.data.len() - 25], 4, "strength byte");
+    let decoded = decode_animation(&bytes, &registry, Limits::default()).unwrap();
+    assert_eq!(frames_hash(&decoded), hash.trim(), "hosvd v7 step scales decode to their golden frames");
+}

@@ -55,6 +55,14 @@ pub struct SweepArgs {
     #[arg(long, value_name = "N", default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..=64))]
     pub config_points: u32,
 
+    /// Envelope sweep: rounds of refinement toward the standard targets after the grid (KG ≤ 2,
+    /// 0.5, 0.1 and KG & STED ≤ 2 & 0.1, 0.5 & 0.05, 0.1 & 0.02): each measures, per codec and
+    /// target, up to two points where the target search would (between ladder steps too),
+    /// planned from every point measured so far. 0 skips it.
+    #[arg(long, value_name = "N", default_value_t = harness::REFINE_ROUNDS as u32,
+          value_parser = clap::value_parser!(u32).range(0..=16))]
+    pub refine_rounds: u32,
+
     /// Ladder points per codec, spread evenly over its rate ladder, ends included (default:
     /// every step).
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
@@ -69,7 +77,8 @@ pub struct SweepArgs {
     /// Write JSON to F (`-`: print it instead of the table): {input, vertices, frames,
     /// eval_options, rows: [{codec, params, ladder_param, ladder_index, bytes, bpvf, kg, sted,
     /// sted_spatial, sted_temporal, hausdorff, hausdorff_relative, mse, rmse, max_error,
-    /// encode_seconds, decode_seconds}], failures, monotone, total_seconds, jobs}.
+    /// encode_seconds, decode_seconds, refined (on refinement points only)}], failures,
+    /// monotone, total_seconds, jobs}.
     #[arg(long, value_name = "F")]
     pub json: Option<PathBuf>,
 
@@ -161,6 +170,7 @@ pub fn run(args: &SweepArgs, limits: Limits) -> CmdResult {
         limits,
         // The --view-points' decoded animations are kept as the sweep measures them.
         keep_decoded: view_points.clone(),
+        refine_rounds: args.refine_rounds as usize,
     };
     // Every phase's points are counted before the first starts (the later phases at their
     // most, falling to their exact count as they are planned), so the ETA — indicatif's

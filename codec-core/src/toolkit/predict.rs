@@ -96,6 +96,24 @@ pub fn quantize(
     codes: &mut Vec<i32>,
     recon: &mut Vec<f64>,
 ) {
+    quantize_scaled(graph, predictor, values, step, None, shaping, codes, recon)
+}
+
+/// [`quantize`] with a step per position: `step · scales[p]` (each scale finite and > 0;
+/// `None` = all 1, [`quantize`] itself). The prediction is made from the reconstruction as
+/// before, only the residual's step changes, so a scale field that is not smooth costs no
+/// prediction accuracy.
+#[allow(clippy::too_many_arguments)]
+pub fn quantize_scaled(
+    graph: &CausalGraph,
+    predictor: Predictor,
+    values: &[f64],
+    step: f64,
+    scales: Option<&[f64]>,
+    shaping: f64,
+    codes: &mut Vec<i32>,
+    recon: &mut Vec<f64>,
+) {
     let n = values.len().min(graph.len());
     codes.clear();
     codes.resize(n, 0);
@@ -112,7 +130,13 @@ pub fn quantize(
                 target += shaping * err / list.len() as f64;
             }
         }
-        (codes[p], recon[p]) = quantize_one(target, pred, step, inv);
+        (codes[p], recon[p]) = match scales {
+            Some(w) => {
+                let s = step * w[p];
+                quantize_one(target, pred, s, 1.0 / s)
+            }
+            None => quantize_one(target, pred, step, inv),
+        };
     }
 }
 
@@ -127,11 +151,27 @@ pub fn quantize_one(target: f64, pred: f64, step: f64, inv: f64) -> (i32, f64) {
 
 /// The decoder's side of [`quantize`]: `recon` from `codes` (position order).
 pub fn dequantize(graph: &CausalGraph, predictor: Predictor, codes: &[i32], step: f64, recon: &mut Vec<f64>) {
+    dequantize_scaled(graph, predictor, codes, step, None, recon)
+}
+
+/// The decoder's side of [`quantize_scaled`].
+pub fn dequantize_scaled(
+    graph: &CausalGraph,
+    predictor: Predictor,
+    codes: &[i32],
+    step: f64,
+    scales: Option<&[f64]>,
+    recon: &mut Vec<f64>,
+) {
     let n = codes.len().min(graph.len());
     recon.clear();
     recon.resize(n, 0.0);
     for p in 0..n {
-        recon[p] = predict(graph, predictor, recon, p) + codes[p] as f64 * step;
+        let s = match scales {
+            Some(w) => step * w[p],
+            None => step,
+        };
+        recon[p] = predict(graph, predictor, recon, p) + codes[p] as f64 * s;
     }
 }
 

@@ -318,6 +318,19 @@ impl Regression<'_> {
     /// Closed-loop quantization of `values` (position order) at `step > 0`, like
     /// [`predict::quantize`] without noise shaping.
     pub fn quantize(&self, values: &[f64], step: f64, codes: &mut Vec<i32>, recon: &mut Vec<f64>) {
+        self.quantize_scaled(values, step, None, codes, recon)
+    }
+
+    /// [`Regression::quantize`] with a step per position, `step · scales[p]`, like
+    /// [`predict::quantize_scaled`].
+    pub fn quantize_scaled(
+        &self,
+        values: &[f64],
+        step: f64,
+        scales: Option<&[f64]>,
+        codes: &mut Vec<i32>,
+        recon: &mut Vec<f64>,
+    ) {
         let n = values.len().min(self.hoods.len());
         codes.clear();
         codes.resize(n, 0);
@@ -325,17 +338,33 @@ impl Regression<'_> {
         recon.resize(n, 0.0);
         let inv = 1.0 / step;
         for p in 0..n {
-            (codes[p], recon[p]) = predict::quantize_one(values[p], self.predict(recon, p), step, inv);
+            let pred = self.predict(recon, p);
+            (codes[p], recon[p]) = match scales {
+                Some(w) => {
+                    let s = step * w[p];
+                    predict::quantize_one(values[p], pred, s, 1.0 / s)
+                }
+                None => predict::quantize_one(values[p], pred, step, inv),
+            };
         }
     }
 
     /// The decoder's side of [`Regression::quantize`].
     pub fn dequantize(&self, codes: &[i32], step: f64, recon: &mut Vec<f64>) {
+        self.dequantize_scaled(codes, step, None, recon)
+    }
+
+    /// The decoder's side of [`Regression::quantize_scaled`].
+    pub fn dequantize_scaled(&self, codes: &[i32], step: f64, scales: Option<&[f64]>, recon: &mut Vec<f64>) {
         let n = codes.len().min(self.hoods.len());
         recon.clear();
         recon.resize(n, 0.0);
         for p in 0..n {
-            recon[p] = self.predict(recon, p) + codes[p] as f64 * step;
+            let s = match scales {
+                Some(w) => step * w[p],
+                None => step,
+            };
+            recon[p] = self.predict(recon, p) + codes[p] as f64 * s;
         }
     }
 }

@@ -7,7 +7,8 @@ use codec_core::toolkit::predict::{self, Predictor};
 use codec_core::toolkit::regress::{Fit, Neighbourhoods, Regression, MAX_REGRESSORS};
 use codec_core::{Error, Result};
 
-use super::{current_fit, ColumnMode, CLASSES_PER_GROUP, GROUPS};
+use super::smoothing::{Smoother, SMOOTHING_ITERATIONS};
+use super::{current_fit, relstep, ColumnMode, CLASSES_PER_GROUP, GROUPS};
 use crate::NAME;
 
 /// The decoder's side of [`code`](super::code): `(U1, U3, core)` from the steps and the arithmetic-coded
@@ -24,6 +25,7 @@ pub fn decode(
     steps: &[f32],
     column_modes: Option<&[u8]>,
     guarded: bool,
+    step_scales: Option<StepScales<'_>>,
 ) -> Result<(Vec<f64>, Vec<f64>, Vec<f64>)> {
     let k = mesh.len();
     if steps.len() != 2 * v + f {
@@ -54,8 +56,13 @@ pub fn decode(
     let hoods = (leads > 0).then(|| Neighbourhoods::new(mesh));
     let mut decoded_leads: Vec<Vec<f64>> = Vec::with_capacity(leads);
     let mut fit: Option<(usize, Fit)> = None;
+    let mut scales: Option<Vec<f64>> = None;
     for i in 0..v {
         let class = i.min(CLASSES_PER_GROUP - 1);
+        if let Some(s) = step_scales.as_ref().filter(|_| i == relstep::SCALED_FROM) {
+            scales = Some(s.scales(mesh, &u1, v)?);
+        }
+        let w = scales.as_deref();
         let r = match (&hoods, modes[i]) {
             (Some(hoods), ColumnMode::Regression) => {
                 let n = i.min(leads);
@@ -63,13 +70,13 @@ pub fn decode(
                 let lead_steps: Vec<f64> = steps[..n].iter().map(|&s| s as f64).collect();
                 let fit = current_fit(&mut fit, n, hoods, &refs, &lead_steps, guarded);
                 let reg = Regression { graph: mesh, fallback: mesh_predictor, hoods, fit };
-                component(&mut dec, &mut codes, &mut recon, mesh, mesh_predictor, Some(&reg), class, steps[i])?
+                component(&mut dec, &mut codes, &mut recon, mesh, mesh_predictor, Some(&reg), class, (steps[i], w))?
             }
             (_, ColumnMode::Parallelogram) => {
                 let pred = Predictor::Parallelogram;
-                component(&mut dec, &mut codes, &mut recon, mesh, pred, None, class, steps[i])?
+                component(&mut dec, &mut codes, &mut recon, mesh, pred, None, class, (steps[i], w))?
             }
-            _ => component(&mut dec, &mut codes, &mut recon, mesh, mesh_predictor, None, class, steps[i])?,
+            _ => component(&mut dec, &mut codes, &mut recon, mesh, mesh_predictor, None, class, (steps[i], w))?,
         };
         for (p, &x) in mesh.order().iter().enumerate() {
             u1[x as usize * v + i] = r[p];
@@ -88,7 +95,7 @@ pub fn decode(
             time_predictor,
             None,
             CLASSES_PER_GROUP + l.min(CLASSES_PER_GROUP - 1),
-            steps[v + l],
+            (steps[v + l], None),
         )?;
         for (t, &x) in r.iter().enumerate() {
             u3[t * f + l] = x;
@@ -104,7 +111,7 @@ pub fn decode(
             Predictor::Zero,
             None,
             2 * CLASSES_PER_GROUP + i.min(CLASSES_PER_GROUP - 1),
-            steps[v + f + i],
+            (steps[v + f + i], None),
         )?;
         core[i * 3 * f..(i + 1) * 3 * f].copy_from_slice(r);
     }
@@ -112,6 +119,41 @@ pub fn decode(
     // an error, as is one claiming more: the decoder then runs past its data).
     dec.finish()?;
     Ok((u1, u3, core))
+}
+
+/// What the decoder needs for the `U1` columns' per-vertex step scales (stream version 7,
+/// [`relstep`]): the strength byte, the stored gains of the leading columns and the smoothing
+/// levels (the scales come from the *smoothed* leads).
+pub struct StepScales<'a> {
+    /// Strength byte, `1..=4` (checked by the caller).
+    pub strength: u8,
+    /// Gains of the leading columns (finite, checked by the caller).
+    pub gains: [f32; relstep::LEADS],
+    /// Smoothing level per `U1` column (`None` without `denoise`).
+    pub levels: Option<&'a [u8]>,
+}
+
+impl StepScales<'_> {
+    /// The scales from the decoded leading columns of `u1` (`K × v`, vertex order), each
+    /// smoothed at its level as the caller will smooth `u1` afterwards.
+    fn scales(&self, mesh: &CausalGraph, u1: &[f64], v: usize) -> Result<Vec<f64>> {
+        let smoother = self.levels.map(|_| Smoother::new(mesh));
+        let mut tmp = Vec::new();
+        let mut leads = Vec::with_capacity(relstep::LEADS);
+        for i in 0..relstep::LEADS.min(v) {
+            let mut col: Vec<f64> = mesh.order().iter().map(|&x| u1[x as usize * v + i]).collect();
+            if let (Some(sm), Some(levels)) = (&smoother, self.levels) {
+                let level = levels.get(i).copied().unwrap_or(0);
+                let iterations = *SMOOTHING_ITERATIONS.get(level as usize).ok_or_else(|| {
+                    Error::malformed(NAME, "smoothing", format!("level {level} of column {i}, at most 7"))
+                })?;
+                sm.smooth(&mut col, iterations as usize, &mut tmp);
+            }
+            leads.push(col);
+        }
+        let gains: Vec<f64> = self.gains.iter().map(|&g| g as f64).collect();
+        Ok(relstep::vertex_scales(mesh, &leads, &gains, self.strength))
+    }
 }
 
 /// Decodes one component's codes and reconstructs it (position order) into `recon`.
@@ -124,7 +166,7 @@ fn component<'r>(
     predictor: Predictor,
     regression: Option<&Regression<'_>>,
     class: usize,
-    step: f32,
+    (step, scales): (f32, Option<&[f64]>),
 ) -> Result<&'r [f64]> {
     recon.clear();
     if step == 0.0 {
@@ -138,8 +180,8 @@ fn component<'r>(
         codes[p] = dec.decode(class, bucket)?;
     }
     match regression {
-        Some(reg) => reg.dequantize(codes, step as f64, recon),
-        None => predict::dequantize(graph, predictor, codes, step as f64, recon),
+        Some(reg) => reg.dequantize_scaled(codes, step as f64, scales, recon),
+        None => predict::dequantize_scaled(graph, predictor, codes, step as f64, scales, recon),
     }
     if recon.iter().any(|x| !x.is_finite()) {
         return Err(Error::malformed(NAME, "codes", "a decoded value is not finite"));

@@ -9,6 +9,7 @@ use codec_core::toolkit::predict::{self, Predictor};
 use codec_core::toolkit::rdq::{self, RdPoint};
 use codec_core::toolkit::regress::{Fit, Neighbourhoods, Regression};
 use rayon::prelude::*;
+use std::sync::Arc;
 
 use super::smoothing::{Smoother, SMOOTHING_ITERATIONS};
 use super::{closed_loop_holds, make_fit, ColumnMode, Operator, Settings, CLASSES_PER_GROUP};
@@ -42,6 +43,9 @@ pub(super) struct Component<'g> {
     /// Regression on the leading columns, unquantized (U1 columns after the first, with
     /// `regress` only): the rate search's stand-in for the decoded ones.
     pub(super) regression: Option<Regression<'g>>,
+    /// Per-position step scales ([`super::relstep`]; `U1` columns from
+    /// [`super::relstep::SCALED_FROM`] on, with `relstep` only).
+    pub(super) scales: Option<Arc<[f64]>>,
 }
 
 /// One measured grid point of a component.
@@ -62,6 +66,22 @@ impl Component<'_> {
             Group::Core => 2,
         };
         g * CLASSES_PER_GROUP + self.index.min(CLASSES_PER_GROUP - 1)
+    }
+
+    /// The largest step scale (1 without scales).
+    pub(super) fn max_scale(&self) -> f64 {
+        self.scales.as_deref().map_or(1.0, |w| w.iter().fold(1.0f64, |m, &x| m.max(x)))
+    }
+
+    /// The smallest step scale (1 without scales).
+    fn min_scale(&self) -> f64 {
+        self.scales.as_deref().map_or(1.0, |w| w.iter().fold(1.0f64, |m, &x| m.min(x)))
+    }
+
+    /// The finest step the search may choose: 2^-28 of the component's range at the smallest
+    /// step scale (codes stay far inside 2^30).
+    fn step_floor(&self) -> f64 {
+        rdq::step_floor(self.max_abs()) / self.min_scale()
     }
 
     fn max_abs(&self) -> f64 {
@@ -90,12 +110,23 @@ impl Component<'_> {
 
     /// Codes and reconstruction of this component at `step > 0` in `mode`.
     fn quantize(&self, mode: ColumnMode, step: f64, codes: &mut Vec<i32>, recon: &mut Vec<f64>) {
+        let scales = self.scales.as_deref();
         match (mode, &self.regression) {
-            (ColumnMode::Regression, Some(reg)) => reg.quantize(&self.values, step, codes, recon),
+            (ColumnMode::Regression, Some(reg)) => reg.quantize_scaled(&self.values, step, scales, codes, recon),
             (ColumnMode::Parallelogram, _) => {
-                predict::quantize(self.graph, Predictor::Parallelogram, &self.values, step, self.shaping, codes, recon)
+                let pred = Predictor::Parallelogram;
+                predict::quantize_scaled(self.graph, pred, &self.values, step, scales, self.shaping, codes, recon)
             }
-            _ => predict::quantize(self.graph, self.predictor, &self.values, step, self.shaping, codes, recon),
+            _ => predict::quantize_scaled(
+                self.graph,
+                self.predictor,
+                &self.values,
+                step,
+                scales,
+                self.shaping,
+                codes,
+                recon,
+            ),
         }
     }
 
@@ -159,10 +190,12 @@ impl Component<'_> {
         recon: &mut Vec<f64>,
         (alt_codes, alt_recon): (&mut Vec<i32>, &mut Vec<f64>),
     ) -> Option<bool> {
-        reg.quantize(&self.values, step, codes, recon);
-        let sound = closed_loop_holds(&self.values, recon, step, 0.0);
+        let scales = self.scales.as_deref();
+        reg.quantize_scaled(&self.values, step, scales, codes, recon);
+        let sound = closed_loop_holds(&self.values, recon, step * self.max_scale(), 0.0);
         if !sound || !self.forced {
-            predict::quantize(self.graph, self.predictor, &self.values, step, self.shaping, alt_codes, alt_recon);
+            let (graph, pred, shaping) = (self.graph, self.predictor, self.shaping);
+            predict::quantize_scaled(graph, pred, &self.values, step, scales, shaping, alt_codes, alt_recon);
             if !sound || self.rate(alt_codes) < self.rate(codes) {
                 std::mem::swap(codes, alt_codes);
                 std::mem::swap(recon, alt_recon);
@@ -280,6 +313,7 @@ pub(super) fn push_factor_components<'g>(
             modes: false,
             forced: false,
             regression: None,
+            scales: None,
         });
     }
     for (i, r) in rho.iter().enumerate() {
@@ -299,6 +333,7 @@ pub(super) fn push_factor_components<'g>(
             modes: false,
             forced: false,
             regression: None,
+            scales: None,
         });
     }
 }
@@ -353,8 +388,7 @@ pub(super) struct Steps {
 pub(super) fn choose_steps(comps: &[Component<'_>], rdq: bool, target: f64) -> Steps {
     let (mut codes, mut recon) = (Vec::new(), Vec::new());
     if !rdq {
-        let steps: Vec<f64> =
-            comps.iter().map(|c| rdq::stored_step(c.reference_step, rdq::step_floor(c.max_abs()))).collect();
+        let steps: Vec<f64> = comps.iter().map(|c| rdq::stored_step(c.reference_step, c.step_floor())).collect();
         let evaluated: Vec<Evaluated> = comps
             .iter()
             .zip(&steps)
@@ -381,7 +415,7 @@ pub(super) fn choose_steps(comps: &[Component<'_>], rdq: bool, target: f64) -> S
         .map(|c| {
             let (mut codes, mut recon) = (Vec::new(), Vec::new());
             // Never finer than 2^-28 of the component's range (codes stay far inside 2^30).
-            let floor = rdq::step_floor(c.max_abs());
+            let floor = c.step_floor();
             let largest = c.reference_step * 2f64.powi(OCTAVES_COARSER as i32);
             let mode = c.best_mode(rdq::stored_step(c.reference_step, floor));
             let mut grid = vec![0.0];

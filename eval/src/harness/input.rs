@@ -373,6 +373,7 @@ pub fn measure_point_streamed(
         report,
         encode_seconds,
         decode_seconds,
+        refined: false,
     };
     Ok((point, bytes))
 }

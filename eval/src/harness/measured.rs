@@ -30,6 +30,10 @@ pub struct Point {
     pub encode_seconds: f64,
     /// Wall-clock decoding time (from the container bytes alone).
     pub decode_seconds: f64,
+    /// Measured by the envelope sweep's refinement toward the standard targets
+    /// ([`STANDARD_TARGETS`](super::STANDARD_TARGETS)), possibly between two ladder steps
+    /// (then `ladder_index` is the step above it): not one of the ladder's own points.
+    pub refined: bool,
 }
 
 impl Point {

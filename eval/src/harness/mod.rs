@@ -12,6 +12,8 @@
 //!   ([`TargetMiss`]), and which points are [`usable`].
 //! * `curve`: [`monotone_report`] (bpvf rises and the errors fall along each ladder) and each
 //!   codec's lower [`envelope`].
+//! * `refine`: where the envelope sweep measures next toward the [`STANDARD_TARGETS`] (the
+//!   targets the field compares codecs at), and the bracket rules the space search shares.
 //! * `sweep`: [`sweep`] walks the rate ladder of every series, in parallel with rayon or
 //!   sequentially (`jobs = 1`, for timing), and returns the rows sorted by series then ladder
 //!   position whatever the scheduling; [`sweep_point`] is one job of it; [`envelope_sweep`]
@@ -36,6 +38,7 @@ mod default_quality;
 mod input;
 mod measured;
 mod point;
+mod refine;
 mod rows;
 mod search;
 mod space;
@@ -51,6 +54,7 @@ pub use input::{
 };
 pub use measured::Point;
 pub use point::{ladder_indices, ladder_params, measure_point, measure_point_keeping};
+pub use refine::{CONFIGS_PER_TARGET, REFINE_ROUNDS, STANDARD_TARGETS};
 pub use rows::{
     csv_columns, csv_text, points_from_rows, report_json, write_text, Envelopes, FailureRow, SweepDocument, SweepRow,
 };

@@ -5,7 +5,8 @@
 use std::time::Instant;
 
 use codec_core::{
-    encode_animation_fed, Animation, AnimationCodec, CodecRegistry, Limits, ParamSet, RateLadder, StreamDecoder,
+    encode_animation_fed, Animation, AnimationCodec, CodecRegistry, Limits, ParamSet, ParamValue, RateLadder,
+    StreamDecoder,
 };
 use metrics::EvalOptions;
 
@@ -102,6 +103,59 @@ pub fn measure_point_keeping(
         report,
         encode_seconds,
         decode_seconds,
+        refined: false,
     };
     Ok((point, bytes, decoded))
+}
+
+/// The ladder value at `position` and the position that value actually has: a step at an
+/// integral position (or when `fractional` is false, the nearest step); between two numeric
+/// steps, the interpolated value rounded to two digits below the steps' difference (floats:
+/// 0.9168, not 0.916812…), integers rounded. Choices and booleans have only their steps.
+pub(crate) fn value_at(ladder: &RateLadder, position: f64, fractional: bool) -> Option<(f64, ParamValue)> {
+    let n = ladder.steps.len();
+    if n == 0 || !position.is_finite() {
+        return None;
+    }
+    let position = position.clamp(0.0, (n - 1) as f64);
+    let step = |i: usize| Some((i as f64, ladder.steps[i].clone()));
+    let lower = position.floor() as usize;
+    let t = position - lower as f64;
+    if !fractional || t < 1e-9 || lower + 1 >= n {
+        return step(position.round() as usize);
+    }
+    let interpolated = match (&ladder.steps[lower], &ladder.steps[lower + 1]) {
+        (ParamValue::Float(a), ParamValue::Float(b)) => {
+            round_between(*a, *b, t).map(|x| (lower as f64 + (x - a) / (b - a), ParamValue::Float(x)))
+        }
+        (ParamValue::Int(a), ParamValue::Int(b)) if a.abs_diff(*b) > 1 => {
+            // Rounded, but kept strictly between the steps: a position between two steps asks
+            // for a value between them (bits 9 between 8 and 10, even when aimed near 8).
+            let x = (*a as f64 + t * (*b - *a) as f64).round() as i64;
+            let (low, high) = (a.min(b) + 1, a.max(b) - 1);
+            let x = x.clamp(low, high);
+            Some((lower as f64 + (x - a) as f64 / (b - a) as f64, ParamValue::Int(x)))
+        }
+        _ => None,
+    };
+    interpolated.or_else(|| step(position.round() as usize))
+}
+
+/// Whether the ladder's values can be interpolated (numbers), so that positions between
+/// steps exist.
+pub(crate) fn numeric(ladder: &RateLadder) -> bool {
+    ladder.steps.iter().all(|v| matches!(v, ParamValue::Float(_) | ParamValue::Int(_)))
+}
+
+/// `a + t·(b − a)` rounded to two digits below the bracket's width, so values read like
+/// 0.8969 rather than 0.8968750000000001; `None` once rounding reaches an end (nothing
+/// between them) or `a = b`.
+pub(crate) fn round_between(a: f64, b: f64, t: f64) -> Option<f64> {
+    if a == b {
+        return None;
+    }
+    let unit = 10f64.powf(((b - a).abs().log10() - 2.0).floor());
+    let x = ((a + t * (b - a)) / unit).round() * unit;
+    let x = format!("{x:.12}").parse::<f64>().unwrap_or(x);
+    (x.is_finite() && x != a && x != b).then_some(x)
 }

@@ -67,13 +67,20 @@ pub struct SweepRow {
     pub encode_seconds: f64,
     /// Decoding time.
     pub decode_seconds: f64,
+    /// Measured by the envelope sweep's refinement toward the standard targets, possibly
+    /// between two ladder steps ([`Point::refined`]); written only when true.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub refined: bool,
 }
 
-/// Fields of [`SweepRow`] the CSV leaves out: the ladder's parameter is in `params` already.
-const NOT_IN_CSV: &[&str] = &["ladder_param"];
+/// Fields of [`SweepRow`] the CSV leaves out: the ladder's parameter is in `params` already;
+/// `refined` is written only when true, so it is no column (a refined point's parameters
+/// show its ladder value between two steps).
+const NOT_IN_CSV: &[&str] = &["ladder_param", "refined"];
 
-/// Fields a row read back may lack (rows written by versions without parts have neither).
-const MAY_BE_MISSING: &[&str] = &["parts", "worst_part_kg"];
+/// Fields a row read back may lack (rows written by versions without parts have neither;
+/// `refined` is written only when true).
+const MAY_BE_MISSING: &[&str] = &["parts", "worst_part_kg", "refined"];
 
 impl From<&Point> for SweepRow {
     fn from(p: &Point) -> Self {
@@ -99,6 +106,7 @@ impl From<&Point> for SweepRow {
             worst_part_kg: r.worst_part_kg(),
             encode_seconds: p.encode_seconds,
             decode_seconds: p.decode_seconds,
+            refined: p.refined,
         }
     }
 }
@@ -164,6 +172,7 @@ impl SweepRow {
             worst_part_kg: None,
             encode_seconds: 0.0,
             decode_seconds: 0.0,
+            refined: false,
         }
     }
 
@@ -235,6 +244,7 @@ impl SweepRow {
             report,
             encode_seconds: self.encode_seconds,
             decode_seconds: self.decode_seconds,
+            refined: self.refined,
         })
     }
 }
@@ -329,6 +339,7 @@ pub struct SweepDocument {
 impl SweepDocument {
     /// The document of `sweep` on an input of `(vertices, frames)`.
     pub fn new(input: &str, (vertices, frames): (usize, usize), eval: &EvalOptions, sweep: &Sweep) -> Self {
+        let ladder_points: Vec<Point> = sweep.points.iter().filter(|p| !p.refined).cloned().collect();
         Self {
             input: input.to_owned(),
             vertices,
@@ -336,7 +347,8 @@ impl SweepDocument {
             eval_options: *eval,
             rows: sweep.points.iter().map(SweepRow::from).collect(),
             failures: sweep.failures.clone(),
-            monotone: monotone_report(&sweep.points),
+            // Along each ladder's own steps: a refined point lies between two of them.
+            monotone: monotone_report(&ladder_points),
             envelope: Envelopes {
                 kg: envelope(&sweep.points, TargetMetric::Kg),
                 sted: envelope(&sweep.points, TargetMetric::Sted),

@@ -7,7 +7,7 @@ use metrics::EvalOptions;
 
 use super::input::{measure_point_streamed, SearchInput, StreamedInput};
 use super::measured::Point;
-use super::point::{ladder_params, measure_point};
+use super::point::{ladder_params, measure_point, round_between};
 use super::target::{meets, usable, Target, TargetHit, TargetMiss};
 use crate::error::{EvalError, Result};
 
@@ -235,19 +235,6 @@ pub(crate) fn midpoint(a: &ParamValue, b: &ParamValue) -> Option<ParamValue> {
         (ParamValue::Float(a), ParamValue::Float(b)) => round_between(*a, *b, 0.5).map(ParamValue::Float),
         _ => None,
     }
-}
-
-/// `a + t·(b − a)` rounded to two digits below the bracket's width, so values read like
-/// 0.8969 rather than 0.8968750000000001; `None` once rounding reaches an end (nothing
-/// between them) or `a = b`.
-pub(crate) fn round_between(a: f64, b: f64, t: f64) -> Option<f64> {
-    if a == b {
-        return None;
-    }
-    let unit = 10f64.powf(((b - a).abs().log10() - 2.0).floor());
-    let x = ((a + t * (b - a)) / unit).round() * unit;
-    let x = format!("{x:.12}").parse::<f64>().unwrap_or(x);
-    (x.is_finite() && x != a && x != b).then_some(x)
 }
 
 /// [`search_target`] for every codec in `codecs` (each at its default parameters), keeping

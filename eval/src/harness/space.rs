@@ -8,7 +8,9 @@ use metrics::EvalOptions;
 use rayon::prelude::*;
 
 use super::measured::Point;
-use super::search::{round_between, smallest_over_codecs, SearchRequest};
+use super::point::{numeric, value_at};
+use super::refine::{MIN_WIDTH, PLATEAU, REFINE_AIM, REFINE_CLOSE};
+use super::search::{smallest_over_codecs, SearchRequest};
 use super::target::{meets, usable, Target, TargetHit, TargetMiss};
 use crate::error::{EvalError, Result};
 
@@ -40,10 +42,6 @@ struct Prior {
     best_bytes: Option<u64>,
 }
 
-/// A refined point meeting the target within this fraction of it ends a configuration's search.
-const REFINE_CLOSE: f64 = 0.97;
-/// Secant steps aim at this fraction of the target (just under it, so the point likely passes).
-const REFINE_AIM: f64 = 0.985;
 /// d ln(error) / d(ladder position) assumed before two points are known: hosvd's `ss` and
 /// pca-aoi's `kg` ladders fall by 0.3–0.45 per step in KG and STED on the dev animations.
 const DEFAULT_ERROR_SLOPE: f64 = -0.35;
@@ -61,56 +59,6 @@ const ABANDON_MARGIN: f64 = 1.08;
 /// The same once the configuration's own points give the slopes (an interpolation, not an
 /// extrapolation from another configuration).
 const ABANDON_MARGIN_OWN: f64 = 1.03;
-/// A passing point that is not 1% smaller than the configuration's smallest passing stream so
-/// far ends its search: the error is a step function of some ladders (hosvd's ranks), and
-/// moving inside one step only shifts the quantization a little (samba at STED ≤ 0.1 spent 5
-/// more points on one rank for 1.4%).
-const PLATEAU: f64 = 0.99;
-
-/// A bracket narrower than this (in ladder positions) is not refined further: the error is a
-/// step function of some ladders (hosvd's ranks), and the stream hardly changes inside it.
-/// Not wider: on horse-gallop at KG ≤ 0.1 a bracket of 0.1 position (hosvd `ss` 0.664 → 0.654)
-/// still spans 7% of stream size.
-const MIN_WIDTH: f64 = 0.05;
-
-/// The ladder value at `position` and the position that value actually has: a step at an
-/// integral position (or when `fractional` is false, the nearest step); between two numeric
-/// steps, the interpolated value rounded to two digits below the steps' difference (floats:
-/// 0.9168, not 0.916812…), integers rounded. Choices and booleans have only their steps.
-fn value_at(ladder: &RateLadder, position: f64, fractional: bool) -> Option<(f64, ParamValue)> {
-    let n = ladder.steps.len();
-    if n == 0 || !position.is_finite() {
-        return None;
-    }
-    let position = position.clamp(0.0, (n - 1) as f64);
-    let step = |i: usize| Some((i as f64, ladder.steps[i].clone()));
-    let lower = position.floor() as usize;
-    let t = position - lower as f64;
-    if !fractional || t < 1e-9 || lower + 1 >= n {
-        return step(position.round() as usize);
-    }
-    let interpolated = match (&ladder.steps[lower], &ladder.steps[lower + 1]) {
-        (ParamValue::Float(a), ParamValue::Float(b)) => {
-            round_between(*a, *b, t).map(|x| (lower as f64 + (x - a) / (b - a), ParamValue::Float(x)))
-        }
-        (ParamValue::Int(a), ParamValue::Int(b)) if a.abs_diff(*b) > 1 => {
-            // Rounded, but kept strictly between the steps: a position between two steps asks
-            // for a value between them (bits 9 between 8 and 10, even when aimed near 8).
-            let x = (*a as f64 + t * (*b - *a) as f64).round() as i64;
-            let (low, high) = (a.min(b) + 1, a.max(b) - 1);
-            let x = x.clamp(low, high);
-            Some((lower as f64 + (x - a) as f64 / (b - a) as f64, ParamValue::Int(x)))
-        }
-        _ => None,
-    };
-    interpolated.or_else(|| step(position.round() as usize))
-}
-
-/// Whether the ladder's values can be interpolated (numbers), so that positions between
-/// steps exist.
-fn numeric(ladder: &RateLadder) -> bool {
-    ladder.steps.iter().all(|v| matches!(v, ParamValue::Float(_) | ParamValue::Int(_)))
-}
 
 /// The slope of `y` over `x` through two points, when defined.
 fn slope((x0, y0): (f64, f64), (x1, y1): (f64, f64)) -> Option<f64> {

@@ -10,6 +10,7 @@ use serde::Serialize;
 use super::curve::envelope;
 use super::measured::Point;
 use super::point::{ladder_indices, ladder_params, measure_point_keeping};
+use super::refine::{self, Curve, STANDARD_TARGETS};
 use super::target::TargetMetric;
 use crate::error::{EvalError, Result};
 
@@ -29,6 +30,10 @@ pub struct SweepOptions {
     /// ([`Sweep::decoded`]), for a caller that shows them: they are neither encoded nor decoded
     /// again.
     pub keep_decoded: Vec<(String, usize)>,
+    /// Rounds of the envelope sweep's refinement toward the [`STANDARD_TARGETS`] after its
+    /// grid (0: none; `sweep` runs [`REFINE_ROUNDS`](super::REFINE_ROUNDS)). Plain sweeps
+    /// ignore it.
+    pub refine_rounds: usize,
 }
 
 /// A sweep point that failed, with the reason (in the sweep document as
@@ -75,7 +80,8 @@ pub enum SweepEvent<'a> {
         phases: usize,
         /// What the phase measures, in a word: `ladder steps` (a plain sweep), `ladders`
         /// (every codec's first configuration), `configurations` (the others), `neighbours`
-        /// (the ladder neighbours of their points on the envelope).
+        /// (the ladder neighbours of their points on the envelope), `refinement` (a round of
+        /// points toward the standard targets, between ladder steps too).
         name: &'static str,
         /// Its points.
         points: usize,
@@ -168,15 +174,7 @@ fn sweep_phase(
         progress(SweepEvent::Finished { series: &series[c].label, step });
         (c, step, result)
     };
-    let mut results: Vec<(usize, usize, Result<KeptPoint>)> = match options.jobs {
-        Some(1) => jobs.iter().map(run).collect(),
-        None => jobs.par_iter().map(run).collect(),
-        Some(n) => rayon::ThreadPoolBuilder::new()
-            .num_threads(n)
-            .build()
-            .map_err(|source| EvalError::ThreadPool { threads: n, source })?
-            .install(|| jobs.par_iter().map(run).collect()),
-    };
+    let mut results: Vec<(usize, usize, Result<KeptPoint>)> = in_pool(options.jobs, &jobs, run)?;
     // `collect` keeps input order already; sorting states the contract explicitly.
     results.sort_by_key(|(c, step, _)| (*c, *step));
     let mut out = Sweep::default();
@@ -197,6 +195,20 @@ fn sweep_phase(
         }
     }
     Ok(out)
+}
+
+/// `run` over `jobs` as `jobs` (a thread count) says: `None` rayon's pool, `Some(1)`
+/// sequentially, `Some(n)` a pool of `n` threads. Results in the order of `jobs`.
+fn in_pool<J: Sync, T: Send>(jobs: Option<usize>, items: &[J], run: impl Fn(&J) -> T + Sync + Send) -> Result<Vec<T>> {
+    Ok(match jobs {
+        Some(1) => items.iter().map(run).collect(),
+        None => items.par_iter().map(run).collect(),
+        Some(n) => rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .build()
+            .map_err(|source| EvalError::ThreadPool { threads: n, source })?
+            .install(|| items.par_iter().map(run).collect()),
+    })
 }
 
 /// A measured point and, when it was asked for, its decoded animation.
@@ -263,10 +275,15 @@ const ENVELOPE_STED: (f64, f64) = (0.01, 0.2);
 /// `options.points` applies), then every other configuration at its smallest step and
 /// `per_config` ladder positions spread evenly over the positions where the first
 /// configuration's KG or STED fell in the range the targets live in (every position if none
-/// did), then up to `per_config` more per
-/// configuration next to its points on the envelope (`envelope_neighbours`). Curves are labelled
-/// `codec[key=value,…]`; [`envelope`] picks the points on the lower envelope. Results are in
-/// a fixed order (the first phase's series, then the others) whatever the scheduling.
+/// did), then up to `per_config` more per configuration next to its points on the envelope
+/// (`envelope_neighbours`), then `options.refine_rounds` rounds of refinement toward the
+/// [`STANDARD_TARGETS`]: per codec and target, the next point of up to
+/// [`CONFIGS_PER_TARGET`](super::CONFIGS_PER_TARGET) configurations where a target search
+/// would measure it (inside the bracket of passing and failing points, between ladder steps
+/// once the bracket is one step wide), planned from every point measured so far; those points
+/// are marked [`Point::refined`]. Curves are labelled `codec[key=value,…]`; [`envelope`]
+/// picks the points on the lower envelope. Results are in a fixed order (the grid's series,
+/// then each round's points by configuration and ladder position) whatever the scheduling.
 pub fn envelope_sweep<'a>(
     registry: &CodecRegistry,
     codecs: &[(&'a dyn AnimationCodec, ParamSet, Vec<&'static str>)],
@@ -304,10 +321,34 @@ pub fn envelope_sweep<'a>(
         .flat_map(|(head, others)| others.iter().map(move |s| second_phase_most(head, s, per_config)))
         .sum();
     let third_most: usize = rest.iter().flatten().map(|s| third_phase_most(s, per_config)).sum();
-    let phase = |phase: usize, name: &'static str, points: usize, total: usize| {
-        progress(SweepEvent::Phase { phase, phases: 3, name, points, total });
+    let rounds = options.refine_rounds;
+    // For each codec and standard target, the configurations its target search walks.
+    let searched: Searched = codecs
+        .iter()
+        .map(|(codec, base, fixed)| {
+            let specs = codec.param_specs();
+            let per_target = STANDARD_TARGETS
+                .iter()
+                .map(|t| {
+                    let space = codec.search_space_for(base, t.distortion_kind()).without(fixed);
+                    space
+                        .configurations()
+                        .iter()
+                        .filter_map(|config| codec_core::SearchSpace::apply(base, &specs, config).ok())
+                        .collect()
+                })
+                .collect();
+            (codec.name(), per_target)
+        })
+        .collect();
+    let round_most = {
+        let all: Vec<&SweepSeries<'a>> = first.iter().chain(rest.iter().flatten()).collect();
+        refine::round_most(&curves_of(&all, &searched), &STANDARD_TARGETS)
     };
-    phase(1, "ladders", first_points, first_points + second_most + third_most);
+    let phase = |phase: usize, name: &'static str, points: usize, total: usize| {
+        progress(SweepEvent::Phase { phase, phases: 3 + rounds, name, points, total });
+    };
+    phase(1, "ladders", first_points, first_points + second_most + third_most + rounds * round_most);
     let mut result = sweep_phase(registry, &first, animation, options, progress)?;
     let mut second = Vec::new();
     for (head, others) in first.iter().zip(rest) {
@@ -335,21 +376,110 @@ pub fn envelope_sweep<'a>(
         }
     }
     let second_points = sweep_jobs(&second, options.points).len();
-    phase(2, "configurations", second_points, first_points + second_points + third_most);
+    phase(2, "configurations", second_points, first_points + second_points + third_most + rounds * round_most);
     let more = sweep_phase(registry, &second, animation, options, progress)?;
     result.points.extend(more.points);
     result.failures.extend(more.failures);
     result.decoded.extend(more.decoded);
     let third = envelope_neighbours(&second, &result.points, per_config);
     let third_points = sweep_jobs(&third, options.points).len();
-    phase(3, "neighbours", third_points, first_points + second_points + third_points);
+    let mut known = first_points + second_points + third_points;
+    phase(3, "neighbours", third_points, known + rounds * round_most);
     if !third.is_empty() {
         let more = sweep_phase(registry, &third, animation, options, progress)?;
         result.points.extend(more.points);
         result.failures.extend(more.failures);
         result.decoded.extend(more.decoded);
     }
+    // Refinement toward the standard targets, round by round: each round's points are
+    // planned from every point measured before it (`refine::plan`), so the rounds close in
+    // on each target the way a target search does, from the grid's points.
+    let all: Vec<&SweepSeries<'a>> = first.iter().chain(second.iter()).collect();
+    let curves = curves_of(&all, &searched);
+    let mut failed: Vec<(usize, codec_core::ParamValue)> = Vec::new();
+    for round in 0..rounds {
+        let jobs: Vec<refine::Job> = refine::plan(&curves, &result.points, &STANDARD_TARGETS)
+            .into_iter()
+            .filter(|j| !failed.iter().any(|(c, v)| *c == j.curve && *v == j.value))
+            .collect();
+        known += jobs.len();
+        phase(4 + round, "refinement", jobs.len(), known + (rounds - round - 1) * round_most);
+        if jobs.is_empty() {
+            break;
+        }
+        let run = |job: &refine::Job| {
+            let series = all[job.curve];
+            let step = job.position.ceil() as usize;
+            progress(SweepEvent::Started { series: &series.label, step });
+            let measured = refined_point(registry, series, job, step, animation, options);
+            progress(SweepEvent::Finished { series: &series.label, step });
+            measured
+        };
+        for (job, measured) in jobs.iter().zip(in_pool(options.jobs, &jobs, run)?) {
+            match measured {
+                Ok(point) => result.points.push(point),
+                Err(e) => {
+                    let series = all[job.curve];
+                    failed.push((job.curve, job.value.clone()));
+                    result.failures.push(Failure {
+                        codec: series.codec.name(),
+                        series: series.label.clone(),
+                        ladder_index: job.position.ceil() as usize,
+                        message: e.to_string(),
+                    });
+                }
+            }
+        }
+    }
     Ok(result)
+}
+
+/// The configurations a target search walks: per codec, per standard target, the parameter
+/// sets of its part of the codec's space.
+type Searched = Vec<(&'static str, Vec<Vec<ParamSet>>)>;
+
+/// The curves of `all` as the refinement plans over them: each marked for the targets whose
+/// search walks its configuration (`searched`).
+fn curves_of<'s>(all: &[&'s SweepSeries<'_>], searched: &Searched) -> Vec<Curve<'s>> {
+    all.iter()
+        .map(|s| {
+            let spaces = searched.iter().find(|(name, _)| *name == s.codec.name()).map(|(_, p)| p);
+            Curve {
+                codec: s.codec.name(),
+                label: &s.label,
+                ladder: s.ladder(),
+                searched_for: spaces.map_or_else(Vec::new, |p| p.iter().map(|c| c.contains(&s.base)).collect()),
+            }
+        })
+        .collect()
+}
+
+/// One point of the refinement: `series` with its ladder parameter at `job`'s value (a step,
+/// or between two), measured as every sweep point is, marked [`Point::refined`] and carrying
+/// `step` (the ladder step at or above it) as its ladder index.
+fn refined_point(
+    registry: &CodecRegistry,
+    series: &SweepSeries<'_>,
+    job: &refine::Job,
+    step: usize,
+    animation: &Animation,
+    options: &SweepOptions,
+) -> Result<Point> {
+    let ladder = series.ladder();
+    let params = series.base.clone().with(&series.codec.param_specs(), ladder.param, job.value.clone())?;
+    series.codec.validate(&params)?;
+    let (mut point, _, _) = measure_point_keeping(
+        registry,
+        series.codec,
+        &params,
+        (ladder.param, step),
+        animation,
+        &options.eval,
+        options.limits,
+    )?;
+    point.series.clone_from(&series.label);
+    point.refined = true;
+    Ok(point)
 }
 
 /// The most points the envelope sweep's second phase measures on configuration `s` (after
