@@ -52,6 +52,9 @@ fn worker_counts_are_bounded_with_a_reason() {
         "2",
         "--jobs",
         "8",
+        // The grid's two points alone (the refinement rounds add points of their own).
+        "--refine-rounds",
+        "0",
         "--no-hausdorff",
         "--json",
         &json,
