@@ -20,7 +20,6 @@ pub mod limits;
 pub mod linalg;
 pub mod memory;
 pub mod metadata;
-mod numbering;
 pub mod params;
 pub mod quant;
 pub mod registry;

@@ -43,8 +43,10 @@ use crate::connectivity::{
     bad_triangle as bad, canonical_order, check_density, index_at, max_triangles, Neighbours, CTX, FIELD,
 };
 use crate::error::{Error, Result};
-use crate::numbering::{Predictor, KINDS};
 use crate::toolkit::adaptive::{AdaptiveDecoder, AdaptiveEncoder, CostModel, MAX_MAGNITUDE};
+use numbering::{Predictor, KINDS};
+
+mod numbering;
 
 /// Model classes of the arithmetic coder.
 #[derive(Clone, Copy)]
@@ -276,7 +278,7 @@ pub fn encode(topology: &Topology) -> Option<Vec<u8>> {
 }
 
 /// Topology method 3 (container version 5): [`encode`]'s walk, each new vertex named by the
-/// candidate kinds of `codec_core::numbering` (adaptive per-kind flags, escapes counted in
+/// candidate kinds of `numbering` (adaptive per-kind flags, escapes counted in
 /// unseen indices) instead of a rank in one list.
 pub fn encode_predicted(topology: &Topology) -> Option<Vec<u8>> {
     encode_with(topology, true)
@@ -478,7 +480,7 @@ pub fn decode_predicted(bytes: &[u8], vertex_count: usize, triangle_count: usize
 
 /// [`decoder_bytes`] plus the new-vertex model of method 3.
 pub fn decoder_bytes_predicted(vertex_count: usize, triangle_count: usize) -> u64 {
-    decoder_bytes(vertex_count, triangle_count) + crate::numbering::predictor_bytes(vertex_count)
+    decoder_bytes(vertex_count, triangle_count) + numbering::predictor_bytes(vertex_count)
 }
 
 fn decode_with(bytes: &[u8], vertex_count: usize, triangle_count: usize, predicted: bool) -> Result<Topology> {

@@ -1,4 +1,4 @@
-//! Naming the vertex that enters the walk of topology method 3 ([`crate::traversal`],
+//! Naming the vertex that enters the walk of topology method 3 ([`super`],
 //! container version 5).
 //!
 //! The walk is method 2's: the triangle across a gate `u → v` shares two known corners, so
@@ -19,7 +19,7 @@
 //! touches the last vertex) and other predictors (a parallelogram in index space, the stride
 //! of the last two new vertices, the smallest unseen index) cost more than they saved.
 
-use crate::traversal::Walk;
+use super::Walk;
 
 /// Number of candidate kinds (see [`Predictor::candidates`]).
 pub(crate) const KINDS: usize = 13;
