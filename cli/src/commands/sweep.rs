@@ -114,7 +114,8 @@ pub struct SweepArgs {
     /// Memory budget (bytes; K, M, G suffixes are powers of 1024), e.g. 4G. A sweep holds the
     /// whole input, and each parallel job a decoded candidate and the metrics' working copies: a
     /// sweep that would need more is refused before the input is read (a .pc2/.mdd cache or an
-    /// OBJ sequence is sized from its header). Default: half the machine's RAM. The streamed
+    /// OBJ sequence is sized from its header). Default: half the machine's RAM, against which
+    /// the input and one job are counted. The streamed
     /// searches (`encode --target`, `-c auto`) measure inputs of any size within --memory.
     #[arg(long, value_name = "BYTES", value_parser = super::parse_bytes)]
     pub memory: Option<u64>,
@@ -483,7 +484,14 @@ fn check_sweep_memory(
         .map(|s| harness::whole_search_need(s.codec, vertices, frames).saturating_sub(raw))
         .max()
         .unwrap_or(0);
-    let jobs = args.jobs.map_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()), |j| j as usize);
+    // With --memory every parallel job counts; under the default budget only what the sweep
+    // needs at all (the input and one job), so that the memory models (upper bounds) never
+    // refuse on a many-core machine a sweep that ran before.
+    let jobs = if given {
+        args.jobs.map_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()), |j| j as usize)
+    } else {
+        1
+    };
     let need = raw.saturating_add(per_job.saturating_mul(jobs as u64));
     if need <= budget {
         return Ok(());
