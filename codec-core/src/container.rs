@@ -878,20 +878,9 @@ mod tests {
     /// A 30 × 30 grid renumbered within windows of 8 (local but irregular, like real meshes),
     /// in canonical order: topology method 3 is the smallest coding there.
     fn local_numbering() -> Topology {
-        let g = Topology::grid(30, 30).unwrap();
-        let n = g.vertex_count();
-        let mut perm: Vec<u32> = (0..n as u32).collect();
-        let mut s = 0x2545_f491_4f6c_dd1du64;
-        for chunk in perm.chunks_mut(8) {
-            for i in (1..chunk.len()).rev() {
-                s ^= s << 13;
-                s ^= s >> 7;
-                s ^= s << 17;
-                chunk.swap(i, (s % (i as u64 + 1)) as usize);
-            }
-        }
-        let tris = g.triangles().iter().map(|t| t.map(|x| perm[x as usize])).collect();
-        crate::connectivity::canonical_order(&Topology::new(n, tris).unwrap())
+        let shuffled =
+            crate::traversal::tests::shuffled_within(&Topology::grid(30, 30).unwrap(), 8, 0x2545_f491_4f6c_dd1d);
+        crate::connectivity::canonical_order(&shuffled)
     }
 
     #[test]

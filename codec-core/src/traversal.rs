@@ -594,7 +594,7 @@ fn decode_with(bytes: &[u8], vertex_count: usize, triangle_count: usize, predict
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
     fn grid(n: usize) -> Topology {
@@ -619,14 +619,22 @@ mod tests {
 
     /// Vertices renumbered by a deterministic (xorshift) shuffle.
     fn renumbered(topo: &Topology, seed: u64) -> Topology {
+        shuffled_within(topo, topo.vertex_count().max(1), seed | 1)
+    }
+
+    /// Each run of `window` consecutive vertex indices of `topo` shuffled among themselves by a
+    /// deterministic xorshift from `seed` (`window` ≥ the vertex count: the whole numbering).
+    pub(crate) fn shuffled_within(topo: &Topology, window: usize, seed: u64) -> Topology {
         let n = topo.vertex_count();
         let mut perm: Vec<u32> = (0..n as u32).collect();
-        let mut s = seed | 1;
-        for i in (1..n).rev() {
-            s ^= s << 13;
-            s ^= s >> 7;
-            s ^= s << 17;
-            perm.swap(i, (s % (i as u64 + 1)) as usize);
+        let mut s = seed;
+        for chunk in perm.chunks_mut(window) {
+            for i in (1..chunk.len()).rev() {
+                s ^= s << 13;
+                s ^= s >> 7;
+                s ^= s << 17;
+                chunk.swap(i, (s % (i as u64 + 1)) as usize);
+            }
         }
         let tris = topo.triangles().iter().map(|t| t.map(|x| perm[x as usize])).collect();
         Topology::new(n, tris).unwrap()
@@ -692,20 +700,7 @@ mod tests {
     #[test]
     fn method_3_names_local_numberings_in_fewer_bits() {
         // A grid renumbered within windows of 8: local but irregular, like real meshes.
-        let g = grid(40);
-        let n = g.vertex_count();
-        let mut perm: Vec<u32> = (0..n as u32).collect();
-        let mut s = 0x9e37_79b9_7f4a_7c15u64;
-        for chunk in perm.chunks_mut(8) {
-            for i in (1..chunk.len()).rev() {
-                s ^= s << 13;
-                s ^= s >> 7;
-                s ^= s << 17;
-                chunk.swap(i, (s % (i as u64 + 1)) as usize);
-            }
-        }
-        let tris = g.triangles().iter().map(|t| t.map(|x| perm[x as usize])).collect();
-        let (m2, m3) = roundtrip_both(&Topology::new(n, tris).unwrap());
+        let (m2, m3) = roundtrip_both(&shuffled_within(&grid(40), 8, 0x9e37_79b9_7f4a_7c15));
         assert!(m3 < m2, "method 3 {m3} bytes vs method 2's {m2}");
         // Vertex counts far above the indices used, and the escape at either end of the range.
         roundtrip_both(&Topology::new(u32::MAX as usize, vec![[7, 3_000_000, 9], [9, 3_000_000, 0]]).unwrap());

@@ -415,18 +415,31 @@ fn hosvd_v5_column_modes_golden() {
 }
 
 fn hosvd_column_modes_golden(version: u16) {
+    let data = hosvd_packet_golden(version, &format!("hosvd-v{version}-modes"), &[], "column modes");
+    // The packet's last v bytes are the column modes (flag bit 4): both new modes occur.
+    assert_eq!(data[0] & 16, 16, "column modes flag");
+    let v = data[1] as usize; // varint, < 128 here
+    let modes = &data[data.len() - v..];
+    assert!(modes.contains(&1) && modes.contains(&2), "modes {modes:?}");
+}
+
+/// The golden hosvd stream of `version` in `dir` on the column-modes input (`rigid=false`,
+/// `ss=0.6`, `quant=0.05`, then `extra`), written by `ANIMCODEC_WRITE_GOLDEN=1` when missing
+/// (only by a build whose hosvd writes `version`): checks its version and that it decodes to its
+/// hash, and returns its first packet's data for the caller's checks of the layout.
+fn hosvd_packet_golden(version: u16, dir: &str, extra: &[(&str, ParamValue)], what: &str) -> Vec<u8> {
     use codec_core::container::Section;
     let registry = registry();
     let codec = registry.by_name("hosvd").unwrap();
-    let dir = golden_dir().join(format!("hosvd-v{version}-modes"));
+    let dir = golden_dir().join(dir);
     let (path, hash_path) = (dir.join(format!("hosvd-v{version}.anim")), dir.join("hash.txt"));
     let input = synth::waving_flag(16, 12, 24);
     let specs = codec.param_specs();
-    let params = codec
-        .default_params()
-        .with(&specs, "rigid", ParamValue::Bool(false))
-        .and_then(|p| p.with(&specs, "ss", ParamValue::Float(0.6)))
-        .and_then(|p| p.with(&specs, "quant", ParamValue::Float(0.05)))
+    let base = [("rigid", ParamValue::Bool(false)), ("ss", ParamValue::Float(0.6)), ("quant", ParamValue::Float(0.05))];
+    let params = base
+        .iter()
+        .chain(extra)
+        .try_fold(codec.default_params(), |p, (name, value)| p.with(&specs, name, value.clone()))
         .unwrap();
     if std::env::var_os("ANIMCODEC_WRITE_GOLDEN").is_some() && !path.exists() && codec.stream_version() == version {
         let bytes = encode_animation(codec, &params, &input).unwrap();
@@ -439,14 +452,10 @@ fn hosvd_column_modes_golden(version: u16) {
     let hash = std::fs::read_to_string(&hash_path).unwrap_or_else(|e| panic!("{}: {e}", hash_path.display()));
     let mut reader = ContainerReader::new(&bytes[..], Limits::default()).unwrap();
     assert_eq!(reader.header().info.codec_version, version);
-    // The packet's last v bytes are the column modes (flag bit 4): both new modes occur.
     let Some(Ok(Section::Packet(packet))) = reader.next_section() else { panic!("no packet") };
-    assert_eq!(packet.data[0] & 16, 16, "column modes flag");
-    let v = packet.data[1] as usize; // varint, < 128 here
-    let modes = &packet.data[packet.data.len() - v..];
-    assert!(modes.contains(&1) && modes.contains(&2), "modes {modes:?}");
     let decoded = decode_animation(&bytes, &registry, Limits::default()).unwrap();
-    assert_eq!(frames_hash(&decoded), hash.trim(), "hosvd v{version} column modes decode to their golden frames");
+    assert_eq!(frames_hash(&decoded), hash.trim(), "hosvd v{version} {what} decode to their golden frames");
+    packet.data.to_vec()
 }
 
 /// hosvd stream version 7's per-vertex step scales (`relstep`; the default golden input's even
@@ -456,37 +465,9 @@ fn hosvd_column_modes_golden(version: u16) {
 /// (only a build whose hosvd writes version 7 can).
 #[test]
 fn hosvd_v7_relstep_golden() {
-    use codec_core::container::Section;
-    let version = 7;
-    let registry = registry();
-    let codec = registry.by_name("hosvd").unwrap();
-    let dir = golden_dir().join("hosvd-v7-relstep");
-    let (path, hash_path) = (dir.join("hosvd-v7.anim"), dir.join("hash.txt"));
-    let input = synth::waving_flag(16, 12, 24);
-    let specs = codec.param_specs();
-    let params = codec
-        .default_params()
-        .with(&specs, "rigid", ParamValue::Bool(false))
-        .and_then(|p| p.with(&specs, "ss", ParamValue::Float(0.6)))
-        .and_then(|p| p.with(&specs, "quant", ParamValue::Float(0.05)))
-        .and_then(|p| p.with(&specs, "relstep", ParamValue::Float(1.0)))
-        .and_then(|p| p.with(&specs, "relstep_auto", ParamValue::Bool(false)))
-        .unwrap();
-    if std::env::var_os("ANIMCODEC_WRITE_GOLDEN").is_some() && !path.exists() && codec.stream_version() == version {
-        let bytes = encode_animation(codec, &params, &input).unwrap();
-        let decoded = decode_animation(&bytes, &registry, Limits::default()).unwrap();
-        std::fs::create_dir_all(&dir).unwrap();
-        std::fs::write(&path, &bytes).unwrap();
-        std::fs::write(&hash_path, format!("{}\n", frames_hash(&decoded))).unwrap();
-    }
-    let bytes = std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-    let hash = std::fs::read_to_string(&hash_path).unwrap_or_else(|e| panic!("{}: {e}", hash_path.display()));
-    let mut reader = ContainerReader::new(&bytes[..], Limits::default()).unwrap();
-    assert_eq!(reader.header().info.codec_version, version);
+    let extra = [("relstep", ParamValue::Float(1.0)), ("relstep_auto", ParamValue::Bool(false))];
+    let data = hosvd_packet_golden(7, "hosvd-v7-relstep", &extra, "step scales");
     // Flag bit 6, and the strength byte (4) before the three gains (f32) and the centre.
-    let Some(Ok(Section::Packet(packet))) = reader.next_section() else { panic!("no packet") };
-    assert_eq!(packet.data[0] & 64, 64, "step scales flag");
-    assert_eq!(packet.data[packet.data.len() - 25], 4, "strength byte");
-    let decoded = decode_animation(&bytes, &registry, Limits::default()).unwrap();
-    assert_eq!(frames_hash(&decoded), hash.trim(), "hosvd v7 step scales decode to their golden frames");
+    assert_eq!(data[0] & 64, 64, "step scales flag");
+    assert_eq!(data[data.len() - 25], 4, "strength byte");
 }

@@ -237,7 +237,12 @@ impl<'a> StreamedInput<'a> {
 /// whole-input memory model, [`AnimationCodec::fit_memory`] probed by bisection); `None` when
 /// even 1 PiB does not.
 pub fn encoder_need(codec: &dyn AnimationCodec, params: &ParamSet, vertices: usize, frames: usize) -> Option<u64> {
-    let fits = |b: u64| codec.fit_memory(params, vertices, frames, b).is_ok_and(|p| &p == params);
+    least_budget(|b| codec.fit_memory(params, vertices, frames, b).is_ok_and(|p| &p == params))
+}
+
+/// The least budget, to a MiB, for which `fits` holds (it must hold from there up), found by
+/// bisection; `None` when even 1 PiB does not.
+fn least_budget(fits: impl Fn(u64) -> bool) -> Option<u64> {
     let (mut lo, mut hi) = (0u64, 1u64 << 50);
     if !fits(hi) {
         return None;
@@ -265,20 +270,7 @@ pub fn least_streamed_budget(
     frames: usize,
 ) -> Option<u64> {
     let work = |b: u64| b - b / STREAM_SHARE_DIVISOR;
-    let fits = |b: u64| codec.fit_memory(params, vertices, frames, work(b)).is_ok();
-    let (mut lo, mut hi) = (0u64, 1u64 << 50);
-    if !fits(hi) {
-        return None;
-    }
-    while hi - lo > MIB {
-        let mid = lo + (hi - lo) / 2;
-        if fits(mid) {
-            hi = mid;
-        } else {
-            lo = mid;
-        }
-    }
-    Some(hi)
+    least_budget(|b| codec.fit_memory(params, vertices, frames, work(b)).is_ok())
 }
 
 /// About what a search over the whole animation holds at its peak with `codec`: the input,
