@@ -13,8 +13,10 @@
 #
 # Environment: ANIMCODEC (binary; default target/release/animcodec), SCALE_DIR (where the big
 # files go; default /work/scale), CODECS (default "quant-delta pca-aoi hosvd"), MEMORY (encode
-# --memory; default 4G), KEEP_FREE_GB (refuse a size that would leave less disk free; default 15).
-# Every file written is deleted when its size is done.
+# --memory; default 4G), KEEP_FREE_GB (refuse a size that would leave less disk free; default 15),
+# INPUT (an existing PC2 of the one size given, used instead of writing it and never deleted:
+# runs of different codecs at once share it). Every file written is deleted when its size is
+# done.
 set -euo pipefail
 BIN=${ANIMCODEC:-target/release/animcodec}
 DIR=${SCALE_DIR:-/work/scale}
@@ -67,8 +69,8 @@ for size in "$@"; do
     echo "skip $size: needs $((need_kb / 1048576)) GB, $((free_kb / 1048576)) GB free, $KEEP_FREE_GB GB must stay free" >&2
     continue
   fi
-  pc2="$DIR/flag-$size.pc2"
-  "$BIN" synth "flag:$size" -o "$pc2" -f > /dev/null
+  pc2="${INPUT:-$DIR/flag-$size.pc2}"
+  [[ -n "${INPUT:-}" ]] || "$BIN" synth "flag:$size" -o "$pc2" -f > /dev/null
   read -r raw_s _ < <(measure sh -c 'cat "$1" > /dev/null' sh "$pc2")
   # Every codec encodes first; the input is deleted before the decodes, so the disk holds the
   # input or one decoded PC2 (plus the streams), never both.
@@ -100,6 +102,8 @@ try:
     sted = d.get("sted")
     sted = "n/a" if sted is None else f"{sted:.4f}"
     path, bpvf, n = d["search_input"], f"{d['bpvf']:.3f}", len(d["tried"])
+    if d.get("sample_frames"):
+        path += f" ({d['sample_frames']} frames; whole encoded {d['whole_encodes']}×)"
 except Exception:
     params, kg, sted, path, bpvf, n = "FAILED", "", "", "", "", ""
 mb = float(kb) / 1024 if kb != "nan" else float("nan")
@@ -109,7 +113,7 @@ PY
       rm -f "$anim"
     done
   fi
-  rm -f "$pc2"
+  [[ -n "${INPUT:-}" ]] || rm -f "$pc2"
   for codec in $( [[ "${DEFAULT_ONLY:-0}" == 1 ]] || echo $CODECS ); do
     anim="$DIR/flag-$size.$codec.anim"
     out="$DIR/flag-$size.$codec.decoded.pc2"

@@ -90,6 +90,16 @@ pub const WHOLE_SEARCH_MAX_RAW: u64 = 256 << 20;
 /// [`harness::least_streamed_budget`]: animcodec_eval::harness::least_streamed_budget
 pub const STREAMED_SEARCH_SHARE_OF_RAW: (u64, u64) = (2, 1);
 
+/// The size (bytes of f32 coordinates) above which a streamed search measures its candidates on
+/// a sample of the input's frames ([`harness::SampledSource`]: about an eighth, in windows of
+/// the codec's temporal blocks) and then encodes the chosen parameters over the whole input
+/// once, measuring that stream: 1 GiB. A streamed candidate is two passes over the input (at
+/// 1 000 000 vertices × 1 000 frames, 12 GB, 10–35 minutes each on two cores); below this size
+/// a search of four to six such candidates takes minutes and is kept exact.
+///
+/// [`harness::SampledSource`]: animcodec_eval::harness::SampledSource
+pub const SAMPLED_SEARCH_MIN_RAW: u64 = 1 << 30;
+
 /// The budget a search over `raw` bytes of input keeps to, given the command's `budget`
 /// (`--memory` or the default) and `least`, the least budget its codecs accept: `None` when
 /// the input is small enough for the whole-array search ([`WHOLE_SEARCH_MAX_RAW`]); else

@@ -70,3 +70,44 @@ fn a_budget_too_small_or_a_codec_that_holds_the_input_is_refused_naming_the_budg
     );
     assert!(!std::path::Path::new(&out).exists());
 }
+
+/// A streamed search over `--sample-above` measures its candidates on a sample of the frames
+/// (windows of the codec's packets), then encodes the chosen parameters over the whole input:
+/// the stream written is the one `-p` with those parameters writes, byte for byte, and the
+/// figures reported are the whole stream's (what `eval` measures), with `--eval` too.
+#[test]
+fn a_sampled_search_reports_and_writes_the_whole_inputs_stream() {
+    let s = Scratch::new("search-memory-sampled");
+    let pc2 = flag_cache(&s);
+    let (sampled, fixed) = (s.path("sampled.anim"), s.path("fixed.anim"));
+    let common = ["encode", &pc2, "-c", "quant-delta", "--memory", "180M", "-f", "--json"];
+    let j = ok_json(&[&common[..], &["-o", &sampled, "--sample-above", "1M", "--eval"]].concat());
+    assert_eq!(j["search_input"], "sampled", "{j}");
+    // 400 frames in quant-delta's 32-frame packets: 4 windows of one packet.
+    assert_eq!(j["sample_frames"], 128, "{j}");
+    assert!(j["whole_encodes"].as_u64().is_some_and(|n| n >= 1), "{j}");
+    assert!(j["notes"].as_array().unwrap().iter().any(|n| n.as_str().unwrap().contains("128 of its 400 frames")));
+    let (kg, sted) = (j["reached"]["kg"].as_f64().unwrap(), j["reached"]["sted"].as_f64().unwrap());
+    assert!(kg <= 0.5 && sted <= 0.05, "{j}");
+    // The whole stream's figures: what eval measures of the file, and --eval's.
+    let e = ok_json(&["eval", &pc2, &sampled, "--json"]);
+    assert_eq!((e["kg"].as_f64(), e["sted"].as_f64()), (Some(kg), Some(sted)), "{e}");
+    let hausdorff = j["metrics"]["hausdorff"].as_f64();
+    assert_eq!((j["kg"].as_f64(), j["sted"].as_f64(), hausdorff), (Some(kg), Some(sted), e["hausdorff"].as_f64()));
+    assert!(hausdorff.is_some(), "{j}");
+    assert_eq!(j["bytes"].as_u64(), Some(std::fs::metadata(&sampled).unwrap().len()));
+    assert_eq!(j["frames"], 400);
+    // The parameters chosen, encoded with -p: the same bytes.
+    let params: Vec<String> = j["params"].as_object().unwrap().iter().map(|(k, v)| format!("{k}={v}")).collect();
+    let mut args = vec!["encode", &pc2, "-c", "quant-delta", "-o", &fixed, "-f"];
+    for p in &params {
+        args.extend(["-p", p]);
+    }
+    ok(&args);
+    assert_eq!(std::fs::read(&sampled).unwrap(), std::fs::read(&fixed).unwrap(), "{params:?}");
+    // Below --sample-above, or with --no-sample: every candidate on the whole input.
+    for extra in [&["--sample-above", "1G"][..], &["--sample-above", "1M", "--no-sample"][..]] {
+        let w = ok_json(&[&common[..], &["-o", &fixed], extra].concat());
+        assert_eq!((w["search_input"].as_str(), w["sample_frames"].as_u64()), (Some("streamed"), None), "{extra:?}");
+    }
+}

@@ -42,16 +42,26 @@ impl TypedCodec for QuantDelta {
     }
     /// The encode holds one packet of `block` frames at a time (several copies: pending
     /// frames, codes, byte planes, zstd's tables, the self-check's frames), so its peak is
-    /// [`encode_memory`]. A budget below that is refused, naming the need and the largest
-    /// `block` that would fit; the parameters are never changed behind the user's back.
+    /// [`encode_memory`]. A budget below that shortens the packets to the fewest equal ones
+    /// that fit (at least [`MIN_MEMORY_BLOCK`] frames; `encode` says so when the user set
+    /// `block`), as pca-aoi's blocks are; below even that it is refused, naming the need.
     fn fit(&self, p: &QuantDeltaParams, vertices: usize, frames: usize, budget: u64) -> Result<Vec<Setting>> {
         let block = (p.block as usize).min(frames.max(1));
-        let need = encode_memory(vertices, block);
-        let fits = (1..block).rev().find(|&b| encode_memory(vertices, b) <= budget);
-        let advice = fits.map_or_else(String::new, |b| format!(", or a shorter packet: -p block={b} fits"));
-        let what = format!("packets of {block} frames of {vertices} vertices");
-        codec_core::memory::check_budget(NAME, budget, need, &what, &advice)?;
-        Ok(Vec::new())
+        if encode_memory(vertices, block) <= budget {
+            return Ok(Vec::new());
+        }
+        let least = MIN_MEMORY_BLOCK.min(block);
+        match (least..block).rev().find(|&b| encode_memory(vertices, b) <= budget) {
+            Some(fits) => {
+                let equal = frames.div_ceil(frames.div_ceil(fits));
+                Ok(vec![QuantDeltaParams::block.to(u32::try_from(equal).unwrap_or(u32::MAX))])
+            }
+            None => {
+                let what = format!("packets of {least} frames of {vertices} vertices");
+                codec_core::memory::check_budget(NAME, budget, encode_memory(vertices, least), &what, "")?;
+                Ok(Vec::new())
+            }
+        }
     }
     fn bound(&self, p: &QuantDeltaParams, animation: &Animation) -> Result<ErrorBound> {
         let (lo, hi) = animation.bounding_box();
@@ -66,13 +76,25 @@ impl TypedCodec for QuantDelta {
     }
 }
 
+/// The shortest packet [`AnimationCodec::fit_memory`](codec_core::AnimationCodec::fit_memory)
+/// chooses to fit a budget: 8 frames (every packet restarts its deltas, so shorter ones cost
+/// bits; quant-delta's own packets of 8 frames, below which its rate climbs steeply).
+pub const MIN_MEMORY_BLOCK: usize = 8;
+
 /// Peak bytes of a quant-delta encode with packets of `block` frames of `vertices` vertices,
-/// the whole process ([`codec_core::memory`]): measured 17–109 MiB (2 500 and 10 000 vertices,
-/// blocks of 8, 32 and 60 frames; samba, 9 971 vertices × 32 frames: 67 MiB), about 50 bytes a
-/// coordinate of the packet and 1.2 KiB a vertex besides; this model is 13–27 % above each.
+/// the whole process ([`codec_core::memory`]). Measured on the synthetic flag (release build,
+/// `-p bits=12`, peak RSS): 10 000 vertices, blocks of 8, 32 and 60 frames: 34, 65 and 114
+/// MiB; 2 500 vertices: 16, 24 and 36 MiB; 1 000 000 vertices: 1 574, 1 806 and 2 267 MiB at 8,
+/// 16 and 32 frames. A coordinate of the packet costs about 10 bytes at 1M vertices but about
+/// 54 at 10 000: zstd's tables grow with the packet up to a size fixed by its level, then stop.
+/// So: 14 bytes a coordinate, zstd's 42 more up to 256 MiB in all, 1 400 bytes a vertex
+/// besides; 8–28 % above every measurement, and above samba's (9 971 vertices × 32 frames: 67
+/// MiB).
 pub fn encode_memory(vertices: usize, block: usize) -> u64 {
     let k = vertices as u64;
-    codec_core::memory::PROCESS_BYTES + 1400 * k + 56 * 3 * k * block as u64
+    let coordinates = 3 * k * block as u64;
+    let zstd = (42 * coordinates).min(256 << 20);
+    codec_core::memory::PROCESS_BYTES + 1400 * k + 14 * coordinates + zstd
 }
 
 /// The bound of an animation whose bounding box is `lo..hi`: each packet's range lies inside

@@ -46,3 +46,22 @@ fn typed_validation_states_the_range() {
     let e = QuantDeltaParams { bits: 30, ..Default::default() }.validate().unwrap_err().to_string();
     assert!(e.contains("quant-delta") && e.contains("bits") && e.contains("1..=24"), "{e}");
 }
+
+/// A budget below the packets' need shortens them to the fewest equal ones that fit (the
+/// parameters of `encode --memory` and of the streamed searches); below 8 frames' need it is
+/// refused, naming the need.
+#[test]
+fn a_small_budget_shortens_the_packets() {
+    let params = QuantDelta.default_params();
+    let block = |p: &codec_core::ParamSet| p.get("block").map(|v| v.to_string());
+    let (v, f) = (1_000_000, 1000);
+    assert_eq!(QuantDelta.fit_memory(&params, v, f, 4 << 30).unwrap(), params, "32-frame packets fit 4 GiB");
+    let budget = 2 << 30;
+    let fitted = QuantDelta.fit_memory(&params, v, f, budget).unwrap();
+    let b: usize = block(&fitted).unwrap().parse().unwrap();
+    assert!((crate::MIN_MEMORY_BLOCK..32).contains(&b), "{b}");
+    assert!(crate::encode_memory(v, b) <= budget, "{b} fits");
+    assert!(b * f.div_ceil(b) - f < f.div_ceil(b), "{b} frames per packet leaves a short last packet");
+    let e = QuantDelta.fit_memory(&params, v, f, 1 << 30).unwrap_err().to_string();
+    assert!(e.contains("quant-delta") && e.contains("8 frames"), "{e}");
+}

@@ -100,6 +100,23 @@ pub struct EncodeArgs {
     #[arg(long)]
     pub ladder: bool,
 
+    /// The streamed searches (no -p, --target, -c auto) on an input over 1 GiB of coordinates
+    /// (--sample-above) measure their candidates on a sample of its frames (about an eighth, in
+    /// windows of the codec's temporal blocks spread over the input; an input too short for
+    /// such a sample, or hosvd decomposing the whole sequence at once, is not sampled), aiming
+    /// 10 % below the target, then encode the
+    /// chosen parameters over the whole input once and measure that stream: what is reported
+    /// (and written) is the whole's. Should the whole miss the target, the search runs again
+    /// aiming lower by what it missed, up to twice. With --no-sample every candidate is encoded
+    /// and measured over the whole input (two full passes each).
+    #[arg(long)]
+    pub no_sample: bool,
+
+    /// The size of coordinates (bytes; K, M, G suffixes) above which a streamed search samples
+    /// (see --no-sample).
+    #[arg(long, value_name = "BYTES", value_parser = super::parse_bytes, default_value = "1G")]
+    pub sample_above: u64,
+
     /// After encoding, decode the written stream and measure it against the input: KG, STED,
     /// Hausdorff, RMSE and max error are printed (and added to --json as `kg`, `sted` and the
     /// full report under `metrics`). With -p, an input read frame by frame (.pc2, .mdd, an OBJ
@@ -315,7 +332,7 @@ pub fn run(args: &EncodeArgs, limits: Limits) -> CmdResult {
 
 /// The notes of an encode with fixed parameters that does other than the user asked:
 /// `--memory` changes the parameters `fit_memory` adapts to the budget (the blocks of hosvd and
-/// pca-aoi).
+/// pca-aoi, the packets of quant-delta).
 fn substitutions(args: &EncodeArgs, codec: &dyn AnimationCodec, asked: &ParamSet, used: &ParamSet) -> Vec<String> {
     let mut notes = Vec::new();
     let given = |name: &str| args.params.iter().any(|p| p.split_once('=').is_some_and(|(k, _)| k.trim() == name));

@@ -25,11 +25,32 @@ use crate::error::{EvalError, Result};
 pub trait FrameRead {
     /// Reads the next frames (see the trait).
     fn read_frames(&mut self, frames: usize, out: &mut Vec<f32>) -> codec_core::Result<usize>;
+
+    /// Passes over the next `frames` frames (fewer at the end) and returns how many. Default:
+    /// reads them one at a time and drops them; a reader that can seek moves instead.
+    fn skip_frames(&mut self, frames: usize) -> codec_core::Result<usize> {
+        let mut scratch = Vec::new();
+        let mut skipped = 0;
+        while skipped < frames {
+            match self.read_frames(1, &mut scratch)? {
+                0 => break,
+                n => skipped += n,
+            }
+        }
+        Ok(skipped)
+    }
 }
 
 impl FrameRead for CacheReader {
     fn read_frames(&mut self, frames: usize, out: &mut Vec<f32>) -> codec_core::Result<usize> {
         CacheReader::read_frames(self, frames, out)
+    }
+
+    fn skip_frames(&mut self, frames: usize) -> codec_core::Result<usize> {
+        let from = self.frames_read();
+        let to = from.saturating_add(frames).min(self.frame_count());
+        self.seek_frame(to)?;
+        Ok(to - from)
     }
 }
 
@@ -50,6 +71,12 @@ pub trait InputSource: Sync {
     fn open(&self) -> Result<Box<dyn FrameRead + '_>>;
     /// A name for messages (the file, or the synthetic input's spec).
     fn name(&self) -> String;
+    /// The frame count a codec's parameters are fitted to ([`AnimationCodec::fit_memory`]):
+    /// the input's own, except for a sample of a longer input
+    /// ([`SampledSource`](super::SampledSource)), which is coded in the blocks the whole is.
+    fn fit_frame_count(&self) -> usize {
+        self.frame_count()
+    }
 }
 
 /// A PC2/MDD cache or an OBJ sequence ([`CacheReader`]), reopened for every read.
@@ -322,36 +349,14 @@ pub fn measure_point_streamed(
     let source = input.source;
     let topology = source.topology();
     let (vertices, frames) = (topology.vertex_count(), source.frame_count());
-    let params = codec.fit_memory(params, vertices, frames, input.work_budget())?;
+    let params = codec.fit_memory(params, vertices, source.fit_frame_count(), input.work_budget())?;
     let start = Instant::now();
-    let mut encoder = codec_core::StreamEncoder::with_metadata(
-        codec,
-        &params,
-        topology,
-        frames,
-        source.frame_rate(),
-        false,
-        &source.metadata(),
-        CappedSink { bytes: Vec::new(), cap: input.stream_cap() },
-    )?;
-    {
-        let mut reader = source.open()?;
-        let mut block = Vec::new();
-        while reader.read_frames(input.feed, &mut block)? > 0 {
-            encoder.push_frames(&block)?;
-        }
-    }
-    let (_, sink, notes) = encoder.finish_with_notes()?;
+    let sink = CappedSink { bytes: Vec::new(), cap: input.stream_cap() };
+    let (sink, notes) = encode_source(codec, &params, source, input.feed, sink, &|_| {})?;
     let bytes = sink.bytes;
     let encode_seconds = start.elapsed().as_secs_f64();
-    // The decoder and the metrics share the work share (the encoder is gone): the decoder gets
-    // what the measurement's window and frames leave.
-    let limits = Limits {
-        max_alloc_bytes: limits.max_alloc_bytes.min(usize::try_from(input.work_budget()).unwrap_or(usize::MAX)),
-        ..limits
-    }
-    .reserve(codec.name(), "the streaming metrics' window and frames", measure_bytes_held(topology, eval))?;
-    let (mut report, decode_seconds) = measure_stream_against(registry, &bytes, source, eval, limits)?;
+    let limits = measurement_limits(codec.name(), input.work_budget(), limits, topology, eval)?;
+    let (mut report, decode_seconds) = measure_stream_against(registry, &bytes[..], source, eval, limits, &|_| {})?;
     report.notes.extend(notes.into_iter().map(|n| format!("encoder: {n}")));
     let size = bytes.len() as u64;
     let point = Point {
@@ -370,36 +375,95 @@ pub fn measure_point_streamed(
     Ok((point, bytes))
 }
 
+/// Encodes a read of `source` with `codec` at `params` (as given: fit them to the budget
+/// first) into `sink`, `feed` frames per call, telling `pushed` the frames pushed so far;
+/// returns the sink and the encoder's warnings.
+pub fn encode_source<W: Write>(
+    codec: &dyn AnimationCodec,
+    params: &ParamSet,
+    source: &dyn InputSource,
+    feed: usize,
+    sink: W,
+    pushed: &dyn Fn(usize),
+) -> Result<(W, Vec<String>)> {
+    let topology = source.topology();
+    let mut encoder = codec_core::StreamEncoder::with_metadata(
+        codec,
+        params,
+        topology,
+        source.frame_count(),
+        source.frame_rate(),
+        false,
+        &source.metadata(),
+        sink,
+    )?;
+    let per_frame = 3 * topology.vertex_count().max(1);
+    let mut reader = source.open()?;
+    let (mut block, mut done) = (Vec::new(), 0);
+    while reader.read_frames(feed.max(1), &mut block)? > 0 {
+        encoder.push_frames(&block)?;
+        done += block.len() / per_frame;
+        pushed(done);
+    }
+    drop(reader);
+    let (_, sink, notes) = encoder.finish_with_notes()?;
+    Ok((sink, notes))
+}
+
+/// The limits of a streamed measurement in `work_budget` bytes once the encoder is gone: the
+/// decoder gets what the measurement's window and frames ([`measure_bytes_held`]) leave;
+/// an error naming `codec` when they leave nothing.
+pub fn measurement_limits(
+    codec: &'static str,
+    work_budget: u64,
+    limits: Limits,
+    topology: &Topology,
+    eval: &EvalOptions,
+) -> Result<Limits> {
+    let limits = Limits {
+        max_alloc_bytes: limits.max_alloc_bytes.min(usize::try_from(work_budget).unwrap_or(usize::MAX)),
+        ..limits
+    };
+    Ok(limits.reserve(codec, "the streaming metrics' window and frames", measure_bytes_held(topology, eval))?)
+}
+
 /// Decodes `stream` packet by packet and measures it against a fresh read of `source`
-/// ([`measure_stream`](super::measure_stream)); returns the report and the seconds the decode
-/// and the measurement took.
+/// ([`measure_stream`](super::measure_stream)), telling `read` the frames of it read so far;
+/// returns the report and the seconds the decode and the measurement took.
 pub fn measure_stream_against(
     registry: &CodecRegistry,
-    stream: &[u8],
+    stream: impl std::io::Read,
     source: &dyn InputSource,
     eval: &EvalOptions,
     limits: Limits,
+    read: &dyn Fn(usize),
 ) -> Result<(metrics::MetricReport, f64)> {
     let start = Instant::now();
     let mut reader = source.open()?;
-    let mut read = |n: usize, out: &mut Vec<f32>| reader.read_frames(n, out);
+    let mut done = 0;
+    let mut read_frames = |n: usize, out: &mut Vec<f32>| {
+        let n = reader.read_frames(n, out)?;
+        done += n;
+        read(done);
+        Ok(n)
+    };
     let reference = FrameSource {
         topology: source.topology(),
         frame_count: source.frame_count(),
         frame_rate: source.frame_rate(),
-        read: &mut read,
+        read: &mut read_frames,
     };
     let report = measure_stream(registry, stream, reference, eval, limits)?;
     Ok((report, start.elapsed().as_secs_f64()))
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::harness::{search_default_quality, search_space_target, SearchRequest, Target, TargetMetric};
 
     /// An animation in memory served frame by frame, as a file would be.
-    struct InMemory(Animation);
+    pub(crate) struct InMemory(pub(crate) Animation);
 
     struct InMemoryReader<'a> {
         animation: &'a Animation,

@@ -31,6 +31,8 @@
 //! * `input`: what a search measures against ([`SearchInput`]): the whole animation, or a
 //!   [`InputSource`] read frame by frame within a memory budget ([`StreamedInput`],
 //!   [`measure_point_streamed`]).
+//! * `sample`: [`SampledSource`], windows of whole temporal blocks of a film-size input, for a
+//!   search whose candidates each cost a fraction of a pass.
 
 mod csv;
 mod curve;
@@ -40,6 +42,7 @@ mod measured;
 mod point;
 mod refine;
 mod rows;
+mod sample;
 mod search;
 mod space;
 mod streamed;
@@ -49,14 +52,19 @@ pub(crate) mod target;
 pub use curve::{envelope, joint_envelope, monotone_report, Monotonicity};
 pub use default_quality::{search_default_quality, DEFAULT_QUALITY_BAND, DEFAULT_REFINE_BAND, DEFAULT_TARGET};
 pub use input::{
-    encoder_need, least_streamed_budget, measure_point_streamed, measure_stream_against, whole_search_need,
-    CacheSource, FrameRead, InputSource, SearchInput, StreamedInput, STREAM_SHARE_DIVISOR,
+    encode_source, encoder_need, least_streamed_budget, measure_point_streamed, measure_stream_against,
+    measurement_limits, whole_search_need, CacheSource, FrameRead, InputSource, SearchInput, StreamedInput,
+    STREAM_SHARE_DIVISOR,
 };
 pub use measured::Point;
 pub use point::{ladder_indices, ladder_params, measure_point, measure_point_keeping};
 pub use refine::{CONFIGS_PER_TARGET, REFINE_ROUNDS, STANDARD_TARGETS};
 pub use rows::{
     csv_columns, csv_text, points_from_rows, report_json, write_text, Envelopes, FailureRow, SweepDocument, SweepRow,
+};
+pub use sample::{
+    scaled_target, SampledSource, MIN_SAMPLE_WINDOWS, MIN_WINDOW_FRAMES, SAMPLE_SHARE, SAMPLE_TARGET_MARGIN,
+    UNALIGNED_SAMPLE_BLOCK,
 };
 pub use search::{search_target, search_target_auto, SearchRequest};
 pub use space::{search_space_target, search_space_target_auto};

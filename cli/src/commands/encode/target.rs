@@ -19,9 +19,17 @@ pub struct TargetEncodeDocument<'a> {
     pub search: &'static str,
     /// The chosen encode's warnings and remarks.
     pub notes: Vec<String>,
-    /// How the search read the input: `whole` (the animation in memory) or `streamed` (each
-    /// candidate encoded from the input as it is read and measured against a second read).
+    /// How the search read the input: `whole` (the animation in memory), `streamed` (each
+    /// candidate encoded from the input as it is read and measured against a second read) or
+    /// `sampled` (streamed, the candidates measured on a sample of its frames, then the chosen
+    /// parameters encoded over the whole input and measured: `reached`, `bytes` and the
+    /// evaluation are the whole stream's, `tried` the sample's).
     pub search_input: &'static str,
+    /// A sampled search's sample, in frames (`null` otherwise).
+    pub sample_frames: Option<usize>,
+    /// How many times a sampled search encoded the whole input: 1, or more when the whole
+    /// missed the target and the sample was searched again aiming lower (`null` otherwise).
+    pub whole_encodes: Option<usize>,
     /// The memory budget the search kept to (bytes): for an input over
     /// [`front::WHOLE_SEARCH_MAX_RAW`], [`front::streamed_search_budget`]; else `--memory`, or
     /// the default share of the machine's RAM; `null` when none applies.
@@ -282,9 +290,19 @@ pub(super) fn run_target(
     // The files the read opened (a .gltf's buffers, …) are inputs too: refused before the work.
     policy.check(&args.output)?;
     let read_seconds = read_start.elapsed().as_secs_f64();
+    // A film-size input's candidates are measured on a sample of its frames (`--no-sample`).
+    let sample = match &prepared.input {
+        SearchSource::Streamed(source) => {
+            sample_of(args, source.as_ref(), &chosen, prepared.budget.expect("a streamed search has a budget"))
+        }
+        SearchSource::Whole(_) => None,
+    };
     let streamed_input = match &prepared.input {
         SearchSource::Streamed(source) => Some(StreamedInput::new(
-            source.as_ref(),
+            match &sample {
+                Some(sample) => sample as &dyn InputSource,
+                None => source.as_ref(),
+            },
             prepared.budget.expect("a streamed search has a budget"),
             args.feed as usize,
             &eval,
@@ -325,8 +343,23 @@ pub(super) fn run_target(
             }),
         }
     }
+    if let Some(sample) = &sample {
+        notes.push(format!(
+            "{} is over {} of coordinates: the candidates are measured on {} of its {} frames ({} windows of {} \
+             frames spread over it, aiming {:.0} % below the target); the chosen parameters are then encoded over \
+             the whole input and that stream is measured and reported (--no-sample measures every candidate on the \
+             whole)",
+            args.input,
+            progress::bytes_text(args.sample_above),
+            sample.frame_count(),
+            sample.inner().frame_count(),
+            sample.windows().len(),
+            sample.windows().first().map_or(0, |w| w.len()),
+            (1.0 - harness::SAMPLE_TARGET_MARGIN) * 100.0,
+        ));
+    }
     // Said once the search is sure to run (a refusal above is the one message).
-    for n in prepared.note.iter() {
+    for n in &notes {
         eprintln!("animcodec: {n}");
     }
 
@@ -345,30 +378,98 @@ pub(super) fn run_target(
         (SearchSource::Whole(animation), None) => harness::SearchInput::Whole(animation),
         (SearchSource::Streamed(_), None) => unreachable!("a streamed source has its streamed input"),
     };
-    let request = SearchRequest {
-        eval,
-        limits,
-        refine: args.refine as usize,
-        progress: &progress,
-        measure_every_metric: args.eval,
-        ..SearchRequest::on(&registry, input, target)
-    };
-    let found = match (chosen, args.ladder) {
-        (Some((codec, _)), false) if by_default => {
-            harness::search_default_quality(&request, codec).map(|hit| (hit, Vec::new()))
+    // The search toward `aim` (the target; on a sample, below it).
+    let search = |aim: Target| {
+        let request = SearchRequest {
+            eval,
+            limits,
+            refine: args.refine as usize,
+            progress: &progress,
+            // A sample's candidates are measured for the search alone: --eval's figures are
+            // the whole stream's.
+            measure_every_metric: args.eval && sample.is_none(),
+            ..SearchRequest::on(&registry, input, aim)
+        };
+        match &chosen {
+            Some((codec, _)) if by_default && !args.ladder => {
+                harness::search_default_quality(&request, *codec).map(|hit| (hit, Vec::new()))
+            }
+            Some((codec, params)) if args.ladder => {
+                harness::search_target(&request, *codec, params).map(|hit| (hit, Vec::new()))
+            }
+            Some((codec, params)) => {
+                harness::search_space_target(&request, *codec, params, &fixed).map(|hit| (hit, Vec::new()))
+            }
+            None if args.ladder => harness::search_target_auto(&request, &every_codec),
+            None => harness::search_space_target_auto(&request, &every_codec),
         }
-        (Some((codec, params)), true) => harness::search_target(&request, codec, &params).map(|hit| (hit, Vec::new())),
-        (Some((codec, params)), false) => {
-            harness::search_space_target(&request, codec, &params, &fixed).map(|hit| (hit, Vec::new()))
-        }
-        (None, true) => harness::search_target_auto(&request, &every_codec),
-        (None, false) => harness::search_space_target_auto(&request, &every_codec),
     };
+    let mut aim = match sample {
+        Some(_) => harness::scaled_target(target, |_| harness::SAMPLE_TARGET_MARGIN),
+        None => target,
+    };
+    let mut found = search(aim);
+    // On a sample: the whole input encoded at the answer and measured, searched again aiming
+    // lower by what the whole missed, up to SAMPLE_RETRIES times.
+    let mut whole: Option<(harness::Point, PendingFile)> = None;
+    let mut whole_encodes = 0;
+    if let (Some(_), Some(streamed)) = (&sample, &streamed_input) {
+        let source = match &prepared.input {
+            SearchSource::Streamed(source) => source.as_ref(),
+            SearchSource::Whole(_) => unreachable!("a sample is of a streamed input"),
+        };
+        // The whole's figures: every --eval metric, or the target's.
+        let checked = if args.eval { measured } else { target.eval_options(&measured) };
+        let mut retries = 0;
+        while let Ok((hit, _)) = &found {
+            whole_encodes += 1;
+            let (point, file) = encode_whole(
+                args,
+                policy,
+                (&registry, &hit.point),
+                source,
+                (streamed.work_budget(), limits),
+                &checked,
+                &bar,
+            )?;
+            let missed = !(harness::usable(&point) && target.meets(&point.report));
+            let aim_next = missed.then(|| lower_aim(aim, &hit.point, &point));
+            whole = Some((point, file));
+            match aim_next {
+                Some(next) if retries < SAMPLE_RETRIES => {
+                    let reached = whole.as_ref().map(|(p, _)| target.reached_text(&p.report, 4)).unwrap_or_default();
+                    eprintln!(
+                        "animcodec: the whole input reached {reached}, missing the target {target} its sample met: \
+                         searching the sample again aiming at {next}"
+                    );
+                    aim = next;
+                    retries += 1;
+                    found = search(aim);
+                }
+                Some(_) => {
+                    let (p, _) = whole.take().expect("set above");
+                    return Err(format!(
+                        "{}: the whole input at {} [{}] reached {}, missing the target {target}, after {} searches \
+                         of a sample of {} frames aiming lower each time; nothing was written. Give parameters \
+                         (-p) for a smaller error, or --no-sample to measure every candidate on the whole input",
+                        args.input,
+                        p.codec,
+                        p.params,
+                        target.reached_text(&p.report, 4),
+                        retries + 1,
+                        streamed.source().frame_count(),
+                    )
+                    .into());
+                }
+                None => break,
+            }
+        }
+    }
     bar.finish();
     // Every point measured, over every codec searched (the chosen codec's are `hit.tried`).
     let measured_points = bar.done();
     drop(bar);
-    let (hit, others) = found?;
+    let (mut hit, others) = found?;
     let search_seconds = start.elapsed().as_secs_f64();
     // The chosen encode's warnings, as a plain encode prints them (stderr, `--json` "notes").
     let mut warnings: Vec<String> =
@@ -378,39 +479,60 @@ pub(super) fn run_target(
         eprintln!("animcodec: warning: {n}");
     }
     notes.extend(warnings);
-    if hit.stream.is_empty() {
-        return Err("internal error: the search chose a stream it did not keep".into());
-    }
     // Written under a temporary name and measured (--eval) before it replaces anything.
-    let mut file = policy.create(&args.output)?;
-    file.write_all(&hit.stream).map_err(|e| file.error(e))?;
-    let p = &hit.point;
-    // --eval: the search measured this very stream; its report is reused (the stream is not
-    // decoded again unless the search skipped a metric --eval reports).
-    let evaluation = if args.eval {
-        file.finish()?;
-        Some(match &input {
-            harness::SearchInput::Whole(animation) => {
-                front::evaluation_of(&registry, &hit, animation, &measured, limits)?
+    let (file, evaluation) = match whole {
+        // A sampled search's stream: the whole input's, written and measured already.
+        Some((point, file)) => {
+            hit.point = point;
+            let evaluation = args.eval.then(|| (hit.point.report.clone(), hit.point.decode_seconds));
+            (file, evaluation)
+        }
+        None => {
+            if hit.stream.is_empty() {
+                return Err("internal error: the search chose a stream it did not keep".into());
             }
-            harness::SearchInput::Streamed(streamed) => match front::search_evaluation(&hit, &measured) {
-                Some(found) => found,
-                None => {
-                    let start = Instant::now();
-                    let (report, _) =
-                        harness::measure_stream_against(&registry, &hit.stream, streamed.source(), &measured, limits)?;
-                    (report, start.elapsed().as_secs_f64())
-                }
-            },
-        })
-    } else {
-        None
+            let mut file = policy.create(&args.output)?;
+            file.write_all(&hit.stream).map_err(|e| file.error(e))?;
+            // --eval: the search measured this very stream; its report is reused (the stream is
+            // not decoded again unless the search skipped a metric --eval reports).
+            let evaluation = if args.eval {
+                file.finish()?;
+                Some(match &input {
+                    harness::SearchInput::Whole(animation) => {
+                        front::evaluation_of(&registry, &hit, animation, &measured, limits)?
+                    }
+                    harness::SearchInput::Streamed(streamed) => match front::search_evaluation(&hit, &measured) {
+                        Some(found) => found,
+                        None => {
+                            let (report, seconds) = harness::measure_stream_against(
+                                &registry,
+                                &hit.stream[..],
+                                streamed.source(),
+                                &measured,
+                                limits,
+                                &|_| {},
+                            )?;
+                            (report, seconds)
+                        }
+                    },
+                })
+            } else {
+                None
+            };
+            (file, evaluation)
+        }
     };
+    let p = &hit.point;
     file.commit()?;
-    let (v, f) = (input.vertex_count(), input.frame_count());
-    let (triangles, frame_rate) = match &prepared.input {
-        SearchSource::Whole(a) => (a.topology().triangle_count(), a.frame_rate()),
-        SearchSource::Streamed(source) => (source.topology().triangle_count(), source.frame_rate()),
+    // The input's shape (a sampled search's input is its sample).
+    let (v, f, triangles, frame_rate) = match &prepared.input {
+        SearchSource::Whole(a) => (a.vertex_count(), a.frame_count(), a.topology().triangle_count(), a.frame_rate()),
+        SearchSource::Streamed(source) => (
+            source.topology().vertex_count(),
+            source.frame_count(),
+            source.topology().triangle_count(),
+            source.frame_rate(),
+        ),
     };
     if args.json {
         return emit_document(&TargetEncodeDocument {
@@ -420,7 +542,13 @@ pub(super) fn run_target(
             default_target: by_default,
             search: if args.ladder { "ladder" } else { "space" },
             notes,
-            search_input: if streamed_input.is_some() { "streamed" } else { "whole" },
+            search_input: match (&sample, &streamed_input) {
+                (Some(_), _) => "sampled",
+                (None, Some(_)) => "streamed",
+                (None, None) => "whole",
+            },
+            sample_frames: sample.as_ref().map(|s| s.frame_count()),
+            whole_encodes: sample.as_ref().map(|_| whole_encodes),
             memory_budget: prepared.budget,
             memory_budget_default: args.memory.is_none() && prepared.budget.is_some(),
             ratio: raw_bytes(v, f) as f64 / p.bytes as f64,
@@ -439,7 +567,16 @@ pub(super) fn run_target(
          target {target}{default}: {codec} [{params}] reaches {reached} → {output}\n\
          {parts}{bytes} bytes, {rate:.3} bits/vertex/frame; searched {n} in {search_seconds:.2} s{fallback}\n",
         input = args.input,
-        read = if streamed_input.is_some() {
+        read = if let Some(sample) = &sample {
+            format!(
+                "streamed: candidates measured on a sample of {} frames, the whole encoded and measured {}",
+                sample.frame_count(),
+                match whole_encodes {
+                    1 => "once".to_owned(),
+                    n => format!("{n} times"),
+                }
+            )
+        } else if streamed_input.is_some() {
             "streamed: read twice per candidate".to_owned()
         } else {
             format!("read in {read_seconds:.2} s")
@@ -491,6 +628,103 @@ pub(super) fn run_target(
         ));
     }
     emit(&out)
+}
+
+/// How many times a sampled search runs again when the whole input misses the target its sample
+/// met (each time aiming lower by what the whole missed, [`lower_aim`]).
+const SAMPLE_RETRIES: usize = 2;
+
+/// The sample a search on `source` measures its candidates on ([`harness::SampledSource`]):
+/// `None` with `--no-sample`, at or below `--sample-above` ([`front::SAMPLED_SEARCH_MIN_RAW`] by
+/// default), or when a sample
+/// would hold more than half the frames. Its windows are whole independent temporal blocks of
+/// the named codec at its parameters fitted to the budget's work share
+/// ([`AnimationCodec::independent_blocks`]; hosvd decomposing the whole sequence has one block,
+/// so it is not sampled); for a codec whose blocks depend on earlier ones (pca-aoi's AOI
+/// modes), its `block` parameter's (the windows then start where the whole's blocks do); else
+/// [`harness::UNALIGNED_SAMPLE_BLOCK`] frames.
+fn sample_of<'a>(
+    args: &EncodeArgs,
+    source: &'a dyn InputSource,
+    chosen: &Option<(&dyn AnimationCodec, ParamSet)>,
+    budget: u64,
+) -> Option<harness::SampledSource<'a>> {
+    let (v, f) = (source.topology().vertex_count(), source.frame_count());
+    let raw = (v as u64).saturating_mul(f as u64).saturating_mul(12);
+    if args.no_sample || raw <= args.sample_above {
+        return None;
+    }
+    let work = budget - budget / harness::STREAM_SHARE_DIVISOR;
+    let block = match chosen {
+        Some((codec, params)) => {
+            let fitted = codec.fit_memory(params, v, f, work).ok()?;
+            let declared = || match fitted.get("block") {
+                Some(animcodec::core::ParamValue::Int(b)) if *b > 0 => usize::try_from(*b).ok(),
+                _ => None,
+            };
+            codec.independent_blocks(&fitted, f).ok().or_else(declared).unwrap_or(harness::UNALIGNED_SAMPLE_BLOCK)
+        }
+        None => harness::UNALIGNED_SAMPLE_BLOCK,
+    };
+    harness::SampledSource::new(source, block)
+}
+
+/// The whole input encoded at a sampled search's answer (`point`'s parameters, fitted to the
+/// whole input already) into a new pending output, then measured with `eval` against another
+/// read of it, the decode and the metrics within the work budget: the point as the whole made
+/// it (bytes, rate, report, seconds) and its file, complete, not committed. `status` shows the
+/// frames done.
+fn encode_whole(
+    args: &EncodeArgs,
+    policy: &OutputPolicy,
+    (registry, point): (&animcodec::core::CodecRegistry, &harness::Point),
+    source: &dyn InputSource,
+    (work_budget, limits): (u64, Limits),
+    eval: &EvalOptions,
+    status: &Progress,
+) -> CmdResult<(harness::Point, PendingFile)> {
+    let codec = registry.by_name(point.codec)?;
+    let (v, f) = (source.topology().vertex_count(), source.frame_count());
+    let start = Instant::now();
+    let encoding = |n: usize| status.message(format!("the whole input at {}: encoded {n}/{f} frames", point.params));
+    let (mut file, notes) = harness::encode_source(
+        codec,
+        &point.params,
+        source,
+        args.feed as usize,
+        policy.create(&args.output)?,
+        &encoding,
+    )?;
+    let encode_seconds = start.elapsed().as_secs_f64();
+    let path = file.finish()?.to_path_buf();
+    let bytes = std::fs::metadata(&path).map_err(|e| file.error(e))?.len();
+    let limits = harness::measurement_limits(codec.name(), work_budget, limits, source.topology(), eval)?;
+    let measuring = |n: usize| status.message(format!("the whole stream: measured {n}/{f} frames"));
+    let (mut report, decode_seconds) =
+        harness::measure_stream_against(registry, front::open_stream(&path)?, source, eval, limits, &measuring)?;
+    report.notes.extend(notes.into_iter().map(|n| format!("encoder: {n}")));
+    let point = harness::Point {
+        bytes,
+        bpvf: animcodec::metrics::bpvf(bytes, v, f)?,
+        report,
+        encode_seconds,
+        decode_seconds,
+        ..point.clone()
+    };
+    Ok((point, file))
+}
+
+/// The next aim of a sampled search whose answer missed the target on the whole input: each
+/// bound of `aim` times the sample's value over the whole's (`sample` and `whole`: the same
+/// parameters measured on each; never raised), and the margin once more.
+fn lower_aim(aim: Target, sample: &harness::Point, whole: &harness::Point) -> Target {
+    harness::scaled_target(aim, |metric| {
+        let ratio = match (metric.value(&sample.report), metric.value(&whole.report)) {
+            (Some(s), Some(w)) if w > 0.0 && s.is_finite() && w.is_finite() => (s / w).min(1.0),
+            _ => 1.0,
+        };
+        ratio * harness::SAMPLE_TARGET_MARGIN
+    })
 }
 
 /// The progress display of a target search: the points expected of the search `encode` runs
