@@ -133,7 +133,7 @@ PY
     rm -f "$anim" "$out" "${out%.pc2}.obj"
   done
   unset enc_s enc_kb bpvf
-  rm -f "${pc2%.pc2}.obj"
+  [[ -n "${INPUT:-}" ]] || rm -f "${pc2%.pc2}.obj"
 done
 if [[ -s "$DIR/default-rows.md" ]]; then
   echo

@@ -69,8 +69,8 @@ pub struct EncodeArgs {
     /// the budget, never on the machine. The searches (no -p, --target, -c auto) hold the whole
     /// input while it is under 256 MiB of coordinates and that fits the budget; otherwise they
     /// stream: each candidate is encoded from the input as it is read and measured against a
-    /// second read (a quarter of the budget is kept for candidate streams, the codec's blocks are
-    /// fitted to the rest); a larger input streams within twice its raw size (or the least its
+    /// second read (a quarter of the budget is kept for candidate streams, or what the codec's
+    /// smallest blocks leave, down to 64 MiB; the codec's blocks are fitted to the rest); a larger input streams within twice its raw size (or the least its
     /// codec's blocks allow; the codecs' memory models are upper bounds), this budget only caps it. A codec whose
     /// encoder holds the whole input (sac, stseg) is refused beyond it. Default: none for -p
     /// (hosvd decomposes the whole sequence at once); for the searches, half the machine's RAM.

@@ -175,6 +175,10 @@ impl SearchInput<'_> {
 /// fitted to it, [`AnimationCodec::fit_memory`]), then in turn the decoder's and the metrics'.
 pub const STREAM_SHARE_DIVISOR: u64 = 4;
 
+/// The least share of a streamed search's budget [`StreamedInput::giving_the_codec`] leaves
+/// for candidate streams: 64 MiB (two streams of 32 MiB).
+pub const MIN_STREAM_SHARE: u64 = 64 * MIB;
+
 /// Frames of one decoded packet [`StreamedInput::least_budget`] leaves room for (the
 /// codecs' packets are 8 frames or longer when their blocks are fitted to a budget).
 const MIN_PACKET_FRAMES: u64 = 8;
@@ -185,6 +189,9 @@ const MIN_PACKET_FRAMES: u64 = 8;
 pub struct StreamedInput<'a> {
     source: &'a dyn InputSource,
     budget: u64,
+    /// The bytes kept for candidate streams: a quarter of the budget, or less when the codec
+    /// needs more ([`Self::giving_the_codec`]).
+    stream_share: u64,
     feed: usize,
     smallest_passing: Mutex<Option<u64>>,
 }
@@ -208,7 +215,24 @@ impl<'a> StreamedInput<'a> {
                 least.div_ceil(MIB)
             )));
         }
-        Ok(Self { source, budget, feed: feed.max(1), smallest_passing: Mutex::new(None) })
+        Ok(Self {
+            source,
+            budget,
+            stream_share: budget / STREAM_SHARE_DIVISOR,
+            feed: feed.max(1),
+            smallest_passing: Mutex::new(None),
+        })
+    }
+
+    /// This input with at least `need` bytes of the budget for the codec's work (the least its
+    /// encoder streams in, [`least_work_budget`]) when three quarters are less: candidate
+    /// streams get the rest, down to [`MIN_STREAM_SHARE`] (then unchanged: the codec is refused
+    /// later, naming the budget). A low-rate codec on a large input needs the memory for its
+    /// blocks, not for its streams (hosvd at 1 000 000 vertices: 3.4 GiB for 8-frame blocks by
+    /// its model, streams of a few MiB).
+    pub fn giving_the_codec(mut self, need: u64) -> Self {
+        self.stream_share = self.budget - work_share(self.budget, Some(need));
+        self
     }
 
     /// The least budget a streamed search can run in: its work share must hold the program,
@@ -232,13 +256,13 @@ impl<'a> StreamedInput<'a> {
 
     /// Bytes one candidate stream may hold (half the stream share).
     pub fn stream_cap(&self) -> u64 {
-        self.budget / STREAM_SHARE_DIVISOR / 2
+        self.stream_share / 2
     }
 
     /// The work share: what the encoder's parameters are fitted to, and what the decoder and
     /// the metrics share afterwards.
     pub fn work_budget(&self) -> u64 {
-        self.budget - self.budget / STREAM_SHARE_DIVISOR
+        self.budget - self.stream_share
     }
 
     /// Whether a measured stream of `bytes` bytes that meets the target (`passes`) is worth
@@ -283,6 +307,23 @@ fn least_budget(fits: impl Fn(u64) -> bool) -> Option<u64> {
         }
     }
     Some(hi)
+}
+
+/// The work share of a streamed search's `budget` (see [`StreamedInput::work_budget`]): three
+/// quarters, or the codec's `need` when that is more and leaves [`MIN_STREAM_SHARE`] for
+/// candidate streams ([`StreamedInput::giving_the_codec`]).
+pub fn work_share(budget: u64, need: Option<u64>) -> u64 {
+    let default = budget - budget / STREAM_SHARE_DIVISOR;
+    match need {
+        Some(need) if need > default && budget.saturating_sub(need) >= MIN_STREAM_SHARE => need,
+        _ => default,
+    }
+}
+
+/// The least work share (to a MiB) in which `codec` encodes `vertices × frames` at `params`,
+/// fitting them ([`AnimationCodec::fit_memory`] accepts it); `None` when even 1 PiB does not.
+pub fn least_work_budget(codec: &dyn AnimationCodec, params: &ParamSet, vertices: usize, frames: usize) -> Option<u64> {
+    least_budget(|b| codec.fit_memory(params, vertices, frames, b).is_ok())
 }
 
 /// The least budget a streamed search can give `codec` at `params` on `vertices × frames`:
@@ -554,6 +595,20 @@ pub(crate) mod tests {
         assert!(!input.keep(101, true), "larger than a passing one before");
         assert!(input.keep(100, true), "a tie goes to the earlier, but the later is kept too");
         assert!(input.keep(90, true));
+    }
+
+    #[test]
+    fn the_codec_gets_its_need_before_the_streams_their_quarter() {
+        let g = 1u64 << 30;
+        assert_eq!(work_share(4 * g, None), 3 * g);
+        assert_eq!(work_share(4 * g, Some(2 * g)), 3 * g, "a need within three quarters changes nothing");
+        assert_eq!(work_share(4 * g, Some(3 * g + g / 2)), 3 * g + g / 2);
+        assert_eq!(work_share(4 * g, Some(4 * g - MIN_STREAM_SHARE)), 4 * g - MIN_STREAM_SHARE);
+        assert_eq!(work_share(4 * g, Some(4 * g - MIN_STREAM_SHARE + 1)), 3 * g, "streams keep their least");
+        let source = InMemory(animcodec_synth::tumbling_body_sized(6, 4, 4));
+        let input = StreamedInput::new(&source, 4 * g, 1, &EvalOptions::default()).unwrap();
+        let input = input.giving_the_codec(3 * g + g / 2);
+        assert_eq!((input.work_budget(), input.stream_cap()), (3 * g + g / 2, g / 4));
     }
 
     #[test]

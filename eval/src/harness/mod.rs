@@ -52,9 +52,9 @@ pub(crate) mod target;
 pub use curve::{envelope, joint_envelope, monotone_report, Monotonicity};
 pub use default_quality::{search_default_quality, DEFAULT_QUALITY_BAND, DEFAULT_REFINE_BAND, DEFAULT_TARGET};
 pub use input::{
-    encode_source, encoder_need, least_streamed_budget, measure_point_streamed, measure_stream_against,
-    measurement_limits, whole_search_need, CacheSource, FrameRead, InputSource, SearchInput, StreamedInput,
-    STREAM_SHARE_DIVISOR,
+    encode_source, encoder_need, least_streamed_budget, least_work_budget, measure_point_streamed,
+    measure_stream_against, measurement_limits, whole_search_need, work_share, CacheSource, FrameRead, InputSource,
+    SearchInput, StreamedInput, MIN_STREAM_SHARE, STREAM_SHARE_DIVISOR,
 };
 pub use measured::Point;
 pub use point::{ladder_indices, ladder_params, measure_point, measure_point_keeping};

@@ -290,23 +290,35 @@ pub(super) fn run_target(
     // The files the read opened (a .gltf's buffers, …) are inputs too: refused before the work.
     policy.check(&args.output)?;
     let read_seconds = read_start.elapsed().as_secs_f64();
+    // On a streamed input, a named codec's least work share (its blocks at their smallest):
+    // the streams get less than a quarter of the budget when the codec needs more.
+    let codec_need = match (&prepared.input, &chosen) {
+        (SearchSource::Streamed(source), Some((codec, params))) => {
+            harness::least_work_budget(*codec, params, source.topology().vertex_count(), source.frame_count())
+        }
+        _ => None,
+    };
     // A film-size input's candidates are measured on a sample of its frames (`--no-sample`).
     let sample = match &prepared.input {
         SearchSource::Streamed(source) => {
-            sample_of(args, source.as_ref(), &chosen, prepared.budget.expect("a streamed search has a budget"))
+            let budget = prepared.budget.expect("a streamed search has a budget");
+            sample_of(args, source.as_ref(), &chosen, harness::work_share(budget, codec_need))
         }
         SearchSource::Whole(_) => None,
     };
     let streamed_input = match &prepared.input {
-        SearchSource::Streamed(source) => Some(StreamedInput::new(
-            match &sample {
-                Some(sample) => sample as &dyn InputSource,
-                None => source.as_ref(),
-            },
-            prepared.budget.expect("a streamed search has a budget"),
-            args.feed as usize,
-            &eval,
-        )?),
+        SearchSource::Streamed(source) => Some(
+            StreamedInput::new(
+                match &sample {
+                    Some(sample) => sample as &dyn InputSource,
+                    None => source.as_ref(),
+                },
+                prepared.budget.expect("a streamed search has a budget"),
+                args.feed as usize,
+                &eval,
+            )?
+            .giving_the_codec(codec_need.unwrap_or(0)),
+        ),
         SearchSource::Whole(_) => None,
     };
     let mut notes: Vec<String> = prepared.note.iter().cloned().collect();
@@ -319,11 +331,12 @@ pub(super) fn run_target(
             codec.fit_memory(params, v, f, streamed.work_budget()).err().map(|e| {
                 format!(
                     "{}: its encoder cannot stream {} within --memory {} MiB (the streamed search gives the codec \
-                     {} MiB, three quarters of the budget; a quarter is kept for candidate streams): {e}",
+                     {} MiB and keeps {} MiB for candidate streams): {e}",
                     codec.name(),
                     args.input,
                     streamed.budget() >> 20,
                     streamed.work_budget() >> 20,
+                    (streamed.budget() - streamed.work_budget()) >> 20,
                 )
             })
         };
@@ -638,7 +651,7 @@ const SAMPLE_RETRIES: usize = 2;
 /// `None` with `--no-sample`, at or below `--sample-above` ([`front::SAMPLED_SEARCH_MIN_RAW`] by
 /// default), or when a sample
 /// would hold more than half the frames. Its windows are whole independent temporal blocks of
-/// the named codec at its parameters fitted to the budget's work share
+/// the named codec at its parameters fitted to the `work` share of the budget
 /// ([`AnimationCodec::independent_blocks`]; hosvd decomposing the whole sequence has one block,
 /// so it is not sampled); for a codec whose blocks depend on earlier ones (pca-aoi's AOI
 /// modes), its `block` parameter's (the windows then start where the whole's blocks do); else
@@ -647,14 +660,13 @@ fn sample_of<'a>(
     args: &EncodeArgs,
     source: &'a dyn InputSource,
     chosen: &Option<(&dyn AnimationCodec, ParamSet)>,
-    budget: u64,
+    work: u64,
 ) -> Option<harness::SampledSource<'a>> {
     let (v, f) = (source.topology().vertex_count(), source.frame_count());
     let raw = (v as u64).saturating_mul(f as u64).saturating_mul(12);
     if args.no_sample || raw <= args.sample_above {
         return None;
     }
-    let work = budget - budget / harness::STREAM_SHARE_DIVISOR;
     let block = match chosen {
         Some((codec, params)) => {
             let fitted = codec.fit_memory(params, v, f, work).ok()?;
