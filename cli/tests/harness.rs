@@ -245,33 +245,22 @@ fn sweep_without_input_uses_synthetic_data_and_is_deterministic() {
     fails(&["sweep", "-c", "nope"], &["nope"]);
 }
 
-/// `sweep --memory`: a sweep holds the input whole and a candidate per parallel job; one that
-/// would need more than the budget is refused (a cache sized from its header, before it is
-/// read), naming the budget and the streamed alternative; within the budget it runs.
+/// `sweep --memory`: a sweep holds the input whole and a candidate per parallel job. One that
+/// would need more than the budget streams an input read frame by frame (each point encoded
+/// from one read and measured against a second, one at a time): the same rows as the sweep held
+/// whole. Any other input is refused before the sweep, naming the budget.
 #[test]
-fn sweep_beyond_its_memory_budget_is_refused_naming_the_budget() {
+fn sweep_beyond_its_memory_budget_streams_or_is_refused_naming_the_budget() {
     let s = Scratch::new("sweep-memory");
-    let pc2 = s.path("flag.pc2");
-    ok(&["synth", "flag", "-o", &pc2]);
-    let args = |memory: &'static str, jobs: &'static str| {
-        vec![
-            "sweep".to_owned(),
-            pc2.clone(),
-            "-c".into(),
-            "quant-delta".into(),
-            "--points".into(),
-            "2".into(),
-            "--memory".into(),
-            memory.into(),
-            "--jobs".into(),
-            jobs.into(),
-            "--json".into(),
-            "-".into(),
-        ]
+    let args = |input: &str, memory: &str, jobs: &str| -> Vec<String> {
+        ["sweep", input, "-c", "quant-delta", "--points", "2", "--memory", memory, "--jobs", jobs, "--json", "-"]
+            .map(str::to_owned)
+            .to_vec()
     };
+    let run = |a: Vec<String>| common::animcodec(&a.iter().map(String::as_str).collect::<Vec<_>>());
+    // The built-in flag is generated whole: refused.
     let refused = |memory, jobs| {
-        let a = args(memory, jobs);
-        let o = common::animcodec(&a.iter().map(String::as_str).collect::<Vec<_>>());
+        let o = run(args("synth:flag", memory, jobs));
         assert!(!o.status.success(), "--memory {memory} --jobs {jobs} ran");
         let e = common::stderr(&o);
         assert!(e.contains("more than --memory") && e.contains("--target") && !e.contains("panicked"), "{e}");
@@ -280,9 +269,33 @@ fn sweep_beyond_its_memory_budget_is_refused_naming_the_budget() {
     };
     let (one, four) = (refused("1M", "1"), refused("1M", "4"));
     assert!(four > one, "four jobs hold more than one: {four} vs {one} MiB");
-    let a = args("4G", "1");
-    let v = ok_json(&a.iter().map(String::as_str).collect::<Vec<_>>());
-    assert!(!v["rows"].as_array().unwrap().is_empty(), "{v}");
+    // A 48 MB cache: held whole within 4G; streamed within 180M (its whole sweep needs ~216 MiB).
+    let pc2 = s.path("flag.pc2");
+    ok(&["synth", "flag:100x100x400", "-o", &pc2]);
+    let whole = ok_json(&args(&pc2, "4G", "2").iter().map(String::as_str).collect::<Vec<_>>());
+    let o = run(args(&pc2, "180M", "2"));
+    assert!(o.status.success(), "{}", common::stderr(&o));
+    assert!(common::stderr(&o).contains("one at a time"), "{}", common::stderr(&o));
+    let streamed: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!((whole["search_input"].as_str(), streamed["search_input"].as_str()), (Some("whole"), Some("streamed")));
+    assert_eq!(streamed["jobs"], 1, "a streamed sweep measures one point at a time");
+    let view = |v: &serde_json::Value| -> Vec<serde_json::Value> {
+        v["rows"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|r| serde_json::json!([r["series"], r["params"], r["bytes"], r["kg"], r["sted"], r["hausdorff"]]))
+            .collect()
+    };
+    assert!(!view(&whole).is_empty());
+    assert_eq!(view(&streamed), view(&whole));
+    // A streamed sweep keeps no decoded animation to view.
+    let html = s.path("r.html");
+    let mut a = args(&pc2, "180M", "1");
+    a.extend(["--html".into(), html.clone(), "--view-points".into(), "quant-delta:0".into()]);
+    let o = run(a);
+    assert!(!o.status.success() && common::stderr(&o).contains("--view-points"), "{}", common::stderr(&o));
+    assert!(!std::path::Path::new(&html).exists());
 }
 
 #[test]

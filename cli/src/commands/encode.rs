@@ -6,9 +6,7 @@ use std::time::Instant;
 use animcodec::core::{Animation, AnimationCodec, Limits, ParamSet, StreamDecoder, StreamEncoder, Topology};
 use animcodec::formats::stream::{self as cache_stream, CacheReader};
 use animcodec::front::{self, EvaluationFields, Streams, TargetSummary};
-use animcodec::harness::{
-    self, CacheSource, FrameRead, InputSource, SearchRequest, StreamedInput, Target, TargetMetric,
-};
+use animcodec::harness::{self, InputSource, SearchRequest, StreamedInput, Target, TargetMetric};
 use animcodec::metrics::{EvalOptions, MetricReport};
 use animcodec::output::{OutputPolicy, PendingFile};
 use animcodec::params::params_json;

@@ -11,6 +11,7 @@ pub mod export;
 pub mod info;
 pub mod inspect;
 pub mod list;
+pub mod source;
 pub mod sweep;
 pub mod synth;
 pub mod view;

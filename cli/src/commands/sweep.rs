@@ -8,14 +8,13 @@ use std::time::Instant;
 use crate::progress::Progress;
 use crate::viewer;
 use animcodec::core::{AnimationCodec, CodecRegistry, Limits};
-use animcodec::formats::stream::{self as cache_stream, CacheReader};
 use animcodec::front;
 use animcodec::harness::{self, monotone_report, Point, Sweep, SweepDocument, SweepOptions, SweepSeries, TargetMetric};
 use animcodec::output::{commit_all, OutputPolicy};
 use animcodec::params::params_json;
 
 use super::args::{MetricArgs, ReadArgs};
-use super::{emit, emit_json, load, CmdResult};
+use super::{emit, emit_json, load, source, CmdResult};
 use clap::Args;
 use std::path::PathBuf;
 
@@ -112,11 +111,12 @@ pub struct SweepArgs {
     pub metrics: MetricArgs,
 
     /// Memory budget (bytes; K, M, G suffixes are powers of 1024), e.g. 4G. A sweep holds the
-    /// whole input, and each parallel job a decoded candidate and the metrics' working copies: a
-    /// sweep that would need more is refused before the input is read (a .pc2/.mdd cache or an
-    /// OBJ sequence is sized from its header). Default: half the machine's RAM, against which
-    /// the input and one job are counted. The streamed
-    /// searches (`encode --target`, `-c auto`) measure inputs of any size within --memory.
+    /// whole input, and each parallel job a decoded candidate and the metrics' working copies.
+    /// A sweep that would need more streams a .pc2/.mdd cache, an OBJ sequence or
+    /// synth:flag:CxRxF (sized before it is read): each point is encoded from a read of the
+    /// input and measured against a second read, one at a time, within the budget (a codec
+    /// whose encoder holds the whole input is left out, saying so); any other input is refused.
+    /// Default: half the machine's RAM, against which the input and one job are counted.
     #[arg(long, value_name = "BYTES", value_parser = super::parse_bytes)]
     pub memory: Option<u64>,
 
@@ -153,17 +153,49 @@ pub fn run(args: &SweepArgs, limits: Limits) -> CmdResult {
     let view_points = args.view_points.iter().map(|t| parse_view_point(t, &series)).collect::<CmdResult<Vec<_>>>()?;
     let eval = args.metrics.metric_options().eval_options()?;
     let read = args.read.options(None);
-    // A cache's size is known from its header: a sweep it could not hold is refused unread.
-    let path = Path::new(input);
-    if cache_stream::is_streamable(path) {
-        let cache = CacheReader::open(path, &read)?;
-        check_sweep_memory(args, &series, input, cache.vertex_count(), cache.frame_count())?;
-    }
-    let animation = load(input, &read, limits, animcodec::front::Streams::Decode)?.animation;
-    check_sweep_memory(args, &series, input, animation.vertex_count(), animation.frame_count())?;
-    // The files the read opened (a .gltf's buffers, …) are inputs too: refused before the work.
-    policy.check_all(&outputs)?;
-
+    // An input read frame by frame (a cache sized from its header, an OBJ sequence, a generated
+    // flag) that the sweep could not hold whole is streamed; any other is loaded and refused
+    // beyond the budget.
+    let streamable = source::streamable(input, &read, None)?;
+    let streamed = match &streamable {
+        Some(source) => {
+            let (v, f) = (source.topology().vertex_count(), source.frame_count());
+            check_sweep_memory(args, &series, input, v, f).is_err()
+        }
+        None => false,
+    };
+    let (animation, source) = match streamable {
+        Some(source) if streamed => {
+            if !view_points.is_empty() {
+                return Err(format!(
+                    "{input}: --view-points shows decoded animations, which a sweep of an input this large does not \
+                     keep (it streams the input within the memory budget); leave out --view-points, or give a larger \
+                     --memory"
+                )
+                .into());
+            }
+            (None, Some(source))
+        }
+        _ => {
+            let animation = load(input, &read, limits, animcodec::front::Streams::Decode)?.animation;
+            check_sweep_memory(args, &series, input, animation.vertex_count(), animation.frame_count())?;
+            (Some(animation), None)
+        }
+    };
+    let (series, streamed_input) = match &source {
+        Some(source) => {
+            let budget = sweep_budget(args).map_or(u64::MAX, |(b, _)| b);
+            let (series, streamed) = streamed_sweep(input, source.as_ref(), series, budget, &eval)?;
+            (series, Some(streamed))
+        }
+        None => (series, None),
+    };
+    let swept: harness::SearchInput<'_> = match (&animation, &streamed_input) {
+        (Some(animation), _) => animation.into(),
+        (None, Some(streamed)) => streamed.into(),
+        (None, None) => unreachable!("an input is loaded or streamed"),
+    };
+    let dims = (swept.vertex_count(), swept.frame_count());
     let options = SweepOptions {
         points: args.points.map(|n| n as usize),
         jobs: args.jobs.map(|n| n as usize),
@@ -196,11 +228,9 @@ pub fn run(args: &SweepArgs, limits: Limits) -> CmdResult {
         };
         let codecs: Vec<_> = series.iter().map(|s| (s.codec, s.base.clone(), fixed.clone())).collect();
         let per_config = args.config_points as usize;
-        harness::envelope_sweep(&registry, &codecs, &animation, &options, per_config, &|event| {
-            show_progress(&bar, event)
-        })?
+        harness::envelope_sweep(&registry, &codecs, swept, &options, per_config, &|event| show_progress(&bar, event))?
     } else {
-        harness::sweep(&registry, &series, &animation, &options, &|event| show_progress(&bar, event))?
+        harness::sweep(&registry, &series, swept, &options, &|event| show_progress(&bar, event))?
     };
     let seconds = start.elapsed().as_secs_f64();
     bar.finish();
@@ -213,10 +243,15 @@ pub fn run(args: &SweepArgs, limits: Limits) -> CmdResult {
         staged.push(policy.stage(path, text.as_bytes())?);
         Ok(())
     };
-    let dims = (animation.vertex_count(), animation.frame_count());
     let document = SweepDocument {
         total_seconds: Some(seconds),
-        jobs: Some(options.jobs.map_or_else(|| "rayon".into(), |j| j.into())),
+        // A streamed sweep measures one point at a time.
+        jobs: Some(match (&streamed_input, options.jobs) {
+            (Some(_), _) => 1.into(),
+            (None, Some(j)) => j.into(),
+            (None, None) => "rayon".into(),
+        }),
+        search_input: Some(if streamed_input.is_some() { "streamed" } else { "whole" }),
         ..SweepDocument::new(input, dims, &eval, &result)
     };
     if let Some(path) = args.json.as_ref().filter(|_| !to_stdout) {
@@ -226,18 +261,18 @@ pub fn run(args: &SweepArgs, limits: Limits) -> CmdResult {
         stage(path, &harness::csv_text(&result.points)?)?;
     }
     if let Some(path) = &args.plot {
-        let title = format!("{input}: {} frames × {} vertices", animation.frame_count(), animation.vertex_count());
+        let title = format!("{input}: {} frames × {} vertices", dims.1, dims.0);
         stage(path, &animcodec::plot::rd_svg(&title, &result.points))?;
     }
     if let Some(path) = &args.html {
-        let page = html_report(input, &animation, &eval, &result, &view_points)?;
+        let page = html_report(input, (animation.as_ref(), dims), &eval, &result, &view_points)?;
         stage(path, &page)?;
     }
     commit_all(staged, &[])?;
     if to_stdout {
         emit_json(&document.to_json()?)?;
     } else {
-        emit(&table(input, &animation, &result, seconds, envelope_mode))?;
+        emit(&table(input, dims, &result, seconds, envelope_mode))?;
     }
     if result.failures.is_empty() {
         Ok(())
@@ -264,7 +299,7 @@ fn parse_view_point(text: &str, series: &[SweepSeries<'_>]) -> CmdResult<(String
 /// decoded animation the sweep measured and kept: no point is encoded or decoded again).
 fn html_report(
     input: &str,
-    animation: &animcodec::core::Animation,
+    (animation, dims): (Option<&animcodec::core::Animation>, (usize, usize)),
     eval: &animcodec::metrics::EvalOptions,
     sweep: &Sweep,
     view_points: &[(String, usize)],
@@ -302,9 +337,9 @@ fn html_report(
             title: format!("{name}:{index} against {input}"),
             ..Default::default()
         };
+        let animation = animation.ok_or("--view-points: a streamed sweep keeps no animation to view")?;
         viewers.push(viewer::viewer_data(animation, &[candidate], &options)?);
     }
-    let dims = (animation.vertex_count(), animation.frame_count());
     let mut value = SweepDocument::new(input, dims, eval, sweep).to_json()?;
     value["title"] = format!("Rate-distortion report: {input}").into();
     value["viewers"] = viewers.into();
@@ -315,13 +350,7 @@ fn num(v: Option<f64>) -> String {
     v.map_or_else(|| "n/a".to_string(), |x| format!("{x:.4e}"))
 }
 
-fn table(
-    input: &str,
-    animation: &animcodec::core::Animation,
-    sweep: &Sweep,
-    seconds: f64,
-    envelope_only: bool,
-) -> String {
+fn table(input: &str, (vertices, frames): (usize, usize), sweep: &Sweep, seconds: f64, envelope_only: bool) -> String {
     let mut out = String::new();
     let kg = harness::envelope(&sweep.points, TargetMetric::Kg);
     let sted = harness::envelope(&sweep.points, TargetMetric::Sted);
@@ -336,9 +365,7 @@ fn table(
     let width = sweep.points.iter().map(|p| p.series.chars().count()).max().unwrap_or(0).max(14);
     let _ = writeln!(
         out,
-        "{input}: {} frames × {} vertices; {} points in {seconds:.2} s",
-        animation.frame_count(),
-        animation.vertex_count(),
+        "{input}: {frames} frames × {vertices} vertices; {} points in {seconds:.2} s",
         sweep.points.len()
     );
     // With several parts, the worst part's KG (against its own spread) beside the whole
@@ -471,13 +498,7 @@ fn check_sweep_memory(
     vertices: usize,
     frames: usize,
 ) -> CmdResult<()> {
-    let (budget, given) = match args.memory {
-        Some(m) => (m, true),
-        None => match front::default_memory_budget() {
-            Some(b) => (b, false),
-            None => return Ok(()),
-        },
-    };
+    let Some((budget, given)) = sweep_budget(args) else { return Ok(()) };
     let raw = (vertices as u64).saturating_mul(frames as u64).saturating_mul(12);
     let per_job = series
         .iter()
@@ -510,6 +531,62 @@ fn check_sweep_memory(
         budget >> 20
     )
     .into())
+}
+
+/// The sweep's memory budget and whether it was given: `--memory`, else
+/// [`front::default_memory_budget`]; `None` when neither is known.
+fn sweep_budget(args: &SweepArgs) -> Option<(u64, bool)> {
+    match args.memory {
+        Some(m) => Some((m, true)),
+        None => front::default_memory_budget().map(|b| (b, false)),
+    }
+}
+
+/// A streamed sweep of `source` within `budget`: the series whose codec's encoder streams
+/// within the work share (the others left out, each with a line on stderr; none left is an
+/// error naming the budget), and the streamed input, its work share raised to the largest
+/// least need among them ([`harness::StreamedInput::giving_the_codec`]). Said on stderr.
+fn streamed_sweep<'r, 's>(
+    input: &str,
+    source: &'s dyn harness::InputSource,
+    series: Vec<SweepSeries<'r>>,
+    budget: u64,
+    eval: &animcodec::metrics::EvalOptions,
+) -> CmdResult<(Vec<SweepSeries<'r>>, harness::StreamedInput<'s>)> {
+    let (v, f) = (source.topology().vertex_count(), source.frame_count());
+    let need = series
+        .iter()
+        .filter_map(|s| harness::least_work_budget(s.codec, &s.base, v, f))
+        .filter(|&n| n <= budget.saturating_sub(harness::MIN_STREAM_SHARE))
+        .max()
+        .unwrap_or(0);
+    let streamed = harness::StreamedInput::new(source, budget, harness::chunk_frames(v), eval)?.giving_the_codec(need);
+    let mut kept = Vec::new();
+    for s in series {
+        match s.codec.fit_memory(&s.base, v, f, streamed.work_budget()) {
+            Ok(_) => kept.push(s),
+            Err(e) => eprintln!(
+                "animcodec: left out of the sweep: {}: its encoder cannot stream {input} within {} MiB (the sweep's \
+                 budget less {} MiB for a candidate's stream): {e}",
+                s.label,
+                streamed.work_budget() >> 20,
+                (budget - streamed.work_budget()) >> 20
+            ),
+        }
+    }
+    if kept.is_empty() {
+        return Err(format!(
+            "{input}: no codec of the sweep streams it within {} MiB: give a larger --memory",
+            budget >> 20
+        )
+        .into());
+    }
+    eprintln!(
+        "animcodec: {input} ({v} vertices × {f} frames) is more than the sweep can hold whole within {} MiB: it \
+         streams, each point encoded from the input as it is read and measured against a second read, one at a time",
+        budget >> 20
+    );
+    Ok((kept, streamed))
 }
 
 /// `codec` on the parameters `pairs`, refusing to set the parameter its ladder walks.

@@ -144,6 +144,18 @@ pub enum SearchInput<'a> {
     Streamed(&'a StreamedInput<'a>),
 }
 
+impl<'a> From<&'a Animation> for SearchInput<'a> {
+    fn from(animation: &'a Animation) -> Self {
+        SearchInput::Whole(animation)
+    }
+}
+
+impl<'a> From<&'a StreamedInput<'a>> for SearchInput<'a> {
+    fn from(streamed: &'a StreamedInput<'a>) -> Self {
+        SearchInput::Streamed(streamed)
+    }
+}
+
 impl SearchInput<'_> {
     /// Vertices per frame.
     pub fn vertex_count(&self) -> usize {
@@ -361,7 +373,7 @@ impl Write for CappedSink {
         if self.bytes.len() as u64 + buf.len() as u64 > self.cap {
             return Err(std::io::Error::other(format!(
                 "the candidate stream passed {} MiB, the most one stream may hold within the memory budget \
-                 (an eighth of --memory)",
+                 (half the share of --memory kept for candidate streams)",
                 self.cap / MIB
             )));
         }

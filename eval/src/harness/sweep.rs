@@ -8,6 +8,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use super::curve::envelope;
+use super::input::{measure_point_streamed, SearchInput};
 use super::measured::Point;
 use super::point::{ladder_indices, ladder_params, measure_point_keeping};
 use super::refine::{self, Curve, STANDARD_TARGETS};
@@ -146,23 +147,23 @@ impl<'a> SweepSeries<'a> {
 /// Walks the rate ladder of every series on `animation`. `progress` hears of the one phase
 /// (its points) and of every point as it starts and as it finishes (from worker threads;
 /// [`SweepEvent`]). Output order (series, then ladder step) does not depend on scheduling.
-pub fn sweep(
+pub fn sweep<'i>(
     registry: &CodecRegistry,
     series: &[SweepSeries<'_>],
-    animation: &Animation,
+    input: impl Into<SearchInput<'i>>,
     options: &SweepOptions,
     progress: &(dyn Fn(SweepEvent<'_>) + Sync),
 ) -> Result<Sweep> {
     let points = sweep_jobs(series, options.points).len();
     progress(SweepEvent::Phase { phase: 1, phases: 1, name: "ladder steps", points, total: points });
-    sweep_phase(registry, series, animation, options, progress)
+    sweep_phase(registry, series, input.into(), options, progress)
 }
 
 /// [`sweep`] without the phase event: one phase of a sweep whose caller reports the phases.
 fn sweep_phase(
     registry: &CodecRegistry,
     series: &[SweepSeries<'_>],
-    animation: &Animation,
+    input: SearchInput<'_>,
     options: &SweepOptions,
     progress: &(dyn Fn(SweepEvent<'_>) + Sync),
 ) -> Result<Sweep> {
@@ -170,11 +171,11 @@ fn sweep_phase(
     let run = |&(c, step): &(usize, usize)| -> (usize, usize, Result<KeptPoint>) {
         progress(SweepEvent::Started { series: &series[c].label, step });
         let keep = options.keep_decoded.iter().any(|(label, s)| *label == series[c].label && *s == step);
-        let result = sweep_point_keeping(registry, &series[c], step, animation, options, keep);
+        let result = sweep_point_keeping(registry, &series[c], step, input, options, keep);
         progress(SweepEvent::Finished { series: &series[c].label, step });
         (c, step, result)
     };
-    let mut results: Vec<(usize, usize, Result<KeptPoint>)> = in_pool(options.jobs, &jobs, run)?;
+    let mut results: Vec<(usize, usize, Result<KeptPoint>)> = in_pool(pool(input, options), &jobs, run)?;
     // `collect` keeps input order already; sorting states the contract explicitly.
     results.sort_by_key(|(c, step, _)| (*c, *step));
     let mut out = Sweep::default();
@@ -195,6 +196,16 @@ fn sweep_phase(
         }
     }
     Ok(out)
+}
+
+/// The points measured at once on `input`: one at a time on a streamed input (each holds the
+/// memory budget's work share), else as [`SweepOptions::jobs`] says.
+fn pool(input: SearchInput<'_>, options: &SweepOptions) -> Option<usize> {
+    if input.sequential() {
+        Some(1)
+    } else {
+        options.jobs
+    }
 }
 
 /// `run` over `jobs` as `jobs` (a thread count) says: `None` rayon's pool, `Some(1)`
@@ -225,7 +236,7 @@ pub fn sweep_point(
     animation: &Animation,
     options: &SweepOptions,
 ) -> Result<Point> {
-    sweep_point_keeping(registry, entry, step, animation, options, false).map(|(point, _)| point)
+    sweep_point_keeping(registry, entry, step, SearchInput::Whole(animation), options, false).map(|(point, _)| point)
 }
 
 /// [`sweep_point`], also returning the decoded animation when `keep` is set.
@@ -233,23 +244,46 @@ fn sweep_point_keeping(
     registry: &CodecRegistry,
     entry: &SweepSeries<'_>,
     step: usize,
-    animation: &Animation,
+    input: SearchInput<'_>,
     options: &SweepOptions,
     keep: bool,
 ) -> Result<KeptPoint> {
     let ladder = entry.ladder();
     let params = ladder_params(entry.codec, &entry.base, &ladder, step)?;
-    let (mut point, _, decoded) = measure_point_keeping(
-        registry,
-        entry.codec,
-        &params,
-        (ladder.param, step),
-        animation,
-        &options.eval,
-        options.limits,
-    )?;
+    let (mut point, decoded) = measure_on(registry, entry.codec, &params, (ladder.param, step), input, options, keep)?;
     point.series.clone_from(&entry.label);
-    Ok((point, keep.then_some(decoded)))
+    Ok((point, decoded))
+}
+
+/// One sweep point of `codec` at `params`: on a whole input [`measure_point_keeping`] (its
+/// decoded animation returned when `keep` is set), on a streamed one [`measure_point_streamed`]
+/// (the stream is dropped once measured; a decoded animation cannot be kept: an error).
+fn measure_on(
+    registry: &CodecRegistry,
+    codec: &dyn AnimationCodec,
+    params: &ParamSet,
+    ladder: (&'static str, usize),
+    input: SearchInput<'_>,
+    options: &SweepOptions,
+    keep: bool,
+) -> Result<KeptPoint> {
+    match input {
+        SearchInput::Whole(animation) => {
+            let (point, _, decoded) =
+                measure_point_keeping(registry, codec, params, ladder, animation, &options.eval, options.limits)?;
+            Ok((point, keep.then_some(decoded)))
+        }
+        SearchInput::Streamed(_) if keep => Err(EvalError::Message(
+            "a streamed sweep keeps no decoded animation to view (the input is read frame by frame): leave out \
+             --view-points, or sweep a shorter input"
+                .into(),
+        )),
+        SearchInput::Streamed(streamed) => {
+            let (point, _stream) =
+                measure_point_streamed(registry, codec, params, ladder, streamed, &options.eval, options.limits)?;
+            Ok((point, None))
+        }
+    }
 }
 
 /// The (series position, ladder step) pairs a sweep measures.
@@ -284,14 +318,15 @@ const ENVELOPE_STED: (f64, f64) = (0.01, 0.2);
 /// are marked [`Point::refined`]. Curves are labelled `codec[key=value,…]`; [`envelope`]
 /// picks the points on the lower envelope. Results are in a fixed order (the grid's series,
 /// then each round's points by configuration and ladder position) whatever the scheduling.
-pub fn envelope_sweep<'a>(
+pub fn envelope_sweep<'a, 'i>(
     registry: &CodecRegistry,
     codecs: &[(&'a dyn AnimationCodec, ParamSet, Vec<&'static str>)],
-    animation: &Animation,
+    input: impl Into<SearchInput<'i>>,
     options: &SweepOptions,
     per_config: usize,
     progress: &(dyn Fn(SweepEvent<'_>) + Sync),
 ) -> Result<Sweep> {
+    let input = input.into();
     let mut first = Vec::new();
     let mut rest: Vec<Vec<SweepSeries<'a>>> = Vec::new();
     for (codec, base, fixed) in codecs {
@@ -349,7 +384,7 @@ pub fn envelope_sweep<'a>(
         progress(SweepEvent::Phase { phase, phases: 3 + rounds, name, points, total });
     };
     phase(1, "ladders", first_points, first_points + second_most + third_most + rounds * round_most);
-    let mut result = sweep_phase(registry, &first, animation, options, progress)?;
+    let mut result = sweep_phase(registry, &first, input, options, progress)?;
     let mut second = Vec::new();
     for (head, others) in first.iter().zip(rest) {
         let curve: Vec<&Point> = result.points.iter().filter(|p| p.series == head.label).collect();
@@ -377,7 +412,7 @@ pub fn envelope_sweep<'a>(
     }
     let second_points = sweep_jobs(&second, options.points).len();
     phase(2, "configurations", second_points, first_points + second_points + third_most + rounds * round_most);
-    let more = sweep_phase(registry, &second, animation, options, progress)?;
+    let more = sweep_phase(registry, &second, input, options, progress)?;
     result.points.extend(more.points);
     result.failures.extend(more.failures);
     result.decoded.extend(more.decoded);
@@ -386,7 +421,7 @@ pub fn envelope_sweep<'a>(
     let mut known = first_points + second_points + third_points;
     phase(3, "neighbours", third_points, known + rounds * round_most);
     if !third.is_empty() {
-        let more = sweep_phase(registry, &third, animation, options, progress)?;
+        let more = sweep_phase(registry, &third, input, options, progress)?;
         result.points.extend(more.points);
         result.failures.extend(more.failures);
         result.decoded.extend(more.decoded);
@@ -411,11 +446,11 @@ pub fn envelope_sweep<'a>(
             let series = all[job.curve];
             let step = job.position.ceil() as usize;
             progress(SweepEvent::Started { series: &series.label, step });
-            let measured = refined_point(registry, series, job, step, animation, options);
+            let measured = refined_point(registry, series, job, step, input, options);
             progress(SweepEvent::Finished { series: &series.label, step });
             measured
         };
-        for (job, measured) in jobs.iter().zip(in_pool(options.jobs, &jobs, run)?) {
+        for (job, measured) in jobs.iter().zip(in_pool(pool(input, options), &jobs, run)?) {
             match measured {
                 Ok(point) => result.points.push(point),
                 Err(e) => {
@@ -462,21 +497,13 @@ fn refined_point(
     series: &SweepSeries<'_>,
     job: &refine::Job,
     step: usize,
-    animation: &Animation,
+    input: SearchInput<'_>,
     options: &SweepOptions,
 ) -> Result<Point> {
     let ladder = series.ladder();
     let params = series.base.clone().with(&series.codec.param_specs(), ladder.param, job.value.clone())?;
     series.codec.validate(&params)?;
-    let (mut point, _, _) = measure_point_keeping(
-        registry,
-        series.codec,
-        &params,
-        (ladder.param, step),
-        animation,
-        &options.eval,
-        options.limits,
-    )?;
+    let (mut point, _) = measure_on(registry, series.codec, &params, (ladder.param, step), input, options, false)?;
     point.series.clone_from(&series.label);
     point.refined = true;
     Ok(point)

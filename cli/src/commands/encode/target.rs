@@ -90,15 +90,10 @@ fn prepare_search_input(
     };
     let options = args.read.options(args.fps);
     let need = |v: usize, f: usize| codecs.iter().map(|(c, _)| harness::whole_search_need(*c, v, f)).max().unwrap_or(0);
-    let path = std::path::Path::new(&args.input);
-    let source: Option<Box<dyn InputSource>> = match front::streamed_flag(&args.input)? {
-        Some((cols, rows, frames)) => {
-            check_flag_memory(&args.input, cols, rows, args.memory)?;
-            Some(Box::new(FlagSource::new(&args.input, cols, rows, frames, args.fps)))
-        }
-        None if cache_stream::is_streamable(path) => Some(Box::new(CacheSource::open(path, &options)?)),
-        None => None,
-    };
+    if let Some((cols, rows, _)) = front::streamed_flag(&args.input)? {
+        check_flag_memory(&args.input, cols, rows, args.memory)?;
+    }
+    let source = crate::commands::source::streamable(&args.input, &options, args.fps)?;
     let Some(source) = source else {
         let animation = load(&args.input, &options, limits, Streams::Refuse)?.animation;
         let whole = need(animation.vertex_count(), animation.frame_count());
@@ -176,62 +171,6 @@ fn prepare_search_input(
             let animation = load(&args.input, &options, limits, Streams::Refuse)?.animation;
             Ok(PreparedInput { input: SearchSource::Whole(animation), budget, note: None })
         }
-    }
-}
-
-/// `synth:flag:COLSxROWSxFRAMES` as a [`InputSource`]: its frames generated one at a time for
-/// every read, its mesh held.
-struct FlagSource {
-    name: String,
-    cols: usize,
-    rows: usize,
-    frames: usize,
-    frame_rate: f32,
-    topology: Topology,
-}
-
-impl FlagSource {
-    fn new(name: &str, cols: usize, rows: usize, frames: usize, fps: Option<f32>) -> Self {
-        let topology = synth::flag_topology(cols, rows);
-        Self { name: name.to_owned(), cols, rows, frames, frame_rate: fps.unwrap_or(synth::FRAME_RATE), topology }
-    }
-}
-
-/// A read of a [`FlagSource`]: the next frame to generate.
-struct FlagReader<'a> {
-    flag: &'a FlagSource,
-    next: usize,
-    frame: Vec<f32>,
-}
-
-impl FrameRead for FlagReader<'_> {
-    fn read_frames(&mut self, frames: usize, out: &mut Vec<f32>) -> animcodec::core::Result<usize> {
-        out.clear();
-        let n = frames.min(self.flag.frames - self.next);
-        for t in self.next..self.next + n {
-            synth::flag_frame(self.flag.cols, self.flag.rows, t, self.flag.frames, &mut self.frame);
-            out.extend_from_slice(&self.frame);
-        }
-        self.next += n;
-        Ok(n)
-    }
-}
-
-impl InputSource for FlagSource {
-    fn topology(&self) -> &Topology {
-        &self.topology
-    }
-    fn frame_count(&self) -> usize {
-        self.frames
-    }
-    fn frame_rate(&self) -> f32 {
-        self.frame_rate
-    }
-    fn open(&self) -> harness::Result<Box<dyn FrameRead + '_>> {
-        Ok(Box::new(FlagReader { flag: self, next: 0, frame: Vec::new() }))
-    }
-    fn name(&self) -> String {
-        self.name.clone()
     }
 }
 
