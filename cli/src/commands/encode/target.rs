@@ -325,13 +325,13 @@ pub(super) fn run_target(
         let knob = p.ladder_value().map_or_else(String::new, |v| format!("{}={v} ", p.ladder_param));
         bar.message(format!("last: {} {knob}→ {} at {:.3} bpvf", p.codec, target.reached_text(&p.report, 4), p.bpvf));
     };
-    let input = match (&prepared.input, &streamed_input) {
+    let mut input = match (&prepared.input, &streamed_input) {
         (_, Some(streamed)) => harness::SearchInput::Streamed(streamed),
         (SearchSource::Whole(animation), None) => harness::SearchInput::Whole(animation),
         (SearchSource::Streamed(_), None) => unreachable!("a streamed source has its streamed input"),
     };
-    // The search toward `aim` (the target; on a sample, below it).
-    let search = |aim: Target| {
+    // The search toward `aim` (the target; on a sample, below it) on `on`.
+    let search = |aim: Target, on: harness::SearchInput<'_>, sampled: bool| {
         let request = SearchRequest {
             eval,
             limits,
@@ -339,8 +339,8 @@ pub(super) fn run_target(
             progress: &progress,
             // A sample's candidates are measured for the search alone: --eval's figures are
             // the whole stream's.
-            measure_every_metric: args.eval && sample.is_none(),
-            ..SearchRequest::on(&registry, input, aim)
+            measure_every_metric: args.eval && !sampled,
+            ..SearchRequest::on(&registry, on, aim)
         };
         match &chosen {
             Some((codec, _)) if by_default && !args.ladder => {
@@ -356,16 +356,53 @@ pub(super) fn run_target(
             None => harness::search_space_target_auto(&request, &every_codec),
         }
     };
+    let missed = |found: &harness::Result<_>| {
+        matches!(found, Err(harness::EvalError::TargetMiss(_) | harness::EvalError::NoCodecMeetsTarget { .. }))
+    };
+    // On a sample, aiming below the target; should the sample miss that aim (a ladder that
+    // ends near the target), at the target itself (the whole is checked either way).
+    let sample_input = input;
+    let search_aiming = |aim: Target| match search(aim, sample_input, true) {
+        found if missed(&found) && aim != target => search(target, sample_input, true),
+        found => found,
+    };
     let mut aim = match sample {
         Some(_) => harness::scaled_target(target, |_| harness::SAMPLE_TARGET_MARGIN),
         None => target,
     };
-    let mut found = search(aim);
+    let mut found = if sample.is_some() { search_aiming(aim) } else { search(aim, input, false) };
+    // A sample that meets not even the target (its frames harder than the whole's: a ladder
+    // whose last step the whole input passes) leaves the decision to the whole input: every
+    // candidate measured on it, as without a sample.
+    let whole_input = match (&prepared.input, &sample) {
+        (SearchSource::Streamed(source), Some(_)) if missed(&found) => Some(
+            StreamedInput::new(
+                source.as_ref(),
+                prepared.budget.expect("a streamed search has a budget"),
+                args.feed as usize,
+                &eval,
+            )?
+            .giving_the_codec(codec_need.unwrap_or(0)),
+        ),
+        _ => None,
+    };
+    let sampled = sample.is_some() && whole_input.is_none();
+    if let Some(whole_input) = &whole_input {
+        let why = format!(
+            "no candidate met {target} on the sample of {} frames: every candidate is measured on the whole input \
+             instead",
+            input.frame_count()
+        );
+        eprintln!("animcodec: {why}");
+        notes.push(why);
+        input = harness::SearchInput::Streamed(whole_input);
+        found = search(target, input, false);
+    }
     // On a sample: the whole input encoded at the answer and measured, searched again aiming
     // lower by what the whole missed, up to SAMPLE_RETRIES times.
     let mut whole: Option<(harness::Point, PendingFile)> = None;
     let mut whole_encodes = 0;
-    if let (Some(_), Some(streamed)) = (&sample, &streamed_input) {
+    if let (true, Some(streamed)) = (sampled, &streamed_input) {
         let source = match &prepared.input {
             SearchSource::Streamed(source) => source.as_ref(),
             SearchSource::Whole(_) => unreachable!("a sample is of a streamed input"),
@@ -396,7 +433,7 @@ pub(super) fn run_target(
                     );
                     aim = next;
                     retries += 1;
-                    found = search(aim);
+                    found = search_aiming(aim);
                 }
                 Some(_) => {
                     let (p, _) = whole.take().expect("set above");
@@ -494,13 +531,13 @@ pub(super) fn run_target(
             default_target: by_default,
             search: if args.ladder { "ladder" } else { "space" },
             notes,
-            search_input: match (&sample, &streamed_input) {
-                (Some(_), _) => "sampled",
-                (None, Some(_)) => "streamed",
-                (None, None) => "whole",
+            search_input: match (sampled, &streamed_input) {
+                (true, _) => "sampled",
+                (false, Some(_)) => "streamed",
+                (false, None) => "whole",
             },
-            sample_frames: sample.as_ref().map(|s| s.frame_count()),
-            whole_encodes: sample.as_ref().map(|_| whole_encodes),
+            sample_frames: sample.as_ref().filter(|_| sampled).map(|s| s.frame_count()),
+            whole_encodes: sampled.then_some(whole_encodes),
             memory_budget: prepared.budget,
             memory_budget_default: args.memory.is_none() && prepared.budget.is_some(),
             ratio: raw_bytes(v, f) as f64 / p.bytes as f64,
@@ -519,7 +556,7 @@ pub(super) fn run_target(
          target {target}{default}: {codec} [{params}] reaches {reached} → {output}\n\
          {parts}{bytes} bytes, {rate:.3} bits/vertex/frame; searched {n} in {search_seconds:.2} s{fallback}\n",
         input = args.input,
-        read = if let Some(sample) = &sample {
+        read = if let Some(sample) = sample.as_ref().filter(|_| sampled) {
             format!(
                 "streamed: candidates measured on a sample of {} frames, the whole encoded and measured {}",
                 sample.frame_count(),
