@@ -295,8 +295,8 @@ pub(super) fn run_target(
             }),
         }
     }
-    if let Some(sample) = &sample {
-        notes.push(format!(
+    let sample_note = sample.as_ref().map(|sample| {
+        format!(
             "{} is over {} of coordinates: the candidates are measured on {} of its {} frames ({} windows of {} \
              frames spread over it, aiming {:.0} % below the target); the chosen parameters are then encoded over \
              the whole input and that stream is measured and reported (--no-sample measures every candidate on the \
@@ -308,10 +308,11 @@ pub(super) fn run_target(
             sample.windows().len(),
             sample.windows().first().map_or(0, |w| w.len()),
             (1.0 - harness::SAMPLE_TARGET_MARGIN) * 100.0,
-        ));
-    }
+        )
+    });
+    notes.extend(sample_note.iter().cloned());
     // Said once the search is sure to run (a refusal above is the one message).
-    for n in &notes {
+    for n in prepared.note.iter().chain(&sample_note) {
         eprintln!("animcodec: {n}");
     }
 
@@ -409,8 +410,26 @@ pub(super) fn run_target(
         };
         // The whole's figures: every --eval metric, or the target's.
         let checked = if args.eval { measured } else { target.eval_options(&measured) };
-        let mut retries = 0;
+        // What the whole missed by: the error, naming the last whole encode.
+        let whole_missed = |p: &harness::Point, searches: usize| -> Box<dyn std::error::Error + Send + Sync> {
+            format!(
+                "{}: the whole input at {} [{}] reached {}, missing the target {target}, after {searches} searches of \
+                 a sample of {} frames aiming lower each time; nothing was written. Give parameters (-p) for a \
+                 smaller error, or --no-sample to measure every candidate on the whole input",
+                args.input,
+                p.codec,
+                p.params,
+                target.reached_text(&p.report, 4),
+                streamed.source().frame_count(),
+            )
+            .into()
+        };
+        let mut searches = 1;
         while let Ok((hit, _)) = &found {
+            // A search again that lands where the whole missed before has nothing new to encode.
+            if let Some((last, _)) = whole.as_ref().filter(|(p, _)| p.params == hit.point.params) {
+                return Err(whole_missed(last, searches));
+            }
             whole_encodes += 1;
             let (point, file) = encode_whole(
                 args,
@@ -421,37 +440,23 @@ pub(super) fn run_target(
                 &checked,
                 &bar,
             )?;
-            let missed = !(harness::usable(&point) && target.meets(&point.report));
-            let aim_next = missed.then(|| lower_aim(aim, &hit.point, &point));
-            whole = Some((point, file));
-            match aim_next {
-                Some(next) if retries < SAMPLE_RETRIES => {
-                    let reached = whole.as_ref().map(|(p, _)| target.reached_text(&p.report, 4)).unwrap_or_default();
-                    eprintln!(
-                        "animcodec: the whole input reached {reached}, missing the target {target} its sample met: \
-                         searching the sample again aiming at {next}"
-                    );
-                    aim = next;
-                    retries += 1;
-                    found = search_aiming(aim);
-                }
-                Some(_) => {
-                    let (p, _) = whole.take().expect("set above");
-                    return Err(format!(
-                        "{}: the whole input at {} [{}] reached {}, missing the target {target}, after {} searches \
-                         of a sample of {} frames aiming lower each time; nothing was written. Give parameters \
-                         (-p) for a smaller error, or --no-sample to measure every candidate on the whole input",
-                        args.input,
-                        p.codec,
-                        p.params,
-                        target.reached_text(&p.report, 4),
-                        retries + 1,
-                        streamed.source().frame_count(),
-                    )
-                    .into());
-                }
-                None => break,
+            if harness::usable(&point) && target.meets(&point.report) {
+                whole = Some((point, file));
+                break;
             }
+            if searches > SAMPLE_RETRIES {
+                return Err(whole_missed(&point, searches));
+            }
+            let next = lower_aim(aim, &hit.point, &point);
+            eprintln!(
+                "animcodec: the whole input reached {}, missing the target {target} its sample met: searching the \
+                 sample again aiming at {next}",
+                target.reached_text(&point.report, 4)
+            );
+            whole = Some((point, file));
+            aim = next;
+            searches += 1;
+            found = search_aiming(aim);
         }
     }
     bar.finish();
