@@ -6,7 +6,9 @@
 # as a ratio to reading the raw file (`cat FILE > /dev/null`, same page cache state: the file was
 # just written). Prints one Markdown table row per codec and size. Then a second table: the
 # default command (no -p: the default-quality search, --eval) within the same --memory, per codec
-# and size (DEFAULT_ROWS=0 skips it; DEFAULT_ONLY=1 runs only it).
+# and size (DEFAULT_ROWS=0 skips it; DEFAULT_ONLY=1 runs only it). Its "search" column says how
+# the search read the input: streamed (every candidate over the whole input) or, over 1 GiB of
+# coordinates, sampled (candidates on a sample of the frames, the whole encoded and measured).
 #
 #   cargo build -p animcodec-cli --release
 #   bench/scale.sh 100x100x1000 400x250x1000 1000x1000x1000
