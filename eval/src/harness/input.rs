@@ -11,6 +11,7 @@ use std::time::Instant;
 
 use animcodec_io::formats::stream::CacheReader;
 use animcodec_io::formats::ReadOptions;
+use codec_core::limits::DEFAULT_MAX_MEMORY;
 use codec_core::memory::{MIB, PROCESS_BYTES};
 use codec_core::{Animation, AnimationCodec, CodecRegistry, Limits, ParamSet, SceneMetadata, Topology};
 use metrics::EvalOptions;
@@ -466,6 +467,12 @@ pub fn encode_source<W: Write>(
 /// The limits of a streamed measurement in `work_budget` bytes once the encoder is gone: the
 /// decoder gets what the measurement's window and frames ([`measure_bytes_held`]) leave;
 /// an error naming `codec` when they leave nothing.
+///
+/// The stream measured is one the search has just encoded, within its memory plan: the default
+/// decode bound ([`DEFAULT_MAX_MEMORY`], 1 GiB, a guard against hostile streams) gives way to
+/// the work share (at 1 000 000 vertices the metrics' window alone is ~0.9 GiB and a
+/// quant-delta packet of 32 frames 384 MB); a bound set otherwise (`--max-memory`) still
+/// applies.
 pub fn measurement_limits(
     codec: &'static str,
     work_budget: u64,
@@ -473,10 +480,10 @@ pub fn measurement_limits(
     topology: &Topology,
     eval: &EvalOptions,
 ) -> Result<Limits> {
-    let limits = Limits {
-        max_alloc_bytes: limits.max_alloc_bytes.min(usize::try_from(work_budget).unwrap_or(usize::MAX)),
-        ..limits
-    };
+    let work = usize::try_from(work_budget).unwrap_or(usize::MAX);
+    let max_alloc_bytes =
+        if limits.max_alloc_bytes == DEFAULT_MAX_MEMORY { work } else { limits.max_alloc_bytes.min(work) };
+    let limits = Limits { max_alloc_bytes, ..limits };
     Ok(limits.reserve(codec, "the streaming metrics' window and frames", measure_bytes_held(topology, eval))?)
 }
 
