@@ -182,6 +182,8 @@ pub fn run(args: &SweepArgs, limits: Limits) -> CmdResult {
             (Some(animation), None)
         }
     };
+    // The files the read opened (a .gltf's buffers, …) are inputs too: refused before the work.
+    policy.check_all(&outputs)?;
     let (series, streamed_input) = match &source {
         Some(source) => {
             let budget = sweep_budget(args).map_or(u64::MAX, |(b, _)| b);

@@ -1,7 +1,7 @@
 //! The evaluation harness behind `animcodec eval`, `animcodec sweep` and
 //! `animcodec encode --target`: rate-ladder sweeps, rate-distortion tables and plots, and
 //! target-error search. Everything here works on in-memory [`Animation`](codec_core::Animation)s
-//! so it can be tested without the binary.
+//! or on inputs read frame by frame ([`InputSource`]), so it can be tested without the binary.
 //!
 //! Modules by job, each importing only those above it in this list:
 //!

@@ -144,7 +144,9 @@ impl<'a> SweepSeries<'a> {
     }
 }
 
-/// Walks the rate ladder of every series on `animation`. `progress` hears of the one phase
+/// Walks the rate ladder of every series on `input`: an animation in memory, or a streamed input
+/// ([`SearchInput::Streamed`]: each point encoded from a read of it and measured against a
+/// second, one at a time within its memory budget). `progress` hears of the one phase
 /// (its points) and of every point as it starts and as it finishes (from worker threads;
 /// [`SweepEvent`]). Output order (series, then ladder step) does not depend on scheduling.
 pub fn sweep<'i>(
