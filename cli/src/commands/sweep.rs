@@ -253,7 +253,7 @@ pub fn run(args: &SweepArgs, limits: Limits) -> CmdResult {
             (None, Some(j)) => j.into(),
             (None, None) => "rayon".into(),
         }),
-        search_input: Some(if streamed_input.is_some() { "streamed" } else { "whole" }),
+        search_input: if streamed_input.is_some() { "streamed" } else { "whole" },
         ..SweepDocument::new(input, dims, &eval, &result)
     };
     if let Some(path) = args.json.as_ref().filter(|_| !to_stdout) {

@@ -334,11 +334,10 @@ pub struct SweepDocument {
     /// How the points were scheduled: a thread count, `"rayon"` (its pool), `"dask"`.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub jobs: Option<Value>,
-    /// How the input was read, when the caller says: `"whole"` (in memory) or `"streamed"`
+    /// How the input was read: `"whole"` (in memory; [`SweepDocument::new`]'s) or `"streamed"`
     /// (every point encoded from a read of the input and measured against a second, one at a
     /// time, within the memory budget).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub search_input: Option<&'static str>,
+    pub search_input: &'static str,
 }
 
 impl SweepDocument {
@@ -361,7 +360,7 @@ impl SweepDocument {
             },
             total_seconds: None,
             jobs: None,
-            search_input: None,
+            search_input: "whole",
         }
     }
 
