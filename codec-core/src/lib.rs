@@ -24,7 +24,7 @@ pub mod params;
 pub mod quant;
 pub mod registry;
 pub mod stream;
-#[cfg(feature = "testing")]
+#[cfg(any(test, feature = "testing"))]
 pub mod testing;
 pub mod toolkit;
 pub mod traversal;

@@ -1,6 +1,7 @@
 //! Support for tests: tests that depend on something outside the repository (the real
 //! animations in `../shared/data`, Node.js, a browser, Blender, usd-core), and the check every
-//! codec's parameter declaration passes ([`check_declared_params`]).
+//! codec's parameter declaration passes ([`check_declared_params`]), and a deterministic vertex
+//! renumbering ([`shuffled_permutation`]) for tests of numbering-dependent coding.
 //!
 //! A test that depends on something outside calls [`skip`] when what it needs is absent. By default the skip is announced on
 //! the process's real standard error — written past libtest's output capture, so it shows even
@@ -140,4 +141,25 @@ pub fn check_declared_params<P: DeclaredParams>() {
     }
     let foreign = ParamSet::defaults("no-such-codec", &specs);
     assert!(P::read_fields(&foreign).is_err(), "{codec}: read a parameter set of another codec");
+}
+
+/// A permutation of `0..n` in which each run of `window` consecutive indices is shuffled among
+/// itself by a xorshift generator started at `seed` (`window` ≥ `n`: the whole range): a local,
+/// irregular numbering like a real mesh's. The same arguments give the same permutation on
+/// every platform; golden streams depend on it, so its arithmetic must not change.
+///
+/// # Panics
+/// If `window` is 0 (when `n` > 0).
+pub fn shuffled_permutation(n: usize, window: usize, seed: u64) -> Vec<usize> {
+    let mut perm: Vec<usize> = (0..n).collect();
+    let mut s = seed;
+    for chunk in perm.chunks_mut(window) {
+        for i in (1..chunk.len()).rev() {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            chunk.swap(i, (s % (i as u64 + 1)) as usize);
+        }
+    }
+    perm
 }

@@ -625,19 +625,9 @@ pub(crate) mod tests {
     /// Each run of `window` consecutive vertex indices of `topo` shuffled among themselves by a
     /// deterministic xorshift from `seed` (`window` ≥ the vertex count: the whole numbering).
     pub(crate) fn shuffled_within(topo: &Topology, window: usize, seed: u64) -> Topology {
-        let n = topo.vertex_count();
-        let mut perm: Vec<u32> = (0..n as u32).collect();
-        let mut s = seed;
-        for chunk in perm.chunks_mut(window) {
-            for i in (1..chunk.len()).rev() {
-                s ^= s << 13;
-                s ^= s >> 7;
-                s ^= s << 17;
-                chunk.swap(i, (s % (i as u64 + 1)) as usize);
-            }
-        }
-        let tris = topo.triangles().iter().map(|t| t.map(|x| perm[x as usize])).collect();
-        Topology::new(n, tris).unwrap()
+        let perm = crate::testing::shuffled_permutation(topo.vertex_count(), window, seed);
+        let tris = topo.triangles().iter().map(|t| t.map(|x| perm[x as usize] as u32)).collect();
+        Topology::new(topo.vertex_count(), tris).unwrap()
     }
 
     #[test]

@@ -13,6 +13,7 @@ use std::path::{Path, PathBuf};
 
 use animcodec::synth;
 use codec_core::container::ContainerReader;
+use codec_core::testing::shuffled_permutation;
 use codec_core::{decode_animation, encode_animation, Animation, Limits, ParamValue};
 use conformance_tests::registry;
 
@@ -180,15 +181,7 @@ fn the_frames_hash_sees_one_bit() {
 /// `a` with its vertices renumbered by a deterministic (xorshift) shuffle.
 fn shuffled(a: &Animation) -> Animation {
     let n = a.vertex_count();
-    let mut perm: Vec<usize> = (0..n).collect();
-    let mut s = 0x9e37_79b9_7f4a_7c15u64;
-    for i in (1..n).rev() {
-        s ^= s << 13;
-        s ^= s >> 7;
-        s ^= s << 17;
-        perm.swap(i, (s % (i as u64 + 1)) as usize);
-    }
-    renumbered(a, &perm)
+    renumbered(a, &shuffled_permutation(n, n.max(1), 0x9e37_79b9_7f4a_7c15))
 }
 
 /// `a` with old vertex `v` renumbered `perm[v]`.
@@ -383,18 +376,7 @@ fn container_v4_metadata_golden() {
 /// `a` with each run of `window` consecutive vertex indices shuffled among themselves
 /// (deterministic xorshift): a local, irregular numbering.
 fn shuffled_within(a: &Animation, window: usize) -> Animation {
-    let n = a.vertex_count();
-    let mut perm: Vec<usize> = (0..n).collect();
-    let mut s = 0x2545_f491_4f6c_dd1du64;
-    for chunk in perm.chunks_mut(window) {
-        for i in (1..chunk.len()).rev() {
-            s ^= s << 13;
-            s ^= s >> 7;
-            s ^= s << 17;
-            chunk.swap(i, (s % (i as u64 + 1)) as usize);
-        }
-    }
-    renumbered(a, &perm)
+    renumbered(a, &shuffled_permutation(a.vertex_count(), window, 0x2545_f491_4f6c_dd1d))
 }
 
 /// hosvd stream version 4's column modes (regression on the leading `U1` columns,
