@@ -290,6 +290,83 @@ impl AnimationCodec for Freezing {
     }
 }
 
+/// quant-delta with its ladder cut at `bits` = the field (steps 4, 6, … up to it): a ladder
+/// that ends before the input's target (test only).
+struct ShortLadder(i64);
+
+impl AnimationCodec for ShortLadder {
+    fn name(&self) -> &'static str {
+        "short-ladder"
+    }
+    fn fourcc(&self) -> FourCc {
+        FourCc::new(b"TSLD")
+    }
+    fn stream_version(&self) -> u16 {
+        1
+    }
+    fn summary(&self) -> &'static str {
+        "quant-delta with a ladder that ends early (test only)"
+    }
+    fn param_specs(&self) -> Vec<ParamSpec> {
+        QuantDelta.param_specs()
+    }
+    fn rate_ladder(&self, _base: &ParamSet) -> RateLadder {
+        RateLadder { param: "bits", steps: (4..=self.0).step_by(2).map(ParamValue::Int).collect() }
+    }
+    fn validate(&self, params: &ParamSet) -> codec_core::Result<()> {
+        QuantDelta.validate(&as_quant_delta(params)?)
+    }
+    fn error_bound(&self, params: &ParamSet, animation: &Animation) -> codec_core::Result<ErrorBound> {
+        QuantDelta.error_bound(&as_quant_delta(params)?, animation)
+    }
+    fn new_encoder(&self, params: &ParamSet, setup: &EncoderSetup<'_>) -> codec_core::Result<Box<dyn FrameEncoder>> {
+        QuantDelta.new_encoder(&as_quant_delta(params)?, setup)
+    }
+    fn new_decoder(
+        &self,
+        info: &StreamInfo,
+        config: &[u8],
+        limits: &Limits,
+    ) -> codec_core::Result<Box<dyn FrameDecoder>> {
+        QuantDelta.new_decoder(info, config, limits)
+    }
+}
+
+/// A default-quality search whose every ladder step misses its target continues the ladder's
+/// progression (`harness::BEYOND_LADDER_STEPS` steps) and lands where the full ladder does;
+/// past those steps it reports the miss.
+#[test]
+fn the_default_search_continues_past_a_ladder_that_ends_too_soon() {
+    let eval = EvalOptions::default();
+    let anim = small();
+    let registry = animcodec::registry();
+    // Fine enough that the answer lies a few steps up quant-delta's ladder.
+    let fine = Target::new(TargetMetric::Kg, 0.02);
+    let full = harness::search_default_quality(
+        &request(&registry, &anim, fine, &eval, 0),
+        registry.by_name("quant-delta").unwrap(),
+    )
+    .unwrap();
+    let bits = full.point.params.int("bits").unwrap();
+    assert!(bits >= 10, "the input must need a ladder of at least two steps below the answer: bits={bits}");
+    // Cut two steps below the answer: the last step and the next past it miss, the second passes.
+    let short = CodecRegistry::new(vec![Box::new(ShortLadder(bits - 4))]).unwrap();
+    let codec = short.by_name("short-ladder").unwrap();
+    let hit = harness::search_default_quality(&request(&short, &anim, fine, &eval, 0), codec).unwrap();
+    assert_eq!(hit.point.params.int("bits").unwrap(), bits);
+    assert_eq!(hit.point.report.kg, full.point.report.kg);
+    assert!(hit.tried.iter().any(|p| p.params.int("bits").unwrap() == bits - 2 && !fine.meets(&p.report)));
+    // Cut further below than the continuation reaches: the miss is reported, having measured
+    // the ladder's last step and every continued one.
+    let far = CodecRegistry::new(vec![Box::new(ShortLadder(6))]).unwrap();
+    let codec = far.by_name("short-ladder").unwrap();
+    let hard = Target::new(TargetMetric::Kg, 1e-9);
+    let e = harness::search_default_quality(&request(&far, &anim, hard, &eval, 0), codec).unwrap_err();
+    let harness::EvalError::TargetMiss(miss) = e else { panic!("expected a miss, got {e}") };
+    let reached = 6 + 2 * harness::BEYOND_LADDER_STEPS as i64;
+    assert_eq!(miss.best.as_ref().unwrap().params.int("bits").unwrap(), reached, "{miss}");
+}
+
 /// A STED search also measures each configuration's smallest step, which a search that
 /// brackets the target (assuming the error grows toward small streams) never reaches; a KG
 /// search does not.

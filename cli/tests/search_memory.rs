@@ -115,7 +115,9 @@ fn a_sampled_search_reports_and_writes_the_whole_inputs_stream() {
 /// A sample harder than the whole input leaves the choice to the whole input: every candidate
 /// measured on it, as with --no-sample, said on stderr and in the notes. samba under hosvd
 /// in 20-frame blocks (`--memory 160M`) is one: the sample's 4 windows of 20 frames reach STED
-/// 0.0537 at the ladder's last step (`ss=0.5`), the whole 0.0492 (the bound is 0.05).
+/// 0.0537 at the ladder's last step (`ss=0.5`), the whole 0.0492 (the bound is 0.05). The
+/// ladder-only target search shows it (`--target … --ladder`): the default search would
+/// continue the ladder past its end, where the sample meets the bound.
 #[test]
 fn a_sample_that_meets_nothing_hands_the_search_to_the_whole_input() {
     let Some(samba) = common::shared_data("samba/samba.pc2") else {
@@ -127,7 +129,20 @@ fn a_sample_that_meets_nothing_hands_the_search_to_the_whole_input() {
     let s = Scratch::new("search-memory-sample-misses");
     let samba = samba.display().to_string();
     let (sampled, whole) = (s.path("sampled.anim"), s.path("whole.anim"));
-    let args = ["encode", &samba, "-c", "hosvd", "--memory", "160M", "--sample-above", "1M", "-f"];
+    let args = [
+        "encode",
+        &samba,
+        "-c",
+        "hosvd",
+        "--target",
+        "kg=0.5,sted=0.05",
+        "--ladder",
+        "--memory",
+        "160M",
+        "--sample-above",
+        "1M",
+        "-f",
+    ];
     let o = common::animcodec(&[&args[..], &["-o", &sampled, "--json"]].concat());
     assert!(o.status.success(), "{}", common::stderr(&o));
     let j: Value = serde_json::from_slice(&o.stdout).unwrap();

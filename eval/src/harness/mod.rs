@@ -50,7 +50,9 @@ mod sweep;
 pub(crate) mod target;
 
 pub use curve::{envelope, joint_envelope, monotone_report, Monotonicity};
-pub use default_quality::{search_default_quality, DEFAULT_QUALITY_BAND, DEFAULT_REFINE_BAND, DEFAULT_TARGET};
+pub use default_quality::{
+    search_default_quality, BEYOND_LADDER_STEPS, DEFAULT_QUALITY_BAND, DEFAULT_REFINE_BAND, DEFAULT_TARGET,
+};
 pub use input::{
     encode_source, encoder_need, least_streamed_budget, least_work_budget, measure_point_streamed,
     measure_stream_against, measurement_limits, whole_search_need, work_share, CacheSource, FrameRead, InputSource,
