@@ -29,7 +29,7 @@ pub const DEFAULT_QUALITY_BAND: f64 = 3.0;
 pub const DEFAULT_REFINE_BAND: f64 = 1.25;
 
 /// How many steps past its last the default encode continues a rate ladder whose every step
-/// misses the target ([`beyond_ladder`]), before it reports the miss.
+/// misses the target (continuing its last two steps' progression), before it reports the miss.
 pub const BEYOND_LADDER_STEPS: usize = 4;
 
 /// The default encode (no parameters, no target): one encode at the codec's defaults, kept
