@@ -37,7 +37,9 @@ pub const BEYOND_LADDER_STEPS: usize = 4;
 /// short clip the codec's size model overshoots, a smooth one it undershoots) the search
 /// starts from there: it gallops along the rate ladder towards the target (1, 2, 4 … steps),
 /// bisects the bracket it finds, and refines between the two ladder steps up to `refine`
-/// times while the answer is more than [`DEFAULT_REFINE_BAND`] below the target. Typically
+/// times while the answer is more than [`DEFAULT_REFINE_BAND`] below the target. When every
+/// step misses, the last included, it continues the ladder [`BEYOND_LADDER_STEPS`] steps past
+/// its end, and refines likewise between the last miss and the first pass. Typically
 /// one to four encodes; the whole declared parameter space
 /// ([`search_space_target`](super::search_space_target)) is for an explicit `--target`, where
 /// tens of encodes buy smaller streams.
