@@ -349,7 +349,7 @@ fn the_default_search_continues_past_a_ladder_that_ends_too_soon() {
     .unwrap();
     let bits = full.point.params.int("bits").unwrap();
     assert!(bits >= 10, "the input must need a ladder of at least two steps below the answer: bits={bits}");
-    // Cut two steps below the answer: the last step and the next past it miss, the second passes.
+    // Cut two steps below the answer: the last step and the first past it miss, the second passes.
     let short = CodecRegistry::new(vec![Box::new(ShortLadder(bits - 4))]).unwrap();
     let codec = short.by_name("short-ladder").unwrap();
     let hit = harness::search_default_quality(&request(&short, &anim, fine, &eval, 0), codec).unwrap();
