@@ -5,7 +5,7 @@
 use codec_core::{Animation, AnimationCodec, CodecRegistry, ParamSet, ParamValue};
 
 use super::measured::Point;
-use super::point::ladder_params;
+use super::point::{ladder_params, round_to};
 use super::search::{midpoint, SearchRequest};
 use super::target::{meets, usable, Target, TargetHit, TargetMetric, TargetMiss};
 use crate::error::{EvalError, Result};
@@ -111,6 +111,11 @@ pub fn search_default_quality(request: &SearchRequest<'_>, codec: &dyn Animation
         stride *= 2;
     }
     let specs = codec.param_specs();
+    // The parameters with the ladder's parameter at `value` (between or past its steps), if
+    // the codec takes them.
+    let with_value = |value: &ParamValue| {
+        base.clone().with(&specs, ladder.param, value.clone()).ok().filter(|params| codec.validate(params).is_ok())
+    };
     // The bracket to refine in: a failing and a passing value, and the passing ladder position.
     let mut bracket = None;
     if let (Some(mut f), Some(mut p)) = (fail, pass) {
@@ -133,10 +138,7 @@ pub fn search_default_quality(request: &SearchRequest<'_>, codec: &dyn Animation
         let mut last_fail = ladder.steps[n - 1].clone();
         for k in 1..=BEYOND_LADDER_STEPS {
             let Some(value) = beyond_ladder(&ladder.steps, k) else { break };
-            let Ok(params) = base.clone().with(&specs, ladder.param, value.clone()) else { break };
-            if codec.validate(&params).is_err() {
-                break;
-            }
+            let Some(params) = with_value(&value) else { break };
             if measure(&params, n - 1, &mut tried, &mut rejected)? {
                 bracket = Some((last_fail, value, n - 1));
                 break;
@@ -155,10 +157,7 @@ pub fn search_default_quality(request: &SearchRequest<'_>, codec: &dyn Animation
                     target.error(&pt.report).is_some_and(|v| v < target.level() / DEFAULT_REFINE_BAND)
                 });
             let Some(mid) = midpoint(&fail_value, &pass_value).filter(|_| far_below) else { break };
-            let Ok(params) = base.clone().with(&specs, ladder.param, mid.clone()) else { break };
-            if codec.validate(&params).is_err() {
-                break;
-            }
+            let Some(params) = with_value(&mid) else { break };
             if measure(&params, p, &mut tried, &mut rejected)? {
                 pass_value = mid;
             } else {
@@ -167,10 +166,9 @@ pub fn search_default_quality(request: &SearchRequest<'_>, codec: &dyn Animation
         }
     }
     let mut best = tried.iter().filter(|(p, _)| usable(p) && meets(target, p)).min_by_key(|(p, _)| p.bytes).cloned();
-    // When the codec refused candidates (hosvd on a two-frame static pose
-    // refuses its default `ss` and every larger one, and the gallop after a miss only climbs),
-    // nothing passed and the refusals may hide steps that work: scan the rest of the ladder
-    // (short; a refusal costs no encode).
+    // When the codec refused candidates and nothing passed (the gallop after a miss only
+    // climbs), the refusals may hide steps that work: scan the rest of the ladder (short; a
+    // refusal costs no encode).
     if best.is_none() && !rejected.is_empty() {
         let seen: Vec<usize> = tried.iter().map(|(p, _)| p.ladder_index).collect();
         for i in (0..n).filter(|i| !seen.contains(i) && *i != first) {
@@ -208,8 +206,7 @@ pub(crate) fn beyond_ladder(steps: &[ParamValue], k: usize) -> Option<ParamValue
     match (previous, last) {
         (ParamValue::Float(a), ParamValue::Float(b)) if *a > 0.0 && *b > 0.0 && a != b => {
             let x = b * (b / a).powi(i32::try_from(k).ok()?);
-            let unit = 10f64.powf(x.log10().floor() - 1.0);
-            let x = format!("{:.12}", (x / unit).round() * unit).parse::<f64>().ok()?;
+            let x = round_to(x, 10f64.powf(x.log10().floor() - 1.0));
             (x.is_finite() && x > 0.0).then_some(ParamValue::Float(x))
         }
         (ParamValue::Int(a), ParamValue::Int(b)) if a != b => {

@@ -154,8 +154,13 @@ pub(crate) fn round_between(a: f64, b: f64, t: f64) -> Option<f64> {
     if a == b {
         return None;
     }
-    let unit = 10f64.powf(((b - a).abs().log10() - 2.0).floor());
-    let x = ((a + t * (b - a)) / unit).round() * unit;
-    let x = format!("{x:.12}").parse::<f64>().unwrap_or(x);
+    let x = round_to(a + t * (b - a), 10f64.powf(((b - a).abs().log10() - 2.0).floor()));
     (x.is_finite() && x != a && x != b).then_some(x)
+}
+
+/// `x` rounded to a multiple of `unit` (a power of ten), printed digits and all: 0.031, not
+/// 0.031000000000000003.
+pub(crate) fn round_to(x: f64, unit: f64) -> f64 {
+    let x = (x / unit).round() * unit;
+    format!("{x:.12}").parse::<f64>().unwrap_or(x)
 }
